@@ -1,0 +1,35 @@
+# rcand_add_plugin(<target> MANIFEST <file.json> SOURCES <src>... [OUTPUT_DIR <dir>] [ALLOW_UNDEFINED])
+#
+# Builds an rcand plugin: a MODULE library named as the manifest's "library", with hidden visibility (only
+# the entry symbol is exported) and -Wl,--no-undefined (a missing symbol fails the build, never the robot).
+# The manifest is copied next to the library, so the output directory is a complete plugin directory.
+function(rcand_add_plugin target)
+  cmake_parse_arguments(PLUGIN "ALLOW_UNDEFINED" "MANIFEST;OUTPUT_DIR" "SOURCES" ${ARGN})
+  if(NOT PLUGIN_MANIFEST)
+    message(FATAL_ERROR "rcand_add_plugin(${target}): MANIFEST is required")
+  endif()
+  if(NOT PLUGIN_OUTPUT_DIR)
+    if(DEFINED RCAND_PLUGIN_OUTPUT_DIR)
+      set(PLUGIN_OUTPUT_DIR ${RCAND_PLUGIN_OUTPUT_DIR})
+    else()
+      set(PLUGIN_OUTPUT_DIR ${CMAKE_CURRENT_BINARY_DIR}/plugins)
+    endif()
+  endif()
+  get_filename_component(_manifest ${PLUGIN_MANIFEST} ABSOLUTE)
+  file(READ ${_manifest} _manifest_text)
+  string(JSON _library GET "${_manifest_text}" library)
+  get_filename_component(_library_name ${_library} NAME_WE)
+
+  add_library(${target} MODULE ${PLUGIN_SOURCES})
+  target_link_libraries(${target} PRIVATE rcand::sdk)
+  set_target_properties(${target} PROPERTIES
+    PREFIX "" OUTPUT_NAME ${_library_name} SUFFIX ".so"
+    LIBRARY_OUTPUT_DIRECTORY ${PLUGIN_OUTPUT_DIR}
+    CXX_VISIBILITY_PRESET hidden VISIBILITY_INLINES_HIDDEN ON)
+  if(NOT PLUGIN_ALLOW_UNDEFINED)
+    target_link_options(${target} PRIVATE -Wl,--no-undefined)
+  endif()
+  get_filename_component(_manifest_name ${_manifest} NAME)
+  configure_file(${_manifest} ${PLUGIN_OUTPUT_DIR}/${_manifest_name} COPYONLY)
+  set_property(TARGET ${target} PROPERTY RCAND_MANIFEST ${_manifest})
+endfunction()

@@ -1,0 +1,44 @@
+// A capability (§9): a named feature with HTTP routes. Standard names are status, nav, teleop, vision,
+// chat and arm; custom ones are reverse-domain (com.acme.gripper) and serve under /api/cap/<name>/.
+#pragma once
+
+#include <functional>
+#include <string>
+#include <vector>
+
+#include "rcand/sdk/http.hpp"
+#include "rcand/sdk/scope.hpp"
+
+namespace rcand::sdk {
+
+struct Route {
+  std::string method;  // "GET", "POST", ...
+  // Standard capabilities: the absolute path ("/api/nav/waypoint"). Custom capabilities: the path below
+  // "/api/cap/<name>" ("/grip" serves "/api/cap/com.acme.gripper/grip"; "" serves the prefix itself).
+  std::string path;
+  Scope scope = Scope::Control;  // the kernel raises custom capabilities' routes to at least Control (§9.4)
+  bool motion = false;           // true: refused with 423 while the e-stop is latched, before the handler runs
+  // For POST /api/action only: the body "type" this route serves ("move", "stop", "grip", ...).
+  std::string action_type;
+  // Runs on the capability's own worker thread ("cap.<name>"), one request at a time. May block, up to
+  // runtime.handler_timeout_ms, after which the caller gets 503 and the capability is marked failed.
+  // Exceptions are caught by the kernel: the caller gets 500 INTERNAL and the capability is marked failed.
+  std::function<Response(const Request&)> handler;
+};
+
+class RCAND_INTERFACE Capability {
+ public:
+  virtual ~Capability() = default;
+  // Main thread, once, after construction. May block briefly. Throw to fail the instance.
+  virtual void start() {}
+  // Main thread, once, after start(). The routes this capability serves.
+  virtual std::vector<Route> routes() = 0;
+  // I/O thread, for GET /api/status (under "capabilities.<name>"). Thread-safe; must not block.
+  virtual Json status() const { return Json::object(); }
+  // The stop path, right after every actuating driver halted. Cancel running jobs; must not block.
+  virtual void on_estop() noexcept {}
+  // Main thread, once, at shutdown. Stop jobs and return; the kernel joins the workers afterwards.
+  virtual void shutdown() noexcept {}
+};
+
+}  // namespace rcand::sdk

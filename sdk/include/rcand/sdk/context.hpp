@@ -1,0 +1,35 @@
+// What the kernel hands a plugin instance. The context outlives the instance; references it returns stay
+// valid for the instance's life.
+#pragma once
+
+#include <string_view>
+
+#include "rcand/sdk/clock.hpp"
+#include "rcand/sdk/config_view.hpp"
+#include "rcand/sdk/estop_view.hpp"
+#include "rcand/sdk/logger.hpp"
+#include "rcand/sdk/motion_gate.hpp"
+#include "rcand/sdk/worker.hpp"
+
+namespace rcand::sdk {
+
+// Every method: any thread, never blocks, never throws except worker() on an invalid name.
+class RCAND_INTERFACE PluginContext {
+ public:
+  virtual ~PluginContext() = default;
+  virtual std::string_view plugin_id() const noexcept = 0;    // the manifest id, e.g. "com.acme.gripper"
+  virtual std::string_view instance_id() const noexcept = 0;  // capability name, or the driver's config `id`
+  virtual Logger& log() noexcept = 0;                          // spdlog logger "plugin.<id>"
+  virtual const Clock& clock() const noexcept = 0;
+  virtual EstopView& estop() noexcept = 0;
+  virtual MotionGate& motion() noexcept = 0;
+  // This instance's own settings, validated against the manifest's "config" schema with defaults filled in:
+  // a driver's `drivers[]` entry, or a capability's `runtime.capabilities.<name>` block.
+  virtual const ConfigView& config() const noexcept = 0;
+  // The whole robot config (.rcan.yaml) as JSON, without the `runtime.auth` secrets.
+  virtual const ConfigView& robot_config() const noexcept = 0;
+  // A named worker thread ("<instance>.<name>"), created on first use, joined by the kernel at shutdown.
+  virtual Worker& worker(std::string_view name) = 0;
+};
+
+}  // namespace rcand::sdk
