@@ -6,6 +6,7 @@
 #include <string>
 #include <vector>
 
+#include "rcand/sdk/export.hpp"
 #include "rcand/sdk/http.hpp"
 #include "rcand/sdk/scope.hpp"
 

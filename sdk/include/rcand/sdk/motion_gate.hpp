@@ -37,6 +37,9 @@ class RCAND_INTERFACE MotionGate {
   virtual void halt(std::string_view actuator_id) noexcept = 0;
   // Any thread, never blocks.
   virtual std::vector<ActuatorInfo> actuators() const = 0;
+  // Handler or worker thread. Reads an actuator's state; never refused by the e-stop, because reading moves
+  // nothing (the reader gets a const reference). UnknownActuator / ActuatorFailed as for actuate().
+  virtual GateStatus inspect(std::string_view actuator_id, const std::function<void(const ActuatorDriver&)>& reader) const = 0;
 
   // The first actuator implementing `interface`, if any.
   std::optional<std::string> first_actuator(std::string_view interface) const {
@@ -50,6 +53,16 @@ class RCAND_INTERFACE MotionGate {
     bool wrong_interface = false;
     const GateStatus status = actuate(actuator_id, [&](ActuatorDriver& actuator) {
       if (auto* typed = dynamic_cast<T*>(&actuator)) command(*typed);
+      else wrong_interface = true;
+    });
+    return wrong_interface ? GateStatus::WrongInterface : status;
+  }
+
+  // inspect() with the actuator viewed as const T.
+  template <class T, class F> GateStatus inspect_as(std::string_view actuator_id, F&& reader) const {
+    bool wrong_interface = false;
+    const GateStatus status = inspect(actuator_id, [&](const ActuatorDriver& actuator) {
+      if (auto* typed = dynamic_cast<const T*>(&actuator)) reader(*typed);
       else wrong_interface = true;
     });
     return wrong_interface ? GateStatus::WrongInterface : status;

@@ -1,0 +1,66 @@
+// Deny-by-default request authorization (notes §3): pre-shared tokens (stored as SHA-256 hashes) and HS256 JWTs.
+#pragma once
+
+#include <cstdint>
+#include <optional>
+#include <string>
+#include <string_view>
+#include <variant>
+#include <vector>
+
+#include "rcand/kernel/auth/ruri.hpp"
+#include "rcand/sdk/scope.hpp"
+
+namespace rcand::kernel {
+
+struct PresharedToken {
+  std::string principal;
+  sdk::Role role;
+  std::string sha256_hex;  // of the token; 64 hex digits (either case)
+};
+
+struct AuthSettings {
+  bool open_mode = false;                 // explicit "no auth" (the kernel refuses it off loopback)
+  std::optional<std::string> jwt_secret;  // HS256 secret bytes; nullopt = JWTs are not accepted
+  std::vector<PresharedToken> tokens;
+  std::string robot_ruri;                 // for aud
+  std::string device_id;                  // for fleet
+};
+
+struct Principal {
+  std::string name;
+  sdk::Role role = sdk::Role::Guest;
+  std::vector<sdk::Scope> scopes;
+  std::string via;  // "token" | "jwt" | "open" | "anonymous"
+};
+
+struct AuthError {
+  int status = 401;
+  std::string code = "UNAUTHORIZED";  // or "INSUFFICIENT_PRIVILEGES" with status 403
+  std::string message;                // never contains the token or the secret
+};
+
+class Authenticator {
+ public:
+  // Throws std::invalid_argument naming the setting at fault: a stored hash that is not 64 hex digits, an empty JWT
+  // secret, or (when a JWT secret is set) a robot_ruri that does not parse.
+  explicit Authenticator(AuthSettings settings);
+
+  // `bearer`: the credential without "Bearer " (nullopt when absent). Scope::None always passes (principal "anonymous").
+  // Thread-safe and lock-free: the object is immutable after construction.
+  std::variant<Principal, AuthError> authorize(std::optional<std::string_view> bearer, sdk::Scope needed,
+                                               std::int64_t now_s) const;
+  bool open_mode() const noexcept;
+
+ private:
+  std::variant<Principal, AuthError> authorize_jwt(std::string_view token, sdk::Scope needed, std::int64_t now_s) const;
+  std::variant<Principal, AuthError> authorize_preshared(std::string_view token, sdk::Scope needed) const;
+
+  AuthSettings settings_;
+  std::optional<Ruri> robot_;  // settings_.robot_ruri, parsed once
+};
+
+// Splits "Bearer <t>" (case-insensitive scheme); nullopt when absent or another scheme.
+std::optional<std::string_view> bearer_token(std::string_view authorization_header);
+
+}  // namespace rcand::kernel

@@ -1,0 +1,114 @@
+// The robot's `.rcan.yaml` file (notes §10), loaded, validated against one schema table and turned into typed settings.
+#pragma once
+
+#include <nlohmann/json.hpp>
+
+#include <cstdint>
+#include <filesystem>
+#include <map>
+#include <optional>
+#include <stdexcept>
+#include <string>
+#include <string_view>
+#include <vector>
+
+namespace rcand::kernel {
+
+// 1-based line and column; line 0 means the problem is about the file as a whole (missing, unreadable).
+struct SourceMark {
+  std::string file;
+  int line = 0;
+  int column = 0;
+};
+
+struct ConfigDiagnostic {
+  enum class Severity { Error, Warning };
+  Severity severity = Severity::Error;
+  SourceMark mark;
+  // The key at fault ("physics.wheel_circumference_m", "drivers[1].id"). For an unknown key it is the enclosing block
+  // ("" at top level), because the unknown name itself is quoted in the message.
+  std::string key_path;
+  std::string message;
+  // "file:line:column: error: key.path: message"; ":line:column" is left out when line is 0, "key.path: " when empty.
+  std::string format() const;
+};
+
+// Thrown when the file has at least one error. Carries every error found, plus the warnings, sorted by position.
+class ConfigError : public std::runtime_error {  // what() = all diagnostics formatted, one per line
+ public:
+  explicit ConfigError(std::vector<ConfigDiagnostic> diagnostics);
+  const std::vector<ConfigDiagnostic>& diagnostics() const noexcept;
+
+ private:
+  std::vector<ConfigDiagnostic> diagnostics_;
+};
+
+struct TokenEntry {
+  std::string principal;
+  std::string role;        // canonical upper-case role name ("OWNER"), whatever case the file used
+  std::string sha256_hex;  // 64 lowercase hex chars: the SHA-256 of the token (plain tokens are never stored)
+};
+
+struct AuthConfig {
+  std::string mode = "tokens";                           // "tokens" | "open"
+  std::optional<std::filesystem::path> jwt_secret_file;  // absolute after loading
+  std::vector<TokenEntry> tokens;
+};
+
+struct RuntimeConfig {
+  std::string listen_address = "127.0.0.1";
+  std::optional<std::uint16_t> listen_port;
+  std::vector<std::filesystem::path> plugin_paths;  // absolute after loading
+  AuthConfig auth;
+  std::string log_level = "info";
+  std::filesystem::path swarm_file = "/etc/rcand/swarm.yaml";  // absolute after loading (relative ones resolve like plugin_paths)
+  int handler_timeout_ms = 10000;
+  nlohmann::json capabilities = nlohmann::json::object();  // name -> settings (a mapping; `name:` with no value gives {})
+  nlohmann::json r2r = nlohmann::json::object();
+};
+
+struct DriverEntry {
+  std::string id;
+  std::string protocol;
+  nlohmann::json settings;  // the whole entry, as written (validated later against the plugin's manifest)
+};
+
+struct RobotConfig {
+  std::filesystem::path source_file;
+  nlohmann::json doc;                       // the whole document as JSON, defaults NOT filled in (what the operator wrote)
+  std::map<std::string, SourceMark> marks;  // key path -> where it was written ("" is the document itself)
+  std::string rcan_version;
+  std::string robot_name, robot_uuid, manufacturer, model;
+  std::optional<std::string> ruri;
+  bool has_agent = false, has_camera = false;
+  std::optional<double> min_obstacle_m;  // agent.min_obstacle_m, or safety.obstacle_stop_cm / 100
+  std::optional<double> wheel_circumference_m, turn_time_per_deg_s;
+  double max_wheel_rps = 1.0;
+  bool has_kinematics = false;
+  std::vector<DriverEntry> drivers;
+  std::uint16_t rcan_port = 8000;
+  std::optional<std::vector<std::string>> capabilities;  // nullopt when the key is absent (auto-detect)
+  bool enable_mdns = false, enable_jwt = true;
+  bool estop_on_startup = false;
+  int watchdog_ms = 500;
+  double max_linear_speed = 1.0;
+  RuntimeConfig runtime;
+  std::uint16_t listen_port() const { return runtime.listen_port.value_or(rcan_port); }
+  // Where `key_path` was written, or the nearest written ancestor's mark.
+  SourceMark mark_of(std::string_view key_path) const;
+};
+
+struct LoadedConfig {
+  RobotConfig config;
+  std::vector<ConfigDiagnostic> warnings;
+};
+
+// Throws ConfigError carrying every error found (a missing/unreadable file is one error with line 0).
+LoadedConfig load_robot_config(const std::filesystem::path& file);
+// Same, from text; `display_name` is used in marks, `base_dir` resolves relative paths.
+LoadedConfig parse_robot_config(std::string_view yaml, const std::string& display_name, const std::filesystem::path& base_dir);
+// Edit distance helper used for "did you mean" (also useful to other modules). Case-insensitive; nullopt when nothing
+// is close enough to be a plausible typo. Ties go to the earliest candidate.
+std::optional<std::string> closest_match(std::string_view word, const std::vector<std::string>& candidates);
+
+}  // namespace rcand::kernel

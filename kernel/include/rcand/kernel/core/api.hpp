@@ -1,0 +1,58 @@
+// The HTTP API (notes §7): routing, authentication, the audit record before dispatch, the e-stop pre-check for
+// motion routes, and dispatch to capability workers. Runs on the server's I/O threads and never blocks there:
+// capability handlers run on their own workers; the stop path runs inline and touches no queue or worker.
+#pragma once
+
+#include <atomic>
+#include <chrono>
+#include <string>
+
+#include "rcand/kernel/auth/authenticator.hpp"
+#include "rcand/kernel/config/robot_config.hpp"
+#include "rcand/kernel/core/audit_log.hpp"
+#include "rcand/kernel/core/capability_registry.hpp"
+#include "rcand/kernel/core/estop.hpp"
+#include "rcand/kernel/core/plugin_runtime.hpp"
+#include "rcand/kernel/core/worker_thread.hpp"
+#include "rcand/kernel/http/server.hpp"
+
+namespace rcand::kernel {
+
+struct ApiContext {
+  const RobotConfig& config;
+  const Authenticator& auth;
+  const CapabilityRegistry& registry;
+  const PluginHost& host;
+  PluginRuntime& runtime;
+  Estop& estop;
+  AuditLog& audit;
+  const sdk::Clock& clock;
+  WorkerThread& timers;  // handler timeouts
+  std::chrono::milliseconds handler_timeout;
+  std::string version;
+  std::int64_t started_us = 0;
+  std::atomic<std::uint16_t> port{0};
+};
+
+class Api {
+ public:
+  explicit Api(ApiContext& context) : ctx_(context) {}
+  // I/O thread; never blocks.
+  void handle(http::Request&& request, http::Respond respond);
+
+  // idle | running | error | estop (notes §5 status values).
+  std::string robot_state() const;
+  nlohmann::json status_document() const;
+  nlohmann::json discovery_document() const;
+
+ private:
+  struct Caller;
+  void handle_kernel(const std::string& endpoint, http::Request& request, const Caller& caller, http::Respond& respond);
+  void handle_capability(CapabilityInstance& instance, const sdk::Route& route, http::Request& request,
+                         nlohmann::json body, const Caller& caller, http::Respond respond);
+
+  ApiContext& ctx_;
+  std::atomic<std::uint64_t> message_counter_{0};
+};
+
+}  // namespace rcand::kernel

@@ -1,0 +1,58 @@
+// rcand assembled: config → plugins → capability registry → safety → HTTP. Embeddable (tests, benchmarks);
+// the daemon's main is a thin wrapper around it.
+#pragma once
+
+#include <filesystem>
+#include <memory>
+#include <optional>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "rcand/kernel/config/robot_config.hpp"
+#include "rcand/kernel/core/capability_registry.hpp"
+#include "rcand/kernel/plugin_host/plugin_host.hpp"
+
+namespace rcand::kernel {
+
+inline constexpr std::string_view kRcandVersion = "0.1.0";
+
+// A startup refusal that is not a config-file error (unsafe auth mode, unreadable secret, port in use).
+class StartupError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+struct KernelOptions {
+  std::optional<std::vector<std::filesystem::path>> plugin_paths;  // replaces runtime.plugin_paths
+  std::optional<std::uint16_t> port;                               // replaces the configured port
+};
+
+// Admin-installed plugins first (they are found first, so they win), then the packaged ones.
+std::vector<std::filesystem::path> default_plugin_paths();
+
+class Api;
+
+class Kernel {
+ public:
+  // Loads plugins and plans capabilities. Throws ConfigError (with file:line:column) or StartupError.
+  Kernel(RobotConfig config, KernelOptions options = {});
+  ~Kernel();  // shutdown()
+  Kernel(const Kernel&) = delete;
+  Kernel& operator=(const Kernel&) = delete;
+
+  // Binds and serves; returns the bound port.
+  std::uint16_t start();
+  // The e-stop path runs first (motors halt), then HTTP stops, then plugins shut down. Idempotent.
+  void shutdown() noexcept;
+
+  const PluginHost& plugins() const noexcept;
+  const CapabilityRegistry& registry() const noexcept;
+  Api& api() noexcept;
+
+ private:
+  struct State;
+  std::unique_ptr<State> state_;
+};
+
+}  // namespace rcand::kernel

@@ -1,0 +1,67 @@
+// Turns loaded plugins into running instances: one driver instance per `drivers[]` entry, one capability
+// instance per declared capability, each with its own context, health and (for capabilities) handler worker.
+//
+// Destruction order matters: capability handler workers are joined first (no request runs any more), then
+// capability objects and their contexts (their workers join), then driver objects; plugin libraries are never
+// unloaded, so code outlives every object it made.
+#pragma once
+
+#include <deque>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "rcand/kernel/config/robot_config.hpp"
+#include "rcand/kernel/core/actuator_table.hpp"
+#include "rcand/kernel/core/instance_context.hpp"
+#include "rcand/kernel/plugin_host/plugin_host.hpp"
+
+namespace rcand::kernel {
+
+struct DriverInstance {
+  std::string id, protocol, plugin_id;
+  bool actuates = false;
+  InstanceHealth health;
+  std::unique_ptr<InstanceContext> context;
+  std::unique_ptr<sdk::Driver> object;  // null when it could not be created
+};
+
+struct CapabilityInstance {
+  std::string name, plugin_id;
+  bool actuates = false;
+  InstanceHealth health;
+  std::unique_ptr<InstanceContext> context;
+  std::unique_ptr<sdk::Capability> object;     // null when it could not be created
+  std::vector<sdk::Route> routes;
+  std::unique_ptr<WorkerThread> handler_worker;  // "cap.<name>": handlers run here, one at a time
+};
+
+class PluginRuntime {
+ public:
+  PluginRuntime(PluginHost& host, KernelServices& services, ActuatorTable& actuators);
+  ~PluginRuntime();
+
+  // Main thread, at startup. Plugin settings that fail the manifest's config schema throw ConfigError (with the
+  // config file's line and column); plugin code that throws marks only that instance failed.
+  void start_drivers(const RobotConfig& config);
+  void start_capabilities(const std::vector<std::string>& names, const RobotConfig& config);
+
+  CapabilityInstance* capability(std::string_view name) noexcept;
+  const std::deque<DriverInstance>& drivers() const noexcept { return drivers_; }
+  const std::deque<CapabilityInstance>& capabilities() const noexcept { return capabilities_; }
+
+  // The stop path, after the halt: every capability's on_estop() (noexcept by contract).
+  void notify_estop() noexcept;
+  // Main thread, once: capabilities shut down and their workers joined, then drivers shut down.
+  void shutdown() noexcept;
+
+ private:
+  PluginHost& host_;
+  KernelServices& services_;
+  ActuatorTable& actuators_;
+  std::deque<DriverInstance> drivers_;
+  std::deque<CapabilityInstance> capabilities_;
+  bool shut_down_ = false;
+};
+
+}  // namespace rcand::kernel

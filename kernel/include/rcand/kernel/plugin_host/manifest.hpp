@@ -1,0 +1,44 @@
+// A plugin's manifest: what it is and what it provides, read without opening its library.
+#pragma once
+
+#include <nlohmann/json.hpp>
+
+#include <filesystem>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+namespace rcand::kernel {
+
+// One entry of the manifest's "provides": a capability name or a driver protocol.
+struct ProvidedItem {
+  std::string kind;  // "capability" or "driver"
+  std::string name;  // capability name, or driver protocol
+  bool actuates = false;
+  std::string interface;  // actuating drivers only: the ActuatorDriver interface they implement
+  bool operator==(const ProvidedItem&) const = default;
+};
+
+struct PluginManifest {
+  std::filesystem::path file, library;  // library is absolute (resolved against the manifest's folder)
+  std::string id, version, description;
+  int abi_major = 0, abi_minor = 0;
+  std::vector<ProvidedItem> provides;
+  std::vector<std::string> requires_;  // actuator interfaces some enabled driver must provide
+  nlohmann::json config_schema = nlohmann::json::object();  // validated: see apply_config_schema()
+};
+
+// The message names the file and the field at fault: "<file>: abi.major: expected integer, found string".
+class ManifestError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+// Validates `doc` (the parsed manifest) completely, including its "config" schema. `file` is used for the
+// error messages and to resolve "library". Throws ManifestError.
+PluginManifest parse_manifest(const nlohmann::json& doc, const std::filesystem::path& file);
+
+// Reads and parses `file`. Throws ManifestError (unreadable file, bad JSON, invalid content).
+PluginManifest load_manifest(const std::filesystem::path& file);
+
+}  // namespace rcand::kernel

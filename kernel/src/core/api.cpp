@@ -1,0 +1,458 @@
+#include "rcand/kernel/core/api.hpp"
+
+#include <array>
+
+#include "rcand/kernel/core/json_body.hpp"
+#include "rcand/kernel/core/logging.hpp"
+#include "rcand/kernel/plugin_host/guarded.hpp"
+
+namespace rcand::kernel {
+namespace {
+
+using nlohmann::json;
+using sdk::Scope;
+
+struct KernelEndpoint {
+  std::string_view method, path;
+  Scope scope;
+};
+constexpr std::array<KernelEndpoint, 8> kKernelEndpoints{{
+    {"GET", "/health", Scope::None},
+    {"GET", "/api/status", Scope::Status},
+    {"GET", "/api/discovery", Scope::None},
+    {"POST", "/api/stop", Scope::Status},
+    {"GET", "/api/estop", Scope::Status},
+    {"POST", "/api/estop/clear", Scope::Config},
+    {"GET", "/api/audit", Scope::Config},
+    {"GET", "/api/plugins", Scope::Status},
+}};
+constexpr std::string_view kDriversPrefix = "/api/drivers/";
+constexpr std::string_view kCustomPrefix = "/api/cap/";
+constexpr std::string_view kActionPath = "/api/action";
+
+// Where each standard capability's endpoints live (§9.2, notes §7); /api/action is routed by body "type".
+struct StandardPrefix {
+  std::string_view prefix, capability;
+  bool exact;
+};
+constexpr std::array<StandardPrefix, 4> kStandardPrefixes{{
+    {"/api/nav/", "nav", false},
+    {"/api/command", "chat", true},
+    {"/api/stream/", "vision", false},
+    {"/api/depth/", "vision", false},
+}};
+struct ActionType {
+  std::string_view type, capability;
+};
+constexpr std::array<ActionType, 4> kActionTypes{{{"move", "teleop"}, {"stop", "teleop"}, {"grip", "arm"}, {"arm_pose", "arm"}}};
+
+http::Response json_response(int status, const json& body) {
+  http::Response response;
+  response.status = status;
+  response.body = body.dump(-1, ' ', false, json::error_handler_t::replace);
+  return response;
+}
+
+http::Response error(int status, std::string_view code, std::string message, json extra = json::object()) {
+  return json_response(status, sdk::Response::error(status, std::string(code), std::move(message), std::move(extra)).body);
+}
+
+// A plugin's answer, with the notes §4 error shape guaranteed on every non-2xx status.
+http::Response from_plugin(const sdk::Response& answer) {
+  if (answer.status < 100 || answer.status > 599) return error(500, "INTERNAL", "capability answered an invalid status");
+  if (answer.status < 300) return json_response(answer.status, answer.body);
+  json body = answer.body.is_object() ? answer.body : json::object();
+  if (!body.contains("error")) body["error"] = "request failed";
+  if (!body.contains("code")) body["code"] = answer.status >= 500 ? "INTERNAL" : "BAD_REQUEST";
+  body["status"] = answer.status;
+  return json_response(answer.status, body);
+}
+
+bool valid_message_id(std::string_view id) {
+  if (id.empty() || id.size() > 64) return false;
+  for (char c : id)
+    if (!std::isalnum(static_cast<unsigned char>(c)) && c != '-' && c != '_' && c != '.') return false;
+  return true;
+}
+
+Scope stricter(Scope a, Scope b) { return sdk::minimum_role(a) >= sdk::minimum_role(b) ? a : b; }
+
+std::string scope_list(Scope scope) { return std::string(sdk::scope_name(scope)); }
+
+}  // namespace
+
+struct Api::Caller {
+  std::string principal;
+  sdk::Role role = sdk::Role::Guest;
+  std::string message_id;
+};
+
+void Api::handle(http::Request&& request, http::Respond respond) {
+  Caller caller;
+  if (auto id = request.header("x-message-id"); id && valid_message_id(*id)) caller.message_id = std::string(*id);
+  else caller.message_id = "m-" + std::to_string(ctx_.clock.wall_ms()) + "-" + std::to_string(++message_counter_);
+
+  // Every answer carries the message id, so a client can find its request in the audit log.
+  auto reply = [respond, id = caller.message_id](http::Response response) mutable {
+    response.headers.emplace_back("X-Message-Id", id);
+    respond(std::move(response));
+  };
+
+  // Authentication for `scope`; on failure answers and returns false.
+  auto authorize = [&](Scope scope) {
+    std::optional<std::string_view> bearer;
+    if (auto header = request.header("authorization")) bearer = bearer_token(*header);
+    else if (auto token = request.query.find("token");
+             token != request.query.end() && (request.path == "/api/stream/mjpeg" || request.path.rfind("/ws/", 0) == 0))
+      bearer = token->second;  // notes §3: ?token= only where clients cannot set headers
+    const auto now_s = ctx_.clock.wall_ms() / 1000;
+    auto verdict = ctx_.auth.authorize(bearer, scope, now_s);
+    if (auto* failure = std::get_if<AuthError>(&verdict)) {
+      logger("kernel.auth")->info("{} {} from {}: {} ({})", request.method, request.path, request.remote, failure->status,
+                                  failure->message);
+      json extra = json::object();
+      if (failure->status == 403) extra["required_scope"] = scope_list(scope);
+      reply(error(failure->status, failure->code, failure->message, extra));
+      return false;
+    }
+    auto& principal = std::get<Principal>(verdict);
+    caller.principal = principal.name;
+    caller.role = principal.role;
+    return true;
+  };
+
+  // 1. The kernel's own endpoints.
+  bool path_known = false;
+  std::vector<std::string> allowed;
+  for (const auto& endpoint : kKernelEndpoints) {
+    if (endpoint.path != request.path) continue;
+    path_known = true;
+    allowed.emplace_back(endpoint.method);
+    if (endpoint.method != request.method) continue;
+    if (!authorize(endpoint.scope)) return;
+    http::Respond forward = reply;
+    handle_kernel(std::string(endpoint.path), request, caller, forward);
+    return;
+  }
+  if (path_known) {
+    reply(error(405, "METHOD_NOT_ALLOWED", request.method + " is not allowed on " + request.path, {{"allowed", allowed}}));
+    return;
+  }
+  if (request.path.rfind(kDriversPrefix, 0) == 0) {
+    if (request.method != "GET") {
+      reply(error(405, "METHOD_NOT_ALLOWED", "only GET is allowed on " + request.path, {{"allowed", {"GET"}}}));
+      return;
+    }
+    if (!authorize(Scope::Status)) return;
+    const std::string id = request.path.substr(kDriversPrefix.size());
+    for (const auto& driver : ctx_.runtime.drivers()) {
+      if (driver.id != id) continue;
+      json doc{{"id", driver.id}, {"protocol", driver.protocol}, {"plugin", driver.plugin_id},
+               {"state", driver.health.failed() ? "failed" : "ok"}};
+      if (driver.health.failed()) doc["reason"] = driver.health.reason();
+      std::string failure;
+      if (driver.object) {
+        if (auto status = guarded_result(driver.plugin_id, "driver status", failure, [&] { return driver.object->status(); }))
+          doc["status"] = std::move(*status);
+      }
+      reply(json_response(200, doc));
+      return;
+    }
+    reply(error(404, "NOT_FOUND", "no driver '" + id + "'"));
+    return;
+  }
+
+  // 2. Capability endpoints: which capability does this path belong to?
+  std::string capability;
+  std::string subpath;
+  const bool is_action = request.path == kActionPath;
+  const bool is_custom = request.path.rfind(kCustomPrefix, 0) == 0;
+  if (is_custom) {
+    const std::string rest = request.path.substr(kCustomPrefix.size());
+    const auto slash = rest.find('/');
+    capability = rest.substr(0, slash);
+    subpath = slash == std::string::npos ? "" : rest.substr(slash);
+    if (find_standard_capability(capability) != nullptr) {  // standard ones have their own endpoints
+      reply(error(404, "NOT_FOUND", "'" + capability + "' is a standard capability; use its standard endpoint"));
+      return;
+    }
+  } else if (!is_action) {
+    for (const auto& prefix : kStandardPrefixes) {
+      if (prefix.exact ? request.path == prefix.prefix : request.path.rfind(prefix.prefix, 0) == 0) {
+        capability = prefix.capability;
+        break;
+      }
+    }
+  }
+  if (capability.empty() && !is_action) {
+    reply(error(404, "NOT_FOUND", "no endpoint " + request.path));
+    return;
+  }
+
+  const Scope base_scope = is_action ? Scope::Control : CapabilityRegistry::minimum_scope(capability);
+  if (!authorize(base_scope)) return;
+
+  JsonBody body = parse_json_body(request.body);
+  if (!body.error.empty()) {
+    reply(error(400, "BAD_REQUEST", body.error, {{"field", "body"}}));
+    return;
+  }
+
+  std::string action_type;
+  if (is_action) {
+    std::vector<std::string> declared_types;
+    for (const auto& type : kActionTypes)
+      if (ctx_.registry.declared(type.capability)) declared_types.emplace_back(type.type);
+    if (!body.value.is_object() || !body.value.contains("type") || !body.value["type"].is_string()) {
+      reply(error(400, "BAD_REQUEST", "body needs a string \"type\"", {{"field", "type"}, {"allowed", declared_types}}));
+      return;
+    }
+    action_type = body.value["type"].get<std::string>();
+    for (const auto& type : kActionTypes)
+      if (type.type == action_type) capability = type.capability;
+    if (capability.empty()) {
+      reply(error(400, "BAD_REQUEST", "unknown action type '" + action_type + "'",
+                  {{"field", "type"}, {"allowed", declared_types}}));
+      return;
+    }
+  }
+
+  const bool audited = request.method != "GET" && request.method != "HEAD";
+  const std::string event = request.method + " " + request.path + (action_type.empty() ? "" : " " + action_type);
+  auto refuse = [&](http::Response response, std::string_view outcome, const std::string& why) {
+    if (audited) {
+      const auto seq = ctx_.audit.record({0, caller.principal, ctx_.registry.identity().ruri, caller.message_id, event,
+                                          ctx_.clock.wall_ms(), "pending", {}});
+      ctx_.audit.finish(seq, std::string(outcome), why);
+    }
+    reply(std::move(response));
+  };
+
+  // §9.1: an undeclared capability reaches no plugin.
+  if (!ctx_.registry.declared(capability)) {
+    refuse(error(404, "CAPABILITY_NOT_FOUND", "this robot does not declare the '" + capability + "' capability",
+                 {{"capability", capability}, {"capabilities", ctx_.registry.names()}}),
+           "blocked", "capability not declared");
+    return;
+  }
+  CapabilityInstance* instance = ctx_.runtime.capability(capability);
+  if (instance == nullptr || instance->health.failed() || !instance->object) {
+    const std::string why = instance ? instance->health.reason() : "not running";
+    refuse(error(503, "UNAVAILABLE", "capability '" + capability + "' is out of service: " + why, {{"capability", capability}}),
+           "error", why);
+    return;
+  }
+
+  const sdk::Route* route = nullptr;
+  std::vector<std::string> route_methods;
+  for (const auto& candidate : instance->routes) {
+    const bool path_matches = is_action   ? candidate.path == kActionPath && candidate.action_type == action_type
+                              : is_custom ? candidate.path == subpath
+                                          : candidate.path == request.path;
+    if (!path_matches) continue;
+    route_methods.push_back(candidate.method);
+    if (candidate.method == request.method) route = &candidate;
+  }
+  if (route == nullptr) {
+    if (!route_methods.empty())
+      refuse(error(405, "METHOD_NOT_ALLOWED", request.method + " is not allowed on " + request.path, {{"allowed", route_methods}}),
+             "blocked", "method not allowed");
+    else
+      refuse(error(404, "NOT_FOUND", "capability '" + capability + "' has no endpoint " + request.path), "blocked", "no such route");
+    return;
+  }
+  const Scope route_scope = stricter(route->scope, base_scope);
+  if (route_scope != base_scope && !authorize(route_scope)) return;
+
+  if (route->motion && ctx_.estop.latched()) {
+    refuse(error(423, "ESTOP_ACTIVE", "e-stop is latched; clear it with POST /api/estop/clear"), "blocked", "e-stop active");
+    return;
+  }
+  handle_capability(*instance, *route, request, std::move(body.value), caller, reply);
+}
+
+void Api::handle_capability(CapabilityInstance& instance, const sdk::Route& route, http::Request& request, json body,
+                            const Caller& caller, http::Respond respond) {
+  const bool audited = request.method != "GET" && request.method != "HEAD";
+  std::uint64_t seq = 0;
+  if (audited) {
+    const std::string type = body.is_object() && body.contains("type") && body["type"].is_string() ? " " + body["type"].get<std::string>() : "";
+    seq = ctx_.audit.record({0, caller.principal, ctx_.registry.identity().ruri, caller.message_id,
+                             request.method + " " + request.path + type, ctx_.clock.wall_ms(), "pending", {}});
+  }
+
+  auto sdk_request = std::make_shared<sdk::Request>();
+  sdk_request->method = request.method;
+  sdk_request->path = request.path;
+  if (request.path.rfind(kCustomPrefix, 0) == 0) {
+    const auto after = request.path.find('/', kCustomPrefix.size());
+    sdk_request->subpath = after == std::string::npos ? "" : request.path.substr(after);
+  }
+  sdk_request->query = request.query;
+  sdk_request->body = std::move(body);
+  sdk_request->principal = caller.principal;
+  sdk_request->role = caller.role;
+  sdk_request->message_id = caller.message_id;
+
+  // Whichever comes first — the handler's answer or the timeout — answers; the other does nothing.
+  struct Pending {
+    std::atomic<bool> answered{false};
+    sdk::TimerId timer = 0;
+  };
+  auto pending = std::make_shared<Pending>();
+  auto finish = [this, seq, audited, pending, respond](http::Response response, std::string outcome, std::string detail) mutable {
+    if (pending->answered.exchange(true)) return;
+    if (audited) ctx_.audit.finish(seq, std::move(outcome), std::move(detail));
+    respond(std::move(response));
+  };
+
+  const std::string who = "plugin " + instance.plugin_id + " capability " + instance.name;
+  CapabilityInstance* target = &instance;
+  pending->timer = ctx_.timers.schedule(ctx_.handler_timeout, [finish, target, timeout = ctx_.handler_timeout]() mutable {
+    const std::string why = "handler did not answer within " + std::to_string(timeout.count()) + " ms";
+    target->health.mark_failed(why);
+    logger("kernel.api")->error("capability {}: {}; marked failed", target->name, why);
+    finish(error(503, "UNAVAILABLE", "capability '" + target->name + "' " + why), "error", why);
+  });
+  instance.handler_worker->post([this, finish, target, who, handler = route.handler, sdk_request, pending]() mutable {
+    if (pending->answered.load()) return;  // timed out while queued
+    std::string failure;
+    auto answer = guarded_result(who, "request handler", failure, [&] { return handler(*sdk_request); });
+    ctx_.timers.cancel(pending->timer);
+    if (!answer) {
+      target->health.mark_failed("request handler threw: " + failure);
+      finish(error(500, "INTERNAL", "capability '" + target->name + "' failed while handling the request; it is now out of service"),
+             "error", failure);
+      return;
+    }
+    const std::string outcome = answer->status < 300 ? "ok" : answer->status == 423 ? "blocked" : "error";
+    std::string detail;
+    if (answer->status >= 300 && answer->body.is_object() && answer->body.contains("code") && answer->body["code"].is_string())
+      detail = answer->body["code"].get<std::string>();
+    finish(from_plugin(*answer), outcome, detail);
+  });
+}
+
+void Api::handle_kernel(const std::string& endpoint, http::Request& request, const Caller& caller, http::Respond& respond) {
+  const auto record = [&](const std::string& event) {
+    return ctx_.audit.record({0, caller.principal, ctx_.registry.identity().ruri, caller.message_id, event,
+                              ctx_.clock.wall_ms(), "pending", {}});
+  };
+  if (endpoint == "/api/stop") {
+    // The stop never fails on its body: a malformed body still stops the robot.
+    std::string reason = "POST /api/stop";
+    if (auto body = parse_json_body(request.body); body.error.empty() && body.value.is_object() &&
+                                                   body.value.contains("reason") && body.value["reason"].is_string())
+      reason = body.value["reason"].get<std::string>().substr(0, 200);
+    const auto seq = record("POST /api/stop");
+    const auto report = ctx_.estop.latch(reason, caller.principal);
+    json drivers = json::array();
+    bool all_halted = true;
+    for (const auto& halt : report.drivers) {
+      drivers.push_back({{"id", halt.id}, {"halted", halt.halted}, {"latency_us", halt.latency_us}});
+      all_halted = all_halted && halt.halted;
+    }
+    ctx_.audit.finish(seq, "ok");
+    respond(json_response(200, {{"status", "stopped"},
+                                {"estopped", true},
+                                {"motors_stopped", all_halted},
+                                {"drivers", drivers},
+                                {"latency_us", report.latency_us}}));
+  } else if (endpoint == "/health") {
+    respond(json_response(200, {{"status", "ok"},
+                                {"uptime_s", (ctx_.clock.now_us() - ctx_.started_us) / 1'000'000},
+                                {"version", ctx_.version}}));
+  } else if (endpoint == "/api/status") {
+    respond(json_response(200, status_document()));
+  } else if (endpoint == "/api/discovery") {
+    respond(json_response(200, discovery_document()));
+  } else if (endpoint == "/api/estop") {
+    const auto state = ctx_.estop.snapshot();
+    respond(json_response(200, {{"estopped", state.estopped},
+                                {"since_ms", state.estopped ? json(state.since_ms) : json()},
+                                {"reason", state.estopped ? json(state.reason) : json()},
+                                {"source", state.estopped ? json(state.source) : json()}}));
+  } else if (endpoint == "/api/estop/clear") {
+    const auto seq = record("POST /api/estop/clear");
+    const bool was = ctx_.estop.clear();
+    ctx_.audit.finish(seq, "ok", was ? "" : "was not latched");
+    respond(json_response(200, {{"status", "cleared"}, {"was_latched", was}}));
+  } else if (endpoint == "/api/audit") {
+    std::size_t limit = 100;
+    if (auto it = request.query.find("limit"); it != request.query.end()) {
+      try {
+        limit = std::clamp<std::size_t>(std::stoul(it->second), 1, 10000);
+      } catch (...) {
+        respond(error(400, "BAD_REQUEST", "limit must be a positive integer", {{"field", "limit"}}));
+        return;
+      }
+    }
+    respond(json_response(200, ctx_.audit.to_json(limit)));
+  } else if (endpoint == "/api/plugins") {
+    respond(json_response(200, {{"plugins", ctx_.host.to_json()}}));
+  }
+}
+
+std::string Api::robot_state() const {
+  if (ctx_.estop.latched()) return "estop";
+  for (const auto& instance : ctx_.runtime.capabilities())
+    if (instance.health.failed()) return "error";
+  for (const auto& driver : ctx_.runtime.drivers())
+    if (driver.health.failed()) return "error";
+  if (const auto* nav = ctx_.runtime.capability("nav"); nav && nav->object) {
+    std::string failure;
+    auto status = guarded_result("plugin " + nav->plugin_id, "status", failure, [&] { return nav->object->status(); });
+    if (status && status->is_object() && status->value("running", false)) return "running";
+  }
+  return "idle";
+}
+
+json Api::discovery_document() const {
+  return ctx_.registry.advertise(robot_state(), ctx_.port.load()).discover;
+}
+
+json Api::status_document() const {
+  const auto& identity = ctx_.registry.identity();
+  json plugins = json::array();
+  for (const auto& record : ctx_.host.records()) {
+    json item{{"id", record->id}, {"version", record->version}, {"state", std::string(to_string(record->state))}};
+    if (!record->reason.empty()) item["reason"] = record->reason;
+    plugins.push_back(std::move(item));
+  }
+  json capabilities = json::object();
+  bool nav_running = false;
+  for (const auto& instance : ctx_.runtime.capabilities()) {
+    json item{{"plugin", instance.plugin_id}, {"state", instance.health.failed() ? "failed" : "ok"}};
+    if (instance.health.failed()) item["reason"] = instance.health.reason();
+    if (instance.object && !instance.health.failed()) {
+      std::string failure;
+      if (auto status = guarded_result("plugin " + instance.plugin_id, "status", failure, [&] { return instance.object->status(); }))
+        item["status"] = std::move(*status);
+    }
+    if (instance.name == "nav" && item.contains("status") && item["status"].is_object())
+      nav_running = item["status"].value("running", false);
+    capabilities[instance.name] = std::move(item);
+  }
+  json drivers = json::array();
+  for (const auto& driver : ctx_.runtime.drivers()) {
+    json item{{"id", driver.id}, {"protocol", driver.protocol}, {"plugin", driver.plugin_id},
+              {"actuates", driver.actuates}, {"state", driver.health.failed() ? "failed" : "ok"}};
+    if (driver.health.failed()) item["reason"] = driver.health.reason();
+    drivers.push_back(std::move(item));
+  }
+  const auto estop = ctx_.estop.snapshot();
+  return {{"ruri", identity.ruri},
+          {"name", identity.name},
+          {"version", ctx_.version},
+          {"rcan_version", kRcanVersion},
+          {"caps", ctx_.registry.names()},
+          {"state", robot_state()},
+          {"estopped", estop.estopped},
+          {"uptime_s", (ctx_.clock.now_us() - ctx_.started_us) / 1'000'000},
+          {"plugins", plugins},
+          {"drivers", drivers},
+          {"capabilities", capabilities},
+          {"nav_running", nav_running}};
+}
+
+}  // namespace rcand::kernel

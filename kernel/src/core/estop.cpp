@@ -1,0 +1,58 @@
+#include "rcand/kernel/core/estop.hpp"
+
+#include "rcand/kernel/core/logging.hpp"
+
+namespace rcand::kernel {
+
+Estop::Estop(const sdk::Clock& clock, ActuatorTable& actuators) : clock_(clock), actuators_(actuators) {}
+
+bool Estop::sleep_unless_latched(std::chrono::microseconds duration) const {
+  std::unique_lock lock(sleep_mutex_);
+  return !sleepers_.wait_for(lock, duration, [this] { return latched_.load(); });
+}
+
+void Estop::request_estop(const std::string& reason) noexcept { latch(reason, "plugin"); }
+
+Estop::StopReport Estop::latch(const std::string& reason, const std::string& source) noexcept {
+  StopReport report;
+  const auto start = clock_.now_us();
+  epoch_.fetch_add(1);
+  report.newly_latched = !latched_.exchange(true);
+  report.drivers = actuators_.halt_all(clock_);
+  report.latency_us = clock_.now_us() - start;
+  try {
+    if (report.newly_latched) {
+      std::lock_guard lock(info_mutex_);
+      info_ = {true, clock_.wall_ms(), reason, source};
+    }
+    {
+      std::lock_guard lock(sleep_mutex_);  // pairs with the predicate check in sleep_unless_latched
+    }
+    sleepers_.notify_all();
+    for (auto& listener : listeners_) listener();
+    if (report.newly_latched)
+      logger("kernel.estop")->warn("e-stop latched by {}: {} ({} actuators halted in {} us)", source, reason,
+                                   report.drivers.size(), report.latency_us);
+  } catch (...) {  // bookkeeping must never undo a stop that already happened
+  }
+  return report;
+}
+
+bool Estop::clear() {
+  const bool was = latched_.exchange(false);
+  std::lock_guard lock(info_mutex_);
+  info_ = {};
+  if (was) logger("kernel.estop")->info("e-stop cleared");
+  return was;
+}
+
+Estop::Snapshot Estop::snapshot() const {
+  std::lock_guard lock(info_mutex_);
+  Snapshot copy = info_;
+  copy.estopped = latched_.load();
+  return copy;
+}
+
+void Estop::on_latched(std::function<void()> listener) { listeners_.push_back(std::move(listener)); }
+
+}  // namespace rcand::kernel

@@ -1,0 +1,34 @@
+#include "rcand/kernel/core/instance_context.hpp"
+
+namespace rcand::kernel {
+
+InstanceContext::InstanceContext(std::string plugin_id, std::string instance_id, KernelServices& services,
+                                 nlohmann::json settings, InstanceHealth& health)
+    : plugin_id_(std::move(plugin_id)),
+      instance_id_(std::move(instance_id)),
+      services_(services),
+      logger_(plugin_id_),
+      settings_(std::move(settings)),
+      health_(health) {}
+
+InstanceContext::~InstanceContext() { join_workers(); }
+
+sdk::Worker& InstanceContext::worker(std::string_view name) {
+  if (name.empty() || name.find_first_of(" /\t\n") != std::string_view::npos)
+    throw std::invalid_argument("worker name must be a non-empty word");
+  const std::string full = instance_id_ + "." + std::string(name);
+  std::lock_guard lock(workers_mutex_);
+  for (auto& worker : workers_)
+    if (worker->name() == full) return *worker;
+  // An exception escaping a worker task is plugin code failing: the instance goes out of service.
+  return *workers_.emplace_back(std::make_unique<WorkerThread>(full, [this, full](const std::string& why) {
+    health_.mark_failed("worker " + full + ": " + why);
+  }));
+}
+
+void InstanceContext::join_workers() {
+  std::lock_guard lock(workers_mutex_);
+  for (auto& worker : workers_) worker->join();
+}
+
+}  // namespace rcand::kernel

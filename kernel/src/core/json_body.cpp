@@ -1,0 +1,24 @@
+#include "rcand/kernel/core/json_body.hpp"
+
+namespace rcand::kernel {
+namespace {
+struct TooDeep {};
+}  // namespace
+
+JsonBody parse_json_body(std::string_view text) {
+  JsonBody result;
+  if (text.find_first_not_of(" \t\r\n") == std::string_view::npos) return result;
+  try {
+    result.value = nlohmann::json::parse(text, [](int depth, nlohmann::json::parse_event_t, nlohmann::json&) {
+      if (depth > kMaxJsonDepth) throw TooDeep{};
+      return true;
+    });
+  } catch (const TooDeep&) {
+    result.error = "body nests deeper than " + std::to_string(kMaxJsonDepth) + " levels";
+  } catch (const nlohmann::json::exception& e) {
+    result.error = std::string("body is not valid JSON: ") + e.what();
+  }
+  return result;
+}
+
+}  // namespace rcand::kernel

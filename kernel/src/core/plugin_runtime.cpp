@@ -1,0 +1,165 @@
+#include "rcand/kernel/core/plugin_runtime.hpp"
+
+#include "rcand/kernel/plugin_host/config_schema.hpp"
+#include "rcand/kernel/plugin_host/guarded.hpp"
+
+namespace rcand::kernel {
+namespace {
+
+[[noreturn]] void settings_error(const RobotConfig& config, const std::string& path, const std::string& message) {
+  ConfigDiagnostic diagnostic;
+  diagnostic.mark = config.mark_of(path);
+  diagnostic.key_path = path;
+  diagnostic.message = message;
+  throw ConfigError({std::move(diagnostic)});
+}
+
+nlohmann::json validated_settings(const RobotConfig& config, const PluginRecord& plugin, const nlohmann::json& settings,
+                                  bool allow_unknown, const std::string& path) {
+  const nlohmann::json schema = plugin.manifest ? plugin.manifest->config_schema : nlohmann::json::object();
+  try {
+    return apply_config_schema(schema, settings, allow_unknown);
+  } catch (const ConfigSchemaError& e) {
+    settings_error(config, path, std::string(e.what()) + " (settings of plugin " + plugin.id + ")");
+  }
+}
+
+const std::string& key_of(const RegisteredDriver& item) { return item.info.protocol; }
+const std::string& key_of(const RegisteredCapability& item) { return item.info.name; }
+
+// The registration for `key` (a driver protocol or capability name) in the first loaded plugin that provides it.
+template <class Registered>
+std::pair<const Registered*, PluginRecord*> find_loaded(PluginHost& host, const std::vector<const PluginRecord*>& providers,
+                                                        std::vector<Registered> PluginRecord::*list, std::string_view key) {
+  PluginRecord* last = nullptr;
+  for (const auto* candidate : providers) {
+    last = host.find(candidate->id);
+    if (last == nullptr || last->state != PluginState::Loaded) continue;
+    for (const auto& item : last->*list)
+      if (key_of(item) == key) return {&item, last};
+  }
+  return {nullptr, last};
+}
+
+}  // namespace
+
+PluginRuntime::PluginRuntime(PluginHost& host, KernelServices& services, ActuatorTable& actuators)
+    : host_(host), services_(services), actuators_(actuators) {}
+
+PluginRuntime::~PluginRuntime() { shutdown(); }
+
+void PluginRuntime::start_drivers(const RobotConfig& config) {
+  auto log = logger("kernel.plugins");
+  for (std::size_t i = 0; i < config.drivers.size(); ++i) {
+    const auto& entry = config.drivers[i];
+    auto& instance = drivers_.emplace_back();
+    instance.id = entry.id;
+    instance.protocol = entry.protocol;
+
+    auto [registered, plugin] =
+        find_loaded(host_, host_.providers_of_driver(entry.protocol), &PluginRecord::drivers, entry.protocol);
+    if (registered == nullptr) {
+      instance.health.mark_failed(plugin == nullptr ? "no installed plugin provides driver protocol '" + entry.protocol + "'"
+                                                    : "plugin " + plugin->id + " is " + std::string(to_string(plugin->state)) +
+                                                          ": " + plugin->reason);
+      log->error("driver {}: {}", entry.id, instance.health.reason());
+      continue;
+    }
+    instance.plugin_id = plugin->id;
+    instance.actuates = registered->info.actuates;
+    auto settings = validated_settings(config, *plugin, entry.settings, true, "drivers[" + std::to_string(i) + "]");
+    instance.context = std::make_unique<InstanceContext>(plugin->id, entry.id, services_, std::move(settings), instance.health);
+
+    std::string failure;
+    const std::string who = "plugin " + plugin->id + " driver " + entry.id;
+    auto object = guarded_result(who, "factory", failure, [&] { return registered->factory(*instance.context); });
+    if (!object || !*object) {
+      instance.health.mark_failed(failure.empty() ? "factory returned nothing" : failure);
+      continue;
+    }
+    instance.object = std::move(*object);
+    if (!guarded_call(who, "start", failure, [&] { instance.object->start(); })) instance.health.mark_failed(failure);
+
+    if (instance.actuates) {
+      auto* actuator = dynamic_cast<sdk::ActuatorDriver*>(instance.object.get());
+      if (actuator == nullptr) {
+        instance.health.mark_failed("registered as actuating but is not an ActuatorDriver");
+        continue;
+      }
+      actuators_.add(entry.id, std::string(actuator->interface_name()), plugin->id, actuator, &instance.health);
+    }
+    log->info("driver {} ({}, {}) {}", entry.id, entry.protocol, plugin->id,
+              instance.health.failed() ? "failed: " + instance.health.reason() : "started");
+  }
+}
+
+void PluginRuntime::start_capabilities(const std::vector<std::string>& names, const RobotConfig& config) {
+  auto log = logger("kernel.plugins");
+  for (const auto& name : names) {
+    if (name == "status") continue;  // the kernel's own
+    auto [registered, plugin] =
+        find_loaded(host_, host_.providers_of_capability(name), &PluginRecord::capabilities, name);
+    auto& instance = capabilities_.emplace_back();
+    instance.name = name;
+    if (registered == nullptr) {
+      instance.health.mark_failed(plugin == nullptr ? "no installed plugin provides it"
+                                                    : "plugin " + plugin->id + " is " + std::string(to_string(plugin->state)) +
+                                                          ": " + plugin->reason);
+      log->error("capability {}: {}", name, instance.health.reason());
+      continue;
+    }
+    instance.plugin_id = plugin->id;
+    instance.actuates = registered->info.actuates;
+    const nlohmann::json raw = config.runtime.capabilities.contains(name) ? config.runtime.capabilities.at(name)
+                                                                          : nlohmann::json::object();
+    auto settings = validated_settings(config, *plugin, raw, false, "runtime.capabilities." + name);
+    instance.context = std::make_unique<InstanceContext>(plugin->id, name, services_, std::move(settings), instance.health);
+    instance.handler_worker = std::make_unique<WorkerThread>("cap." + name, [&health = instance.health](const std::string& why) {
+      health.mark_failed(why);
+    });
+
+    std::string failure;
+    const std::string who = "plugin " + plugin->id + " capability " + name;
+    auto object = guarded_result(who, "factory", failure, [&] { return registered->factory(*instance.context); });
+    if (!object || !*object) {
+      instance.health.mark_failed(failure.empty() ? "factory returned nothing" : failure);
+      continue;
+    }
+    instance.object = std::move(*object);
+    if (guarded_call(who, "start", failure, [&] { instance.object->start(); })) {
+      if (auto routes = guarded_result(who, "routes", failure, [&] { return instance.object->routes(); }))
+        instance.routes = std::move(*routes);
+    }
+    if (!failure.empty()) instance.health.mark_failed(failure);
+    log->info("capability {} ({}) {}, {} routes", name, plugin->id,
+              instance.health.failed() ? "failed: " + instance.health.reason() : "started", instance.routes.size());
+  }
+}
+
+CapabilityInstance* PluginRuntime::capability(std::string_view name) noexcept {
+  for (auto& instance : capabilities_)
+    if (instance.name == name) return &instance;
+  return nullptr;
+}
+
+void PluginRuntime::notify_estop() noexcept {
+  for (auto& instance : capabilities_)
+    if (instance.object) instance.object->on_estop();
+}
+
+void PluginRuntime::shutdown() noexcept {
+  if (shut_down_) return;
+  shut_down_ = true;
+  for (auto& instance : capabilities_)
+    if (instance.handler_worker) instance.handler_worker->join();
+  for (auto& instance : capabilities_) {
+    if (instance.object) instance.object->shutdown();
+    if (instance.context) instance.context->join_workers();
+  }
+  for (auto& instance : drivers_) {
+    if (instance.object) instance.object->shutdown();
+    if (instance.context) instance.context->join_workers();
+  }
+}
+
+}  // namespace rcand::kernel

@@ -1,1 +1,0 @@
-// Placeholder translation unit for a kernel module that has no sources yet (removed once all modules exist).

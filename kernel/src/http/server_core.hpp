@@ -1,0 +1,47 @@
+// State shared by the listener, the sessions and every outstanding Respond. It owns the event loops, so a Respond
+// that outlives the Server keeps them (stopped) alive and its late answer is simply dropped.
+#pragma once
+
+#include <boost/asio/io_context.hpp>
+#include <spdlog/logger.h>
+
+#include <atomic>
+#include <cstddef>
+#include <memory>
+#include <vector>
+
+#include "rcand/kernel/http/handler.hpp"
+#include "rcand/kernel/http/server_options.hpp"
+
+namespace rcand::kernel::http::detail {
+
+class Session;
+
+// One event loop run by one I/O thread. Sessions on it are single-threaded and need no strand.
+struct IoSlot {
+  boost::asio::io_context ioc{1};
+
+  // Only on this slot's thread: remembers a session so stop() can close it even while it waits for a handler.
+  void track(std::weak_ptr<Session> session);
+  // Only on this slot's thread.
+  void close_all() noexcept;
+
+ private:
+  std::vector<std::weak_ptr<Session>> sessions_;
+  std::size_t prune_at_ = 64;
+};
+
+struct ServerCore : std::enable_shared_from_this<ServerCore> {
+  ServerCore(ServerOptions options_in, Handler handler_in);
+
+  const ServerOptions options;
+  const Handler handler;
+  const std::shared_ptr<spdlog::logger> log;
+  std::atomic<std::size_t> connections{0};
+  std::atomic<bool> stopping{false};
+  std::atomic<bool> limit_logged{false};
+  // Last member, so destroyed first: sessions freed from the loops' queues still use the members above.
+  std::vector<std::unique_ptr<IoSlot>> slots;
+};
+
+}  // namespace rcand::kernel::http::detail

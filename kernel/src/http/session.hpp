@@ -1,0 +1,75 @@
+// One HTTP connection: reads a request, hands it to the Handler, writes the answer, repeats while kept alive.
+// Every member function runs on the owning slot's thread; only Responder crosses threads, by dispatching there.
+//
+// WebSocket seam: the session owns the Beast stream and the parsed request header. An upgrade would be detected in
+// dispatch_request() (boost::beast::websocket::is_upgrade on parser_->get()) and the stream moved out with the
+// request into a websocket session, after which this object simply ends.
+#pragma once
+
+#include <boost/asio/ip/tcp.hpp>
+#include <boost/beast/core/basic_stream.hpp>
+#include <boost/beast/core/flat_buffer.hpp>
+#include <boost/beast/http/parser.hpp>
+#include <boost/beast/http/string_body.hpp>
+
+#include <cstddef>
+#include <memory>
+#include <optional>
+#include <string>
+#include <string_view>
+
+#include "rcand/kernel/http/response.hpp"
+#include "server_core.hpp"
+
+namespace rcand::kernel::http::detail {
+
+// The concrete executor (not any_io_executor) avoids type erasure on every operation.
+using Stream = boost::beast::basic_stream<boost::asio::ip::tcp, boost::asio::io_context::executor_type>;
+
+class Session : public std::enable_shared_from_this<Session> {
+ public:
+  // Counts itself in core.connections for its whole life.
+  Session(ServerCore& core, IoSlot& slot, Stream::socket_type socket);
+  ~Session();
+  Session(const Session&) = delete;
+  Session& operator=(const Session&) = delete;
+
+  void start();
+  void close() noexcept;
+  // Answers the request in flight; ignored when closed or when nothing is in flight.
+  void send(Response response);
+  boost::asio::io_context::executor_type executor() const noexcept { return slot_.ioc.get_executor(); }
+  ServerCore& core() const noexcept { return core_; }
+
+ private:
+  void wait_for_request();
+  void new_parser();
+  void parse_buffered();
+  void read_header();
+  void on_header(boost::beast::error_code ec);
+  void read_body();
+  void on_read_error(boost::beast::error_code ec);
+  void dispatch_request();
+  void send_error_and_close(int status, std::string_view code, std::string_view message);
+  void write(Response response, bool close_after);
+  void on_write(boost::beast::error_code ec, bool close_after);
+  void linger_close();
+  void drain();
+
+  ServerCore& core_;
+  IoSlot& slot_;
+  Stream stream_;
+  boost::beast::flat_buffer buffer_;
+  std::optional<boost::beast::http::request_parser<boost::beast::http::string_body>> parser_;
+  boost::beast::http::response<boost::beast::http::string_body> response_;  // alive while being written
+  std::string remote_;
+  std::size_t drained_ = 0;
+  unsigned version_ = 11;
+  bool keep_alive_ = false;
+  bool head_ = false;
+  bool awaiting_response_ = false;
+  bool fresh_ = true;  // no request read yet: the first one gets header_timeout from accept
+  bool closed_ = false;
+};
+
+}  // namespace rcand::kernel::http::detail

@@ -1,0 +1,300 @@
+// teleop on the fake host, with a RecordingDrive as the differential drive behind the gate.
+#include <doctest/doctest.h>
+
+#include <rcand/sdk/testing/fake_host.hpp>
+#include <rcand/sdk/testing/recording_drive.hpp>
+
+#include <chrono>
+#include <fstream>
+#include <limits>
+
+#include "teleop.hpp"
+
+extern "C" const rcand_plugin_descriptor* RCAND_ENTRY_FUNCTION(void);
+
+using namespace std::chrono_literals;
+using nlohmann::json;
+using rcand::sdk::Role;
+using rcand::sdk::testing::FakeHost;
+using rcand::sdk::testing::HostError;
+using rcand::sdk::testing::RecordingDrive;
+
+namespace {
+
+json manifest() {
+  std::ifstream in(RCAND_SOURCE_DIR "/manifests/teleop.json");
+  REQUIRE(in.good());
+  return json::parse(in);
+}
+
+json move(double linear, double angular) { return {{"type", "move"}, {"linear", linear}, {"angular", angular}}; }
+json move_for(double linear, double angular, int duration_ms) {
+  auto body = move(linear, angular);
+  body["duration_ms"] = duration_ms;
+  return body;
+}
+
+struct Fixture {
+  FakeHost host;
+  RecordingDrive& drive;
+  explicit Fixture(json robot_config = json::object(), json settings = json::object())
+      : host(std::move(robot_config)), drive(host.add_driver_instance<RecordingDrive>("base", host.clock())) {
+    host.load(RCAND_ENTRY_FUNCTION, manifest());
+    host.add_capability("teleop", std::move(settings));
+  }
+  rcand::sdk::Response post(json body, Role role = Role::User) { return host.call("POST", "/api/action", std::move(body), role); }
+  std::size_t halts() const {
+    std::size_t n = 0;
+    for (const auto& e : drive.events()) n += e.halt;
+    return n;
+  }
+};
+
+}  // namespace
+
+TEST_CASE("mix: left = linear - angular, right = linear + angular, scaled so neither exceeds 1") {
+  using rcand::plugins::teleop::mix;
+  CHECK(mix(0.5, 0.25).left == doctest::Approx(0.25));
+  CHECK(mix(0.5, 0.25).right == doctest::Approx(0.75));
+  CHECK(mix(1.0, 1.0).left == doctest::Approx(0.0));
+  CHECK(mix(1.0, 1.0).right == doctest::Approx(1.0));
+  CHECK(mix(1.0, -0.5).left == doctest::Approx(1.0));
+  CHECK(mix(1.0, -0.5).right == doctest::Approx(1.0 / 3.0));
+  CHECK(mix(0.0, -1.0).left == doctest::Approx(1.0));
+  CHECK(mix(0.0, -1.0).right == doctest::Approx(-1.0));
+}
+
+TEST_CASE("move mixes, clamps, drives the wheels and answers every field") {
+  Fixture f;
+  auto r = f.post(move(0.5, 0.25));
+  REQUIRE(r.status == 200);
+  CHECK(r.body["ok"] == true);
+  CHECK(r.body["type"] == "move");
+  CHECK(r.body["linear"] == 0.5);
+  CHECK(r.body["angular"] == 0.25);
+  CHECK(r.body["left"].get<double>() == doctest::Approx(0.25));
+  CHECK(r.body["right"].get<double>() == doctest::Approx(0.75));
+  CHECK(r.body["duration_ms"].is_null());
+  CHECK(r.body["deadman_ms"] == 500);
+  CHECK(f.drive.left() == doctest::Approx(0.25));
+  CHECK(f.drive.right() == doctest::Approx(0.75));
+
+  r = f.post(move(3.0, -2.0));  // each clamped to [-1, 1], then mixed: left 2, right 0 -> scaled to 1, 0
+  CHECK(r.body["linear"] == 1.0);
+  CHECK(r.body["angular"] == -1.0);
+  CHECK(f.drive.left() == doctest::Approx(1.0));
+  CHECK(f.drive.right() == doctest::Approx(0.0));
+}
+
+TEST_CASE("linear is clamped to safety.max_linear_speed") {
+  Fixture f({{"safety", {{"max_linear_speed", 0.4}}}});
+  auto r = f.post(move(1.0, 0.0));
+  CHECK(r.body["linear"].get<double>() == doctest::Approx(0.4));
+  CHECK(f.drive.left() == doctest::Approx(0.4));
+  r = f.post(move(-0.9, 0.0));
+  CHECK(r.body["linear"].get<double>() == doctest::Approx(-0.4));
+  CHECK(f.drive.right() == doctest::Approx(-0.4));
+}
+
+TEST_CASE("each bad field answers 400 naming it, and the driver receives nothing") {
+  Fixture f;
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  const double inf = std::numeric_limits<double>::infinity();
+  const std::vector<std::pair<json, std::string>> cases = {
+      {{{"type", "move"}, {"angular", 0.0}}, "linear"},
+      {{{"type", "move"}, {"linear", nullptr}, {"angular", 0.0}}, "linear"},
+      {{{"type", "move"}, {"linear", "fast"}, {"angular", 0.0}}, "linear"},
+      {{{"type", "move"}, {"linear", true}, {"angular", 0.0}}, "linear"},
+      {{{"type", "move"}, {"linear", nan}, {"angular", 0.0}}, "linear"},
+      {{{"type", "move"}, {"linear", inf}, {"angular", 0.0}}, "linear"},
+      {{{"type", "move"}, {"linear", 0.5}}, "angular"},
+      {{{"type", "move"}, {"linear", 0.5}, {"angular", "left"}}, "angular"},
+      {{{"type", "move"}, {"linear", 0.5}, {"angular", -inf}}, "angular"},
+      {{{"type", "move"}, {"linear", 0.5}, {"angular", json::array({1})}}, "angular"},
+      {move_for(0.5, 0.0, 0), "duration_ms"},
+      {move_for(0.5, 0.0, 60001), "duration_ms"},
+      {move_for(0.5, 0.0, -5), "duration_ms"},
+      {{{"type", "move"}, {"linear", 0.5}, {"angular", 0.0}, {"duration_ms", 1.5}}, "duration_ms"},
+      {{{"type", "move"}, {"linear", 0.5}, {"angular", 0.0}, {"duration_ms", "100"}}, "duration_ms"},
+      {{{"type", "move"}, {"linear", 0.5}, {"angular", 0.0}, {"duration_ms", 18446744073709551615ULL}}, "duration_ms"},
+  };
+  for (const auto& [body, field] : cases) {
+    CAPTURE(body.dump());
+    const auto r = f.post(body);
+    CHECK(r.status == 400);
+    CHECK(r.body["code"] == "BAD_REQUEST");
+    CHECK(r.body["field"] == field);
+    CHECK(r.body["error"].get<std::string>().find(field) != std::string::npos);
+  }
+  CHECK(f.drive.events().empty());
+  CHECK(f.host.pending_tasks() == 0);
+}
+
+TEST_CASE("duration_ms stops the motion at exactly that time") {
+  Fixture f;
+  const auto r = f.post(move_for(0.5, 0.0, 300));
+  CHECK(r.body["duration_ms"] == 300);
+  CHECK(r.body["deadman_ms"].is_null());
+  f.host.advance(299ms);
+  CHECK(f.drive.moving());
+  f.host.advance(1ms);
+  CHECK_FALSE(f.drive.moving());
+  REQUIRE(f.drive.events().size() == 2);
+  CHECK(f.drive.events()[1].halt);
+  CHECK(f.drive.events()[1].t_us == 300'000);
+  // A duration longer than the watchdog is not cut short by the dead-man.
+  f.post(move_for(0.5, 0.0, 2000));
+  f.host.advance(1999ms);
+  CHECK(f.drive.moving());
+  f.host.advance(1ms);
+  CHECK_FALSE(f.drive.moving());
+}
+
+TEST_CASE("dead-man: a move without duration_ms stops at watchdog_ms") {
+  SUBCASE("safety.watchdog_ms from the robot config") {
+    Fixture f({{"safety", {{"watchdog_ms", 200}}}});
+    CHECK(f.post(move(0.5, 0.0)).body["deadman_ms"] == 200);
+    f.host.advance(199ms);
+    CHECK(f.drive.moving());
+    f.host.advance(1ms);
+    CHECK_FALSE(f.drive.moving());
+    CHECK(f.drive.events().back().t_us == 200'000);
+  }
+  SUBCASE("the capability's own watchdog_ms wins") {
+    Fixture f({{"safety", {{"watchdog_ms", 200}}}}, {{"watchdog_ms", 80}});
+    f.post(move(0.5, 0.0));
+    f.host.advance(80ms);
+    CHECK_FALSE(f.drive.moving());
+    CHECK(f.drive.events().back().t_us == 80'000);
+  }
+  SUBCASE("default 500") {
+    Fixture f;
+    f.post(move(0.5, 0.0));
+    f.host.advance(499ms);
+    CHECK(f.drive.moving());
+    f.host.advance(1ms);
+    CHECK_FALSE(f.drive.moving());
+  }
+}
+
+TEST_CASE("a refreshed dead-man keeps moving; it stops watchdog_ms after the last refresh") {
+  Fixture f({{"safety", {{"watchdog_ms", 200}}}});
+  for (int i = 0; i < 10; ++i) {
+    REQUIRE(f.post(move(0.5, 0.0)).status == 200);
+    f.host.advance(150ms);
+    CHECK(f.drive.moving());
+  }
+  CHECK(f.halts() == 0);
+  f.host.advance(49ms);
+  CHECK(f.drive.moving());
+  f.host.advance(1ms);
+  CHECK_FALSE(f.drive.moving());
+  CHECK(f.drive.events().back().t_us == 9 * 150'000 + 200'000);
+}
+
+TEST_CASE("an old timer never stops a newer command, even when its cancel lost the race") {
+  Fixture f;
+  f.host.simulate_cancel_race(true);  // cancel() fails: the old timer still runs, and must do nothing
+  f.post(move_for(0.5, 0.0, 100));
+  f.host.advance(50ms);
+  f.post(move_for(0.8, 0.0, 500));
+  f.host.advance(50ms);  // t = 100 ms: the first move's timer fires
+  CHECK(f.drive.moving());
+  CHECK(f.halts() == 0);
+  CHECK(f.host.pending_tasks() == 1);
+  f.host.advance(449ms);
+  CHECK(f.drive.moving());
+  f.host.advance(1ms);  // t = 550 ms
+  CHECK_FALSE(f.drive.moving());
+  CHECK(f.halts() == 1);
+  CHECK(f.drive.events().back().t_us == 550'000);
+}
+
+TEST_CASE("stop halts at once, cancels the timer, and is never refused by the e-stop") {
+  Fixture f;
+  f.post(move(0.5, 0.0));
+  f.host.advance(10ms);
+  const auto r = f.post({{"type", "stop"}});
+  CHECK(r.status == 200);
+  CHECK(r.body == json{{"ok", true}, {"type", "stop"}});
+  CHECK_FALSE(f.drive.moving());
+  CHECK(f.halts() == 1);
+  CHECK(f.host.pending_tasks() == 0);
+  f.host.advance(1s);
+  CHECK(f.halts() == 1);
+  CHECK(f.host.call("GET", "/api/status").status == 404);  // teleop serves no other route
+
+  f.host.latch_estop("test");
+  CHECK(f.post({{"type", "stop"}}).status == 200);
+  CHECK(f.post({{"type", "stop"}}, Role::Guest).status == 403);
+}
+
+TEST_CASE("e-stop: move answers 423 and the driver receives nothing; on_estop cancels the dead-man") {
+  Fixture f;
+  f.host.latch_estop("test");
+  const auto r = f.post(move(0.5, 0.0));
+  CHECK(r.status == 423);
+  CHECK(r.body["code"] == "ESTOP_ACTIVE");
+  CHECK(f.drive.commands().empty());
+
+  f.host.clear_estop();
+  REQUIRE(f.post(move(0.5, 0.0)).status == 200);
+  CHECK(f.host.pending_tasks() == 1);
+  f.host.latch_estop("again");  // the host halts the drive, then on_estop cancels the timer
+  CHECK_FALSE(f.drive.moving());
+  CHECK(f.host.pending_tasks() == 0);
+  CHECK(f.host.capability<rcand::plugins::teleop::Teleop>("teleop").status()["moving"] == false);
+}
+
+TEST_CASE("an e-stop latching while the move command runs: 423, wheels halted, no timer left") {
+  Fixture f;
+  f.drive.on_command([&] { f.host.latch_estop("racing"); });
+  const auto r = f.post(move(0.5, 0.0));
+  CHECK(r.status == 423);
+  CHECK_FALSE(f.drive.moving());
+  CHECK(f.drive.events().back().halt);
+  CHECK(f.host.pending_tasks() == 0);
+}
+
+TEST_CASE("no differential drive: 503 UNAVAILABLE") {
+  FakeHost host;
+  host.load(RCAND_ENTRY_FUNCTION, manifest());
+  host.add_capability("teleop");
+  for (const char* type : {"move", "stop"}) {
+    const auto r = host.call("POST", "/api/action", {{"type", type}, {"linear", 0.1}, {"angular", 0.0}});
+    CHECK(r.status == 503);
+    CHECK(r.body["code"] == "UNAVAILABLE");
+  }
+  CHECK(host.capability<rcand::plugins::teleop::Teleop>("teleop").status()["driver"].is_null());
+}
+
+TEST_CASE("the driver setting picks the actuator; an unknown one answers 503") {
+  FakeHost host;
+  auto& first = host.add_driver_instance<RecordingDrive>("left_base", host.clock());
+  auto& second = host.add_driver_instance<RecordingDrive>("right_base", host.clock());
+  host.load(RCAND_ENTRY_FUNCTION, manifest());
+  host.add_capability("teleop", {{"driver", "right_base"}});
+  CHECK(host.call("POST", "/api/action", move(0.5, 0.0)).status == 200);
+  CHECK(first.events().empty());
+  CHECK(second.moving());
+  const auto status = host.capability<rcand::plugins::teleop::Teleop>("teleop").status();
+  CHECK(status["driver"] == "right_base");
+  CHECK(status["moving"] == true);
+  CHECK(status["last_command_us"] == 0);
+
+  FakeHost other;
+  other.add_driver_instance<RecordingDrive>("base", other.clock());
+  other.load(RCAND_ENTRY_FUNCTION, manifest());
+  other.add_capability("teleop", {{"driver", "nope"}});
+  CHECK(other.call("POST", "/api/action", move(0.5, 0.0)).status == 503);
+}
+
+TEST_CASE("a bad watchdog_ms is refused naming the key") {
+  FakeHost host({{"safety", {{"watchdog_ms", 0}}}});
+  host.load(RCAND_ENTRY_FUNCTION, manifest());
+  CHECK_THROWS_WITH_AS(host.add_capability("teleop"), doctest::Contains("safety.watchdog_ms"), HostError);
+  FakeHost schema_host;
+  schema_host.load(RCAND_ENTRY_FUNCTION, manifest());
+  CHECK_THROWS_WITH_AS(schema_host.add_capability("teleop", {{"watchdog_ms", "soon"}}), doctest::Contains("watchdog_ms"),
+                       HostError);
+}

@@ -1,0 +1,59 @@
+// rcanctl: the command-line client of rcand. Each subcommand lives in its own file; add one with one table row.
+#include <algorithm>
+#include <iostream>
+#include <span>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "token_command.hpp"
+
+namespace {
+
+struct Subcommand {
+  std::string_view name;
+  std::string_view summary;
+  int (*run)(std::span<const std::string> args);  // the words after the name; returns the exit code
+};
+
+constexpr Subcommand kSubcommands[] = {
+    {"token", "issue JWTs (token issue), hash or create pre-shared tokens (token hash, token new)",
+     rcand::rcanctl::run_token},
+};
+
+constexpr int kUsageError = 2;
+
+void print_usage(std::ostream& out) {
+  out << "usage: rcanctl <subcommand> [args...]\n\nsubcommands:\n";
+  for (const Subcommand& sub : kSubcommands) {
+    const std::size_t pad = sub.name.size() < 12 ? 12 - sub.name.size() : 1;
+    out << "  " << sub.name << std::string(pad, ' ') << sub.summary << "\n";
+  }
+  out << "\nrcanctl <subcommand> --help shows its options.\n";
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  const std::vector<std::string> args(argv + (argc > 0 ? 1 : 0), argv + argc);
+  if (args.empty()) {
+    print_usage(std::cerr);
+    return kUsageError;
+  }
+  if (args.front() == "--help" || args.front() == "-h" || args.front() == "help") {
+    print_usage(std::cout);
+    return 0;
+  }
+  for (const Subcommand& sub : kSubcommands)
+    if (args.front() == sub.name) {
+      try {
+        return sub.run(std::span<const std::string>(args).subspan(1));
+      } catch (const std::exception& e) {
+        std::cerr << "rcanctl " << sub.name << ": " << e.what() << "\n";
+        return 1;
+      }
+    }
+  std::cerr << "rcanctl: unknown subcommand '" << args.front() << "'\n\n";
+  print_usage(std::cerr);
+  return kUsageError;
+}

@@ -1,0 +1,112 @@
+// notes §10: config errors stop startup with file:line:column and the key path; --check-config validates only.
+#include <doctest/doctest.h>
+
+#include "rcand_process.hpp"
+
+using namespace rcand::test;
+
+namespace {
+
+const char* kValid = R"(rcan_version: "1.3"
+metadata:
+  robot_name: yaml-rover
+  robot_uuid: 0badc0de-0000-4000-8000-000000000000
+  manufacturer: acme
+  model: r1
+physics:
+  wheel_circumference_m: 0.21
+  turn_time_per_deg_s: 0.008
+drivers:
+  - id: drive0
+    protocol: sim_diff_drive
+rcan_protocol:
+  capabilities: [status, teleop]
+runtime:
+  auth:
+    mode: open
+)";
+
+ProcessResult check(const std::string& yaml) {
+  TempDir dir;
+  const auto file = dir.write("robot.rcan.yaml", yaml);
+  return run_tool(rcand_binary(), {"--check-config", file.string(), "--plugin-path", plugin_dir().string()});
+}
+
+std::string replace(std::string text, const std::string& from, const std::string& to) {
+  const auto at = text.find(from);
+  REQUIRE(at != std::string::npos);
+  return text.replace(at, from.size(), to);
+}
+
+}  // namespace
+
+TEST_CASE("--check-config accepts the bundled sim config and a minimal one") {
+  auto bundled = run_tool(rcand_binary(), {"--check-config", std::string(RCAND_SOURCE_DIR) + "/config/sim-rover.rcan.yaml",
+                                           "--plugin-path", plugin_dir().string()});
+  CHECK(bundled.exit_code == 0);
+  CHECK(bundled.out.find("OK") != std::string::npos);
+  auto minimal = check(kValid);
+  CHECK(minimal.exit_code == 0);
+  CHECK(minimal.out.find("status, teleop") != std::string::npos);
+}
+
+TEST_CASE("a missing required key stops startup with file:line:column and the key path") {
+  auto result = check(replace(kValid, "  robot_name: yaml-rover\n", ""));
+  CHECK(result.exit_code == 1);
+  CHECK(result.err.find("robot.rcan.yaml:2:") != std::string::npos);
+  CHECK(result.err.find("metadata.robot_name") != std::string::npos);
+}
+
+TEST_CASE("a wrong type names the key, the position and what was expected") {
+  auto result = check(replace(kValid, "wheel_circumference_m: 0.21", "wheel_circumference_m: wide"));
+  CHECK(result.exit_code == 1);
+  CHECK(result.err.find("robot.rcan.yaml:8:") != std::string::npos);
+  CHECK(result.err.find("physics.wheel_circumference_m") != std::string::npos);
+  CHECK(result.err.find("number") != std::string::npos);
+}
+
+TEST_CASE("an unknown key warns with the closest known key and still validates") {
+  auto result = check(replace(kValid, "physics:", "phisics_extra: 1\nphysics:"));
+  CHECK(result.exit_code == 0);
+  CHECK(result.err.find("warning") != std::string::npos);
+  CHECK(result.err.find("phisics_extra") != std::string::npos);
+}
+
+TEST_CASE("an explicitly listed capability that no installed plugin provides stops startup naming the plugin") {
+  auto result = check(replace(kValid, "[status, teleop]", "[status, teleop, vision]"));
+  CHECK(result.exit_code == 1);
+  CHECK(result.err.find("rcan_protocol.capabilities[2]") != std::string::npos);
+  CHECK(result.err.find("org.rcand.vision") != std::string::npos);
+  CHECK(result.err.find(":14:") != std::string::npos);
+}
+
+TEST_CASE("nav without the §10.2 physics fields is refused") {
+  auto yaml = replace(kValid, "  turn_time_per_deg_s: 0.008\n", "");
+  auto result = check(replace(yaml, "[status, teleop]", "[status, nav]"));
+  CHECK(result.exit_code == 1);
+  CHECK(result.err.find("turn_time_per_deg_s") != std::string::npos);
+}
+
+TEST_CASE("YAML syntax errors and missing files are reported, and rcand does not start") {
+  auto result = check("metadata: [unclosed\n");
+  CHECK(result.exit_code == 1);
+  CHECK(result.err.find("robot.rcan.yaml:") != std::string::npos);
+  auto missing = run_tool(rcand_binary(), {"--config", "/nonexistent/robot.rcan.yaml"});
+  CHECK(missing.exit_code == 1);
+  CHECK(missing.err.find("/nonexistent/robot.rcan.yaml") != std::string::npos);
+}
+
+TEST_CASE("plugin settings are validated against the manifest schema with the config position") {
+  auto result = check(replace(kValid, "    protocol: sim_diff_drive\n", "    protocol: sim_diff_drive\n    halt_delay_ms: soon\n"));
+  CHECK(result.exit_code == 1);
+  CHECK(result.err.find("drivers[0]") != std::string::npos);
+  CHECK(result.err.find("halt_delay_ms") != std::string::npos);
+}
+
+TEST_CASE("rcand --version and bad arguments") {
+  auto version = run_tool(rcand_binary(), {"--version"});
+  CHECK(version.exit_code == 0);
+  CHECK(version.out.find("RCAN 1.3.0") != std::string::npos);
+  CHECK(run_tool(rcand_binary(), {"--bogus"}).exit_code == 2);
+  CHECK(run_tool(rcand_binary(), {"--port", "99999"}).exit_code == 2);
+}

@@ -1,0 +1,83 @@
+// Integration-test support: a real rcand process on loopback with a config of the test's own, in a temporary
+// directory the fixture removes. The process is ready when it prints its "listening on" line (read from a pipe,
+// no sleeping); it is stopped with SIGTERM (SIGKILL if it does not exit) and always reaped.
+#pragma once
+
+#include <nlohmann/json.hpp>
+#include <sys/types.h>
+
+#include <chrono>
+#include <filesystem>
+#include <map>
+#include <string>
+#include <vector>
+
+#include "rcand/kernel/http/client.hpp"
+
+namespace rcand::test {
+
+class TempDir {
+ public:
+  TempDir();
+  ~TempDir();
+  TempDir(const TempDir&) = delete;
+  TempDir& operator=(const TempDir&) = delete;
+  const std::filesystem::path& path() const noexcept { return path_; }
+  std::filesystem::path write(const std::string& name, const std::string& content) const;
+
+ private:
+  std::filesystem::path path_;
+};
+
+// The bundled sim robot's config as JSON (JSON is YAML), with test credentials: a JWT secret and pre-shared tokens
+// "owner-token", "user-token", "guest-token". Tests edit it before starting rcand.
+nlohmann::json sim_config();
+inline constexpr const char* kJwtSecret = "integration-test-secret-0123456789abcdef";
+
+// A JWT for `role` signed with kJwtSecret (or `secret`), valid for an hour, aud "rcan://*".
+std::string jwt_for(const std::string& role, const std::string& secret = kJwtSecret);
+
+struct ProcessResult {
+  int exit_code = -1;
+  std::string out, err;
+};
+// Runs rcand (or rcanctl) to completion with `args`; for --check-config, --check-plugins, --version.
+ProcessResult run_tool(const std::string& binary, const std::vector<std::string>& args, const std::string& stdin_text = {});
+std::string rcand_binary();
+std::string rcanctl_binary();
+// The in-tree plugin directory, and the fixture plugins' directory.
+std::filesystem::path plugin_dir();
+std::filesystem::path test_plugin_dir();
+
+class RcandProcess {
+ public:
+  // Writes `config` to <tmp>/robot.rcan.yaml (plus the JWT secret file) and starts rcand on port 0 loading plugins
+  // only from `plugin_paths` (default: the build tree's). Throws std::runtime_error with rcand's stderr when it does
+  // not come up.
+  explicit RcandProcess(const nlohmann::json& config, std::vector<std::filesystem::path> plugin_paths = {});
+  ~RcandProcess();
+  RcandProcess(const RcandProcess&) = delete;
+  RcandProcess& operator=(const RcandProcess&) = delete;
+
+  std::uint16_t port() const noexcept { return port_; }
+  pid_t pid() const noexcept { return pid_; }
+  const TempDir& dir() const noexcept { return dir_; }
+
+  // One request on a fresh connection; `token` becomes "Authorization: Bearer <token>" when non-empty.
+  kernel::http::ClientResponse request(const std::string& method, const std::string& target, const std::string& token = {},
+                                       const std::string& body = {}, std::map<std::string, std::string> headers = {}) const;
+  // request() with the body parsed as JSON (null when it is not JSON).
+  nlohmann::json json(const std::string& method, const std::string& target, const std::string& token = {},
+                      const std::string& body = {}, int* status = nullptr) const;
+  // SIGTERM and wait; returns the exit status (or 128+signal).
+  int stop();
+  std::string stderr_text() const;
+
+ private:
+  TempDir dir_;
+  pid_t pid_ = -1;
+  int stdout_fd_ = -1;
+  std::uint16_t port_ = 0;
+};
+
+}  // namespace rcand::test

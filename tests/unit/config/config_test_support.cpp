@@ -1,0 +1,75 @@
+#include "config_test_support.hpp"
+
+#include <doctest/doctest.h>
+
+#include <cstdlib>
+#include <fstream>
+#include <stdexcept>
+
+namespace config_test {
+
+using rcand::kernel::ConfigDiagnostic;
+using rcand::kernel::ConfigError;
+
+std::vector<std::string> minimal_lines() {
+  return {
+      "rcan_version: \"1.3\"",        // 1
+      "metadata:",                    // 2
+      "  robot_name: rover-1",        // 3
+      "  robot_uuid: \"abcd1234\"",   // 4
+      "  manufacturer: acme",         // 5
+      "  model: rover",               // 6
+  };
+}
+
+std::string join(const std::vector<std::string>& lines) {
+  std::string out;
+  for (const auto& line : lines) out += line + "\n";
+  return out;
+}
+
+rcand::kernel::LoadedConfig parse_ok(const std::string& yaml) {
+  try {
+    return rcand::kernel::parse_robot_config(yaml, "test.rcan.yaml", "/srv/robot");
+  } catch (const ConfigError& e) {
+    FAIL("unexpected ConfigError:\n" << std::string(e.what()));
+  }
+  throw std::logic_error("unreachable");
+}
+
+std::vector<ConfigDiagnostic> parse_errors(const std::string& yaml) {
+  try {
+    rcand::kernel::parse_robot_config(yaml, "test.rcan.yaml", "/srv/robot");
+  } catch (const ConfigError& e) {
+    return e.diagnostics();
+  }
+  FAIL("expected a ConfigError for:\n" << yaml);
+  return {};
+}
+
+std::vector<ConfigDiagnostic> errors_only(const std::vector<ConfigDiagnostic>& diagnostics) {
+  std::vector<ConfigDiagnostic> out;
+  for (const auto& d : diagnostics)
+    if (d.severity == ConfigDiagnostic::Severity::Error) out.push_back(d);
+  return out;
+}
+
+TempDir::TempDir() {
+  std::string pattern = (std::filesystem::temp_directory_path() / "rcand-config-test-XXXXXX").string();
+  if (::mkdtemp(pattern.data()) == nullptr) throw std::runtime_error("mkdtemp failed");
+  path_ = pattern;
+}
+
+TempDir::~TempDir() {
+  std::error_code ec;
+  std::filesystem::remove_all(path_, ec);
+}
+
+std::filesystem::path TempDir::write(const std::filesystem::path& relative, const std::string& text) const {
+  const auto file = path_ / relative;
+  std::filesystem::create_directories(file.parent_path());
+  std::ofstream(file, std::ios::binary) << text;
+  return file;
+}
+
+}  // namespace config_test

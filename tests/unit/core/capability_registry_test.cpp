@@ -1,0 +1,227 @@
+#include <doctest/doctest.h>
+
+#include <random>
+
+#include "rcand/kernel/core/capability_registry.hpp"
+
+using namespace rcand::kernel;
+
+namespace {
+
+RobotConfig base_config() {
+  RobotConfig config;
+  config.source_file = "robot.rcan.yaml";
+  config.robot_name = "rover";
+  config.manufacturer = "acme";
+  config.model = "r1";
+  config.robot_uuid = "1a2b3c4d-0000-0000-0000-000000000000";
+  return config;
+}
+
+// Installed plugins for these tests: every standard capability, one custom one, a drive and a dynamixel.
+ProviderLookup installed_everything() {
+  ProviderLookup lookup;
+  lookup.driver_interface = [](std::string_view protocol) -> std::optional<std::string> {
+    if (protocol == "sim_diff_drive") return std::string("differential_drive");
+    return std::nullopt;
+  };
+  lookup.providers = [](std::string_view capability) -> std::vector<std::string> {
+    if (capability == "com.acme.unknown") return {};
+    return {"org.test." + std::string(capability)};
+  };
+  return lookup;
+}
+
+std::vector<std::string> split(const std::string& text) {
+  std::vector<std::string> parts;
+  std::size_t start = 0;
+  while (start <= text.size()) {
+    auto comma = text.find(',', start);
+    parts.push_back(text.substr(start, comma == std::string::npos ? std::string::npos : comma - start));
+    if (comma == std::string::npos) break;
+    start = comma + 1;
+  }
+  return parts;
+}
+
+void require_consistent(const Advertisement& ad) {
+  const auto config_list = ad.config_view["rcan_protocol"]["capabilities"].get<std::vector<std::string>>();
+  const auto discover_list = ad.discover["capabilities"].get<std::vector<std::string>>();
+  const auto txt_list = split(ad.txt.at("caps"));
+  const auto discover_txt_list = split(ad.discover["txt_record"]["caps"].get<std::string>());
+  REQUIRE(config_list == ad.capabilities);
+  REQUIRE(discover_list == ad.capabilities);
+  REQUIRE(txt_list == ad.capabilities);
+  REQUIRE(discover_txt_list == ad.capabilities);
+}
+
+}  // namespace
+
+TEST_CASE("standard capabilities carry the §9.2 scopes") {
+  CHECK(CapabilityRegistry::minimum_scope("status") == rcand::sdk::Scope::Status);
+  CHECK(CapabilityRegistry::minimum_scope("vision") == rcand::sdk::Scope::Status);
+  for (auto name : {"nav", "teleop", "chat", "arm"}) CHECK(CapabilityRegistry::minimum_scope(name) == rcand::sdk::Scope::Control);
+  CHECK(CapabilityRegistry::minimum_scope("com.acme.gripper") == rcand::sdk::Scope::Control);  // §9.4
+  CHECK(standard_capabilities().size() == 6);
+}
+
+TEST_CASE("reverse-domain names") {
+  CHECK(is_reverse_domain_name("com.acme.gripper"));
+  CHECK(is_reverse_domain_name("io.opencastor.lidar"));
+  CHECK(is_reverse_domain_name("com.acme.arm_v2"));
+  CHECK_FALSE(is_reverse_domain_name("nav"));
+  CHECK_FALSE(is_reverse_domain_name("acme.gripper"));
+  CHECK_FALSE(is_reverse_domain_name("Com.Acme.Gripper"));
+  CHECK_FALSE(is_reverse_domain_name("com..gripper"));
+  CHECK_FALSE(is_reverse_domain_name("com.acme."));
+  CHECK_FALSE(is_reverse_domain_name("com.acme.1gripper"));
+  CHECK_FALSE(is_reverse_domain_name(""));
+}
+
+TEST_CASE("auto-detection follows §9.3 only when the list is omitted") {
+  auto config = base_config();
+  config.drivers.push_back({"d0", "pca9685", {}});
+  config.has_camera = true;
+  config.has_agent = true;
+  SUBCASE("no physics: teleop but not nav") {
+    auto plan = plan_capabilities(config, installed_everything());
+    CHECK(plan.auto_detected);
+    CHECK(plan.names == std::vector<std::string>{"status", "teleop", "vision", "chat"});
+  }
+  SUBCASE("physics: nav too") {
+    config.wheel_circumference_m = 0.2;
+    config.turn_time_per_deg_s = 0.01;
+    auto plan = plan_capabilities(config, installed_everything());
+    CHECK(plan.names == std::vector<std::string>{"status", "nav", "teleop", "vision", "chat"});
+  }
+  SUBCASE("dynamixel with kinematics: arm") {
+    config.drivers = {{"d0", "dynamixel", {}}};
+    config.has_kinematics = true;
+    config.has_camera = config.has_agent = false;
+    auto plan = plan_capabilities(config, installed_everything());
+    CHECK(plan.names == std::vector<std::string>{"status", "teleop", "arm"});
+  }
+  SUBCASE("a driver implementing differential_drive implies teleop") {
+    config.drivers = {{"d0", "sim_diff_drive", {}}};
+    config.has_camera = config.has_agent = false;
+    auto plan = plan_capabilities(config, installed_everything());
+    CHECK(plan.names == std::vector<std::string>{"status", "teleop"});
+  }
+  SUBCASE("an auto-detected capability without a provider is dropped with a note") {
+    ProviderLookup lookup = installed_everything();
+    lookup.providers = [](std::string_view capability) -> std::vector<std::string> {
+      if (capability == "vision") return {};
+      return {"x"};
+    };
+    auto plan = plan_capabilities(config, lookup);
+    CHECK(plan.names == std::vector<std::string>{"status", "teleop", "chat"});
+    bool noted = false;
+    for (auto& note : plan.notes) noted = noted || note.find("vision") != std::string::npos;
+    CHECK(noted);
+  }
+  SUBCASE("an explicit list disables auto-detection") {
+    config.capabilities = std::vector<std::string>{"teleop"};
+    auto plan = plan_capabilities(config, installed_everything());
+    CHECK_FALSE(plan.auto_detected);
+    CHECK(plan.names == std::vector<std::string>{"status", "teleop"});
+  }
+  SUBCASE("an explicit empty list declares status only") {
+    config.capabilities = std::vector<std::string>{};
+    CHECK(plan_capabilities(config, installed_everything()).names == std::vector<std::string>{"status"});
+  }
+}
+
+TEST_CASE("explicit lists are validated with the config position") {
+  auto config = base_config();
+  config.marks["rcan_protocol.capabilities[1]"] = {"robot.rcan.yaml", 12, 7};
+  auto error_of = [&](std::vector<std::string> list) {
+    config.capabilities = std::move(list);
+    try {
+      plan_capabilities(config, installed_everything());
+    } catch (const ConfigError& e) {
+      REQUIRE(e.diagnostics().size() == 1);
+      return e.diagnostics()[0];
+    }
+    FAIL("expected a ConfigError");
+    return ConfigDiagnostic{};
+  };
+  SUBCASE("unknown standard-looking name suggests the closest") {
+    auto d = error_of({"status", "navv"});
+    CHECK(d.key_path == "rcan_protocol.capabilities[1]");
+    CHECK(d.mark.line == 12);
+    CHECK(d.mark.column == 7);
+    CHECK(d.message.find("did you mean 'nav'") != std::string::npos);
+  }
+  SUBCASE("nav without §10.2 physics") {
+    auto d = error_of({"status", "nav"});
+    CHECK(d.message.find("wheel_circumference_m") != std::string::npos);
+  }
+  SUBCASE("a listed capability nobody provides names the plugin that could") {
+    ProviderLookup nobody = installed_everything();
+    nobody.providers = [](std::string_view) { return std::vector<std::string>{}; };
+    config.capabilities = std::vector<std::string>{"status", "teleop"};
+    try {
+      plan_capabilities(config, nobody);
+      FAIL("expected a ConfigError");
+    } catch (const ConfigError& e) {
+      const auto& message = e.diagnostics()[0].message;
+      CHECK(message.find("org.rcand.teleop") != std::string::npos);
+      CHECK(message.find("rcand-plugins-core") != std::string::npos);
+    }
+  }
+  SUBCASE("a custom name nobody provides") {
+    auto d = error_of({"status", "com.acme.unknown"});
+    CHECK(d.message.find("no installed plugin") != std::string::npos);
+  }
+  SUBCASE("a non-reverse-domain custom name") {
+    auto d = error_of({"status", "gripper"});
+    CHECK(d.message.find("reverse-domain") != std::string::npos);
+  }
+}
+
+TEST_CASE("config view, mDNS TXT and DISCOVER agree over many configs") {
+  std::mt19937 random(20261121);
+  const std::vector<std::string> pool{"status", "teleop", "nav", "vision", "chat", "arm", "com.acme.gripper", "io.opencastor.lidar"};
+  for (int round = 0; round < 500; ++round) {
+    auto config = base_config();
+    if (random() % 2) {
+      config.wheel_circumference_m = 0.21;
+      config.turn_time_per_deg_s = 0.008;
+    }
+    config.has_camera = random() % 2;
+    config.has_agent = random() % 2;
+    config.has_kinematics = random() % 2;
+    for (const char* protocol : {"pca9685", "dynamixel", "sim_diff_drive", "gpio"})
+      if (random() % 3 == 0) config.drivers.push_back({std::string("d") + protocol, protocol, {}});
+    if (random() % 2) {
+      std::vector<std::string> list;
+      for (const auto& name : pool)
+        if (random() % 2 && (name != "nav" || config.wheel_circumference_m)) list.push_back(name);
+      config.capabilities = list;
+    }
+    const auto plan = plan_capabilities(config, installed_everything());
+    CapabilityRegistry registry({"rcan://acme.r1.1a2b3c4d", "rover", "r1"}, plan);
+    const auto ad = registry.advertise(round % 2 ? "idle" : "estop", 8000);
+    require_consistent(ad);
+    REQUIRE(ad.capabilities.front() == "status");
+    if (!has_nav_physics(config)) REQUIRE(std::find(ad.capabilities.begin(), ad.capabilities.end(), "nav") == ad.capabilities.end());
+    for (const auto& name : ad.capabilities) REQUIRE(registry.declared(name));
+  }
+}
+
+TEST_CASE("the DISCOVER document and TXT record carry every notes §5 key") {
+  auto config = base_config();
+  config.capabilities = std::vector<std::string>{"teleop", "com.acme.gripper"};
+  CapabilityRegistry registry({"rcan://acme.r1.1a2b3c4d", "rover", "r1"}, plan_capabilities(config, installed_everything()));
+  const auto ad = registry.advertise("estop", 8123);
+  for (auto key : {"ruri", "model", "caps", "roles", "role", "version", "name", "status"}) CHECK(ad.txt.count(key) == 1);
+  CHECK(ad.txt.size() == 8);
+  CHECK(ad.txt.at("caps") == "status,teleop,com.acme.gripper");
+  CHECK(ad.txt.at("version") == "1.3.0");
+  CHECK(ad.txt.at("status") == "estop");
+  CHECK(ad.discover["port"] == 8123);
+  CHECK(ad.discover["service_type"] == "_rcan._tcp");
+  CHECK(ad.discover["version"] == "1.3.0");
+  CHECK(ad.discover["ruri"] == "rcan://acme.r1.1a2b3c4d");
+  CHECK(ad.discover["txt_record"]["status"] == "estop");
+}

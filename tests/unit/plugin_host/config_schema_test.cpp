@@ -1,0 +1,106 @@
+#include "rcand/kernel/plugin_host/config_schema.hpp"
+
+#include <doctest/doctest.h>
+
+using nlohmann::json;
+using rcand::kernel::apply_config_schema;
+using rcand::kernel::ConfigSchemaError;
+
+namespace {
+
+const json kSchema = json::parse(R"({
+  "watchdog_ms": {"type": "integer", "default": 500, "minimum": 1, "description": "dead-man timeout"},
+  "speed": {"type": "number", "minimum": 0, "maximum": 1},
+  "driver": {"type": "string", "description": "actuator id"},
+  "mode": {"type": "string", "enum": ["fast", "safe"], "default": "safe"},
+  "verbose": {"type": "boolean", "default": false},
+  "waypoints": {"type": "array"},
+  "limits": {"type": "object"},
+  "api_key": {"type": "string", "enum": ["sk-allowed"]},
+  "port": {"type": "string", "required": true, "description": "serial device"}
+})");
+
+std::string error_of(const json& settings, bool allow_unknown = false) {
+  try {
+    apply_config_schema(kSchema, settings, allow_unknown);
+  } catch (const ConfigSchemaError& e) {
+    return e.what();
+  }
+  return "";
+}
+
+}  // namespace
+
+TEST_CASE("apply_config_schema fills defaults and keeps given values") {
+  const json out = apply_config_schema(kSchema, json{{"port", "/dev/ttyUSB0"}, {"speed", 0.5}}, false);
+  CHECK(out["watchdog_ms"] == 500);
+  CHECK(out["mode"] == "safe");
+  CHECK(out["verbose"] == false);
+  CHECK(out["speed"] == 0.5);
+  CHECK(out["port"] == "/dev/ttyUSB0");
+  CHECK_FALSE(out.contains("driver"));  // no default, not required: stays absent
+  const json given = apply_config_schema(kSchema, json{{"port", "p"}, {"watchdog_ms", 20}, {"mode", "fast"}}, false);
+  CHECK(given["watchdog_ms"] == 20);
+  CHECK(given["mode"] == "fast");
+}
+
+TEST_CASE("apply_config_schema: null settings and explicit nulls mean 'not set'") {
+  const json schema = json::parse(R"({"watchdog_ms": {"type": "integer", "default": 500}, "name": {"type": "string"}})");
+  CHECK(apply_config_schema(schema, json(), false) == json{{"watchdog_ms", 500}});
+  CHECK(apply_config_schema(schema, json{{"watchdog_ms", nullptr}, {"name", nullptr}}, false) == json{{"watchdog_ms", 500}});
+  CHECK(apply_config_schema(json::object(), json::object(), false) == json::object());
+}
+
+TEST_CASE("apply_config_schema checks types") {
+  CHECK(error_of({{"port", "p"}, {"watchdog_ms", "500"}}) == "watchdog_ms: expected integer >= 1, found string");
+  CHECK(error_of({{"port", "p"}, {"watchdog_ms", 1.5}}) == "watchdog_ms: expected integer >= 1, found number");
+  CHECK(error_of({{"port", "p"}, {"speed", true}}) == "speed: expected number in [0, 1], found boolean");
+  CHECK(error_of({{"port", 3}}) == "port: expected string, found number");
+  CHECK(error_of({{"port", "p"}, {"verbose", "yes"}}) == "verbose: expected boolean, found string");
+  CHECK(error_of({{"port", "p"}, {"waypoints", json::object()}}) == "waypoints: expected array, found object");
+  CHECK(error_of({{"port", "p"}, {"limits", json::array()}}) == "limits: expected object, found array");
+  CHECK(error_of({{"port", "p"}, {"speed", 1}}).empty());  // an integer is a number
+  CHECK(error_of(json::array()) == "settings: expected object, found array");
+}
+
+TEST_CASE("apply_config_schema checks minimum and maximum") {
+  CHECK(error_of({{"port", "p"}, {"watchdog_ms", -3}}) == "watchdog_ms: expected integer >= 1, found -3");
+  CHECK(error_of({{"port", "p"}, {"watchdog_ms", 0}}) == "watchdog_ms: expected integer >= 1, found 0");
+  CHECK(error_of({{"port", "p"}, {"watchdog_ms", 1}}).empty());
+  CHECK(error_of({{"port", "p"}, {"speed", 1.5}}) == "speed: expected number in [0, 1], found 1.5");
+  CHECK(error_of({{"port", "p"}, {"speed", -0.1}}) == "speed: expected number in [0, 1], found -0.1");
+}
+
+TEST_CASE("apply_config_schema checks enums, without echoing secret-looking values") {
+  CHECK(error_of({{"port", "p"}, {"mode", "turbo"}}) == "mode: expected one of \"fast\", \"safe\", found \"turbo\"");
+  const std::string secret = error_of({{"port", "p"}, {"api_key", "sk-live-SECRET"}});
+  CHECK(secret.find("api_key: expected one of") == 0);
+  CHECK(secret.find("SECRET") == std::string::npos);
+}
+
+TEST_CASE("apply_config_schema reports missing required settings with their description") {
+  CHECK(error_of(json::object()) == "port: required (string: serial device)");
+}
+
+TEST_CASE("apply_config_schema rejects unknown keys unless allowed") {
+  const std::string message = error_of({{"port", "p"}, {"watchdog", 5}});
+  CHECK(message.find("watchdog: unknown key; expected one of: ") == 0);
+  CHECK(message.find("watchdog_ms") != std::string::npos);
+  CHECK(message.find("did you mean 'watchdog_ms'?") != std::string::npos);
+
+  const json entry = apply_config_schema(kSchema, json{{"id", "left"}, {"protocol", "sim"}, {"port", "p"}}, true);
+  CHECK(entry["id"] == "left");
+  CHECK(entry["protocol"] == "sim");
+  CHECK(entry["watchdog_ms"] == 500);
+
+  CHECK_THROWS_WITH_AS(apply_config_schema(json::object(), json{{"x", 1}}, false),
+                       "x: unknown key; this plugin takes no settings", ConfigSchemaError);
+}
+
+TEST_CASE("apply_config_schema rejects a malformed schema instead of crashing") {
+  CHECK_THROWS_AS(apply_config_schema(json::array(), json::object(), false), ConfigSchemaError);
+  CHECK_THROWS_WITH_AS(apply_config_schema(json{{"x", 5}}, json::object(), false), "x: expected object, found number",
+                       ConfigSchemaError);
+  CHECK_THROWS_AS(apply_config_schema(json{{"x", {{"type", "integer"}, {"minimum", "1"}}}}, json::object(), false),
+                  ConfigSchemaError);
+}
