@@ -56,6 +56,14 @@ std::optional<std::string> GripperCapability::resolve_actuator() const {
   return ctx_.motion().first_actuator(Gripper::kInterface);
 }
 
+void GripperCapability::remember(const Gripper& gripper) {
+  const double opening = gripper.opening();
+  const bool holding = gripper.holding();
+  std::lock_guard lock(mutex_);
+  opening_ = opening;
+  holding_ = holding;
+}
+
 Json GripperCapability::describe(const std::string& actuator) const {
   std::lock_guard lock(mutex_);
   return {{"opening", opening_ ? Json(*opening_) : Json(nullptr)}, {"holding", holding_}, {"actuator", actuator}};
@@ -65,18 +73,8 @@ Response GripperCapability::state(const rcand::sdk::Request&) {
   const auto actuator = resolve_actuator();
   if (!actuator) return Response::error(503, "UNAVAILABLE", "no com.acme.gripper actuator is configured");
   // Reading goes through the gate too (we never hold a driver); inspect() is never refused by the e-stop.
-  double opening = 0.0;
-  bool holding = false;
-  const GateStatus gate = ctx_.motion().inspect_as<Gripper>(*actuator, [&](const Gripper& g) {
-    opening = g.opening();
-    holding = g.holding();
-  });
+  const GateStatus gate = ctx_.motion().inspect_as<Gripper>(*actuator, [&](const Gripper& g) { remember(g); });
   if (gate != GateStatus::Ok) return rcand::sdk::gate_refusal(gate, *actuator);
-  {
-    std::lock_guard lock(mutex_);
-    opening_ = opening;
-    holding_ = holding;
-  }
   return Response::ok(describe(*actuator));
 }
 
@@ -104,19 +102,11 @@ Response GripperCapability::grip(const rcand::sdk::Request& request) {
 
   const auto actuator = resolve_actuator();
   if (!actuator) return Response::error(503, "UNAVAILABLE", "no com.acme.gripper actuator is configured");
-  double opening = 0.0;
-  bool holding = false;
   const GateStatus gate = ctx_.motion().actuate_as<Gripper>(*actuator, [&](Gripper& g) {
     g.set_opening(target);
-    opening = g.opening();
-    holding = g.holding();
+    remember(g);
   });
   if (gate != GateStatus::Ok) return rcand::sdk::gate_refusal(gate, *actuator);
-  {
-    std::lock_guard lock(mutex_);
-    opening_ = opening;
-    holding_ = holding;
-  }
   Json answer = describe(*actuator);
   answer["ok"] = true;
   return Response::ok(std::move(answer));

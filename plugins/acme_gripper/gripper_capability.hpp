@@ -7,6 +7,8 @@
 #include <optional>
 #include <string>
 
+#include "gripper.hpp"
+
 namespace acme::gripper {
 
 class GripperCapability final : public rcand::sdk::Capability {
@@ -20,10 +22,11 @@ class GripperCapability final : public rcand::sdk::Capability {
   rcand::sdk::Response grip(const rcand::sdk::Request& request);
   std::optional<std::string> resolve_actuator() const;  // setting `driver`, else the first com.acme.gripper
   rcand::sdk::Json describe(const std::string& actuator) const;
+  void remember(const Gripper& gripper);  // caches what status() serves without touching the gate
 
   rcand::sdk::PluginContext& ctx_;
   const std::optional<std::string> configured_driver_;
-  mutable std::mutex mutex_;  // the last state read through the gate
+  mutable std::mutex mutex_;  // guards the cached state below
   std::optional<double> opening_;
   bool holding_ = false;
 };

@@ -139,3 +139,18 @@ TEST_CASE("bad input gets a clear error naming the field, and nothing moves") {
   rcand.json("GET", "/api/status", "guest-token", "", &status);
   CHECK(status == 200);
 }
+
+TEST_CASE("a capability whose required actuator is not configured is out of service, and says why") {
+  auto config = sim_config();
+  config["drivers"] = json::array({{{"id", "gripper0"}, {"protocol", "acme_gripper_sim"}}});  // no drive
+  RcandProcess rcand(config);
+  int status = 0;
+  auto answer = rcand.json("POST", "/api/action", "user-token", R"({"type":"stop"})", &status);
+  CHECK(status == 503);
+  CHECK(answer["code"] == "UNAVAILABLE");
+  CHECK(answer["error"].get<std::string>().find("differential_drive") != std::string::npos);
+  CHECK(rcand.json("GET", "/api/status", "guest-token")["capabilities"]["teleop"]["state"] == "failed");
+  // The gripper still serves.
+  rcand.json("GET", "/api/cap/com.acme.gripper/state", "user-token", "", &status);
+  CHECK(status == 200);
+}

@@ -110,6 +110,11 @@ void PluginRuntime::start_capabilities(const std::vector<std::string>& names, co
     }
     instance.plugin_id = plugin->id;
     instance.actuates = registered->info.actuates;
+    if (const auto missing = missing_requirement(*plugin)) {
+      instance.health.mark_failed("requires a " + *missing + " actuator, and no configured driver provides one");
+      log->error("capability {}: {}", name, instance.health.reason());
+      continue;
+    }
     const nlohmann::json raw = config.runtime.capabilities.contains(name) ? config.runtime.capabilities.at(name)
                                                                           : nlohmann::json::object();
     auto settings = validated_settings(config, *plugin, raw, false, "runtime.capabilities." + name);
@@ -134,6 +139,16 @@ void PluginRuntime::start_capabilities(const std::vector<std::string>& names, co
     log->info("capability {} ({}) {}, {} routes", name, plugin->id,
               instance.health.failed() ? "failed: " + instance.health.reason() : "started", instance.routes.size());
   }
+}
+
+std::optional<std::string> PluginRuntime::missing_requirement(const PluginRecord& plugin) const {
+  if (!plugin.manifest) return std::nullopt;
+  for (const auto& interface : plugin.manifest->requires_) {
+    bool provided = false;
+    for (const auto& slot : actuators_.slots()) provided = provided || slot.interface == interface;
+    if (!provided) return interface;
+  }
+  return std::nullopt;
 }
 
 CapabilityInstance* PluginRuntime::capability(std::string_view name) noexcept {

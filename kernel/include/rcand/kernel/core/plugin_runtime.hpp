@@ -8,6 +8,7 @@
 
 #include <deque>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -56,6 +57,9 @@ class PluginRuntime {
   void shutdown() noexcept;
 
  private:
+  // The first interface the plugin's manifest `requires` that no started actuator implements.
+  std::optional<std::string> missing_requirement(const PluginRecord& plugin) const;
+
   PluginHost& host_;
   KernelServices& services_;
   ActuatorTable& actuators_;

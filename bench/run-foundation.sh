@@ -1,0 +1,33 @@
+#!/usr/bin/env bash
+# Foundation benchmarks (issue "Foundation"): GET /api/status throughput with wrk, POST /api/stop latency while
+# other clients saturate GET /api/status, and idle resident memory. Needs a built tree (build/) and wrk.
+#   bench/run-foundation.sh [build-dir]
+set -euo pipefail
+cd "$(dirname "$0")/.."
+build=${1:-build}
+command -v wrk >/dev/null || { echo "needs wrk: apt-get install --no-install-recommends wrk" >&2; exit 2; }
+port=18600
+token=rcand-dev-owner
+work=$(mktemp -d)
+trap 'kill $pid 2>/dev/null || true; wait $pid 2>/dev/null || true; rm -rf "$work"' EXIT
+
+"$build/kernel/rcand" --config config/sim-rover.rcan.yaml --port $port >"$work/out" 2>"$work/err" &
+pid=$!
+until grep -q "listening on" "$work/out"; do kill -0 $pid; sleep 0.05; done
+
+rss_kb() { awk '/VmRSS/ {print $2}' /proc/$pid/status; }
+echo "idle RSS after start: $(rss_kb) kB"
+
+echo "== GET /api/status throughput (wrk -t1 -c64 -d10s) =="
+wrk -t1 -c64 -d10s -H "Authorization: Bearer $token" "http://127.0.0.1:$port/api/status" | grep -E "Requests/sec|Latency|requests in"
+
+echo "== POST /api/stop latency while wrk saturates GET /api/status =="
+wrk -t1 -c32 -d30s -H "Authorization: Bearer $token" "http://127.0.0.1:$port/api/status" >"$work/wrk" &
+wrk_pid=$!
+sleep 1
+"$build/bench/bench_stop_latency" $port $token 3000
+kill $wrk_pid 2>/dev/null; wait $wrk_pid 2>/dev/null || true
+
+echo "== POST /api/stop latency, idle robot =="
+"$build/bench/bench_stop_latency" $port $token 3000
+echo "idle RSS after the runs: $(rss_kb) kB"

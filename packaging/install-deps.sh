@@ -1,0 +1,17 @@
+#!/usr/bin/env bash
+# Installs the Debian 12 packages rcand needs to build and test (only those: --no-install-recommends).
+set -euo pipefail
+packages=(
+  cmake ninja-build g++ pkg-config         # build
+  libboost-dev                              # Boost.Asio, Beast, DLL (header-only)
+  nlohmann-json3-dev libyaml-cpp-dev libspdlog-dev libssl-dev
+  doctest-dev                               # unit tests
+  curl                                      # README examples
+)
+missing=()
+for p in "${packages[@]}"; do dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "ok installed" || missing+=("$p"); done
+[ ${#missing[@]} -eq 0 ] && exit 0
+sudo=""; [ "$(id -u)" -eq 0 ] || sudo="sudo"
+export DEBIAN_FRONTEND=noninteractive
+$sudo apt-get update -qq
+$sudo apt-get install -y -qq --no-install-recommends "${missing[@]}"
