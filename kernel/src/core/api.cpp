@@ -81,6 +81,18 @@ std::string scope_list(Scope scope) { return std::string(sdk::scope_name(scope))
 
 }  // namespace
 
+Api::Api(ApiContext& context) : ctx_(context) {
+  const auto& identity = ctx_.registry.identity();
+  json plugins = json::array();
+  for (const auto& record : ctx_.host.records()) {
+    json item{{"id", record->id}, {"version", record->version}, {"state", std::string(to_string(record->state))}};
+    if (!record->reason.empty()) item["reason"] = record->reason;
+    plugins.push_back(std::move(item));
+  }
+  static_status_ = {{"ruri", identity.ruri},          {"name", identity.name},        {"version", ctx_.version},
+                    {"rcan_version", kRcanVersion}, {"caps", ctx_.registry.names()}, {"plugins", std::move(plugins)}};
+}
+
 struct Api::Caller {
   std::string principal;
   sdk::Role role = sdk::Role::Guest;
@@ -152,7 +164,7 @@ void Api::handle(http::Request&& request, http::Respond respond) {
       if (driver.health.failed()) doc["reason"] = driver.health.reason();
       std::string failure;
       if (driver.object) {
-        if (auto status = guarded_result(driver.plugin_id, "driver status", failure, [&] { return driver.object->status(); }))
+        if (auto status = guarded_result(driver.who, "status", failure, [&] { return driver.object->status(); }))
           doc["status"] = std::move(*status);
       }
       reply(json_response(200, doc));
@@ -306,7 +318,7 @@ void Api::handle_capability(CapabilityInstance& instance, const sdk::Route& rout
     respond(std::move(response));
   };
 
-  const std::string who = "plugin " + instance.plugin_id + " capability " + instance.name;
+  const std::string& who = instance.who;
   CapabilityInstance* target = &instance;
   pending->timer = ctx_.timers.schedule(ctx_.handler_timeout, [finish, target, timeout = ctx_.handler_timeout]() mutable {
     const std::string why = "handler did not answer within " + std::to_string(timeout.count()) + " ms";
@@ -393,44 +405,43 @@ void Api::handle_kernel(const std::string& endpoint, http::Request& request, con
   }
 }
 
-std::string Api::robot_state() const {
+bool Api::nav_running() const {
+  const auto* nav = ctx_.runtime.capability("nav");
+  if (nav == nullptr || !nav->object || nav->health.failed()) return false;
+  std::string failure;
+  auto status = guarded_result(nav->who, "status", failure, [&] { return nav->object->status(); });
+  return status && status->is_object() && status->value("running", false);
+}
+
+std::string Api::robot_state(bool nav_running) const {
   if (ctx_.estop.latched()) return "estop";
   for (const auto& instance : ctx_.runtime.capabilities())
     if (instance.health.failed()) return "error";
   for (const auto& driver : ctx_.runtime.drivers())
     if (driver.health.failed()) return "error";
-  if (const auto* nav = ctx_.runtime.capability("nav"); nav && nav->object) {
-    std::string failure;
-    auto status = guarded_result("plugin " + nav->plugin_id, "status", failure, [&] { return nav->object->status(); });
-    if (status && status->is_object() && status->value("running", false)) return "running";
-  }
-  return "idle";
+  return nav_running ? "running" : "idle";
 }
+
+std::string Api::robot_state() const { return robot_state(nav_running()); }
 
 json Api::discovery_document() const {
   return ctx_.registry.advertise(robot_state(), ctx_.port.load()).discover;
 }
 
 json Api::status_document() const {
-  const auto& identity = ctx_.registry.identity();
-  json plugins = json::array();
-  for (const auto& record : ctx_.host.records()) {
-    json item{{"id", record->id}, {"version", record->version}, {"state", std::string(to_string(record->state))}};
-    if (!record->reason.empty()) item["reason"] = record->reason;
-    plugins.push_back(std::move(item));
-  }
+  json doc = static_status_;
   json capabilities = json::object();
-  bool nav_running = false;
+  bool nav_is_running = false;
   for (const auto& instance : ctx_.runtime.capabilities()) {
     json item{{"plugin", instance.plugin_id}, {"state", instance.health.failed() ? "failed" : "ok"}};
     if (instance.health.failed()) item["reason"] = instance.health.reason();
     if (instance.object && !instance.health.failed()) {
       std::string failure;
-      if (auto status = guarded_result("plugin " + instance.plugin_id, "status", failure, [&] { return instance.object->status(); }))
+      if (auto status = guarded_result(instance.who, "status", failure, [&] { return instance.object->status(); })) {
+        if (instance.name == "nav" && status->is_object()) nav_is_running = status->value("running", false);
         item["status"] = std::move(*status);
+      }
     }
-    if (instance.name == "nav" && item.contains("status") && item["status"].is_object())
-      nav_running = item["status"].value("running", false);
     capabilities[instance.name] = std::move(item);
   }
   json drivers = json::array();
@@ -440,19 +451,13 @@ json Api::status_document() const {
     if (driver.health.failed()) item["reason"] = driver.health.reason();
     drivers.push_back(std::move(item));
   }
-  const auto estop = ctx_.estop.snapshot();
-  return {{"ruri", identity.ruri},
-          {"name", identity.name},
-          {"version", ctx_.version},
-          {"rcan_version", kRcanVersion},
-          {"caps", ctx_.registry.names()},
-          {"state", robot_state()},
-          {"estopped", estop.estopped},
-          {"uptime_s", (ctx_.clock.now_us() - ctx_.started_us) / 1'000'000},
-          {"plugins", plugins},
-          {"drivers", drivers},
-          {"capabilities", capabilities},
-          {"nav_running", nav_running}};
+  doc["state"] = robot_state(nav_is_running);
+  doc["estopped"] = ctx_.estop.latched();
+  doc["uptime_s"] = (ctx_.clock.now_us() - ctx_.started_us) / 1'000'000;
+  doc["drivers"] = std::move(drivers);
+  doc["capabilities"] = std::move(capabilities);
+  doc["nav_running"] = nav_is_running;
+  return doc;
 }
 
 }  // namespace rcand::kernel

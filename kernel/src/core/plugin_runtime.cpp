@@ -71,7 +71,8 @@ void PluginRuntime::start_drivers(const RobotConfig& config) {
     instance.context = std::make_unique<InstanceContext>(plugin->id, entry.id, services_, std::move(settings), instance.health);
 
     std::string failure;
-    const std::string who = "plugin " + plugin->id + " driver " + entry.id;
+    instance.who = "plugin " + plugin->id + " driver " + entry.id;
+    const std::string& who = instance.who;
     auto object = guarded_result(who, "factory", failure, [&] { return registered->factory(*instance.context); });
     if (!object || !*object) {
       instance.health.mark_failed(failure.empty() ? "factory returned nothing" : failure);
@@ -124,7 +125,8 @@ void PluginRuntime::start_capabilities(const std::vector<std::string>& names, co
     });
 
     std::string failure;
-    const std::string who = "plugin " + plugin->id + " capability " + name;
+    instance.who = "plugin " + plugin->id + " capability " + name;
+    const std::string& who = instance.who;
     auto object = guarded_result(who, "factory", failure, [&] { return registered->factory(*instance.context); });
     if (!object || !*object) {
       instance.health.mark_failed(failure.empty() ? "factory returned nothing" : failure);

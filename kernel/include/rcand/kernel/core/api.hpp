@@ -36,7 +36,7 @@ struct ApiContext {
 
 class Api {
  public:
-  explicit Api(ApiContext& context) : ctx_(context) {}
+  explicit Api(ApiContext& context);
   // I/O thread; never blocks.
   void handle(http::Request&& request, http::Respond respond);
 
@@ -51,8 +51,15 @@ class Api {
   void handle_capability(CapabilityInstance& instance, const sdk::Route& route, http::Request& request,
                          nlohmann::json body, const Caller& caller, http::Respond respond);
 
+  // The state from the facts already gathered; nav_running from nav's own status.
+  std::string robot_state(bool nav_running) const;
+  bool nav_running() const;
+
   ApiContext& ctx_;
   std::atomic<std::uint64_t> message_counter_{0};
+  // What /api/status says that cannot change after startup (identity, plugin table), built once: the status
+  // endpoint is the one clients poll hardest.
+  nlohmann::json static_status_;
 };
 
 }  // namespace rcand::kernel

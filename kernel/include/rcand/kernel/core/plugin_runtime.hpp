@@ -21,6 +21,7 @@ namespace rcand::kernel {
 
 struct DriverInstance {
   std::string id, protocol, plugin_id;
+  std::string who;  // "plugin <id> driver <id>", for the trampoline's log lines
   bool actuates = false;
   InstanceHealth health;
   std::unique_ptr<InstanceContext> context;
@@ -29,6 +30,7 @@ struct DriverInstance {
 
 struct CapabilityInstance {
   std::string name, plugin_id;
+  std::string who;  // "plugin <id> capability <name>", for the trampoline's log lines
   bool actuates = false;
   InstanceHealth health;
   std::unique_ptr<InstanceContext> context;
