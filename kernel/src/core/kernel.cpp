@@ -27,7 +27,7 @@ bool is_loopback(const std::string& address) {
 AuthSettings auth_settings(const RobotConfig& config, const std::string& ruri, const std::string& address) {
   AuthSettings settings;
   settings.robot_ruri = ruri;
-  settings.device_id = parse_ruri(ruri).ruri ? parse_ruri(ruri).ruri->device_id : "";
+  if (const auto parsed = parse_ruri(ruri).ruri) settings.device_id = parsed->device_id;
   const auto& auth = config.runtime.auth;
   if (auth.mode == "open") {
     // notes §3 ruling: no-auth mode exists only on loopback.
