@@ -6,6 +6,8 @@
 #include <string_view>
 #include <vector>
 
+#include "robot_commands.hpp"
+#include "swarm_command.hpp"
 #include "token_command.hpp"
 
 namespace {
@@ -19,6 +21,11 @@ struct Subcommand {
 constexpr Subcommand kSubcommands[] = {
     {"token", "issue JWTs (token issue), hash or create pre-shared tokens (token hash, token new)",
      rcand::rcanctl::run_token},
+    {"status", "one robot's status (--host/--port/--token, or --node NAME of swarm.yaml)", rcand::rcanctl::run_status},
+    {"stop", "latch one robot's e-stop and confirm its motors stopped", rcand::rcanctl::run_stop},
+    {"command", "send one robot an instruction: command --instruction \"...\"", rcand::rcanctl::run_command},
+    {"swarm", "status|stop|command on swarm.yaml nodes in parallel (--node, --tag, --swarm, --json)",
+     rcand::rcanctl::run_swarm},
 };
 
 constexpr int kUsageError = 2;

@@ -1,10 +1,14 @@
-# rcand_add_plugin(<target> MANIFEST <file.json> SOURCES <src>... [OUTPUT_DIR <dir>] [ALLOW_UNDEFINED])
+# rcand_add_plugin(<target> MANIFEST <file.json> SOURCES <src>... [OUTPUT_DIR <dir>] [ALLOW_UNDEFINED]
+#                  [INSTALL_COMPONENT <component> [INSTALL_DESTINATION <dir>]])
 #
 # Builds an rcand plugin: a MODULE library named as the manifest's "library", with hidden visibility (only
 # the entry symbol is exported) and -Wl,--no-undefined (a missing symbol fails the build, never the robot).
 # The manifest is copied next to the library, so the output directory is a complete plugin directory.
+# INSTALL_COMPONENT installs the library and its manifest together (one plugin directory when installed too):
+# into INSTALL_DESTINATION, else RCAND_INSTALL_PLUGIN_DIR (in the rcand tree: <libdir>/rcand/plugins), else
+# lib/rcand/plugins under the prefix (an admin-installed vendor plugin: /usr/local/lib/rcand/plugins).
 function(rcand_add_plugin target)
-  cmake_parse_arguments(PLUGIN "ALLOW_UNDEFINED" "MANIFEST;OUTPUT_DIR" "SOURCES" ${ARGN})
+  cmake_parse_arguments(PLUGIN "ALLOW_UNDEFINED" "MANIFEST;OUTPUT_DIR;INSTALL_COMPONENT;INSTALL_DESTINATION" "SOURCES" ${ARGN})
   if(NOT PLUGIN_MANIFEST)
     message(FATAL_ERROR "rcand_add_plugin(${target}): MANIFEST is required")
   endif()
@@ -32,6 +36,18 @@ function(rcand_add_plugin target)
   get_filename_component(_manifest_name ${_manifest} NAME)
   configure_file(${_manifest} ${PLUGIN_OUTPUT_DIR}/${_manifest_name} COPYONLY)
   set_property(TARGET ${target} PROPERTY RCAND_MANIFEST ${_manifest})
+  if(PLUGIN_INSTALL_COMPONENT)
+    if(PLUGIN_INSTALL_DESTINATION)
+      set(_destination ${PLUGIN_INSTALL_DESTINATION})
+    elseif(DEFINED RCAND_INSTALL_PLUGIN_DIR)
+      set(_destination ${RCAND_INSTALL_PLUGIN_DIR})
+    else()
+      set(_destination lib/rcand/plugins)
+    endif()
+    install(TARGETS ${target} LIBRARY DESTINATION ${_destination} COMPONENT ${PLUGIN_INSTALL_COMPONENT})
+    install(FILES ${_manifest} DESTINATION ${_destination} COMPONENT ${PLUGIN_INSTALL_COMPONENT})
+    set_property(GLOBAL APPEND PROPERTY RCAND_INSTALL_COMPONENTS ${PLUGIN_INSTALL_COMPONENT})
+  endif()
   # Lets a project make its tests depend on every plugin it builds.
   set_property(GLOBAL APPEND PROPERTY RCAND_PLUGIN_TARGETS ${target})
 endfunction()

@@ -37,8 +37,8 @@ TEST_CASE("auto-detected capabilities when rcan_protocol.capabilities is omitted
   auto config = sim_config();
   config["rcan_protocol"].erase("capabilities");
   RcandProcess rcand(config);
-  // The sim drive implements differential_drive: teleop (nav has no plugin installed yet, so it is dropped).
-  CHECK(rcand.json("GET", "/api/discovery")["capabilities"] == json{"status", "teleop"});
+  // The sim drive implements differential_drive: teleop, and nav because sim_config() has the §10.2 physics.
+  CHECK(rcand.json("GET", "/api/discovery")["capabilities"] == json{"status", "nav", "teleop"});
 }
 
 TEST_CASE("an undeclared capability's endpoint is 404 CAPABILITY_NOT_FOUND and reaches no plugin") {

@@ -164,6 +164,15 @@ ProcessResult run_tool(const std::string& binary, const std::vector<std::string>
 }
 
 RcandProcess::RcandProcess(const nlohmann::json& config, std::vector<fs::path> plugin_paths) {
+  launch(config, std::move(plugin_paths), {});
+}
+
+RcandProcess::RcandProcess(const nlohmann::json& config, std::vector<std::string> launcher, std::string host)
+    : host_(std::move(host)) {
+  launch(config, {}, launcher);
+}
+
+void RcandProcess::launch(const nlohmann::json& config, std::vector<fs::path> plugin_paths, const std::vector<std::string>& launcher) {
   dir_.write("jwt.secret", kJwtSecret);
   const auto config_file = dir_.write("robot.rcan.yaml", config.dump(2));
   if (plugin_paths.empty()) plugin_paths.push_back(plugin_dir());
@@ -172,7 +181,11 @@ RcandProcess::RcandProcess(const nlohmann::json& config, std::vector<fs::path> p
     args.emplace_back("--plugin-path");
     args.push_back(path.string());
   }
-  auto child = spawn(rcand_binary(), args, dir_.path() / "stderr", false);
+  if (!launcher.empty()) {
+    args.insert(args.begin(), rcand_binary());
+    args.insert(args.begin(), launcher.begin() + 1, launcher.end());
+  }
+  auto child = spawn(launcher.empty() ? rcand_binary() : launcher.front(), args, dir_.path() / "stderr", false);
   pid_ = child.pid;
   stdout_fd_ = child.stdout_fd;
 
@@ -227,7 +240,7 @@ std::string RcandProcess::stderr_text() const { return slurp(dir_.path() / "stde
 kernel::http::ClientResponse RcandProcess::request(const std::string& method, const std::string& target, const std::string& token,
                                                    const std::string& body, std::map<std::string, std::string> headers) const {
   if (!token.empty()) headers["Authorization"] = "Bearer " + token;
-  return kernel::http::request("127.0.0.1", port_, method, target, body, headers, std::chrono::seconds(10));
+  return kernel::http::request(host_, port_, method, target, body, headers, std::chrono::seconds(10));
 }
 
 nlohmann::json RcandProcess::json(const std::string& method, const std::string& target, const std::string& token,

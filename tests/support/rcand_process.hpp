@@ -55,11 +55,15 @@ class RcandProcess {
   // only from `plugin_paths` (default: the build tree's). Throws std::runtime_error with rcand's stderr when it does
   // not come up.
   explicit RcandProcess(const nlohmann::json& config, std::vector<std::filesystem::path> plugin_paths = {});
+  // The same started through `launcher` (e.g. {"ip", "netns", "exec", "ns1"}: rcand inside a network namespace),
+  // reached at `host` (the config's runtime.listen.address there).
+  RcandProcess(const nlohmann::json& config, std::vector<std::string> launcher, std::string host);
   ~RcandProcess();
   RcandProcess(const RcandProcess&) = delete;
   RcandProcess& operator=(const RcandProcess&) = delete;
 
   std::uint16_t port() const noexcept { return port_; }
+  const std::string& host() const noexcept { return host_; }
   pid_t pid() const noexcept { return pid_; }
   const TempDir& dir() const noexcept { return dir_; }
 
@@ -78,6 +82,8 @@ class RcandProcess {
   pid_t pid_ = -1;
   int stdout_fd_ = -1;
   std::uint16_t port_ = 0;
+  std::string host_ = "127.0.0.1";
+  void launch(const nlohmann::json& config, std::vector<std::filesystem::path> plugin_paths, const std::vector<std::string>& launcher);
 };
 
 }  // namespace rcand::test

@@ -1,10 +1,15 @@
 #include "rcand/kernel/core/api.hpp"
 
 #include <array>
+#include <mutex>
+
+#include <boost/asio/ip/address.hpp>
 
 #include "rcand/kernel/core/json_body.hpp"
 #include "rcand/kernel/core/logging.hpp"
 #include "rcand/kernel/plugin_host/guarded.hpp"
+#include "rcand/kernel/swarm/broadcast_report.hpp"
+#include "rcand/kernel/swarm/node_selection.hpp"
 
 namespace rcand::kernel {
 namespace {
@@ -133,6 +138,11 @@ void Api::handle(http::Request&& request, http::Respond respond) {
     return true;
   };
 
+  // §15: broadcasts and swarm-forwarded commands (notes §9).
+  if (request.method == "POST" && (request.path == "/api/stop" || request.path == "/api/command") &&
+      handle_swarm(request, caller, authorize, reply))
+    return;
+
   // 1. The kernel's own endpoints.
   bool path_known = false;
   std::vector<std::string> allowed;
@@ -201,7 +211,9 @@ void Api::handle(http::Request&& request, http::Respond respond) {
     return;
   }
 
-  const Scope base_scope = is_action ? Scope::Control : CapabilityRegistry::minimum_scope(capability);
+  // Custom capabilities need at least control (§9.4). A standard capability's routes say their own scope (notes §7:
+  // GET /api/nav/status is status, POST /api/nav/waypoint control), checked once the route is known.
+  const Scope base_scope = is_action ? Scope::Control : is_custom ? CapabilityRegistry::minimum_scope(capability) : Scope::Status;
   if (!authorize(base_scope)) return;
 
   JsonBody body = parse_json_body(request.body);
@@ -351,6 +363,8 @@ void Api::handle_kernel(const std::string& endpoint, http::Request& request, con
                               ctx_.clock.wall_ms(), "pending", {}});
   };
   if (endpoint == "/api/stop") {
+    // On the kernel's steady clock (the sim drive's timeline clock), so a test can compare it with the halt events.
+    const std::int64_t received_us = ctx_.clock.now_us();
     // The stop never fails on its body: a malformed body still stops the robot.
     std::string reason = "POST /api/stop";
     if (auto body = parse_json_body(request.body); body.error.empty() && body.value.is_object() &&
@@ -369,7 +383,8 @@ void Api::handle_kernel(const std::string& endpoint, http::Request& request, con
                                 {"estopped", true},
                                 {"motors_stopped", all_halted},
                                 {"drivers", drivers},
-                                {"latency_us", report.latency_us}}));
+                                {"latency_us", report.latency_us},
+                                {"received_us", received_us}}));
   } else if (endpoint == "/health") {
     respond(json_response(200, {{"status", "ok"},
                                 {"uptime_s", (ctx_.clock.now_us() - ctx_.started_us) / 1'000'000},
@@ -438,7 +453,10 @@ json Api::status_document() const {
     if (instance.object && !instance.health.failed()) {
       std::string failure;
       if (auto status = guarded_result(instance.who, "status", failure, [&] { return instance.object->status(); })) {
-        if (instance.name == "nav" && status->is_object()) nav_is_running = status->value("running", false);
+        if (instance.name == "nav" && status->is_object()) {
+          nav_is_running = status->value("running", false);
+          if (status->contains("pose")) doc["pose"] = (*status)["pose"];  // the dead-reckoned pose, top level too
+        }
         item["status"] = std::move(*status);
       }
     }
@@ -458,6 +476,221 @@ json Api::status_document() const {
   doc["capabilities"] = std::move(capabilities);
   doc["nav_running"] = nav_is_running;
   return doc;
+}
+
+// ---- §15 swarm (notes §9) ----
+
+namespace {
+
+// Per-peer deadlines: a stop must finish inside 500 ms overall even with dead peers (§15.5); a command may take as
+// long as a capability handler may.
+constexpr std::chrono::milliseconds kStopPeerTimeout{300};
+
+bool header_true(const http::Request& request, std::string_view name) {
+  const auto value = request.header(name);
+  if (!value) return false;
+  std::string lower(*value);
+  for (char& c : lower) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  return lower == "true" || lower == "1";
+}
+
+// "nodes"/"tags" of a broadcast body: a string or an array of strings.
+std::optional<std::string> read_selection(const json& body, const char* key, std::vector<std::string>& out) {
+  if (!body.is_object() || !body.contains(key) || body[key].is_null()) return std::nullopt;
+  const json& value = body[key];
+  if (value.is_string()) {
+    out.push_back(value.get<std::string>());
+    return std::nullopt;
+  }
+  if (!value.is_array()) return std::string(key) + " must be a string or an array of strings";
+  for (const auto& item : value) {
+    if (!item.is_string()) return std::string(key) + " must contain only strings";
+    out.push_back(item.get<std::string>());
+  }
+  return std::nullopt;
+}
+
+}  // namespace
+
+bool Api::is_self(const swarm::SwarmNode& node) const {
+  if (node.port != ctx_.port.load()) return false;
+  boost::system::error_code ec;
+  const auto listen = boost::asio::ip::make_address(ctx_.config.runtime.listen_address, ec);
+  if (ec) return false;
+  for (const std::string& candidate : {node.host, node.ip.value_or("")}) {
+    if (candidate == "localhost" && (listen.is_loopback() || listen.is_unspecified())) return true;
+    const auto address = boost::asio::ip::make_address(candidate, ec);
+    if (ec) continue;
+    if (address == listen || (address.is_loopback() && (listen.is_loopback() || listen.is_unspecified()))) return true;
+  }
+  return false;
+}
+
+bool Api::handle_swarm(http::Request& request, const Caller& caller, const std::function<bool(Scope)>& authorize,
+                       const http::Respond& reply) {
+  const bool is_stop = request.path == "/api/stop";
+  const Scope scope = is_stop ? Scope::Status : stricter(Scope::Control, CapabilityRegistry::minimum_scope("chat"));
+  const std::string& ruri = ctx_.registry.identity().ruri;
+
+  if (request.header("x-swarm-forwarded")) {
+    // Forwarded by a peer: it runs here only and is never forwarded again. A stop runs as any stop; a command on a
+    // node in e-stop is acknowledged and not executed (§15.5: the e-stop is always local).
+    // Every node checks the broadcast's scope (control for a command) itself, before anything else.
+    if (is_stop) return false;
+    if (!authorize(scope)) return true;
+    if (!ctx_.estop.latched()) return false;
+    const auto seq = ctx_.audit.record({0, caller.principal, ruri, caller.message_id, "POST /api/command (swarm-forwarded)",
+                                        ctx_.clock.wall_ms(), "pending", {}});
+    ctx_.audit.finish(seq, "blocked", "e-stop active: acknowledged, not executed");
+    reply(json_response(200, {{"ack", true}, {"executed", false}, {"reason", "estop_active"}}));
+    return true;
+  }
+
+  JsonBody body = parse_json_body(request.body);
+  const bool body_ok = body.error.empty() && body.value.is_object();
+  const bool broadcast = header_true(request, "x-swarm-broadcast") ||
+                         (body_ok && body.value.contains("broadcast") && body.value["broadcast"] == true);
+  if (!broadcast) return false;
+  if (!is_stop && !body.error.empty()) return false;  // the normal path answers 400 naming the body
+  if (!authorize(scope)) return true;  // a broadcast needs the underlying command's scope, here and on each peer
+
+  // The local stop happens first, inline, before anything is forwarded.
+  http::Response local_stop;
+  if (is_stop) {
+    http::Respond capture = [&local_stop](http::Response response) { local_stop = std::move(response); };
+    handle_kernel("/api/stop", request, caller, capture);
+  }
+
+  swarm::Selection selection;
+  std::optional<std::string> bad = body_ok ? read_selection(body.value, "nodes", selection.names) : std::nullopt;
+  std::string bad_field = "nodes";
+  if (!bad && body_ok && (bad = read_selection(body.value, "tags", selection.tags))) bad_field = "tags";
+  std::vector<swarm::SwarmNode> peers;
+  if (!bad) {
+    static const swarm::SwarmRegistry kNoPeers;
+    auto chosen = swarm::select_nodes(ctx_.swarm ? *ctx_.swarm : kNoPeers, selection);
+    if (auto* failure = std::get_if<swarm::SelectionError>(&chosen)) {
+      bad = failure->message;
+      bad_field = failure->field;
+    } else {
+      for (auto& node : std::get<std::vector<swarm::SwarmNode>>(chosen))
+        if (!is_self(node)) peers.push_back(std::move(node));
+    }
+  }
+  if (bad) {
+    json extra{{"field", bad_field}};
+    if (is_stop) extra["estopped"] = true;  // the local stop already happened
+    extra["known_nodes"] = ctx_.swarm ? ctx_.swarm->names() : std::vector<std::string>{};
+    reply(error(400, "BAD_REQUEST", *bad, std::move(extra)));
+    return true;
+  }
+
+  // What the peers receive: the same command minus the broadcast fields, with their own token.
+  json forwarded_body = body_ok ? body.value : json::object();
+  for (const char* key : {"broadcast", "nodes", "tags"}) forwarded_body.erase(key);
+  if (is_stop && !forwarded_body.contains("reason")) forwarded_body["reason"] = "swarm broadcast from " + ruri;
+  std::vector<swarm::PeerRequest> requests;
+  for (const auto& node : peers) {
+    swarm::PeerRequest peer;
+    peer.name = node.name;
+    peer.host = node.host;
+    peer.fallback_ip = node.ip;
+    peer.port = node.port;
+    peer.method = "POST";
+    peer.target = request.path;
+    peer.body = forwarded_body.dump();
+    peer.headers = {{"Authorization", "Bearer " + node.token}, {"X-Swarm-Forwarded", ruri}, {"X-Message-Id", caller.message_id}};
+    requests.push_back(std::move(peer));
+  }
+
+  const std::string event = "swarm broadcast POST " + request.path;
+  const auto seq = ctx_.audit.record({0, caller.principal, ruri, caller.message_id, event, ctx_.clock.wall_ms(), "pending", {}});
+  const auto timeout = is_stop ? kStopPeerTimeout : ctx_.handler_timeout + std::chrono::milliseconds(2000);
+  const std::string local_name = ctx_.registry.identity().name;
+
+  // Both halves (the local run and the fan-out) report here; whichever finishes last answers.
+  struct Gather {
+    std::mutex mutex;
+    std::optional<json> local;
+    std::optional<std::vector<swarm::PeerResult>> remote;
+    json stop_fields;
+  };
+  auto gather = std::make_shared<Gather>();
+  auto complete = [this, gather, seq, reply]() {
+    json local;
+    std::vector<swarm::PeerResult> remote;
+    {
+      std::lock_guard lock(gather->mutex);
+      if (!gather->local || !gather->remote) return;
+      local = std::move(*gather->local);
+      remote = std::move(*gather->remote);
+      gather->remote.reset();
+      gather->local.reset();
+    }
+    std::vector<json> nodes{std::move(local)};
+    for (const auto& result : remote)
+      nodes.push_back(swarm::node_entry(result, gather->stop_fields.is_object() ? swarm::BroadcastKind::Stop
+                                                                                 : swarm::BroadcastKind::Command));
+    json doc = swarm::broadcast_document(std::move(nodes));
+    const auto& summary = doc["summary"];
+    ctx_.audit.finish(seq, summary["failed"] == 0 ? "ok" : "error",
+                      summary["ok"].dump() + "/" + summary["total"].dump() + " nodes ok");
+    if (gather->stop_fields.is_object()) doc.update(gather->stop_fields);  // the local stop's own fields stay on top
+    http::Respond answer = reply;
+    answer(json_response(200, doc));
+  };
+
+  if (is_stop) {
+    json local_doc = json::parse(local_stop.body, nullptr, false);
+    if (!local_doc.is_object()) local_doc = json::object();
+    const bool stopped = local_doc.value("motors_stopped", false);
+    gather->stop_fields = local_doc;
+    gather->local = json{{"name", local_name},
+                         {"address", "local"},
+                         {"local", true},
+                         {"ok", stopped},
+                         {"http_status", local_stop.status},
+                         {"executed", true},
+                         {"motors_stopped", stopped},
+                         {"latency_ms", local_doc.value("latency_us", 0.0) / 1000.0},
+                         {"error", stopped ? json() : json("not every driver confirmed the halt")}};
+  } else {
+    // The local run goes through the normal path, marked as forwarded so it is not broadcast again and the
+    // e-stop acknowledgement applies here too.
+    http::Request local = request;
+    local.headers.erase("x-swarm-broadcast");
+    local.headers["x-swarm-forwarded"] = ruri;
+    local.headers["x-message-id"] = caller.message_id;
+    local.body = forwarded_body.dump();
+    const auto started = std::chrono::steady_clock::now();
+    handle(std::move(local), [gather, complete, local_name, started](http::Response response) {
+      swarm::PeerResult result;
+      result.name = local_name;
+      result.address = "local";
+      result.reachable = true;
+      result.status = response.status;
+      result.body = std::move(response.body);
+      result.latency_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - started).count();
+      json entry = swarm::node_entry(result, swarm::BroadcastKind::Command);
+      entry["local"] = true;
+      {
+        std::lock_guard lock(gather->mutex);
+        gather->local = std::move(entry);
+      }
+      complete();
+    });
+  }
+
+  auto remote_done = [gather, complete](std::vector<swarm::PeerResult> results) {
+    {
+      std::lock_guard lock(gather->mutex);
+      gather->remote = std::move(results);
+    }
+    complete();
+  };
+  if (ctx_.fan_out && !requests.empty()) ctx_.fan_out->run(std::move(requests), timeout, std::move(remote_done));
+  else remote_done({});
+  return true;
 }
 
 }  // namespace rcand::kernel

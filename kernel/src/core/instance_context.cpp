@@ -2,6 +2,25 @@
 
 namespace rcand::kernel {
 
+void InstanceEstop::request_estop(const std::string& reason) noexcept {
+  const std::string source = "plugin " + plugin_id_ + " (" + instance_id_ + ")";
+  std::uint64_t seq = 0;
+  if (services_.audit != nullptr) {
+    try {
+      seq = services_.audit->record({0, "plugin:" + plugin_id_, services_.ruri, "", "estop requested by " + source,
+                                     services_.clock.wall_ms(), "pending", reason});
+    } catch (...) {  // the audit entry is bookkeeping: the stop happens regardless
+    }
+  }
+  services_.estop.latch(reason, source);
+  if (seq != 0) {
+    try {
+      services_.audit->finish(seq, "ok", reason);
+    } catch (...) {
+    }
+  }
+}
+
 InstanceContext::InstanceContext(std::string plugin_id, std::string instance_id, KernelServices& services,
                                  nlohmann::json settings, InstanceHealth& health)
     : plugin_id_(std::move(plugin_id)),

@@ -14,6 +14,8 @@
 #include "rcand/kernel/core/plugin_runtime.hpp"
 #include "rcand/kernel/core/steady_clock.hpp"
 #include "rcand/kernel/http/server.hpp"
+#include "rcand/kernel/swarm/fan_out.hpp"
+#include "rcand/kernel/swarm/swarm_registry.hpp"
 
 namespace rcand::kernel {
 namespace {
@@ -64,7 +66,7 @@ struct Kernel::State {
   ActuatorTable actuators;
   Estop estop{clock, actuators};
   KernelMotionGate gate{actuators, estop};
-  KernelServices services{clock, estop, gate, robot_config_view};
+  KernelServices services{clock, estop, gate, robot_config_view, &audit, {}, {}};  // audit: address only
   AuditLog audit;
   PluginHost host;
   std::unique_ptr<Authenticator> auth;
@@ -74,6 +76,8 @@ struct Kernel::State {
   std::unique_ptr<ApiContext> api_context;
   std::unique_ptr<Api> api;
   std::unique_ptr<http::Server> server;
+  swarm::SwarmRegistry swarm;
+  std::unique_ptr<swarm::FanOut> fan_out;  // declared after the Api's context: stopped and destroyed before it
   bool shut_down = false;
 };
 
@@ -92,6 +96,7 @@ Kernel::Kernel(RobotConfig config, KernelOptions options) : state_(std::make_uni
 
   const std::string ruri = robot_ruri(cfg.ruri, cfg.manufacturer, cfg.model, cfg.robot_uuid);
   s.auth = std::make_unique<Authenticator>(auth_settings(cfg, ruri, s.address));
+  s.services.ruri = ruri;
 
   // Manifests only: nothing is opened until we know what the config needs.
   auto plugin_paths = options.plugin_paths.value_or(cfg.runtime.plugin_paths);
@@ -132,6 +137,21 @@ Kernel::Kernel(RobotConfig config, KernelOptions options) : state_(std::make_uni
   s.api_context.reset(new ApiContext{cfg, *s.auth, *s.registry, s.host, *s.runtime, s.estop, s.audit, s.clock, *s.timers,
                                      std::chrono::milliseconds(cfg.runtime.handler_timeout_ms), std::string(kRcandVersion),
                                      s.clock.now_us()});
+  // §15: the swarm peers. No file means no peers (broadcasts reach this robot only); a malformed one stops startup.
+  if (std::error_code ec; std::filesystem::exists(cfg.runtime.swarm_file, ec)) {
+    try {
+      s.swarm = swarm::load_swarm_file(cfg.runtime.swarm_file);
+    } catch (const swarm::SwarmError& e) {
+      throw StartupError(std::string("runtime.swarm_file: ") + e.what());
+    }
+    for (const auto& warning : s.swarm.warnings) log->warn("{}", warning);
+    log->info("swarm: {} peer(s) from {}", s.swarm.nodes.size(), cfg.runtime.swarm_file.string());
+  } else {
+    log->info("swarm: no swarm file at {}; broadcasts reach this robot only", cfg.runtime.swarm_file.string());
+  }
+  s.fan_out = std::make_unique<swarm::FanOut>();
+  s.api_context->swarm = &s.swarm;
+  s.api_context->fan_out = s.fan_out.get();
   s.api = std::make_unique<Api>(*s.api_context);
 }
 
@@ -164,6 +184,7 @@ void Kernel::shutdown() noexcept {
   try {
     s.estop.latch("rcand shutting down", "kernel");  // motors stop first, whatever else happens
     if (s.server) s.server->stop();
+    if (s.fan_out) s.fan_out->stop();  // broadcasts in flight are abandoned; their clients are gone
     if (s.runtime) s.runtime->shutdown();
     if (s.timers) s.timers->join();
   } catch (const std::exception& e) {

@@ -41,6 +41,18 @@ std::pair<const Registered*, PluginRecord*> find_loaded(PluginHost& host, const 
   return {nullptr, last};
 }
 
+// The first started driver or capability implementing sdk::ObstacleSource becomes the robot's obstacle source
+// (vision's depth zones), handed to every plugin through PluginContext::obstacles().
+template <class Object> void offer_obstacle_source(KernelServices& services, const Object* object, const std::string& what) {
+  const auto* source = dynamic_cast<const sdk::ObstacleSource*>(object);
+  if (source == nullptr) return;
+  const sdk::ObstacleSource* none = nullptr;
+  if (services.obstacles.compare_exchange_strong(none, source))
+    logger("kernel.plugins")->info("{} is the obstacle source", what);
+  else
+    logger("kernel.plugins")->warn("{} also provides obstacles; the first one found is used", what);
+}
+
 }  // namespace
 
 PluginRuntime::PluginRuntime(PluginHost& host, KernelServices& services, ActuatorTable& actuators)
@@ -89,6 +101,7 @@ void PluginRuntime::start_drivers(const RobotConfig& config) {
       }
       actuators_.add(entry.id, std::string(actuator->interface_name()), plugin->id, actuator, &instance.health);
     }
+    if (!instance.health.failed()) offer_obstacle_source(services_, instance.object.get(), "driver " + entry.id);
     log->info("driver {} ({}, {}) {}", entry.id, entry.protocol, plugin->id,
               instance.health.failed() ? "failed: " + instance.health.reason() : "started");
   }
@@ -138,6 +151,7 @@ void PluginRuntime::start_capabilities(const std::vector<std::string>& names, co
         instance.routes = std::move(*routes);
     }
     if (!failure.empty()) instance.health.mark_failed(failure);
+    if (!instance.health.failed()) offer_obstacle_source(services_, instance.object.get(), "capability " + name);
     log->info("capability {} ({}) {}, {} routes", name, plugin->id,
               instance.health.failed() ? "failed: " + instance.health.reason() : "started", instance.routes.size());
   }

@@ -9,6 +9,7 @@
 #include "rcand/sdk/estop_view.hpp"
 #include "rcand/sdk/logger.hpp"
 #include "rcand/sdk/motion_gate.hpp"
+#include "rcand/sdk/obstacle_source.hpp"
 #include "rcand/sdk/worker.hpp"
 
 namespace rcand::sdk {
@@ -30,6 +31,9 @@ class RCAND_INTERFACE PluginContext {
   virtual const ConfigView& robot_config() const noexcept = 0;
   // A named worker thread ("<instance>.<name>"), created on first use, joined by the kernel at shutdown.
   virtual Worker& worker(std::string_view name) = 0;
+  // The robot's obstacle source (a driver or capability implementing ObstacleSource, e.g. vision's depth
+  // zones), or null when none is configured. Appended last and not pure, so older plugins and hosts still link.
+  virtual const ObstacleSource* obstacles() const noexcept { return nullptr; }
 };
 
 }  // namespace rcand::sdk

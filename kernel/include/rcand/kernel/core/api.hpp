@@ -5,6 +5,7 @@
 
 #include <atomic>
 #include <chrono>
+#include <functional>
 #include <string>
 
 #include "rcand/kernel/auth/authenticator.hpp"
@@ -15,6 +16,8 @@
 #include "rcand/kernel/core/plugin_runtime.hpp"
 #include "rcand/kernel/core/worker_thread.hpp"
 #include "rcand/kernel/http/server.hpp"
+#include "rcand/kernel/swarm/fan_out.hpp"
+#include "rcand/kernel/swarm/swarm_registry.hpp"
 
 namespace rcand::kernel {
 
@@ -32,6 +35,9 @@ struct ApiContext {
   std::string version;
   std::int64_t started_us = 0;
   std::atomic<std::uint16_t> port{0};
+  // §15 swarm: the peers of runtime.swarm_file (none when absent) and the fan-out client; both outlive the Api.
+  const swarm::SwarmRegistry* swarm = nullptr;
+  swarm::FanOut* fan_out = nullptr;
 };
 
 class Api {
@@ -47,6 +53,12 @@ class Api {
 
  private:
   struct Caller;
+  // §15 broadcasts of POST /api/stop and POST /api/command, and the e-stop acknowledgement of forwarded commands.
+  // Returns false when the request is not one (the normal path handles it). Never blocks: the answer comes from
+  // the fan-out's completion.
+  bool handle_swarm(http::Request& request, const Caller& caller, const std::function<bool(sdk::Scope)>& authorize,
+                    const http::Respond& reply);
+  bool is_self(const swarm::SwarmNode& node) const;
   void handle_kernel(const std::string& endpoint, http::Request& request, const Caller& caller, http::Respond& respond);
   void handle_capability(CapabilityInstance& instance, const sdk::Route& route, http::Request& request,
                          nlohmann::json body, const Caller& caller, http::Respond respond);

@@ -1,17 +1,20 @@
 // The sdk::PluginContext the kernel hands each plugin instance. Owns the instance's named workers.
 #pragma once
 
+#include <atomic>
 #include <deque>
 #include <memory>
 #include <mutex>
 #include <string>
 
+#include "rcand/kernel/core/audit_log.hpp"
 #include "rcand/kernel/core/estop.hpp"
 #include "rcand/kernel/core/instance_health.hpp"
 #include "rcand/kernel/core/kernel_motion_gate.hpp"
 #include "rcand/kernel/core/logging.hpp"
 #include "rcand/kernel/core/worker_thread.hpp"
 #include "rcand/sdk/context.hpp"
+#include "rcand/sdk/obstacle_source.hpp"
 
 namespace rcand::kernel {
 
@@ -21,6 +24,28 @@ struct KernelServices {
   Estop& estop;
   KernelMotionGate& gate;
   const sdk::ConfigView& robot_config;
+  AuditLog* audit = nullptr;  // plugin-requested e-stops are audited (notes §6.3); null in tests without one
+  std::string ruri;           // the robot's RURI, for those audit entries
+  // The first driver or capability implementing sdk::ObstacleSource; set by the plugin runtime at startup.
+  std::atomic<const sdk::ObstacleSource*> obstacles{nullptr};
+};
+
+// The e-stop as a plugin instance sees it: request_estop() writes an audit entry naming the plugin (before the
+// latch, like POST /api/stop), then latches exactly as POST /api/stop does.
+class InstanceEstop final : public sdk::EstopView {
+ public:
+  InstanceEstop(KernelServices& services, const std::string& plugin_id, const std::string& instance_id)
+      : services_(services), plugin_id_(plugin_id), instance_id_(instance_id) {}
+  bool latched() const noexcept override { return services_.estop.latched(); }
+  bool sleep_unless_latched(std::chrono::microseconds duration) const override {
+    return services_.estop.sleep_unless_latched(duration);
+  }
+  void request_estop(const std::string& reason) noexcept override;
+
+ private:
+  KernelServices& services_;
+  const std::string& plugin_id_;
+  const std::string& instance_id_;
 };
 
 class InstanceContext final : public sdk::PluginContext {
@@ -33,11 +58,12 @@ class InstanceContext final : public sdk::PluginContext {
   std::string_view instance_id() const noexcept override { return instance_id_; }
   sdk::Logger& log() noexcept override { return logger_; }
   const sdk::Clock& clock() const noexcept override { return services_.clock; }
-  sdk::EstopView& estop() noexcept override { return services_.estop; }
+  sdk::EstopView& estop() noexcept override { return estop_; }
   sdk::MotionGate& motion() noexcept override { return services_.gate; }
   const sdk::ConfigView& config() const noexcept override { return settings_; }
   const sdk::ConfigView& robot_config() const noexcept override { return services_.robot_config; }
   sdk::Worker& worker(std::string_view name) override;
+  const sdk::ObstacleSource* obstacles() const noexcept override { return services_.obstacles.load(); }
 
   // Joins every worker this instance created (their queued tasks finish first). Idempotent.
   void join_workers();
@@ -46,6 +72,7 @@ class InstanceContext final : public sdk::PluginContext {
   std::string plugin_id_, instance_id_;
   KernelServices& services_;
   PluginLogger logger_;
+  InstanceEstop estop_{services_, plugin_id_, instance_id_};
   sdk::ConfigView settings_;
   InstanceHealth& health_;
   std::mutex workers_mutex_;  // guards workers_ creation only

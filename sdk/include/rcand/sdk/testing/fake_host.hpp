@@ -241,6 +241,8 @@ class FakeHost {
   const std::vector<std::string>& log_lines() const noexcept { return sink_.lines(); }
   MotionGate& motion() noexcept { return gate_; }
   EstopView& estop() noexcept { return estop_; }
+  // What PluginContext::obstacles() returns to every instance (null: no obstacle source). Not owned.
+  void set_obstacle_source(const ObstacleSource* source) noexcept { obstacles_ = source; }
 
   template <class T> T& driver(std::string_view id) {
     DriverSlot* slot = find_driver(id);
@@ -404,6 +406,7 @@ class FakeHost {
     const ConfigView& config() const noexcept override { return config_; }
     const ConfigView& robot_config() const noexcept override { return host_.robot_config_; }
     Worker& worker(std::string_view name) override { return host_.worker_for(instance_id_, name); }
+    const ObstacleSource* obstacles() const noexcept override { return host_.obstacles_; }
 
    private:
     FakeHost& host_;
@@ -709,6 +712,7 @@ class FakeHost {
 
   // Declaration order matters: services before the instances that use them.
   ConfigView robot_config_;
+  const ObstacleSource* obstacles_ = nullptr;
   ManualClock clock_;
   LogSink sink_;
   FakeScheduler scheduler_;

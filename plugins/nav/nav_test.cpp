@@ -1,0 +1,320 @@
+// nav on the fake host: the plan's arithmetic, validation that never moves a wheel, and whole jobs on the manual
+// clock (the sleeper advances it), read back from a RecordingDrive's timeline at exact microseconds.
+#include <doctest/doctest.h>
+
+#include <rcand/sdk/testing/fake_host.hpp>
+#include <rcand/sdk/testing/recording_drive.hpp>
+
+#include <fstream>
+#include <limits>
+
+#include "nav.hpp"
+
+using nlohmann::json;
+using rcand::plugins::nav::Nav;
+using rcand::plugins::nav::Physics;
+using rcand::plugins::nav::Plan;
+using rcand::plugins::nav::plan_waypoint;
+using rcand::sdk::Role;
+using rcand::sdk::testing::FakeHost;
+using rcand::sdk::testing::HostError;
+using rcand::sdk::testing::RecordingDrive;
+
+namespace {
+
+// The kernel build registers Nav with its condition-variable sleeper (plugin.cpp); here the sleeper moves the
+// fake host's manual clock, waking early exactly when the host latches the e-stop.
+void register_nav_for_test(rcand::sdk::Registrar& registrar) {
+  registrar.add_capability({"nav", true}, [](rcand::sdk::PluginContext& ctx) {
+    return std::make_unique<Nav>(ctx, [&ctx](std::chrono::microseconds slice, const std::function<bool()>& woken) {
+      if (!woken()) ctx.estop().sleep_unless_latched(slice);
+    });
+  });
+}
+
+}  // namespace
+
+RCAND_PLUGIN("org.rcand.nav", "0.1.0", register_nav_for_test)
+
+namespace {
+
+json manifest() {
+  std::ifstream in(RCAND_SOURCE_DIR "/manifests/nav.json");
+  REQUIRE(in.good());
+  return json::parse(in);
+}
+
+json robot(json extra = json::object()) {
+  json config{{"physics", {{"wheel_circumference_m", 0.21}, {"turn_time_per_deg_s", 0.008}, {"max_wheel_rps", 1.0}}}};
+  config.merge_patch(extra);
+  return config;
+}
+
+// Reports `far_cm` until the manual clock reaches `near_at_us`, then `near_cm`.
+struct ScriptedObstacles final : rcand::sdk::ObstacleSource {
+  const rcand::sdk::Clock& clock;
+  double far_cm, near_cm;
+  std::int64_t near_at_us;
+  mutable int reads = 0;
+  mutable std::vector<std::int64_t> read_times;
+  ScriptedObstacles(const rcand::sdk::Clock& c, double far, double near, std::int64_t at)
+      : clock(c), far_cm(far), near_cm(near), near_at_us(at) {}
+  rcand::sdk::ObstacleReading obstacles() const noexcept override {
+    ++reads;
+    read_times.push_back(clock.now_us());
+    const double cm = clock.now_us() >= near_at_us ? near_cm : far_cm;
+    return {true, cm, cm, cm, cm, 0};
+  }
+};
+
+struct Fixture {
+  FakeHost host;
+  RecordingDrive& drive;
+  explicit Fixture(json robot_config = robot(), json settings = json::object())
+      : host(std::move(robot_config)), drive(host.add_driver_instance<RecordingDrive>("base", host.clock())) {
+    host.load(RCAND_ENTRY_FUNCTION, manifest());
+    host.add_capability("nav", std::move(settings));
+  }
+  rcand::sdk::Response waypoint(json body) { return host.call("POST", "/api/nav/waypoint", std::move(body), Role::User); }
+  json status() { return host.call("GET", "/api/nav/status", nullptr, Role::Guest).body; }
+};
+
+json wp(double distance, double heading, double speed) {
+  return {{"distance_m", distance}, {"heading_deg", heading}, {"speed", speed}};
+}
+
+}  // namespace
+
+TEST_CASE("the plan: turn = |heading| x turn_time_per_deg_s / speed, drive = |distance| / (circumference x rps x speed)") {
+  const Physics physics{0.21, 0.008, 1.0};
+  auto plan = std::get<Plan>(plan_waypoint(wp(1.5, 90, 0.6), physics, 600'000'000));  // the seed's example
+  CHECK(plan.turn_us == 1'200'000);
+  CHECK(plan.drive_us == 11'904'762);
+  CHECK(plan.eta_ms() == 13'105);
+  CHECK(plan.turn_left() == -0.6);  // positive heading: counter-clockwise, left wheel backwards
+  CHECK(plan.turn_right() == 0.6);
+  CHECK(plan.drive_wheels() == 0.6);
+
+  plan = std::get<Plan>(plan_waypoint({{"distance_m", -0.105}, {"heading_deg", -45}}, {0.21, 0.008, 2.0}, 600'000'000));
+  CHECK(plan.waypoint.speed == 0.5);  // the seed's default
+  CHECK(plan.turn_us == 720'000);
+  CHECK(plan.drive_us == 500'000);   // max_wheel_rps doubles the ground speed
+  CHECK(plan.turn_left() == 0.5);
+  CHECK(plan.drive_wheels() == -0.5);
+
+  CHECK(Physics::from(rcand::sdk::ConfigView(robot())).max_wheel_rps == 1.0);
+  CHECK_THROWS_WITH_AS(Physics::from(rcand::sdk::ConfigView(json{{"physics", {{"wheel_circumference_m", 0.21}}}})),
+                       doctest::Contains("physics.turn_time_per_deg_s"), rcand::sdk::ConfigError);
+  CHECK_THROWS_WITH_AS(Physics::from(rcand::sdk::ConfigView(robot({{"physics", {{"max_wheel_rps", 0}}}}))),
+                       doctest::Contains("physics.max_wheel_rps"), rcand::sdk::ConfigError);
+}
+
+TEST_CASE("each bad field answers 400 naming it, and no wheel moves") {
+  Fixture f;
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  const double inf = std::numeric_limits<double>::infinity();
+  const std::vector<std::pair<json, std::string>> cases = {
+      {json::array({1, 2}), "body"},
+      {json("go"), "body"},
+      {{{"heading_deg", 0}}, "distance_m"},
+      {{{"distance_m", nullptr}, {"heading_deg", 0}}, "distance_m"},
+      {{{"distance_m", "1"}, {"heading_deg", 0}}, "distance_m"},
+      {{{"distance_m", true}, {"heading_deg", 0}}, "distance_m"},
+      {{{"distance_m", nan}, {"heading_deg", 0}}, "distance_m"},
+      {{{"distance_m", inf}, {"heading_deg", 0}}, "distance_m"},
+      {{{"distance_m", 1}}, "heading_deg"},
+      {{{"distance_m", 1}, {"heading_deg", "left"}}, "heading_deg"},
+      {{{"distance_m", 1}, {"heading_deg", -inf}}, "heading_deg"},
+      {{{"distance_m", 1}, {"heading_deg", json::array({90})}}, "heading_deg"},
+      {wp(1, 0, 0), "speed"},
+      {wp(1, 0, -0.1), "speed"},
+      {wp(1, 0, 1.01), "speed"},
+      {wp(1, 0, nan), "speed"},
+      {{{"distance_m", 1}, {"heading_deg", 0}, {"speed", "fast"}}, "speed"},
+      {wp(1e12, 0, 1), "distance_m"},   // longer than max_job_ms
+      {wp(0, 1e9, 1), "heading_deg"},
+  };
+  for (const auto& [body, field] : cases) {
+    CAPTURE(body.dump());
+    const auto r = f.waypoint(body);
+    CHECK(r.status == 400);
+    CHECK(r.body["code"] == "BAD_REQUEST");
+    CHECK(r.body["field"] == field);
+    CHECK(r.body["error"].get<std::string>().find(field) != std::string::npos);
+  }
+  CHECK(f.drive.events().empty());
+  CHECK(f.status()["state"] == "idle");
+}
+
+TEST_CASE("a waypoint turns, then drives, then stops, each for exactly the computed time") {
+  Fixture f;
+  const auto r = f.waypoint(wp(0.21, 90, 0.5));  // turn 1.44 s, drive 2 s
+  REQUIRE(r.status == 200);
+  CHECK(r.body["ok"] == true);
+  CHECK(r.body["job_id"].get<std::string>().rfind("nav-", 0) == 0);
+  CHECK(r.body["eta_ms"] == 3440);
+  const auto events = f.drive.events();
+  REQUIRE(events.size() == 3);
+  CHECK(events[0].t_us == 0);
+  CHECK(events[0].left == -0.5);
+  CHECK(events[0].right == 0.5);
+  CHECK(events[1].t_us == 1'440'000);
+  CHECK(events[1].left == 0.5);
+  CHECK(events[1].right == 0.5);
+  CHECK(events[2].t_us == 3'440'000);
+  CHECK(events[2].halt);
+
+  const json status = f.status();
+  CHECK(status["running"] == false);
+  CHECK(status["state"] == "done");
+  CHECK(status["job_id"] == r.body["job_id"]);
+  CHECK(status["distance_m"] == 0.21);
+  CHECK(status["heading_deg"] == 90.0);
+  CHECK(status["speed"] == 0.5);
+  CHECK(status["elapsed_ms"] == 3440);
+  CHECK(status["eta_ms"] == 3440);
+  CHECK(status["result"]["ok"] == true);
+  CHECK(status["result"]["reason"] == "completed");
+  CHECK(status["pose"]["x_m"].get<double>() == doctest::Approx(0.0));
+  CHECK(status["pose"]["y_m"].get<double>() == doctest::Approx(0.21));
+  CHECK(status["pose"]["heading_deg"].get<double>() == doctest::Approx(90.0));
+
+  // A second job continues from that pose: a right turn back to 0 and a reverse drive.
+  REQUIRE(f.waypoint(wp(-0.105, -90, 1.0)).status == 200);
+  const json after = f.status();
+  CHECK(after["pose"]["x_m"].get<double>() == doctest::Approx(-0.105));
+  CHECK(after["pose"]["y_m"].get<double>() == doctest::Approx(0.21));
+  CHECK(after["pose"]["heading_deg"].get<double>() == doctest::Approx(0.0));
+}
+
+TEST_CASE("idle status: every field present, nulls where no job ran") {
+  Fixture f;
+  const json s = f.status();
+  for (const char* key : {"running", "job_id", "state", "distance_m", "heading_deg", "speed", "elapsed_ms", "eta_ms", "result", "pose"})
+    CHECK_MESSAGE(s.contains(key), key);
+  CHECK(s["running"] == false);
+  CHECK(s["state"] == "idle");
+  CHECK(s["job_id"].is_null());
+  CHECK(s["result"].is_null());
+  CHECK(s["pose"] == json{{"x_m", 0.0}, {"y_m", 0.0}, {"heading_deg", 0.0}});
+  // A zero waypoint is done at once and commands nothing.
+  const auto r = f.waypoint(wp(0, 0, 0.5));
+  CHECK(r.status == 200);
+  CHECK(r.body["eta_ms"] == 0);
+  CHECK(f.drive.events().empty());
+  CHECK(f.status()["state"] == "done");
+}
+
+TEST_CASE("an e-stop mid-turn or mid-drive ends the job at that instant with the reason; nothing moves afterwards") {
+  for (std::int64_t at : {700'000, 2'000'000}) {
+    CAPTURE(at);
+    Fixture f;
+    f.host.latch_estop_at(at, "test");
+    REQUIRE(f.waypoint(wp(0.21, 90, 0.5)).status == 200);
+    const auto events = f.drive.events();
+    REQUIRE(!events.empty());
+    CHECK(events.back().halt);
+    CHECK(events.back().t_us == at);
+    for (const auto& e : events)
+      if (!e.halt) CHECK(e.t_us < at);
+    CHECK_FALSE(f.drive.moving());
+    const json s = f.status();
+    CHECK(s["running"] == false);
+    CHECK(s["state"] == "aborted");
+    CHECK(s["result"]["ok"] == false);
+    CHECK(s["result"]["reason"] == "estop");
+    CHECK(s["result"]["message"].get<std::string>().find(at < 1'440'000 ? "mid-turn" : "mid-drive") != std::string::npos);
+    // The pose holds what actually ran: 700 ms of the turn, or the whole turn and 560 ms of the drive.
+    if (at < 1'440'000) CHECK(s["pose"]["heading_deg"].get<double>() == doctest::Approx(43.75));
+    else CHECK(s["pose"]["y_m"].get<double>() == doctest::Approx(0.0588));
+    // Latched: a new job is refused before anything moves.
+    const auto refused = f.waypoint(wp(1, 0, 0.5));
+    CHECK(refused.status == 423);
+    CHECK(refused.body["code"] == "ESTOP_ACTIVE");
+    CHECK(f.drive.events().size() == events.size());
+  }
+}
+
+TEST_CASE("a driver that throws ends the job with the motors at zero and a clear result") {
+  SUBCASE("on the first command: 503, nothing runs") {
+    Fixture f;
+    f.drive.fail_next();
+    const auto r = f.waypoint(wp(1, 90, 0.5));
+    CHECK(r.status == 503);
+    CHECK(r.body["code"] == "UNAVAILABLE");
+    CHECK_FALSE(f.drive.moving());
+    CHECK(f.status()["result"]["reason"] == "actuator_failed");
+    CHECK(f.waypoint(wp(1, 0, 0.5)).status == 503);  // out of service from then on
+  }
+  SUBCASE("on the drive command, after the turn") {
+    Fixture f;
+    int commands = 0;
+    f.drive.on_command([&] {
+      if (++commands == 1) f.drive.fail_next();  // the turn goes through; the next command (the drive) throws
+    });
+    REQUIRE(f.waypoint(wp(0.21, 90, 0.5)).status == 200);
+    CHECK_FALSE(f.drive.moving());
+    CHECK(f.drive.events().back().halt);
+    const json s = f.status();
+    CHECK(s["state"] == "aborted");
+    CHECK(s["result"]["reason"] == "actuator_failed");
+    CHECK(f.host.task_failures().empty());  // the job caught it: the capability stays in service
+  }
+}
+
+TEST_CASE("obstacles (§10.5): below the minimum before the job latches the e-stop and answers 423 without moving") {
+  Fixture f(robot({{"agent", {{"min_obstacle_m", 0.3}}}}));
+  ScriptedObstacles close(f.host.clock(), 20.0, 20.0, 0);
+  f.host.set_obstacle_source(&close);
+  const auto r = f.waypoint(wp(1, 0, 0.5));
+  CHECK(r.status == 423);
+  CHECK(r.body["code"] == "ESTOP_ACTIVE");
+  CHECK(r.body["error"].get<std::string>().find("20.0 cm") != std::string::npos);
+  CHECK(f.host.estopped());
+  CHECK(f.drive.commands().empty());
+}
+
+TEST_CASE("obstacles (§10.5): checked at 20 Hz during the job; one appearing mid-drive latches within 50 ms") {
+  SUBCASE("agent.min_obstacle_m") {
+    Fixture f(robot({{"agent", {{"min_obstacle_m", 0.3}}}}));
+    ScriptedObstacles source(f.host.clock(), 100.0, 25.0, 2'010'000);
+    f.host.set_obstacle_source(&source);
+    REQUIRE(f.waypoint(wp(0.21, 90, 0.5)).status == 200);
+    CHECK(f.host.estopped());
+    const auto events = f.drive.events();
+    CHECK(events.back().halt);
+    CHECK(events.back().t_us >= 2'010'000);
+    CHECK(events.back().t_us <= 2'060'000);
+    for (std::size_t i = 1; i < source.read_times.size(); ++i) CHECK(source.read_times[i] - source.read_times[i - 1] <= 50'000);
+    const json s = f.status();
+    CHECK(s["result"]["reason"] == "obstacle");
+    CHECK(s["result"]["ok"] == false);
+  }
+  SUBCASE("safety.obstacle_stop_cm is an alias; an obstacle at the minimum exactly is not below it") {
+    Fixture f(robot({{"safety", {{"obstacle_stop_cm", 25}}}}));
+    ScriptedObstacles source(f.host.clock(), 25.0, 25.0, 0);
+    f.host.set_obstacle_source(&source);
+    REQUIRE(f.waypoint(wp(0.21, 0, 1.0)).status == 200);
+    CHECK_FALSE(f.host.estopped());
+    CHECK(f.status()["result"]["ok"] == true);
+    CHECK(source.reads >= 10);  // before, and every 50 ms of the 1 s drive
+  }
+}
+
+TEST_CASE("cancel without a job is a harmless no-op; cancel is never refused by the e-stop") {
+  Fixture f;
+  auto r = f.host.call("POST", "/api/nav/cancel", nullptr, Role::User);
+  CHECK(r.status == 200);
+  CHECK(r.body["cancelled"] == false);
+  f.host.latch_estop("test");
+  CHECK(f.host.call("POST", "/api/nav/cancel", nullptr, Role::User).status == 200);
+  CHECK(f.host.call("POST", "/api/nav/cancel", nullptr, Role::Guest).status == 403);
+  CHECK(f.host.call("POST", "/api/nav/waypoint", wp(1, 0, 0.5), Role::Guest).status == 403);
+}
+
+TEST_CASE("no physics: the capability refuses to start, naming the key") {
+  FakeHost host(json{{"physics", {{"turn_time_per_deg_s", 0.008}}}});
+  host.add_driver_instance<RecordingDrive>("base", host.clock());
+  host.load(RCAND_ENTRY_FUNCTION, manifest());
+  CHECK_THROWS_WITH_AS(host.add_capability("nav"), doctest::Contains("physics.wheel_circumference_m"), HostError);
+}

@@ -1,0 +1,45 @@
+// What `rcanctl status|stop|command` and `rcanctl swarm status|stop|command` share: the options, the targets (one
+// robot or swarm.yaml nodes), the parallel requests and the output (an aligned table, or one JSON object per node
+// per line with --json). Exit codes: 0 every selected node succeeded, 1 partial failure, 2 usage or config error.
+#pragma once
+
+#include <cstdint>
+#include <iosfwd>
+#include <span>
+#include <string>
+#include <vector>
+
+#include "rcand/kernel/swarm/swarm_registry.hpp"
+
+namespace rcand::rcanctl {
+
+inline constexpr int kExitOk = 0;
+inline constexpr int kExitPartial = 1;
+inline constexpr int kExitUsage = 2;
+
+enum class Operation { Status, Stop, Command };
+
+struct FleetOptions {
+  std::vector<std::string> nodes, tags;
+  std::string swarm_file = kernel::swarm::kDefaultSwarmFile;
+  bool json = false;
+  bool help = false;
+  int timeout_ms = 0;  // 0: the operation's default (stop 400 ms, inside the 500 ms budget)
+  std::string instruction;
+  // One robot (rcanctl status|stop|command without --node): address and token.
+  std::string host = "127.0.0.1";
+  std::uint16_t port = kernel::swarm::kDefaultSwarmPort;
+  std::string token;  // --token, --token-file or $RCAND_TOKEN
+};
+
+// Parses the words after the operation name; on a usage error writes it to `err` and returns false.
+bool parse_fleet_options(std::span<const std::string> args, Operation op, bool swarm, FleetOptions& options, std::ostream& err);
+
+// Runs `op` on every target in parallel and prints the result. `targets` is never empty.
+int run_fleet_operation(Operation op, const std::vector<kernel::swarm::SwarmNode>& targets, const FleetOptions& options,
+                        std::ostream& out, std::ostream& err);
+
+// Targets from swarm.yaml (selection by --node/--tag), or nullopt after writing the error (exit 2) to `err`.
+bool swarm_targets(const FleetOptions& options, std::vector<kernel::swarm::SwarmNode>& targets, std::ostream& err);
+
+}  // namespace rcand::rcanctl
