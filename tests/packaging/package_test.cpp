@@ -1,0 +1,240 @@
+// The Debian packages, end to end and without touching the machine: cpack builds them from this build tree (or
+// from a nested /usr-prefixed tree when this one is not /usr), dpkg-deb -x unpacks them into a scratch root, the
+// vendor plugin com.acme.gripper is built out of tree against the unpacked SDK alone, and the unpacked rcand
+// serves it beside the core plugin set. Skipped with a message where cpack or dpkg-deb is missing; the lintian
+// check is skipped where lintian is missing.
+#include <doctest/doctest.h>
+
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <optional>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include <unistd.h>
+
+#include "rcand_process.hpp"
+
+namespace fs = std::filesystem;
+using rcand::test::run_tool;
+
+namespace {
+
+std::optional<std::string> which(const std::string& name) {
+  const char* path = std::getenv("PATH");
+  std::stringstream dirs(path ? path : "/usr/bin:/bin");
+  for (std::string dir; std::getline(dirs, dir, ':');) {
+    const fs::path candidate = fs::path(dir) / name;
+    if (::access(candidate.c_str(), X_OK) == 0) return candidate.string();
+  }
+  return std::nullopt;
+}
+
+std::string slurp(const fs::path& file) {
+  std::ifstream in(file);
+  std::stringstream text;
+  text << in.rdbuf();
+  return text.str();
+}
+
+// The packages, built and unpacked once for every test case.
+struct Packages {
+  std::string skip;                     // non-empty: why the tests cannot run here
+  std::string failure;                  // non-empty: building or unpacking failed (every test case fails)
+  rcand::test::TempDir scratch;
+  fs::path root;                        // every package unpacked here
+  std::map<std::string, fs::path> debs;  // package name -> .deb
+  fs::path plugin_dir;                  // <root>/usr/lib/<multiarch>/rcand/plugins
+  fs::path vendor_plugins;              // the out-of-tree com.acme.gripper build's plugin directory
+  std::string vendor_sdk_dir;           // RcandSDK_DIR the vendor build used
+  std::optional<std::string> dpkg_deb;
+
+  std::string field(const std::string& package, const std::string& name) const {
+    const auto r = run_tool(*dpkg_deb, {"--field", debs.at(package).string(), name});
+    return r.out;
+  }
+};
+
+void require_ok(const rcand::test::ProcessResult& r, const std::string& what) {
+  if (r.exit_code != 0) throw std::runtime_error(what + " failed (" + std::to_string(r.exit_code) + "):\n" + r.out + r.err);
+}
+
+fs::path package_build_tree(const std::string& cmake) {
+  if (std::string(RCAND_INSTALL_PREFIX) == "/usr") return RCAND_BINARY_DIR;
+  // This tree installs elsewhere, so its rcand has other default paths: package a /usr tree (incremental).
+  MESSAGE("this build tree's prefix is " RCAND_INSTALL_PREFIX "; building the packages in a nested /usr tree");
+  const fs::path nested = fs::path(RCAND_BINARY_DIR) / "packaging-build";
+  require_ok(run_tool(cmake, {"-S", RCAND_SOURCE_DIR, "-B", nested.string(), "-G", RCAND_CMAKE_GENERATOR,
+                              "-DCMAKE_INSTALL_PREFIX=/usr", "-DCMAKE_BUILD_TYPE=RelWithDebInfo",
+                              "-DRCAND_BUILD_TESTS=OFF", "-DRCAND_BUILD_BENCH=OFF"}),
+             "configuring the package tree");
+  require_ok(run_tool(cmake, {"--build", nested.string(), "-j2"}), "building the package tree");
+  return nested;
+}
+
+void build(Packages& p) {
+  p.dpkg_deb = which("dpkg-deb");
+  if (!p.dpkg_deb) {
+    p.skip = "dpkg-deb not found (not a Debian machine): the package tests are skipped";
+    return;
+  }
+  if (std::string(RCAND_LIBRARY_ARCHITECTURE).empty()) {
+    p.skip = "CMake found no multiarch library architecture: the package tests are skipped";
+    return;
+  }
+  const fs::path tree = package_build_tree(RCAND_CMAKE_COMMAND);
+  const fs::path out = p.scratch.path() / "debs";
+  require_ok(run_tool(RCAND_CPACK_COMMAND, {"-G", "DEB", "--config", (tree / "CPackConfig.cmake").string(), "-B", out.string()}),
+             "cpack");
+  p.root = p.scratch.path() / "root";
+  for (const auto& entry : fs::directory_iterator(out)) {
+    if (entry.path().extension() != ".deb") continue;
+    const auto name = run_tool(*p.dpkg_deb, {"--field", entry.path().string(), "Package"});
+    require_ok(name, "dpkg-deb --field");
+    p.debs[name.out.substr(0, name.out.find('\n'))] = entry.path();
+    require_ok(run_tool(*p.dpkg_deb, {"-x", entry.path().string(), p.root.string()}), "dpkg-deb -x");
+  }
+  p.plugin_dir = p.root / "usr/lib" / RCAND_LIBRARY_ARCHITECTURE / "rcand/plugins";
+
+  // The vendor's build: the template from the unpacked SDK package, the unpacked SDK and nothing else of rcand.
+  const fs::path vendor = p.scratch.path() / "vendor-build";
+  const fs::path sdk_dir = p.root / "usr/lib" / RCAND_LIBRARY_ARCHITECTURE / "cmake/RcandSDK";
+  require_ok(run_tool(RCAND_CMAKE_COMMAND, {"-S", (p.root / "usr/share/rcand-sdk/template").string(), "-B", vendor.string(),
+                                            "-G", RCAND_CMAKE_GENERATOR, "-DRcandSDK_DIR=" + sdk_dir.string(),
+                                            "-DCMAKE_PREFIX_PATH=" + (p.root / "usr").string()}),
+             "configuring the vendor plugin");
+  require_ok(run_tool(RCAND_CMAKE_COMMAND, {"--build", vendor.string(), "-j2"}), "building the vendor plugin");
+  p.vendor_plugins = vendor / "plugins";
+  const std::string cache = slurp(vendor / "CMakeCache.txt");
+  const auto at = cache.find("\nRcandSDK_DIR:");  // RcandSDK_DIR:<type>=<dir>
+  if (at != std::string::npos) {
+    const auto value = cache.find('=', at) + 1;
+    p.vendor_sdk_dir = cache.substr(value, cache.find('\n', value) - value);
+  }
+}
+
+// Built once for all test cases; a failure is recorded, not retried.
+Packages& packages() {
+  static Packages p;
+  static bool built = false;
+  if (!built) {
+    built = true;
+    try {
+      build(p);
+    } catch (const std::exception& e) {
+      p.failure = e.what();
+    }
+  }
+  return p;
+}
+
+#define REQUIRE_PACKAGES(p)          \
+  Packages& p = packages();          \
+  if (!p.skip.empty()) {             \
+    MESSAGE("SKIPPED: " << p.skip);  \
+    return;                          \
+  }                                  \
+  if (!p.failure.empty()) FAIL(p.failure)
+
+}  // namespace
+
+TEST_CASE("the kernel, SDK and core plugin packages are built, and the core set pulls nothing heavy") {
+  REQUIRE_PACKAGES(p);
+  for (const char* name : {"rcand", "librcand-sdk-dev", "rcand-plugins-core"}) CHECK_MESSAGE(p.debs.count(name) == 1, name);
+  CHECK_FALSE(p.debs.count("rcand-plugins-acme"));  // the vendor example is not a packaged plugin
+  const std::string abi = std::string("rcand-plugin-abi-") + RCAND_ABI_MAJOR_TEXT;
+  CHECK(p.field("rcand", "Provides").find(abi) != std::string::npos);
+  CHECK(p.field("rcand-plugins-core", "Depends").find(abi) != std::string::npos);
+  for (const auto& [name, deb] : p.debs) {
+    if (name.find("vision") != std::string::npos) continue;
+    CHECK_MESSAGE(p.field(name, "Depends").find("opencv") == std::string::npos, name);
+  }
+}
+
+TEST_CASE("the unpacked tree has the Debian layout, the systemd unit and the conffile") {
+  REQUIRE_PACKAGES(p);
+  CHECK(fs::is_regular_file(p.root / "usr/sbin/rcand"));
+  CHECK(fs::is_regular_file(p.root / "usr/bin/rcanctl"));
+  CHECK(fs::is_regular_file(p.root / "etc/rcand/robot.rcan.yaml"));
+  for (const char* file : {"rcand_teleop.so", "teleop.json", "rcand_nav.so", "nav.json", "rcand_sim_drive.so", "sim_drive.json"})
+    CHECK_MESSAGE(fs::is_regular_file(p.plugin_dir / file), file);
+  CHECK_FALSE(fs::exists(p.plugin_dir / "acme_gripper.so"));
+  const std::string pc = slurp(p.root / "usr/lib" / RCAND_LIBRARY_ARCHITECTURE / "pkgconfig/rcand-sdk.pc");
+  CHECK(pc.find(std::string("abi_major=") + RCAND_ABI_MAJOR_TEXT) != std::string::npos);
+  CHECK(pc.find(std::string("plugindir=${prefix}/lib/") + RCAND_LIBRARY_ARCHITECTURE + "/rcand/plugins") != std::string::npos);
+
+  const std::string unit = slurp(p.root / "lib/systemd/system/rcand.service");
+  CHECK(unit.find("User=rcand") != std::string::npos);
+  CHECK(unit.find("SupplementaryGroups=gpio i2c dialout video") != std::string::npos);
+  CHECK(unit.find("Restart=on-failure") != std::string::npos);
+  CHECK(unit.find("KillSignal=SIGTERM") != std::string::npos);  // rcand's e-stop path runs on SIGTERM
+  CHECK(unit.find("ExecStart=/usr/sbin/rcand --config /etc/rcand/robot.rcan.yaml") != std::string::npos);
+  const auto conffiles = run_tool(*p.dpkg_deb, {"--info", p.debs.at("rcand").string(), "conffiles"});
+  CHECK(conffiles.out.find("/etc/rcand/robot.rcan.yaml") != std::string::npos);
+}
+
+TEST_CASE("the vendor plugin builds out of tree against the unpacked SDK only") {
+  REQUIRE_PACKAGES(p);
+  CHECK(fs::is_regular_file(p.vendor_plugins / "acme_gripper.so"));
+  CHECK(fs::is_regular_file(p.vendor_plugins / "com.acme.gripper.json"));
+  CHECK_MESSAGE(p.vendor_sdk_dir.rfind(p.root.string(), 0) == 0, "RcandSDK_DIR=" << p.vendor_sdk_dir);
+}
+
+TEST_CASE("the unpacked rcand loads every packaged plugin and the vendor plugin") {
+  REQUIRE_PACKAGES(p);
+  const auto r = run_tool((p.root / "usr/sbin/rcand").string(), {"--check-plugins", "--plugin-path", p.plugin_dir.string(),
+                                                                 "--plugin-path", p.vendor_plugins.string()});
+  INFO(r.out, r.err);
+  CHECK(r.exit_code == 0);
+  for (const char* id : {"org.rcand.teleop", "org.rcand.nav", "org.rcand.sim_drive", "com.acme.gripper"})
+    CHECK_MESSAGE(r.out.find(id) != std::string::npos, id);
+}
+
+TEST_CASE("the shipped /etc/rcand config is valid against the core plugin set") {
+  REQUIRE_PACKAGES(p);
+  // As installed, plus what postinst generates (the JWT secret) and the unpacked plugin directory.
+  const fs::path etc = p.scratch.path() / "etc-rcand";
+  fs::create_directories(etc);
+  std::ofstream(etc / "robot.rcan.yaml") << slurp(p.root / "etc/rcand/robot.rcan.yaml") << "  plugin_paths: ["
+                                         << nlohmann::json(p.plugin_dir.string()).dump() << "]\n";
+  std::ofstream(etc / "jwt.secret") << "0123456789abcdef0123456789abcdef\n";
+  const auto r = run_tool((p.root / "usr/sbin/rcand").string(), {"--check-config", (etc / "robot.rcan.yaml").string()});
+  INFO(r.out, r.err);
+  CHECK(r.exit_code == 0);
+}
+
+TEST_CASE("the unpacked rcand serves com.acme.gripper beside the core set") {
+  REQUIRE_PACKAGES(p);
+  auto config = rcand::test::sim_config();
+  config["runtime"]["plugin_paths"] = {p.plugin_dir.string(), p.vendor_plugins.string()};
+  // The harness starts its launcher with the build tree's rcand as $0; run the unpacked one instead.
+  ::setenv("RCAND_UNPACKED", (p.root / "usr/sbin/rcand").c_str(), 1);
+  rcand::test::RcandProcess process(config, {"/bin/sh", "-c", "exec \"$RCAND_UNPACKED\" \"$@\""}, "127.0.0.1");
+  const auto discovery = process.json("GET", "/api/discovery");
+  INFO(discovery.dump());
+  CHECK(discovery.dump().find("com.acme.gripper") != std::string::npos);
+  int status = 0;
+  const auto grip = process.json("POST", "/api/cap/com.acme.gripper/grip", "owner-token", R"({"state":"close"})", &status);
+  INFO(grip.dump());
+  CHECK(status == 200);
+  CHECK(grip.value("ok", false));
+}
+
+TEST_CASE("lintian reports no errors on the packages") {
+  REQUIRE_PACKAGES(p);
+  const auto lintian = which("lintian");
+  if (!lintian) {
+    MESSAGE("SKIPPED: lintian not found (apt-get install lintian to run this check)");
+    return;
+  }
+  for (const auto& [name, deb] : p.debs) {
+    const auto r = run_tool(*lintian, {"--fail-on", "error", deb.string()});
+    INFO(name, ":\n", r.out, r.err);
+    CHECK(r.out.find("\nE: ") == std::string::npos);
+    CHECK(r.out.rfind("E: ", 0) != 0);
+    CHECK(r.exit_code == 0);
+  }
+}
