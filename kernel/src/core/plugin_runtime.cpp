@@ -53,6 +53,22 @@ template <class Object> void offer_obstacle_source(KernelServices& services, con
     logger("kernel.plugins")->warn("{} also provides obstacles; the first one found is used", what);
 }
 
+// The plugin's factory, then start(), both through the trampoline. The object is kept when only start() failed (the
+// instance is marked failed, and shutdown() still reaches it); nullptr when there is nothing to keep.
+template <class Object>
+std::unique_ptr<Object> create_and_start(const std::string& who,
+                                         const std::function<std::unique_ptr<Object>(sdk::PluginContext&)>& factory,
+                                         InstanceContext& context, InstanceHealth& health) {
+  std::string failure;
+  auto object = guarded_result(who, "factory", failure, [&] { return factory(context); });
+  if (!object || !*object) {
+    health.mark_failed(failure.empty() ? "factory returned nothing" : failure);
+    return nullptr;
+  }
+  if (!guarded_call(who, "start", failure, [&] { (*object)->start(); })) health.mark_failed(failure);
+  return std::move(*object);
+}
+
 }  // namespace
 
 PluginRuntime::PluginRuntime(PluginHost& host, KernelServices& services, ActuatorTable& actuators)
@@ -82,16 +98,9 @@ void PluginRuntime::start_drivers(const RobotConfig& config) {
     auto settings = validated_settings(config, *plugin, entry.settings, true, "drivers[" + std::to_string(i) + "]");
     instance.context = std::make_unique<InstanceContext>(plugin->id, entry.id, services_, std::move(settings), instance.health);
 
-    std::string failure;
     instance.who = "plugin " + plugin->id + " driver " + entry.id;
-    const std::string& who = instance.who;
-    auto object = guarded_result(who, "factory", failure, [&] { return registered->factory(*instance.context); });
-    if (!object || !*object) {
-      instance.health.mark_failed(failure.empty() ? "factory returned nothing" : failure);
-      continue;
-    }
-    instance.object = std::move(*object);
-    if (!guarded_call(who, "start", failure, [&] { instance.object->start(); })) instance.health.mark_failed(failure);
+    instance.object = create_and_start(instance.who, registered->factory, *instance.context, instance.health);
+    if (!instance.object) continue;
 
     if (instance.actuates) {
       auto* actuator = dynamic_cast<sdk::ActuatorDriver*>(instance.object.get());
@@ -137,20 +146,16 @@ void PluginRuntime::start_capabilities(const std::vector<std::string>& names, co
       health.mark_failed(why);
     });
 
-    std::string failure;
     instance.who = "plugin " + plugin->id + " capability " + name;
-    const std::string& who = instance.who;
-    auto object = guarded_result(who, "factory", failure, [&] { return registered->factory(*instance.context); });
-    if (!object || !*object) {
-      instance.health.mark_failed(failure.empty() ? "factory returned nothing" : failure);
-      continue;
-    }
-    instance.object = std::move(*object);
-    if (guarded_call(who, "start", failure, [&] { instance.object->start(); })) {
-      if (auto routes = guarded_result(who, "routes", failure, [&] { return instance.object->routes(); }))
+    instance.object = create_and_start(instance.who, registered->factory, *instance.context, instance.health);
+    if (!instance.object) continue;
+    if (!instance.health.failed()) {
+      std::string failure;
+      if (auto routes = guarded_result(instance.who, "routes", failure, [&] { return instance.object->routes(); }))
         instance.routes = std::move(*routes);
+      else
+        instance.health.mark_failed(failure);
     }
-    if (!failure.empty()) instance.health.mark_failed(failure);
     if (!instance.health.failed()) offer_obstacle_source(services_, instance.object.get(), "capability " + name);
     log->info("capability {} ({}) {}, {} routes", name, plugin->id,
               instance.health.failed() ? "failed: " + instance.health.reason() : "started", instance.routes.size());
