@@ -241,29 +241,33 @@ bool swarm_targets(const FleetOptions& options, std::vector<swarm::SwarmNode>& t
   return true;
 }
 
+Operation operation_named(std::string_view verb) {
+  return verb == "status" ? Operation::Status : verb == "stop" ? Operation::Stop : Operation::Command;
+}
+
+std::optional<int> parse_fleet_command(std::span<const std::string> args, Operation op, bool swarm, std::string_view usage,
+                                       FleetOptions& options, std::ostream& out, std::ostream& err) {
+  if (!parse_fleet_options(args, op, swarm, options, err)) {
+    err << usage;
+    return kExitUsage;
+  }
+  if (options.help) {
+    out << usage;
+    return kExitOk;
+  }
+  return std::nullopt;
+}
+
 int run_fleet_operation(Operation op, const std::vector<swarm::SwarmNode>& targets, const FleetOptions& options,
                         std::ostream& out, std::ostream& err) {
   std::vector<swarm::PeerRequest> requests;
   for (const auto& node : targets) {
-    swarm::PeerRequest request;
-    request.name = node.name;
-    request.host = node.host;
-    request.fallback_ip = node.ip;
-    request.port = node.port;
-    request.headers = {{"Authorization", "Bearer " + node.token}};
-    if (op == Operation::Status) {
-      request.method = "GET";
-      request.target = "/api/status";
-    } else if (op == Operation::Stop) {
-      request.method = "POST";
-      request.target = "/api/stop";
-      request.body = json{{"reason", "rcanctl stop"}}.dump();
-    } else {
-      request.method = "POST";
-      request.target = "/api/command";
-      request.body = json{{"instruction", options.instruction}}.dump();
-    }
-    requests.push_back(std::move(request));
+    if (op == Operation::Status)
+      requests.push_back(swarm::peer_request(node, "GET", "/api/status"));
+    else if (op == Operation::Stop)
+      requests.push_back(swarm::peer_request(node, "POST", "/api/stop", json{{"reason", "rcanctl stop"}}.dump()));
+    else
+      requests.push_back(swarm::peer_request(node, "POST", "/api/command", json{{"instruction", options.instruction}}.dump()));
   }
   const int default_ms = op == Operation::Stop ? 400 : op == Operation::Status ? 2000 : 15000;
   swarm::FanOut fan_out;

@@ -5,8 +5,10 @@
 
 #include <cstdint>
 #include <iosfwd>
+#include <optional>
 #include <span>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include "rcand/kernel/swarm/swarm_registry.hpp"
@@ -33,6 +35,11 @@ struct FleetOptions {
 };
 
 // Parses the words after the operation name; on a usage error writes it to `err` and returns false.
+// "status" | "stop" | anything else (command).
+Operation operation_named(std::string_view verb);
+// parse_fleet_options, then --help: an exit code when the command is already finished (usage error or help shown).
+std::optional<int> parse_fleet_command(std::span<const std::string> args, Operation op, bool swarm, std::string_view usage,
+                                       FleetOptions& options, std::ostream& out, std::ostream& err);
 bool parse_fleet_options(std::span<const std::string> args, Operation op, bool swarm, FleetOptions& options, std::ostream& err);
 
 // Runs `op` on every target in parallel and prints the result. `targets` is never empty.

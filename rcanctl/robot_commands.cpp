@@ -19,16 +19,9 @@ constexpr std::string_view kUsage =
 }  // namespace
 
 int run_robot(std::string_view operation, std::span<const std::string> args, std::ostream& out, std::ostream& err) {
-  const Operation op = operation == "status" ? Operation::Status : operation == "stop" ? Operation::Stop : Operation::Command;
+  const Operation op = operation_named(operation);
   FleetOptions options;
-  if (!parse_fleet_options(args, op, false, options, err)) {
-    err << kUsage;
-    return kExitUsage;
-  }
-  if (options.help) {
-    out << kUsage;
-    return kExitOk;
-  }
+  if (auto done = parse_fleet_command(args, op, false, kUsage, options, out, err)) return *done;
   std::vector<kernel::swarm::SwarmNode> targets;
   if (!options.nodes.empty()) {
     if (!swarm_targets(options, targets, err)) return kExitUsage;

@@ -32,16 +32,9 @@ int run_swarm(std::span<const std::string> args, std::ostream& out, std::ostream
     err << "rcanctl swarm: unknown operation '" << verb << "' (status, stop or command)\n" << kUsage;
     return kExitUsage;
   }
-  const Operation op = verb == "status" ? Operation::Status : verb == "stop" ? Operation::Stop : Operation::Command;
+  const Operation op = operation_named(verb);
   FleetOptions options;
-  if (!parse_fleet_options(args.subspan(1), op, true, options, err)) {
-    err << kUsage;
-    return kExitUsage;
-  }
-  if (options.help) {
-    out << kUsage;
-    return kExitOk;
-  }
+  if (auto done = parse_fleet_command(args.subspan(1), op, true, kUsage, options, out, err)) return *done;
   std::vector<kernel::swarm::SwarmNode> targets;
   if (!swarm_targets(options, targets, err)) return kExitUsage;
   return run_fleet_operation(op, targets, options, out, err);

@@ -591,15 +591,9 @@ bool Api::handle_swarm(http::Request& request, const Caller& caller, const std::
   if (is_stop && !forwarded_body.contains("reason")) forwarded_body["reason"] = "swarm broadcast from " + ruri;
   std::vector<swarm::PeerRequest> requests;
   for (const auto& node : peers) {
-    swarm::PeerRequest peer;
-    peer.name = node.name;
-    peer.host = node.host;
-    peer.fallback_ip = node.ip;
-    peer.port = node.port;
-    peer.method = "POST";
-    peer.target = request.path;
-    peer.body = forwarded_body.dump();
-    peer.headers = {{"Authorization", "Bearer " + node.token}, {"X-Swarm-Forwarded", ruri}, {"X-Message-Id", caller.message_id}};
+    auto peer = swarm::peer_request(node, "POST", request.path, forwarded_body.dump());
+    peer.headers.emplace_back("X-Swarm-Forwarded", ruri);
+    peer.headers.emplace_back("X-Message-Id", caller.message_id);
     requests.push_back(std::move(peer));
   }
 

@@ -24,6 +24,19 @@
 
 namespace rcand::kernel::swarm {
 
+PeerRequest peer_request(const SwarmNode& node, std::string method, std::string target, std::string body) {
+  PeerRequest request;
+  request.name = node.name;
+  request.host = node.host;
+  request.fallback_ip = node.ip;
+  request.port = node.port;
+  request.method = std::move(method);
+  request.target = std::move(target);
+  request.body = std::move(body);
+  request.headers = {{"Authorization", "Bearer " + node.token}};
+  return request;
+}
+
 namespace net = boost::asio;
 namespace beast = boost::beast;
 namespace bhttp = boost::beast::http;

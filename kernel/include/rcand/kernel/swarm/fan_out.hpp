@@ -13,6 +13,8 @@
 #include <utility>
 #include <vector>
 
+#include "rcand/kernel/swarm/swarm_registry.hpp"
+
 namespace rcand::kernel::swarm {
 
 struct PeerRequest {
@@ -25,6 +27,9 @@ struct PeerRequest {
   std::string body;
   std::vector<std::pair<std::string, std::string>> headers;  // e.g. Authorization (never logged)
 };
+
+// A request to a registry node: its name, host, ip fallback and port, authorized with the node's own token.
+PeerRequest peer_request(const SwarmNode& node, std::string method, std::string target, std::string body = {});
 
 struct PeerResult {
   std::string name;
