@@ -6,6 +6,10 @@ packages=(
   libboost-dev                              # Boost.Asio, Beast, DLL (header-only)
   nlohmann-json3-dev libyaml-cpp-dev libspdlog-dev libssl-dev
   doctest-dev                               # unit tests
+  clang-14 libclang-rt-14-dev llvm-14       # the sanitizer + libFuzzer build of the tests (llvm-symbolizer)
+  libavahi-client-dev                       # mDNS publish/resolve/browse (Avahi client over the system D-Bus)
+  avahi-daemon avahi-utils dbus iproute2    # mDNS integration tests: private daemons in network namespaces
+  libmosquitto-dev mosquitto mosquitto-clients  # R2R over MQTT; a real broker in the R2R tests
   curl                                      # README examples
 )
 missing=()

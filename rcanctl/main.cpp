@@ -6,6 +6,8 @@
 #include <string_view>
 #include <vector>
 
+#include "discover_command.hpp"
+#include "r2r_command.hpp"
 #include "robot_commands.hpp"
 #include "swarm_command.hpp"
 #include "token_command.hpp"
@@ -26,6 +28,10 @@ constexpr Subcommand kSubcommands[] = {
     {"command", "send one robot an instruction: command --instruction \"...\"", rcand::rcanctl::run_command},
     {"swarm", "status|stop|command on swarm.yaml nodes in parallel (--node, --tag, --swarm, --json)",
      rcand::rcanctl::run_swarm},
+    {"discover", "find robots on the LAN by mDNS (_rcan._tcp) and check each one's DISCOVER document (--timeout S, --json)",
+     rcand::rcanctl::run_discover},
+    {"r2r", "robot-to-robot: send one message and print the answers, watch traffic, run an auction (r2r --help)",
+     rcand::rcanctl::run_r2r},
 };
 
 constexpr int kUsageError = 2;

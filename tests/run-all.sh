@@ -1,9 +1,23 @@
 #!/usr/bin/env bash
 # The whole test suite: installs dependencies, builds with Ninja, runs every test (units, fixture plugins,
-# integration tests with real rcand processes). Exits non-zero on any failure.
+# integration tests with real rcand processes), then the whole suite again built with sanitizers, then the fuzz
+# targets for a bounded time. Exits non-zero on any failure.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 packaging/install-deps.sh
 cmake -S . -B build -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo > /dev/null
 cmake --build build
 ctest --test-dir build --output-on-failure --timeout 600
+# The soak's 20-second smoke run (bench/soak, normal build only): any error fails the suite.
+bench/soak/run-soak.sh build --smoke
+
+# The sanitizer build: clang-14 with ASan + UBSan (and libFuzzer coverage), the whole suite again (the packaging
+# test only runs above). Any report, in a test or in an rcand it started, fails the suite.
+export ASAN_OPTIONS="detect_leaks=1:abort_on_error=1" UBSAN_OPTIONS="print_stacktrace=1:halt_on_error=1"
+cmake -S . -B build-sanitize -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo -DCMAKE_C_COMPILER=clang-14 \
+      -DCMAKE_CXX_COMPILER=clang++-14 -DRCAND_FUZZ=ON -DRCAND_BUILD_BENCH=OFF > /dev/null
+cmake --build build-sanitize
+ctest --test-dir build-sanitize --output-on-failure --timeout 600
+
+# Every libFuzzer target of that build for a bounded time (RCAND_FUZZ_SECONDS each; 7 targets stay under 5 min).
+tests/fuzz/run.sh "${RCAND_FUZZ_SECONDS:-25}" build-sanitize

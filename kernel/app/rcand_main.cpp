@@ -1,10 +1,15 @@
-// rcand: the daemon. Parses the command line, loads the config, runs the kernel until SIGINT/SIGTERM.
+// rcand: the daemon. Parses the command line, loads the config, runs the kernel until SIGINT/SIGTERM; SIGHUP
+// reloads the config file (Kernel::reload).
+#include <chrono>
 #include <csignal>
+#include <cstdlib>
 #include <cstdio>
 #include <iostream>
 #include <pthread.h>
+#include <sys/resource.h>
 #include <set>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include "rcand/kernel/config/robot_config.hpp"
@@ -29,6 +34,8 @@ constexpr const char* kUsage = R"(usage: rcand [--config FILE] [--plugin-path DI
 
 On start, rcand prints one line "rcand: listening on http://ADDRESS:PORT" on stdout once it serves.
 )";
+
+constexpr std::chrono::seconds kShutdownGrace{5};
 
 struct Options {
   std::string config = "/etc/rcand/robot.rcan.yaml";
@@ -73,6 +80,15 @@ int check_plugins(const Options& options) {
   host.load_needed(capabilities, protocols);
   std::cout << host.format_table();
   return host.any_failed() ? 1 : 0;
+}
+
+// Every connection is a file descriptor: serve up to the hard limit, not the usual soft 1,024, so a thousand idle
+// clients cannot keep the next POST /api/stop from being accepted.
+void raise_open_files_limit() {
+  rlimit files{};
+  if (getrlimit(RLIMIT_NOFILE, &files) != 0 || files.rlim_cur >= files.rlim_max) return;
+  files.rlim_cur = files.rlim_max;
+  if (setrlimit(RLIMIT_NOFILE, &files) != 0) logger("kernel")->warn("cannot raise the open-files limit");
 }
 
 }  // namespace
@@ -126,9 +142,11 @@ int main(int argc, char** argv) {
   sigemptyset(&signals);
   sigaddset(&signals, SIGINT);
   sigaddset(&signals, SIGTERM);
+  sigaddset(&signals, SIGHUP);  // config reload
   pthread_sigmask(SIG_BLOCK, &signals, nullptr);
   std::signal(SIGPIPE, SIG_IGN);
 
+  raise_open_files_limit();
   try {
     LoadedConfig loaded = load_robot_config(options.config);
     print_warnings(loaded);
@@ -147,8 +165,16 @@ int main(int argc, char** argv) {
     const auto port = kernel.start();
     std::cout << "rcand: listening on http://" << address << ":" << port << std::endl;
     int signal = 0;
-    sigwait(&signals, &signal);
+    while (sigwait(&signals, &signal) == 0 && signal == SIGHUP) kernel.reload(options.config);
     rcand::kernel::logger("kernel")->info("signal {}: shutting down", signal);
+    // The motors halt first and within the stop deadline; a plugin stuck in its shutdown hook must not keep the
+    // process alive after that (systemd would wait for TimeoutStopSec, then SIGKILL).
+    std::thread([] {
+      std::this_thread::sleep_for(kShutdownGrace);
+      rcand::kernel::logger("kernel")->error("shutdown still blocked by plugin code after {} s; exiting now",
+                                             kShutdownGrace.count());
+      std::_Exit(1);
+    }).detach();
     kernel.shutdown();
     return 0;
   } catch (const ConfigError& e) {

@@ -83,7 +83,9 @@ TEST_CASE("bad input answers 400 naming the field; the gripper is not commanded"
       {{{"state", "open"}, {"opening", 0.5}}, "opening"},
       {json::array({1, 2}), "body"},
   };
-  for (const auto& [body, field] : cases) {
+  for (const auto& entry : cases) {
+    // Named references, not structured bindings: CAPTURE makes a lambda, and clang 14 cannot capture a binding.
+    const auto& body = std::get<0>(entry); const auto& field = std::get<1>(entry);
     CAPTURE(body.dump());
     const auto r = f.grip(body);
     CHECK(r.status == 400);

@@ -134,7 +134,9 @@ TEST_CASE("each bad field answers 400 naming it, and no wheel moves") {
       {wp(1e12, 0, 1), "distance_m"},   // longer than max_job_ms
       {wp(0, 1e9, 1), "heading_deg"},
   };
-  for (const auto& [body, field] : cases) {
+  for (const auto& entry : cases) {
+    // Named references, not structured bindings: CAPTURE makes a lambda, and clang 14 cannot capture a binding.
+    const auto& body = std::get<0>(entry); const auto& field = std::get<1>(entry);
     CAPTURE(body.dump());
     const auto r = f.waypoint(body);
     CHECK(r.status == 400);

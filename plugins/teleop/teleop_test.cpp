@@ -118,7 +118,9 @@ TEST_CASE("each bad field answers 400 naming it, and the driver receives nothing
       {{{"type", "move"}, {"linear", 0.5}, {"angular", 0.0}, {"duration_ms", "100"}}, "duration_ms"},
       {{{"type", "move"}, {"linear", 0.5}, {"angular", 0.0}, {"duration_ms", 18446744073709551615ULL}}, "duration_ms"},
   };
-  for (const auto& [body, field] : cases) {
+  for (const auto& entry : cases) {
+    // Named references, not structured bindings: CAPTURE makes a lambda, and clang 14 cannot capture a binding.
+    const auto& body = std::get<0>(entry); const auto& field = std::get<1>(entry);
     CAPTURE(body.dump());
     const auto r = f.post(body);
     CHECK(r.status == 400);

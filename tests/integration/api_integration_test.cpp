@@ -46,7 +46,7 @@ TEST_CASE("an undeclared capability's endpoint is 404 CAPABILITY_NOT_FOUND and r
   config["rcan_protocol"]["capabilities"] = {"status", "com.acme.gripper"};  // no teleop
   RcandProcess rcand(config);
   int status = 0;
-  for (auto [method, path, body] : std::vector<std::tuple<std::string, std::string, std::string>>{
+  for (const auto& entry : std::vector<std::tuple<std::string, std::string, std::string>>{
            {"POST", "/api/action", R"({"type":"move","linear":0.5,"angular":0})"},
            {"POST", "/api/action", R"({"type":"grip","state":"open"})"},
            {"POST", "/api/nav/waypoint", R"({"distance_m":1,"heading_deg":0})"},
@@ -54,6 +54,8 @@ TEST_CASE("an undeclared capability's endpoint is 404 CAPABILITY_NOT_FOUND and r
            {"POST", "/api/command", R"({"instruction":"go"})"},
            {"GET", "/api/stream/mjpeg", ""},
            {"GET", "/api/cap/org.example.thing/anything", ""}}) {
+    // Named references, not structured bindings: CAPTURE makes a lambda, and clang 14 cannot capture a binding.
+    const auto& method = std::get<0>(entry); const auto& path = std::get<1>(entry); const auto& body = std::get<2>(entry);
     CAPTURE(path);
     CAPTURE(body);
     auto answer = rcand.json(method, path, "owner-token", body, &status);
@@ -104,7 +106,7 @@ TEST_CASE("the vendor capability com.acme.gripper serves under /api/cap/ through
 TEST_CASE("bad input gets a clear error naming the field, and nothing moves") {
   RcandProcess rcand(sim_config());
   int status = 0;
-  for (auto [body, field] : std::vector<std::pair<std::string, std::string>>{
+  for (const auto& entry : std::vector<std::pair<std::string, std::string>>{
            {R"({"type":"move","linear":"fast","angular":0})", "linear"},
            {R"({"type":"move","angular":0})", "linear"},
            {R"({"type":"move","linear":0.5})", "angular"},
@@ -114,6 +116,8 @@ TEST_CASE("bad input gets a clear error naming the field, and nothing moves") {
            {R"({"linear":0.5})", "type"},
            {R"([1,2,3])", "type"},
            {R"({"type":"move",)", "body"}}) {
+    // Named references, not structured bindings: CAPTURE makes a lambda, and clang 14 cannot capture a binding.
+    const auto& body = std::get<0>(entry); const auto& field = std::get<1>(entry);
     CAPTURE(body);
     auto answer = rcand.json("POST", "/api/action", "user-token", body, &status);
     CHECK(status == 400);

@@ -47,7 +47,7 @@ TEST_CASE("auth: public endpoints need no token; everything else is denied by de
   rcand.json("GET", "/api/discovery", "", "", &status);
   CHECK(status == 200);
 
-  for (auto [method, path] : std::vector<std::pair<std::string, std::string>>{{"GET", "/api/status"},
+  for (const auto& entry : std::vector<std::pair<std::string, std::string>>{{"GET", "/api/status"},
                                                                               {"POST", "/api/stop"},
                                                                               {"GET", "/api/estop"},
                                                                               {"POST", "/api/estop/clear"},
@@ -55,6 +55,8 @@ TEST_CASE("auth: public endpoints need no token; everything else is denied by de
                                                                               {"POST", "/api/action"},
                                                                               {"GET", "/api/cap/com.acme.gripper/state"},
                                                                               {"POST", "/api/nav/waypoint"}}) {
+    // Named references, not structured bindings: CAPTURE makes a lambda, and clang 14 cannot capture a binding.
+    const auto& method = std::get<0>(entry); const auto& path = std::get<1>(entry);
     CAPTURE(path);
     auto body = rcand.json(method, path, "", R"({"type":"move","linear":1,"angular":0})", &status);
     CHECK(status == 401);
@@ -87,7 +89,7 @@ TEST_CASE("auth: each JWT failure is a 401 with a clear message, never echoing t
   const std::string alg_none_signed = rcand::kernel::base64url_encode(R"({"alg":"none","typ":"JWT"})") + "." + payload + "." +
                                       good.substr(good.rfind('.') + 1);
 
-  for (auto [name, token] : std::vector<std::pair<std::string, std::string>>{{"bad signature", tampered},
+  for (const auto& entry : std::vector<std::pair<std::string, std::string>>{{"bad signature", tampered},
                                                                              {"wrong key", wrong_key},
                                                                              {"expired", expired},
                                                                              {"iat in the future", future},
@@ -96,6 +98,8 @@ TEST_CASE("auth: each JWT failure is a 401 with a clear message, never echoing t
                                                                              {"alg none with a signature", alg_none_signed},
                                                                              {"garbage", "not-a-token"},
                                                                              {"empty parts", ".."}}) {
+    // Named references, not structured bindings: CAPTURE makes a lambda, and clang 14 cannot capture a binding.
+    const auto& name = std::get<0>(entry); const auto& token = std::get<1>(entry);
     CAPTURE(name);
     const auto response = rcand.request("GET", "/api/status", token);
     CHECK(response.status == 401);

@@ -130,7 +130,9 @@ TEST_CASE("nav: one job at a time (409 NAV_BUSY); each invalid input is 400 nami
       {R"([1,2])", "body"},
       {R"(not json)", "body"},
   };
-  for (const auto& [body, field] : bad) {
+  for (const auto& entry : bad) {
+    // Named references, not structured bindings: CAPTURE makes a lambda, and clang 14 cannot capture a binding.
+    const auto& body = std::get<0>(entry); const auto& field = std::get<1>(entry);
     CAPTURE(body);
     auto answer = rcand.json("POST", "/api/nav/waypoint", "user-token", body, &status);
     CHECK(status == 400);

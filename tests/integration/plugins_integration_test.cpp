@@ -52,7 +52,9 @@ TEST_CASE("each broken plugin ends in its exact state and the others still serve
       {"sim_drive.json", "loaded"},
       {"com.acme.gripper.json", "loaded"},
   };
-  for (const auto& [manifest, state] : expected) {
+  for (const auto& entry : expected) {
+    // Named references, not structured bindings: CAPTURE makes a lambda, and clang 14 cannot capture a binding.
+    const auto& manifest = std::get<0>(entry); const auto& state = std::get<1>(entry);
     CAPTURE(manifest);
     REQUIRE(records.count(manifest) == 1);
     CHECK(records[manifest]["state"] == state);

@@ -9,7 +9,9 @@
 #include <unistd.h>
 
 #include <array>
+#include <cstdlib>
 #include <cstring>
+#include <iostream>
 #include <fstream>
 #include <sstream>
 #include <stdexcept>
@@ -130,6 +132,17 @@ std::string slurp(const fs::path& file) {
   return text.str();
 }
 
+// In a sanitizer build (ASan/UBSan options inherited through environ) a child's report must fail the test even when
+// the test never looks at the child's exit status (a leak reported at exit, say): print it and abort the test.
+void abort_on_sanitizer_report(const std::string& who, const std::string& err) {
+  for (const char* marker : {"ERROR: AddressSanitizer", "ERROR: LeakSanitizer", "SUMMARY: UndefinedBehaviorSanitizer",
+                             ": runtime error: "}) {
+    if (err.find(marker) == std::string::npos) continue;
+    std::cerr << "\n==== " << who << " reported a sanitizer error; its stderr:\n" << err << "\n==== failing the test\n";
+    std::abort();
+  }
+}
+
 int wait_exit(pid_t pid) {
   int status = 0;
   while (waitpid(pid, &status, 0) < 0 && errno == EINTR) {
@@ -160,6 +173,7 @@ ProcessResult run_tool(const std::string& binary, const std::vector<std::string>
   close(child.stdout_fd);
   result.exit_code = wait_exit(child.pid);
   result.err = slurp(err_file);
+  abort_on_sanitizer_report(binary, result.err);
   return result;
 }
 
@@ -232,6 +246,7 @@ int RcandProcess::stop() {
   pid_ = -1;
   if (stdout_fd_ >= 0) close(stdout_fd_);
   stdout_fd_ = -1;
+  abort_on_sanitizer_report("rcand", stderr_text());
   return WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
 }
 

@@ -43,10 +43,19 @@ Authenticator::Authenticator(AuthSettings settings) : settings_(std::move(settin
   }
 }
 
-bool Authenticator::open_mode() const noexcept { return settings_.open_mode; }
+bool Authenticator::open_mode() const noexcept {
+  if (replaced_.load(std::memory_order_acquire)) return replacement_.load()->open_mode();
+  return settings_.open_mode;
+}
+
+void Authenticator::replace(AuthSettings settings) {
+  replacement_.store(std::make_shared<const Authenticator>(std::move(settings)));
+  replaced_.store(true, std::memory_order_release);
+}
 
 std::variant<Principal, AuthError> Authenticator::authorize(std::optional<std::string_view> bearer, sdk::Scope needed,
                                                             std::int64_t now_s) const {
+  if (replaced_.load(std::memory_order_acquire)) return replacement_.load()->authorize(bearer, needed, now_s);
   if (needed == sdk::Scope::None) return Principal{"anonymous", sdk::Role::Guest, {}, "anonymous"};
   if (settings_.open_mode) return Principal{"open", sdk::Role::Creator, default_scopes(sdk::Role::Creator), "open"};
   if (!bearer || bearer->empty())

@@ -1,5 +1,6 @@
 #include "yaml_document.hpp"
 
+#include <yaml-cpp/eventhandler.h>
 #include <yaml-cpp/yaml.h>
 
 #include <algorithm>
@@ -8,6 +9,7 @@
 #include <cmath>
 #include <cstdint>
 #include <limits>
+#include <sstream>
 
 namespace rcand::kernel::config_detail {
 namespace {
@@ -273,6 +275,30 @@ std::string item_path(const std::string& parent, std::size_t index) {
   return parent + "[" + std::to_string(index) + "]";
 }
 
+// Counts the documents of a stream by their start events, and is never asked past the second: yaml-cpp 0.7's
+// LoadAll never returns on some inputs (a lone "," makes the parser yield empty documents forever, found by
+// tests/fuzz/rcan_yaml), so the stream is not read to its end.
+class DocumentCounter final : public YAML::EventHandler {
+ public:
+  int count() const noexcept { return count_; }
+  const YAML::Mark& second_start() const noexcept { return second_; }
+  void OnDocumentStart(const YAML::Mark& mark) override {
+    if (++count_ == 2) second_ = mark;
+  }
+  void OnDocumentEnd() override {}
+  void OnNull(const YAML::Mark&, YAML::anchor_t) override {}
+  void OnAlias(const YAML::Mark&, YAML::anchor_t) override {}
+  void OnScalar(const YAML::Mark&, const std::string&, YAML::anchor_t, const std::string&) override {}
+  void OnSequenceStart(const YAML::Mark&, const std::string&, YAML::anchor_t, YAML::EmitterStyle::value) override {}
+  void OnSequenceEnd() override {}
+  void OnMapStart(const YAML::Mark&, const std::string&, YAML::anchor_t, YAML::EmitterStyle::value) override {}
+  void OnMapEnd() override {}
+
+ private:
+  int count_ = 0;
+  YAML::Mark second_ = YAML::Mark::null_mark();
+};
+
 YamlDocument yaml_to_json(std::string_view text, const std::string& display_name, std::vector<ConfigDiagnostic>& diagnostics) {
   YamlDocument result;
   if (const auto bad = first_invalid_utf8(text); bad != std::string_view::npos) {
@@ -280,9 +306,14 @@ YamlDocument yaml_to_json(std::string_view text, const std::string& display_name
     return result;
   }
 
-  std::vector<YAML::Node> documents;
+  DocumentCounter documents;
+  YAML::Node root;
   try {
-    documents = YAML::LoadAll(std::string(text));
+    std::istringstream stream{std::string(text)};
+    YAML::Parser parser(stream);
+    while (documents.count() < 2 && parser.HandleNextDocument(documents)) {
+    }
+    if (documents.count() == 1) root = YAML::Load(std::string(text));
   } catch (const YAML::Exception& e) {
     // e.msg is yaml-cpp's description without the position (we print our own); it never quotes the input.
     diagnostics.push_back(error_at(to_mark(display_name, e.mark), "", "YAML syntax error: " + e.msg));
@@ -292,18 +323,17 @@ YamlDocument yaml_to_json(std::string_view text, const std::string& display_name
     return result;
   }
 
-  if (documents.empty() || documents.front().IsNull()) {
+  if (documents.count() == 0 || (documents.count() == 1 && root.IsNull())) {
     diagnostics.push_back(error_at(SourceMark{display_name, 1, 1}, "",
                                    "the file is empty; expected a mapping with at least 'rcan_version' and 'metadata'"));
     return result;
   }
-  if (documents.size() > 1) {
-    diagnostics.push_back(error_at(to_mark(display_name, documents[1].Mark()), "",
+  if (documents.count() > 1) {
+    diagnostics.push_back(error_at(to_mark(display_name, documents.second_start()), "",
                                    "a config file holds one YAML document; a second one starts here"));
     return result;
   }
 
-  const YAML::Node& root = documents.front();
   result.marks[""] = to_mark(display_name, root.Mark());
   try {
     Converter converter(display_name, diagnostics, result.marks);

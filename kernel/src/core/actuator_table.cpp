@@ -36,7 +36,7 @@ std::vector<HaltReport> ActuatorTable::halt_all(const sdk::Clock& clock) noexcep
     const auto start = clock.now_us();
     slot.driver->halt();
     try {
-      reports.push_back({slot.id, true, clock.now_us() - start});
+      reports.push_back({slot.id, true, clock.now_us() - start, "halted", {}});
     } catch (...) {  // out of memory while reporting: the halt itself already happened
     }
   }

@@ -1,5 +1,6 @@
 #include "rcand/kernel/core/api.hpp"
 
+#include <algorithm>
 #include <array>
 #include <mutex>
 
@@ -7,6 +8,7 @@
 
 #include "rcand/kernel/core/json_body.hpp"
 #include "rcand/kernel/core/logging.hpp"
+#include "rcand/kernel/core/r2r_routes.hpp"
 #include "rcand/kernel/plugin_host/guarded.hpp"
 #include "rcand/kernel/swarm/broadcast_report.hpp"
 #include "rcand/kernel/swarm/node_selection.hpp"
@@ -104,7 +106,22 @@ struct Api::Caller {
   std::string message_id;
 };
 
-void Api::handle(http::Request&& request, http::Respond respond) {
+void Api::handle(http::Request&& request, http::Respond respond) { dispatch(std::move(request), nullptr, std::move(respond)); }
+
+void Api::execute_action(const Principal& principal, json body, std::function<void(int, json)> done) {
+  http::Request request;
+  request.method = "POST";
+  request.target = request.path = std::string(kActionPath);
+  request.body = body.dump(-1, ' ', false, json::error_handler_t::replace);
+  request.remote = "r2r";
+  request.headers["x-message-id"] = "r2r-" + std::to_string(ctx_.clock.wall_ms()) + "-" + std::to_string(++message_counter_);
+  dispatch(std::move(request), &principal, [done = std::move(done)](http::Response response) {
+    json answer = json::parse(response.body, nullptr, false);
+    done(response.status, answer.is_discarded() ? json::object() : std::move(answer));
+  });
+}
+
+void Api::dispatch(http::Request&& request, const Principal* authenticated, http::Respond respond) {
   Caller caller;
   if (auto id = request.header("x-message-id"); id && valid_message_id(*id)) caller.message_id = std::string(*id);
   else caller.message_id = "m-" + std::to_string(ctx_.clock.wall_ms()) + "-" + std::to_string(++message_counter_);
@@ -117,6 +134,17 @@ void Api::handle(http::Request&& request, http::Respond respond) {
 
   // Authentication for `scope`; on failure answers and returns false.
   auto authorize = [&](Scope scope) {
+    if (authenticated != nullptr) {  // an R2R peer, authenticated by the R2R node: only its scopes are checked here
+      const auto& scopes = authenticated->scopes;
+      if (scope != Scope::None && std::find(scopes.begin(), scopes.end(), scope) == scopes.end()) {
+        reply(error(403, "INSUFFICIENT_PRIVILEGES", "principal '" + authenticated->name + "' lacks scope '" + scope_list(scope) + "'",
+                    {{"required_scope", scope_list(scope)}}));
+        return false;
+      }
+      caller.principal = authenticated->name;
+      caller.role = authenticated->role;
+      return true;
+    }
     std::optional<std::string_view> bearer;
     if (auto header = request.header("authorization")) bearer = bearer_token(*header);
     else if (auto token = request.query.find("token");
@@ -142,6 +170,13 @@ void Api::handle(http::Request&& request, http::Respond respond) {
   if (request.method == "POST" && (request.path == "/api/stop" || request.path == "/api/command") &&
       handle_swarm(request, caller, authorize, reply))
     return;
+
+  // R2R operator routes (notes §11): scope per route; unknown ones answer without authentication, like other 404s.
+  if (request.path.rfind(kR2rRoutePrefix, 0) == 0) {
+    if (const auto scope = r2r_route_scope(request.method, request.path); scope && !authorize(*scope)) return;
+    handle_r2r_route(ctx_, request, caller.principal, caller.message_id, reply);
+    return;
+  }
 
   // 1. The kernel's own endpoints.
   bool path_known = false;
@@ -375,7 +410,9 @@ void Api::handle_kernel(const std::string& endpoint, http::Request& request, con
     json drivers = json::array();
     bool all_halted = true;
     for (const auto& halt : report.drivers) {
-      drivers.push_back({{"id", halt.id}, {"halted", halt.halted}, {"latency_us", halt.latency_us}});
+      json entry{{"id", halt.id}, {"halted", halt.halted}, {"latency_us", halt.latency_us}, {"state", halt.state}};
+      if (!halt.error.empty()) entry["error"] = halt.error;  // the slow or failing driver, named
+      drivers.push_back(std::move(entry));
       all_halted = all_halted && halt.halted;
     }
     ctx_.audit.finish(seq, "ok");
@@ -568,7 +605,8 @@ bool Api::handle_swarm(http::Request& request, const Caller& caller, const std::
   std::vector<swarm::SwarmNode> peers;
   if (!bad) {
     static const swarm::SwarmRegistry kNoPeers;
-    auto chosen = swarm::select_nodes(ctx_.swarm ? *ctx_.swarm : kNoPeers, selection);
+    const swarm::SwarmRegistry* registry = ctx_.swarm.load();
+    auto chosen = swarm::select_nodes(registry ? *registry : kNoPeers, selection);
     if (auto* failure = std::get_if<swarm::SelectionError>(&chosen)) {
       bad = failure->message;
       bad_field = failure->field;
@@ -580,7 +618,8 @@ bool Api::handle_swarm(http::Request& request, const Caller& caller, const std::
   if (bad) {
     json extra{{"field", bad_field}};
     if (is_stop) extra["estopped"] = true;  // the local stop already happened
-    extra["known_nodes"] = ctx_.swarm ? ctx_.swarm->names() : std::vector<std::string>{};
+    const swarm::SwarmRegistry* registry = ctx_.swarm.load();
+    extra["known_nodes"] = registry ? registry->names() : std::vector<std::string>{};
     reply(error(400, "BAD_REQUEST", *bad, std::move(extra)));
     return true;
   }

@@ -18,7 +18,7 @@ Estop::StopReport Estop::latch(const std::string& reason, const std::string& sou
   const auto start = clock_.now_us();
   epoch_.fetch_add(1);
   report.newly_latched = !latched_.exchange(true);
-  report.drivers = actuators_.halt_all(clock_);
+  report.drivers = halt_everything();
   report.latency_us = clock_.now_us() - start;
   try {
     if (report.newly_latched) {
@@ -36,6 +36,35 @@ Estop::StopReport Estop::latch(const std::string& reason, const std::string& sou
   } catch (...) {  // bookkeeping must never undo a stop that already happened
   }
   return report;
+}
+
+std::vector<HaltReport> Estop::halt_everything() noexcept {
+  DeadlineCrew* crew = halt_crew_.load();
+  if (crew == nullptr) return actuators_.halt_all(clock_);
+  const auto outcomes = crew->run_all(std::chrono::steady_clock::now() + kHaltDeadline);
+  std::vector<HaltReport> reports;
+  try {
+    reports.reserve(outcomes.size());
+    for (const auto& outcome : outcomes) {
+      auto& report = reports.emplace_back();
+      report.id = outcome.name;
+      report.halted = outcome.state == DeadlineCrew::State::Done;
+      report.latency_us = outcome.latency_us;
+      if (outcome.state == DeadlineCrew::State::Pending) {
+        report.state = "halt_pending";
+        report.error = "halt() did not return within " + std::to_string(kHaltDeadline.count()) + " ms";
+      } else if (outcome.state == DeadlineCrew::State::Failed) {
+        report.state = "halt_failed";
+        report.error = "halt() threw: " + outcome.error;
+        // A driver that cannot halt must not be commanded again, even after the e-stop is cleared.
+        if (auto* slot = actuators_.find(outcome.name); slot != nullptr && slot->health != nullptr)
+          slot->health->mark_failed(report.error);
+      }
+      if (!report.halted) logger("kernel.estop")->error("actuator {}: {}", report.id, report.error);
+    }
+  } catch (...) {  // reporting failed (out of memory); the halts themselves were started
+  }
+  return reports;
 }
 
 bool Estop::clear() {

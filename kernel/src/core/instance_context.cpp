@@ -45,6 +45,20 @@ sdk::Worker& InstanceContext::worker(std::string_view name) {
   }));
 }
 
+sdk::R2rLink* InstanceContext::r2r() noexcept {
+  if (services_.r2r == nullptr) return nullptr;
+  std::lock_guard lock(r2r_mutex_);
+  if (!r2r_link_) {
+    try {
+      r2r_link_ = services_.r2r->make_link(worker("r2r"), plugin_id_ + " (" + instance_id_ + ")");
+    } catch (const std::exception& e) {
+      logger("kernel.r2r")->error("no R2R link for {} ({}): {}", plugin_id_, instance_id_, e.what());
+      return nullptr;
+    }
+  }
+  return r2r_link_.get();
+}
+
 void InstanceContext::join_workers() {
   std::lock_guard lock(workers_mutex_);
   for (auto& worker : workers_) worker->join();

@@ -2,18 +2,25 @@
 
 #include <boost/asio/ip/address.hpp>
 
+#include <algorithm>
+
 #include "rcand/kernel/auth/authenticator.hpp"
 #include "rcand/kernel/auth/ruri.hpp"
 #include "rcand/kernel/auth/secret_file.hpp"
+#include "rcand/kernel/config/config_diff.hpp"
 #include "rcand/kernel/core/actuator_table.hpp"
 #include "rcand/kernel/core/api.hpp"
 #include "rcand/kernel/core/audit_log.hpp"
 #include "rcand/kernel/core/estop.hpp"
+#include "rcand/kernel/core/keep_forever.hpp"
 #include "rcand/kernel/core/kernel_motion_gate.hpp"
 #include "rcand/kernel/core/logging.hpp"
 #include "rcand/kernel/core/plugin_runtime.hpp"
+#include "rcand/kernel/core/r2r_service.hpp"
 #include "rcand/kernel/core/steady_clock.hpp"
 #include "rcand/kernel/http/server.hpp"
+#include "rcand/kernel/mdns/host_resolver.hpp"
+#include "rcand/kernel/mdns/service_publisher.hpp"
 #include "rcand/kernel/swarm/fan_out.hpp"
 #include "rcand/kernel/swarm/swarm_registry.hpp"
 
@@ -69,15 +76,21 @@ struct Kernel::State {
   KernelServices services{clock, estop, gate, robot_config_view, &audit, {}, {}};  // audit: address only
   AuditLog audit;
   PluginHost host;
+  r2r::PluginBridge r2r_bridge;  // plugins' R2R links: declared before the plugin runtime, so it outlives them
   std::unique_ptr<Authenticator> auth;
   std::unique_ptr<CapabilityRegistry> registry;
   std::unique_ptr<PluginRuntime> runtime;
+  std::unique_ptr<DeadlineCrew> halt_crew;  // one thread per actuator: the stop path's parallel halt() calls
   std::unique_ptr<WorkerThread> timers;
   std::unique_ptr<ApiContext> api_context;
   std::unique_ptr<Api> api;
+  std::unique_ptr<R2rService> r2r;  // uses the Api: declared after it, destroyed before it
   std::unique_ptr<http::Server> server;
   swarm::SwarmRegistry swarm;
+  std::vector<std::unique_ptr<swarm::SwarmRegistry>> retired_swarms;  // reloaded ones; never freed while serving
+  std::shared_ptr<mdns::AvahiHostResolver> mdns_resolver;  // swarm "*.local" hosts; shared with the fan-out
   std::unique_ptr<swarm::FanOut> fan_out;  // declared after the Api's context: stopped and destroyed before it
+  std::unique_ptr<mdns::ServicePublisher> mdns_publisher;  // reads the Api: declared after it, destroyed before it
   bool shut_down = false;
 };
 
@@ -96,6 +109,13 @@ Kernel::Kernel(RobotConfig config, KernelOptions options) : state_(std::make_uni
 
   const std::string ruri = robot_ruri(cfg.ruri, cfg.manufacturer, cfg.model, cfg.robot_uuid);
   s.auth = std::make_unique<Authenticator>(auth_settings(cfg, ruri, s.address));
+  if (cfg.runtime.audit_file) {
+    try {
+      s.audit.persist_to(*cfg.runtime.audit_file);
+    } catch (const std::runtime_error& e) {
+      throw StartupError(e.what());
+    }
+  }
   s.services.ruri = ruri;
 
   // Manifests only: nothing is opened until we know what the config needs.
@@ -128,7 +148,13 @@ Kernel::Kernel(RobotConfig config, KernelOptions options) : state_(std::make_uni
 
   s.registry = std::make_unique<CapabilityRegistry>(RobotIdentity{ruri, cfg.robot_name, cfg.model}, std::move(plan));
   s.runtime = std::make_unique<PluginRuntime>(s.host, s.services, s.actuators);
+  if (cfg.runtime.r2r.is_object() && cfg.runtime.r2r.value("enabled", false)) s.services.r2r = &s.r2r_bridge;
   s.runtime->start_drivers(cfg);
+  std::vector<DeadlineCrew::Job> halts;
+  for (const auto& slot : s.actuators.slots())
+    if (slot.driver != nullptr) halts.push_back({slot.id, [driver = slot.driver] { driver->halt(); }});
+  s.halt_crew = std::make_unique<DeadlineCrew>("estop.halt", std::move(halts));
+  s.estop.use_halt_crew(s.halt_crew.get());
   s.runtime->start_capabilities(s.registry->names(), cfg);
   s.estop.on_latched([runtime = s.runtime.get()] { runtime->notify_estop(); });
   if (cfg.estop_on_startup) s.estop.latch("safety.estop_on_startup", "config");
@@ -149,10 +175,28 @@ Kernel::Kernel(RobotConfig config, KernelOptions options) : state_(std::make_uni
   } else {
     log->info("swarm: no swarm file at {}; broadcasts reach this robot only", cfg.runtime.swarm_file.string());
   }
-  s.fan_out = std::make_unique<swarm::FanOut>();
+  // notes §9: "mDNS host first, the static ip when resolution fails": *.local peers resolve through avahi-daemon.
+  std::vector<std::string> mdns_hosts;
+  for (const auto& node : s.swarm.nodes)
+    if (mdns::is_mdns_host(node.host)) mdns_hosts.push_back(node.host);
+  if (!mdns_hosts.empty()) {
+    s.mdns_resolver = std::make_shared<mdns::AvahiHostResolver>(logger("kernel.mdns"));
+    s.mdns_resolver->start();
+    s.mdns_resolver->prefetch(mdns_hosts);  // the first broadcast stop then finds them in the cache
+  }
+  s.fan_out = std::make_unique<swarm::FanOut>(s.mdns_resolver);
   s.api_context->swarm = &s.swarm;
   s.api_context->fan_out = s.fan_out.get();
   s.api = std::make_unique<Api>(*s.api_context);
+  // notes §11: R2R, when runtime.r2r.enabled (its peers are swarm.yaml's as loaded now).
+  s.r2r = R2rService::from_config({cfg, *s.auth, *s.api, s.estop, s.clock, s.swarm, ruri, s.registry->names()});
+  s.api_context->r2r = s.r2r.get();
+  if (s.r2r) s.r2r_bridge.attach(s.r2r->node());  // plugin subscriptions made while starting now receive
+  if (cfg.enable_mdns) {
+    s.mdns_publisher = std::make_unique<mdns::ServicePublisher>(logger("kernel.mdns"));
+    // TXT "status" follows an e-stop at once, not at the next once-a-second check (never blocks the stop path).
+    s.estop.on_latched([publisher = s.mdns_publisher.get()] { publisher->refresh_soon(); });
+  }
 }
 
 Kernel::~Kernel() { shutdown(); }
@@ -162,6 +206,7 @@ std::uint16_t Kernel::start() {
   http::ServerOptions options;
   options.address = s.address;
   options.port = s.port;
+  if (s.r2r) options.upgrade = s.r2r->upgrade_handler();  // WS /ws/r2r on the robot's own port
   s.server = std::make_unique<http::Server>(options, [api = s.api.get()](http::Request&& request, http::Respond respond) {
     api->handle(std::move(request), std::move(respond));
   });
@@ -171,6 +216,14 @@ std::uint16_t Kernel::start() {
     throw StartupError(e.what());
   }
   s.api_context->port = s.port;
+  if (s.r2r) s.r2r->start(s.port);  // throws StartupError naming the runtime.r2r setting at fault
+  if (s.mdns_publisher) {
+    // notes §5: instance metadata.robot_name, the port bound, the TXT record of the one registry function (§9.5).
+    s.mdns_publisher->start({.name = s.config.robot_name,
+                             .type = std::string(kServiceType),
+                             .port = s.port,
+                             .txt = [&s] { return s.registry->advertise(s.api->robot_state(), s.port).txt; }});
+  }
   logger("kernel")->info("{} ({}) serving RCAN {} on http://{}:{} with capabilities [{}]", s.config.robot_name,
                          s.registry->identity().ruri, kRcanVersion, s.address, s.port,
                          s.registry->advertise("idle", s.port).txt.at("caps"));
@@ -183,13 +236,84 @@ void Kernel::shutdown() noexcept {
   s.shut_down = true;
   try {
     s.estop.latch("rcand shutting down", "kernel");  // motors stop first, whatever else happens
+    if (s.r2r) s.r2r->stop();  // then no R2R message is handled or sent
+    s.r2r_bridge.detach();      // plugins' links no longer reach the node
+    if (s.mdns_publisher) s.mdns_publisher->stop();  // withdrawn (goodbye sent) while HTTP still answers
     if (s.server) s.server->stop();
     if (s.fan_out) s.fan_out->stop();  // broadcasts in flight are abandoned; their clients are gone
+    if (s.mdns_resolver) s.mdns_resolver->stop();
+    // A halt() still running (slow or hung driver) must not have its driver destroyed under it: leak the plugin
+    // objects instead (the process is ending).
+    const bool halts_quiet = !s.halt_crew || s.halt_crew->quiesce(std::chrono::seconds(2));
     if (s.runtime) s.runtime->shutdown();
+    s.estop.use_halt_crew(nullptr);
+    if (!halts_quiet) {
+      logger("kernel")->error("a driver's halt() is still running at shutdown; its plugin objects are not destroyed");
+      keep_forever(s.runtime);
+    }
     if (s.timers) s.timers->join();
   } catch (const std::exception& e) {
     logger("kernel")->error("during shutdown: {}", e.what());
   }
+}
+
+Kernel::ReloadReport Kernel::reload(const std::filesystem::path& file) noexcept {
+  static const std::vector<std::string> kLiveKeys{"runtime.auth", "runtime.logging", "runtime.swarm_file"};
+  auto& s = *state_;
+  ReloadReport report;
+  auto log = logger("kernel");
+  std::optional<std::string> new_log_level;
+  try {
+    // Everything that can fail is read and checked before anything changes.
+    LoadedConfig loaded = load_robot_config(file);
+    const RobotConfig& next = loaded.config;
+    AuthSettings auth = auth_settings(next, s.services.ruri, s.address);
+    auto swarm = std::make_unique<swarm::SwarmRegistry>();
+    if (std::error_code ec; std::filesystem::exists(next.runtime.swarm_file, ec)) {
+      try {
+        *swarm = swarm::load_swarm_file(next.runtime.swarm_file);
+      } catch (const swarm::SwarmError& e) {
+        throw StartupError(std::string("runtime.swarm_file: ") + e.what());
+      }
+    }
+    s.auth->replace(std::move(auth));
+    new_log_level = next.runtime.log_level;  // applied after this reload's own log line
+    s.api_context->swarm = swarm.get();
+    s.retired_swarms.push_back(std::move(swarm));  // requests in flight may still read the ones before
+    for (const auto& warning : loaded.warnings) log->warn("{}", warning.format());
+    for (auto& key : changed_keys(s.config.doc, next.doc)) {
+      const bool live = std::any_of(kLiveKeys.begin(), kLiveKeys.end(), [&](const auto& p) { return key_is_under(key, p); });
+      (live ? report.applied : report.needs_restart).push_back(std::move(key));
+    }
+    report.ok = true;
+  } catch (const ConfigError& e) {
+    for (const auto& diagnostic : e.diagnostics()) report.errors.push_back(diagnostic.format());
+  } catch (const std::exception& e) {
+    report.errors.emplace_back(file.string() + ": " + e.what());
+  }
+  try {
+    auto join = [](const std::vector<std::string>& items) {
+      std::string text;
+      for (const auto& item : items) text += (text.empty() ? "" : ", ") + item;
+      return text.empty() ? std::string("none") : text;
+    };
+    const std::string detail =
+        report.ok ? "applied: " + join(report.applied) + "; needs a restart: " + join(report.needs_restart)
+                  : "invalid, still running on the previous config: " + join(report.errors);
+    // notes §6.3: a config change is audited like a command (before the log line that announces it).
+    const auto seq = s.audit.record({0, "SIGHUP", s.services.ruri, "reload-" + std::to_string(s.clock.wall_ms()),
+                                     "config reload", s.clock.wall_ms(), "pending", {}});
+    s.audit.finish(seq, report.ok ? "ok" : "error", detail.substr(0, 2000));
+    if (!report.ok) {
+      for (const auto& error : report.errors) log->error("{}", error);
+      log->error("config reload from {}: invalid; still running on the previous config", file.string());
+    } else {
+      log->info("config reload from {}: {}", file.string(), detail);
+    }
+    if (new_log_level) configure_logging(*new_log_level);
+  } catch (...) {  // reporting must not take the robot down
+  }
+  return report;
 }
 
 const PluginHost& Kernel::plugins() const noexcept { return state_->host; }

@@ -1,5 +1,11 @@
 #include "rcand/kernel/core/plugin_runtime.hpp"
 
+#include <condition_variable>
+#include <mutex>
+#include <set>
+#include <thread>
+
+#include "rcand/kernel/core/keep_forever.hpp"
 #include "rcand/kernel/plugin_host/config_schema.hpp"
 #include "rcand/kernel/plugin_host/guarded.hpp"
 
@@ -53,20 +59,69 @@ template <class Object> void offer_obstacle_source(KernelServices& services, con
     logger("kernel.plugins")->warn("{} also provides obstacles; the first one found is used", what);
 }
 
-// The plugin's factory, then start(), both through the trampoline. The object is kept when only start() failed (the
-// instance is marked failed, and shutdown() still reaches it); nullptr when there is nothing to keep.
+// The plugin's factory, then start(), then `more` (a capability's routes()), all through the trampoline, on a thread
+// of their own, waited for up to `timeout`: a plugin that hangs at startup fails its instance instead of keeping the
+// robot from ever serving. The object is kept when only start() failed (the instance is marked failed, and
+// shutdown() still reaches it); nullptr when there is nothing to keep. `abandoned` is set when the thread did not
+// return in time: it may still run plugin code with `context`, which the caller must then never destroy.
 template <class Object>
 std::unique_ptr<Object> create_and_start(const std::string& who,
                                          const std::function<std::unique_ptr<Object>(sdk::PluginContext&)>& factory,
-                                         InstanceContext& context, InstanceHealth& health) {
-  std::string failure;
-  auto object = guarded_result(who, "factory", failure, [&] { return factory(context); });
-  if (!object || !*object) {
-    health.mark_failed(failure.empty() ? "factory returned nothing" : failure);
+                                         InstanceContext& context, InstanceHealth& health, std::chrono::milliseconds timeout,
+                                         bool& abandoned, std::function<void(Object&)> more = {}) {
+  struct Startup {
+    std::mutex mutex;
+    std::condition_variable finished_cv;
+    bool finished = false, abandoned = false;
+    std::unique_ptr<Object> object;
+    std::string failure;  // empty: everything returned normally
+  };
+  auto startup = std::make_shared<Startup>();
+  std::thread([startup, who, &factory, &context, more = std::move(more)] {
+    std::string failure;
+    std::unique_ptr<Object> made;
+    if (auto object = guarded_result(who, "factory", failure, [&] { return factory(context); }); object && *object) {
+      made = std::move(*object);
+      if (guarded_call(who, "start", failure, [&] { made->start(); }) && more)
+        guarded_call(who, "routes", failure, [&] { more(*made); });
+    } else if (failure.empty()) {
+      failure = "factory returned nothing";
+    }
+    std::lock_guard lock(startup->mutex);
+    if (startup->abandoned) {
+      keep_forever(made);  // too late: the kernel gave up on it; never destroyed, like its context
+      return;
+    }
+    startup->object = std::move(made);
+    startup->failure = std::move(failure);
+    startup->finished = true;
+    startup->finished_cv.notify_all();
+  }).detach();
+
+  std::unique_lock lock(startup->mutex);
+  if (!startup->finished_cv.wait_for(lock, timeout, [&] { return startup->finished; })) {
+    startup->abandoned = abandoned = true;
+    health.mark_failed("did not finish starting within " + std::to_string(timeout.count()) +
+                       " ms (runtime.plugin_start_timeout_ms)");
+    logger("kernel.plugins")->error("{}: {}", who, health.reason());
     return nullptr;
   }
-  if (!guarded_call(who, "start", failure, [&] { (*object)->start(); })) health.mark_failed(failure);
-  return std::move(*object);
+  if (!startup->failure.empty()) health.mark_failed(startup->failure);
+  return std::move(startup->object);
+}
+
+// What makes a plugin's route list unusable (it would fail every request, or shadow another route), if anything.
+std::optional<std::string> route_problem(const std::vector<sdk::Route>& routes) {
+  static const std::set<std::string> kMethods{"GET", "POST", "PUT", "PATCH", "DELETE", "HEAD"};
+  std::set<std::pair<std::string, std::string>> seen;
+  for (const auto& route : routes) {
+    const std::string name = "'" + route.method + " " + route.path + "'";
+    if (!kMethods.contains(route.method)) return name + ": method must be one of GET, POST, PUT, PATCH, DELETE, HEAD";
+    if (!route.path.empty() && route.path.front() != '/') return name + ": path must be empty or start with '/'";
+    if (!route.handler) return name + ": no handler";
+    if (!seen.insert({route.method, route.path + "\n" + route.action_type}).second) return name + ": declared twice";
+  }
+  return std::nullopt;
 }
 
 }  // namespace
@@ -74,7 +129,15 @@ std::unique_ptr<Object> create_and_start(const std::string& who,
 PluginRuntime::PluginRuntime(PluginHost& host, KernelServices& services, ActuatorTable& actuators)
     : host_(host), services_(services), actuators_(actuators) {}
 
-PluginRuntime::~PluginRuntime() { shutdown(); }
+PluginRuntime::~PluginRuntime() {
+  shutdown();
+  estop_crew_.reset();
+  if (abandon_capabilities_)
+    for (auto& instance : capabilities_) {
+      keep_forever(instance.object);
+      keep_forever(instance.context);
+    }
+}
 
 void PluginRuntime::start_drivers(const RobotConfig& config) {
   auto log = logger("kernel.plugins");
@@ -99,7 +162,10 @@ void PluginRuntime::start_drivers(const RobotConfig& config) {
     instance.context = std::make_unique<InstanceContext>(plugin->id, entry.id, services_, std::move(settings), instance.health);
 
     instance.who = "plugin " + plugin->id + " driver " + entry.id;
-    instance.object = create_and_start(instance.who, registered->factory, *instance.context, instance.health);
+    bool abandoned = false;
+    instance.object = create_and_start(instance.who, registered->factory, *instance.context, instance.health,
+                                       std::chrono::milliseconds(config.runtime.plugin_start_timeout_ms), abandoned);
+    if (abandoned) keep_forever(instance.context);  // still in use by the plugin thread that never returned
     if (!instance.object) continue;
 
     if (instance.actuates) {
@@ -147,19 +213,26 @@ void PluginRuntime::start_capabilities(const std::vector<std::string>& names, co
     });
 
     instance.who = "plugin " + plugin->id + " capability " + name;
-    instance.object = create_and_start(instance.who, registered->factory, *instance.context, instance.health);
+    bool abandoned = false;
+    std::vector<sdk::Route> routes;
+    instance.object = create_and_start<sdk::Capability>(
+        instance.who, registered->factory, *instance.context, instance.health,
+        std::chrono::milliseconds(config.runtime.plugin_start_timeout_ms), abandoned,
+        [&routes](sdk::Capability& object) { routes = object.routes(); });
+    if (abandoned) keep_forever(instance.context);  // still in use by the plugin thread that never returned
     if (!instance.object) continue;
     if (!instance.health.failed()) {
-      std::string failure;
-      if (auto routes = guarded_result(instance.who, "routes", failure, [&] { return instance.object->routes(); }))
-        instance.routes = std::move(*routes);
-      else
-        instance.health.mark_failed(failure);
+      if (auto problem = route_problem(routes)) instance.health.mark_failed("routes() returned an unusable route: " + *problem);
+      else instance.routes = std::move(routes);
     }
     if (!instance.health.failed()) offer_obstacle_source(services_, instance.object.get(), "capability " + name);
     log->info("capability {} ({}) {}, {} routes", name, plugin->id,
               instance.health.failed() ? "failed: " + instance.health.reason() : "started", instance.routes.size());
   }
+  std::vector<DeadlineCrew::Job> jobs;
+  for (auto& instance : capabilities_)
+    if (instance.object) jobs.push_back({instance.name, [object = instance.object.get()] { object->on_estop(); }});
+  estop_crew_ = std::make_unique<DeadlineCrew>("estop.notify", std::move(jobs));
 }
 
 std::optional<std::string> PluginRuntime::missing_requirement(const PluginRecord& plugin) const {
@@ -179,13 +252,29 @@ CapabilityInstance* PluginRuntime::capability(std::string_view name) noexcept {
 }
 
 void PluginRuntime::notify_estop() noexcept {
-  for (auto& instance : capabilities_)
-    if (instance.object) instance.object->on_estop();
+  if (!estop_crew_) {
+    for (auto& instance : capabilities_)
+      if (instance.object) instance.object->on_estop();
+    return;
+  }
+  for (const auto& outcome : estop_crew_->run_all(std::chrono::steady_clock::now() + kEstopNotifyDeadline)) {
+    if (outcome.state == DeadlineCrew::State::Done) continue;
+    try {
+      const std::string why = outcome.state == DeadlineCrew::State::Failed
+                                  ? "on_estop() threw: " + outcome.error
+                                  : "on_estop() did not return within " + std::to_string(kEstopNotifyDeadline.count()) + " ms";
+      logger("kernel.plugins")->error("capability {}: {}", outcome.name, why);
+      if (auto* instance = capability(outcome.name); instance != nullptr && outcome.state == DeadlineCrew::State::Failed)
+        instance->health.mark_failed(why);
+    } catch (...) {  // reporting must never undo the stop
+    }
+  }
 }
 
 void PluginRuntime::shutdown() noexcept {
   if (shut_down_) return;
   shut_down_ = true;
+  if (estop_crew_ && !estop_crew_->quiesce(std::chrono::milliseconds(500))) abandon_capabilities_ = true;
   for (auto& instance : capabilities_)
     if (instance.handler_worker) instance.handler_worker->join();
   for (auto& instance : capabilities_) {

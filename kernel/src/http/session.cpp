@@ -10,8 +10,11 @@
 #include <chrono>
 #include <exception>
 
+#include <boost/beast/websocket/rfc6455.hpp>
+
+#include "rcand/kernel/http/upgrade.hpp"
+#include "request_builder.hpp"
 #include "responder.hpp"
-#include "target.hpp"
 
 namespace rcand::kernel::http::detail {
 
@@ -22,7 +25,6 @@ namespace bhttp = boost::beast::http;
 namespace {
 
 constexpr std::size_t kReadChunk = 16 * 1024;
-constexpr std::uint32_t kHeaderLimit = 16 * 1024;
 // After an error answer the rest of the request is read and dropped, so closing does not reset the connection
 // before the client has read the answer; both bounds keep a hostile client from holding us there.
 constexpr std::chrono::milliseconds kLingerTime{2000};
@@ -33,14 +35,6 @@ std::string format_endpoint(const net::ip::tcp::endpoint& endpoint) {
   const auto address = endpoint.address();
   std::string text = address.is_v6() ? "[" + address.to_string() + "]" : address.to_string();
   return text + ":" + std::to_string(endpoint.port());
-}
-
-std::string to_upper(std::string_view text) {
-  std::string out{text};
-  for (char& c : out) {
-    if (c >= 'a' && c <= 'z') c = static_cast<char>(c - 'a' + 'A');
-  }
-  return out;
 }
 
 std::string to_lower(std::string_view text) {
@@ -69,7 +63,6 @@ bool has_close_token(std::string_view value) {
 }
 
 // Boost 1.74's Beast speaks boost::string_view.
-std::string_view ssv(beast::string_view s) noexcept { return {s.data(), s.size()}; }
 beast::string_view bsv(std::string_view s) noexcept { return {s.data(), s.size()}; }
 
 bool is_http_error(const beast::error_code& ec) {
@@ -126,9 +119,7 @@ void Session::wait_for_request() {
 
 void Session::new_parser() {
   parser_.emplace();
-  parser_->header_limit(kHeaderLimit);
-  parser_->body_limit(static_cast<std::uint64_t>(core_.options.body_limit));
-  parser_->eager(true);
+  configure_parser(*parser_, core_.options.body_limit);
 }
 
 void Session::parse_buffered() {
@@ -212,23 +203,13 @@ void Session::dispatch_request() {
   head_ = message.method() == bhttp::verb::head;
 
   Request request;
-  request.method = to_upper(ssv(message.method_string()));
-  request.target = std::string{ssv(message.target())};
-  if (auto problem = parse_target(request.target, request.path, request.query); !problem.empty()) {
+  if (auto problem = build_request(message, remote_, request); !problem.empty()) {
     core_.log->debug("{}: {}", remote_, problem);
     return send_error_and_close(400, "BAD_REQUEST", problem);
   }
-  for (const auto& field : message) {
-    auto [it, inserted] = request.headers.try_emplace(to_lower(ssv(field.name_string())), ssv(field.value()));
-    if (!inserted) {
-      it->second += ", ";
-      it->second.append(ssv(field.value()));
-    }
-  }
-  request.body = std::move(message.body());
-  request.remote = remote_;
   // Never the target or query: a ?token= may ride there.
   core_.log->trace("{}: {} {}", remote_, request.method, request.path);
+  if (core_.options.upgrade && beast::websocket::is_upgrade(message) && try_upgrade(request)) return;
 
   awaiting_response_ = true;
   auto responder = std::make_shared<Responder>(shared_from_this());
@@ -243,6 +224,32 @@ void Session::dispatch_request() {
     core_.log->error("{}: handler for {} {} threw a non-standard exception", remote_, method, path);
     responder->respond(error_response(500, "INTERNAL", "internal error"));
   }
+}
+
+bool Session::try_upgrade(Request& request) {
+  UpgradeVerdict verdict;
+  try {
+    verdict = core_.options.upgrade(request);
+  } catch (const std::exception& e) {
+    core_.log->error("{}: upgrade hook for {} threw: {}", remote_, request.path, e.what());
+    verdict.refuse = error_response(500, "INTERNAL", "internal error");
+  }
+  if (verdict.take) {
+    closed_ = true;  // the stream is the taker's from here on; this session just ends
+    Upgraded upgraded{std::move(stream_), parser_->release(), std::move(buffer_), std::move(request)};
+    try {
+      verdict.take(std::move(upgraded));
+    } catch (const std::exception& e) {
+      core_.log->error("{}: taking the upgraded connection failed: {}", remote_, e.what());
+    }
+    return true;
+  }
+  if (verdict.refuse) {
+    keep_alive_ = false;
+    write(std::move(*verdict.refuse), true);
+    return true;
+  }
+  return false;
 }
 
 void Session::send(Response response) {

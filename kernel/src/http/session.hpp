@@ -1,9 +1,8 @@
 // One HTTP connection: reads a request, hands it to the Handler, writes the answer, repeats while kept alive.
 // Every member function runs on the owning slot's thread; only Responder crosses threads, by dispatching there.
 //
-// WebSocket seam: the session owns the Beast stream and the parsed request header. An upgrade would be detected in
-// dispatch_request() (boost::beast::websocket::is_upgrade on parser_->get()) and the stream moved out with the
-// request into a websocket session, after which this object simply ends.
+// WebSocket seam: an upgrade request is offered to ServerOptions::upgrade in dispatch_request(); when the hook takes
+// it, the stream, the raw request and the buffered bytes move out (http/upgrade.hpp) and this object simply ends.
 #pragma once
 
 #include <boost/asio/ip/tcp.hpp>
@@ -50,6 +49,8 @@ class Session : public std::enable_shared_from_this<Session> {
   void read_body();
   void on_read_error(boost::beast::error_code ec);
   void dispatch_request();
+  // A WebSocket upgrade offered to ServerOptions::upgrade; false when the hook leaves it to the Handler.
+  bool try_upgrade(Request& request);
   void send_error_and_close(int status, std::string_view code, std::string_view message);
   void write(Response response, bool close_after);
   void on_write(boost::beast::error_code ec, bool close_after);

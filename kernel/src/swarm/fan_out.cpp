@@ -52,6 +52,7 @@ struct IdleConnection {
 
 struct FanOut::Loop {
   net::io_context io{1};
+  std::shared_ptr<HostResolver> resolver;  // may be null: getaddrinfo for every host
   std::map<std::string, std::vector<IdleConnection>> idle;  // by "ip:port"; touched only on the loop thread
   net::executor_work_guard<net::io_context::executor_type> work{io.get_executor()};
   std::thread thread;
@@ -115,6 +116,7 @@ class PeerOp : public std::enable_shared_from_this<PeerOp> {
     timer_.async_wait([self = shared_from_this()](const boost::system::error_code& ec) {
       if (!ec) self->resolved({}, "timed out");
     });
+    if (loop_->resolver && loop_->resolver->handles(request_.host)) return resolve_with(*loop_->resolver);
     // The helper holds the op weakly: the op lives and dies on the loop thread only.
     std::thread([loop = loop_, weak = weak_from_this(), host = request_.host, port = request_.port]() {
       addrinfo hints{};
@@ -138,6 +140,22 @@ class PeerOp : public std::enable_shared_from_this<PeerOp> {
         if (auto self = weak.lock()) self->resolved(std::move(endpoints), std::move(why));
       });
     }).detach();
+  }
+
+  // The resolver answers on any thread (or at once, from its cache): always continue on the loop thread.
+  void resolve_with(HostResolver& resolver) {
+    resolver.resolve(request_.host, [loop = loop_, weak = weak_from_this(), port = request_.port](
+                                        std::vector<std::string> addresses, std::string why) {
+      std::vector<tcp::endpoint> endpoints;
+      for (const auto& text : addresses) {
+        boost::system::error_code ec;
+        const auto address = net::ip::make_address(text, ec);
+        if (!ec) endpoints.emplace_back(address, port);
+      }
+      loop->post([weak, endpoints = std::move(endpoints), why = std::move(why)]() mutable {
+        if (auto self = weak.lock()) self->resolved(std::move(endpoints), std::move(why));
+      });
+    });
   }
 
   void resolved(std::vector<tcp::endpoint> endpoints, std::string why) {
@@ -267,7 +285,8 @@ class PeerOp : public std::enable_shared_from_this<PeerOp> {
 
 }  // namespace
 
-FanOut::FanOut() : loop_(std::make_shared<Loop>()) {
+FanOut::FanOut(std::shared_ptr<HostResolver> resolver) : loop_(std::make_shared<Loop>()) {
+  loop_->resolver = std::move(resolver);
   loop_->thread = std::thread([loop = loop_.get()] { loop->io.run(); });
 }
 

@@ -342,6 +342,12 @@ TEST_CASE("hostile input fails cleanly") {
     const std::string yaml = join(minimal_lines()) + "camera: " + std::string(200, '[') + std::string(200, ']') + "\n";
     CHECK_FALSE(errors_only(parse_errors(yaml)).empty());
   }
+  SUBCASE("a stray flow comma (yaml-cpp's LoadAll yields documents forever on it; found by fuzz_rcan_yaml)") {
+    for (const std::string& yaml : std::vector<std::string>{",", ",%", join(minimal_lines()) + ",\n"}) {
+      CAPTURE(yaml);
+      CHECK_FALSE(errors_only(parse_errors(yaml)).empty());  // an error, and in particular an answer
+    }
+  }
   SUBCASE("a non-scalar key") {
     const auto errors = parse_errors(join(minimal_lines()) + "camera: {[a]: 1}\n");
     REQUIRE(errors.size() == 1);

@@ -133,7 +133,9 @@ TEST_CASE("every fixture plugin ends in its exact state with a reason and a hint
   };
 
   REQUIRE(host.records().size() == expected.size());
-  for (const auto& [file, want] : expected) {
+  for (const auto& entry : expected) {
+    // Named references, not structured bindings: CAPTURE makes a lambda, and clang 14 cannot capture a binding.
+    const auto& file = std::get<0>(entry); const auto& want = std::get<1>(entry);
     CAPTURE(file);
     const PluginRecord& record = by_manifest(host, file);
     CHECK(to_string(record.state) == to_string(want.state));

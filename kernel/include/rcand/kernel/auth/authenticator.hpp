@@ -1,7 +1,9 @@
 // Deny-by-default request authorization (notes §3): pre-shared tokens (stored as SHA-256 hashes) and HS256 JWTs.
 #pragma once
 
+#include <atomic>
 #include <cstdint>
+#include <memory>
 #include <optional>
 #include <string>
 #include <string_view>
@@ -51,6 +53,9 @@ class Authenticator {
   std::variant<Principal, AuthError> authorize(std::optional<std::string_view> bearer, sdk::Scope needed,
                                                std::int64_t now_s) const;
   bool open_mode() const noexcept;
+  // Config reload (SIGHUP): from now on every authorize() answers with `settings` (validated exactly as by the
+  // constructor, which throws std::invalid_argument and leaves the current settings in force). Any thread.
+  void replace(AuthSettings settings);
 
  private:
   std::variant<Principal, AuthError> authorize_jwt(std::string_view token, sdk::Scope needed, std::int64_t now_s) const;
@@ -58,6 +63,9 @@ class Authenticator {
 
   AuthSettings settings_;
   std::optional<Ruri> robot_;  // settings_.robot_ruri, parsed once
+  // The reloaded settings, when there was a reload; the flag keeps the common path to one relaxed load.
+  std::atomic<bool> replaced_{false};
+  std::atomic<std::shared_ptr<const Authenticator>> replacement_;
 };
 
 // Splits "Bearer <t>" (case-insensitive scheme); nullopt when absent or another scheme.

@@ -63,6 +63,8 @@ struct RuntimeConfig {
   std::string log_level = "info";
   std::filesystem::path swarm_file = "/etc/rcand/swarm.yaml";  // absolute after loading (relative ones resolve like plugin_paths)
   int handler_timeout_ms = 10000;
+  int plugin_start_timeout_ms = 10000;  // a plugin's factory/start()/routes() that takes longer fails its instance
+  std::optional<std::filesystem::path> audit_file;  // absolute after loading; every audit entry appended as a JSON line
   nlohmann::json capabilities = nlohmann::json::object();  // name -> settings (a mapping; `name:` with no value gives {})
   nlohmann::json r2r = nlohmann::json::object();
 };

@@ -22,6 +22,8 @@ struct HaltReport {
   std::string id;
   bool halted = false;
   std::int64_t latency_us = 0;
+  std::string state = "halted";  // halted | halt_pending (did not return by the deadline) | halt_failed (threw)
+  std::string error;             // why, when not halted
 };
 
 class ActuatorTable {

@@ -21,6 +21,8 @@
 
 namespace rcand::kernel {
 
+class R2rService;  // core/r2r_service.hpp
+
 struct ApiContext {
   const RobotConfig& config;
   const Authenticator& auth;
@@ -36,8 +38,11 @@ struct ApiContext {
   std::int64_t started_us = 0;
   std::atomic<std::uint16_t> port{0};
   // §15 swarm: the peers of runtime.swarm_file (none when absent) and the fan-out client; both outlive the Api.
-  const swarm::SwarmRegistry* swarm = nullptr;
+  // Atomic: a config reload (SIGHUP) swaps in a new registry (the old one is kept alive) while requests run.
+  std::atomic<const swarm::SwarmRegistry*> swarm{nullptr};
   swarm::FanOut* fan_out = nullptr;
+  // R2R (notes §11) for the /api/r2r/ routes; null when runtime.r2r.enabled is off. Outlives the Api's requests.
+  R2rService* r2r = nullptr;
 };
 
 class Api {
@@ -46,6 +51,12 @@ class Api {
   // I/O thread; never blocks.
   void handle(http::Request&& request, http::Respond respond);
 
+  // An R2R `command` (notes §11): runs `body` exactly as POST /api/action from `principal`, whom the R2R node already
+  // authenticated: the same scope checks, 423 e-stop pre-check, audit entry and capability dispatch. `done` is called
+  // once, from any thread, with the HTTP status and JSON body the request would have got. Never blocks.
+  void execute_action(const Principal& principal, nlohmann::json body,
+                      std::function<void(int status, nlohmann::json body)> done);
+
   // idle | running | error | estop (notes §5 status values).
   std::string robot_state() const;
   nlohmann::json status_document() const;
@@ -53,6 +64,8 @@ class Api {
 
  private:
   struct Caller;
+  // handle(), with `authenticated` (non-null) standing in for the Authorization header.
+  void dispatch(http::Request&& request, const Principal* authenticated, http::Respond respond);
   // §15 broadcasts of POST /api/stop and POST /api/command, and the e-stop acknowledgement of forwarded commands.
   // Returns false when the request is not one (the normal path handles it). Never blocks: the answer comes from
   // the fan-out's completion.

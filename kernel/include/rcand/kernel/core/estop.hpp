@@ -1,6 +1,8 @@
-// The latched e-stop (notes §6). The stop path latches first (one atomic exchange), then halts every actuator
-// directly, then wakes sleeping jobs and runs the on-latch listeners. It shares no queue, lock or worker with
-// capability handlers: handlers only ever load the atomic.
+// The latched e-stop (notes §6). The stop path latches first (one atomic exchange), then halts every actuator, then
+// wakes sleeping jobs and runs the on-latch listeners. It shares no queue, lock or worker with capability handlers:
+// handlers only ever load the atomic. Once the halt crew is installed, every actuator's halt() runs in parallel on its
+// own pre-created thread and the stop waits for them only up to kHaltDeadline: a slow, hung or throwing driver is
+// reported (halt_pending / halt_failed) and delays neither the answer nor the other drivers' halts.
 #pragma once
 
 #include <atomic>
@@ -11,12 +13,17 @@
 #include <vector>
 
 #include "rcand/kernel/core/actuator_table.hpp"
+#include "rcand/kernel/core/deadline_crew.hpp"
 #include "rcand/sdk/estop_view.hpp"
 
 namespace rcand::kernel {
 
 class Estop final : public sdk::EstopView {
  public:
+  // How long a stop waits for the drivers' halt() calls. With a swarm broadcast's 300 ms per-peer timeout after it,
+  // a broadcast stop stays inside the 500 ms limit (notes §6, §9) even with a driver that never returns.
+  static constexpr std::chrono::milliseconds kHaltDeadline{100};
+
   struct StopReport {
     bool newly_latched = false;
     std::vector<HaltReport> drivers;
@@ -43,6 +50,9 @@ class Estop final : public sdk::EstopView {
   Snapshot snapshot() const;
   // Startup only. Listeners run on the stop path after the halt (they cancel jobs) and must not block.
   void on_latched(std::function<void()> listener);
+  // Startup, once the actuators are registered: halts go through `crew` (one job per actuator, named by its id)
+  // from then on; nullptr (the default, and at shutdown) halts inline, in order. The crew outlives its use here.
+  void use_halt_crew(DeadlineCrew* crew) noexcept { halt_crew_.store(crew); }
 
  private:
   const sdk::Clock& clock_;
@@ -54,6 +64,9 @@ class Estop final : public sdk::EstopView {
   mutable std::mutex sleep_mutex_;  // only for sleepers' condition variable
   mutable std::condition_variable sleepers_;
   std::vector<std::function<void()>> listeners_;
+  std::atomic<DeadlineCrew*> halt_crew_{nullptr};
+
+  std::vector<HaltReport> halt_everything() noexcept;
 };
 
 }  // namespace rcand::kernel

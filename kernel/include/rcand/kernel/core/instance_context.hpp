@@ -13,6 +13,7 @@
 #include "rcand/kernel/core/kernel_motion_gate.hpp"
 #include "rcand/kernel/core/logging.hpp"
 #include "rcand/kernel/core/worker_thread.hpp"
+#include "rcand/kernel/r2r/plugin_bridge.hpp"
 #include "rcand/sdk/context.hpp"
 #include "rcand/sdk/obstacle_source.hpp"
 
@@ -28,6 +29,8 @@ struct KernelServices {
   std::string ruri;           // the robot's RURI, for those audit entries
   // The first driver or capability implementing sdk::ObstacleSource; set by the plugin runtime at startup.
   std::atomic<const sdk::ObstacleSource*> obstacles{nullptr};
+  // Plugins' R2R links (notes §11) when runtime.r2r.enabled, set before any plugin starts; null: no R2R here.
+  r2r::PluginBridge* r2r = nullptr;
 };
 
 // The e-stop as a plugin instance sees it: request_estop() writes an audit entry naming the plugin (before the
@@ -64,6 +67,8 @@ class InstanceContext final : public sdk::PluginContext {
   const sdk::ConfigView& robot_config() const noexcept override { return services_.robot_config; }
   sdk::Worker& worker(std::string_view name) override;
   const sdk::ObstacleSource* obstacles() const noexcept override { return services_.obstacles.load(); }
+  // Created on first use; its callbacks run on this instance's worker "r2r".
+  sdk::R2rLink* r2r() noexcept override;
 
   // Joins every worker this instance created (their queued tasks finish first). Idempotent.
   void join_workers();
@@ -77,6 +82,8 @@ class InstanceContext final : public sdk::PluginContext {
   InstanceHealth& health_;
   std::mutex workers_mutex_;  // guards workers_ creation only
   std::deque<std::unique_ptr<WorkerThread>> workers_;
+  std::mutex r2r_mutex_;
+  std::unique_ptr<sdk::R2rLink> r2r_link_;  // after workers_: destroyed (unsubscribed) first
 };
 
 }  // namespace rcand::kernel

@@ -46,6 +46,18 @@ class Kernel {
   // The e-stop path runs first (motors halt), then HTTP stops, then plugins shut down. Idempotent.
   void shutdown() noexcept;
 
+  // Config reload (SIGHUP): re-reads `file`. Invalid (a config error with file:line:column, an unreadable JWT secret
+  // or swarm file): logged, nothing changes. Valid: applies what can change while serving - runtime.auth (tokens, JWT
+  // secret), runtime.logging.level, runtime.swarm_file and the swarm file's peers - and names every other changed
+  // key as needing a restart. Logged and recorded in the audit log either way. Main thread; never throws.
+  struct ReloadReport {
+    bool ok = false;
+    std::vector<std::string> errors;         // what made it invalid
+    std::vector<std::string> applied;        // changed keys now in force
+    std::vector<std::string> needs_restart;  // changed keys that take effect at the next start
+  };
+  ReloadReport reload(const std::filesystem::path& file) noexcept;
+
   const PluginHost& plugins() const noexcept;
   const CapabilityRegistry& registry() const noexcept;
   Api& api() noexcept;

@@ -14,6 +14,7 @@
 
 #include "rcand/kernel/config/robot_config.hpp"
 #include "rcand/kernel/core/actuator_table.hpp"
+#include "rcand/kernel/core/deadline_crew.hpp"
 #include "rcand/kernel/core/instance_context.hpp"
 #include "rcand/kernel/plugin_host/plugin_host.hpp"
 
@@ -53,8 +54,10 @@ class PluginRuntime {
   const std::deque<DriverInstance>& drivers() const noexcept { return drivers_; }
   const std::deque<CapabilityInstance>& capabilities() const noexcept { return capabilities_; }
 
-  // The stop path, after the halt: every capability's on_estop() (noexcept by contract).
+  // The stop path, after the halt: every capability's on_estop(), in parallel on the estop crew, waited for up to
+  // kEstopNotifyDeadline; one that hangs or throws is logged (a throw marks the capability failed).
   void notify_estop() noexcept;
+  static constexpr std::chrono::milliseconds kEstopNotifyDeadline{50};
   // Main thread, once: capabilities shut down and their workers joined, then drivers shut down.
   void shutdown() noexcept;
 
@@ -68,6 +71,9 @@ class PluginRuntime {
   std::deque<DriverInstance> drivers_;
   std::deque<CapabilityInstance> capabilities_;
   bool shut_down_ = false;
+  // A capability's on_estop() still running at shutdown: its objects are leaked rather than destroyed under it.
+  bool abandon_capabilities_ = false;
+  std::unique_ptr<DeadlineCrew> estop_crew_;  // declared after the instances: stopped before they are destroyed
 };
 
 }  // namespace rcand::kernel

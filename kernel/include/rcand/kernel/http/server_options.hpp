@@ -4,9 +4,26 @@
 #include <chrono>
 #include <cstddef>
 #include <cstdint>
+#include <functional>
+#include <optional>
 #include <string>
 
+#include "rcand/kernel/http/request.hpp"
+#include "rcand/kernel/http/response.hpp"
+
 namespace rcand::kernel::http {
+
+// WebSocket upgrades (and only those: GET with "Upgrade: websocket") go to the upgrade hook first, on the I/O thread.
+// It answers with one of: `take` set - the server hands the connection over (see upgrade.hpp) and forgets it (it no
+// longer counts in max_connections nor is closed by stop(): the taker owns it); `refuse` set - that answer is sent
+// as plain HTTP and the connection closes (401 without credentials, 503); neither - the request goes to the Handler
+// like any other (which answers 404 for a path nobody upgrades). Must not block.
+struct Upgraded;  // rcand/kernel/http/upgrade.hpp
+struct UpgradeVerdict {
+  std::function<void(Upgraded&&)> take;
+  std::optional<Response> refuse;
+};
+using UpgradeHandler = std::function<UpgradeVerdict(const Request&)>;
 
 struct ServerOptions {
   std::string address = "127.0.0.1";                // an IP address or a resolvable host name
@@ -18,6 +35,7 @@ struct ServerOptions {
   std::chrono::milliseconds idle_timeout{60'000};    // keep-alive connection idle between requests; also bounds
                                                      // writing one response to a client that does not read
   std::size_t max_connections = 10'000;             // beyond it new connections are closed at once (logged once)
+  UpgradeHandler upgrade;                           // empty: upgrade requests go to the Handler
 };
 
 }  // namespace rcand::kernel::http

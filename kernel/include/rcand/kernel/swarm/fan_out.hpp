@@ -1,7 +1,8 @@
 // The swarm's parallel HTTP client: one request per peer, all in flight at once on one event loop of its own
 // (never the server's I/O threads), each bounded by the same deadline, so a dead, slow or refusing peer never
 // delays the others. Hostnames resolve on a helper thread each (getaddrinfo cannot be cancelled and must not
-// serialize peers); when resolution fails or takes more than half the deadline the static `ip` fallback is used.
+// serialize peers), or through a HostResolver for the names it handles (mDNS "*.local"); when resolution fails or
+// takes more than half the deadline the static `ip` fallback is used.
 #pragma once
 
 #include <chrono>
@@ -13,6 +14,7 @@
 #include <utility>
 #include <vector>
 
+#include "rcand/kernel/swarm/host_resolver.hpp"
 #include "rcand/kernel/swarm/swarm_registry.hpp"
 
 namespace rcand::kernel::swarm {
@@ -45,7 +47,8 @@ class FanOut {
  public:
   using Done = std::function<void(std::vector<PeerResult>)>;
 
-  FanOut();  // starts the event-loop thread
+  // Starts the event-loop thread. `resolver` (optional) resolves the hosts it handles instead of getaddrinfo.
+  explicit FanOut(std::shared_ptr<HostResolver> resolver = nullptr);
   ~FanOut();  // stop()
   FanOut(const FanOut&) = delete;
   FanOut& operator=(const FanOut&) = delete;

@@ -244,6 +244,35 @@ class FakeHost {
   // What PluginContext::obstacles() returns to every instance (null: no obstacle source). Not owned.
   void set_obstacle_source(const ObstacleSource* source) noexcept { obstacles_ = source; }
 
+  // ---- R2R (PluginContext::r2r()) ------------------------------------------------------------------------------
+
+  struct R2rSent {
+    std::string instance;  // who sent it
+    std::string type;
+    nlohmann::json payload;
+    std::optional<std::string> target;
+  };
+  // PluginContext::r2r() is null (a kernel without R2R) until this is called.
+  void enable_r2r() noexcept { r2r_enabled_ = true; }
+  // What instances sent, in order. The fake checks the type and that the payload is an object; the kernel also
+  // checks each type's payload fields (notes §11).
+  const std::vector<R2rSent>& r2r_sent() const noexcept { return r2r_sent_; }
+  // Queues `message` for every subscription of its type on the subscriber's "r2r" worker, as the kernel does for a
+  // validated message; run it with run_pending() or advance(). Returns how many subscriptions it was queued for.
+  std::size_t deliver_r2r(const R2rMessage& message) {
+    std::size_t queued = 0;
+    for (const auto& [id, sub] : r2r_subscriptions_) {
+      if (sub.type != message.type) continue;
+      worker_for(sub.instance, "r2r").post([callback = sub.callback, message] { callback(message); });
+      ++queued;
+    }
+    return queued;
+  }
+  // The cost function an instance installed (empty: the kernel's default).
+  const R2rCostFunction& r2r_cost_function() const noexcept { return r2r_cost_; }
+  // Later sends fail with `error` ("R2R is not running on this robot"); an empty string makes them succeed again.
+  void fail_r2r_sends(std::string error) { r2r_send_error_ = std::move(error); }
+
   template <class T> T& driver(std::string_view id) {
     DriverSlot* slot = find_driver(id);
     if (!slot) throw HostError("no driver '" + std::string(id) + "'");
@@ -389,6 +418,40 @@ class FakeHost {
     FakeHost& host_;
   };
 
+  class R2rFake final : public R2rLink {
+   public:
+    R2rFake(FakeHost& host, std::string instance) : host_(host), instance_(std::move(instance)) {}
+    ~R2rFake() override {
+      for (auto it = host_.r2r_subscriptions_.begin(); it != host_.r2r_subscriptions_.end();)
+        it = it->second.instance == instance_ ? host_.r2r_subscriptions_.erase(it) : std::next(it);
+    }
+    R2rSendResult send(std::string_view type, const Json& payload, const std::optional<std::string>& target) override {
+      if (!known(type)) return {false, "unknown R2R message type '" + std::string(type) + "'", "/type"};
+      if (!payload.is_object()) return {false, "payload must be an object", "/payload"};
+      if (!host_.r2r_send_error_.empty()) return {false, host_.r2r_send_error_, ""};
+      host_.r2r_sent_.push_back({instance_, std::string(type), payload, target});
+      return {true, "", ""};
+    }
+    std::uint64_t subscribe(std::string_view type, Callback callback) override {
+      if (!known(type)) throw std::invalid_argument("unknown R2R message type '" + std::string(type) + "'");
+      if (!callback) throw std::invalid_argument("R2R subscribe needs a callback");
+      const std::uint64_t id = ++host_.r2r_next_id_;
+      host_.r2r_subscriptions_[id] = {instance_, std::string(type), std::move(callback)};
+      return id;
+    }
+    void unsubscribe(std::uint64_t id) noexcept override { host_.r2r_subscriptions_.erase(id); }
+    void set_cost_function(R2rCostFunction cost) override { host_.r2r_cost_ = std::move(cost); }
+
+   private:
+    static bool known(std::string_view type) {
+      for (std::string_view t : {"status", "task_request", "task_response", "command", "negotiation", "error"})
+        if (t == type) return true;
+      return false;
+    }
+    FakeHost& host_;
+    std::string instance_;
+  };
+
   class Context final : public PluginContext {
    public:
     Context(FakeHost& host, std::string plugin_id, std::string instance_id, nlohmann::json settings)
@@ -407,9 +470,15 @@ class FakeHost {
     const ConfigView& robot_config() const noexcept override { return host_.robot_config_; }
     Worker& worker(std::string_view name) override { return host_.worker_for(instance_id_, name); }
     const ObstacleSource* obstacles() const noexcept override { return host_.obstacles_; }
+    R2rLink* r2r() noexcept override {
+      if (!host_.r2r_enabled_) return nullptr;
+      if (!r2r_) r2r_ = std::make_unique<R2rFake>(host_, instance_id_);
+      return r2r_.get();
+    }
 
    private:
     FakeHost& host_;
+    std::unique_ptr<R2rFake> r2r_;
     std::string plugin_id_;
     std::string instance_id_;
     ConfigView config_;
@@ -713,6 +782,17 @@ class FakeHost {
   // Declaration order matters: services before the instances that use them.
   ConfigView robot_config_;
   const ObstacleSource* obstacles_ = nullptr;
+  struct R2rSubscription {
+    std::string instance;
+    std::string type;
+    R2rLink::Callback callback;
+  };
+  bool r2r_enabled_ = false;
+  std::vector<R2rSent> r2r_sent_;
+  std::map<std::uint64_t, R2rSubscription> r2r_subscriptions_;
+  std::uint64_t r2r_next_id_ = 0;
+  R2rCostFunction r2r_cost_;
+  std::string r2r_send_error_;
   ManualClock clock_;
   LogSink sink_;
   FakeScheduler scheduler_;

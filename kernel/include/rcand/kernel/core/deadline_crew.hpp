@@ -1,0 +1,52 @@
+// The stop path's helpers: one pre-created thread per plugin call the stop path must make (each actuator's halt(),
+// each capability's on_estop()), so the calls run in parallel and the stop path waits for them only up to a deadline.
+// A call that hangs delays neither the stop's answer nor the other calls; a call that throws out of its noexcept hook
+// is caught by the TerminateTrap and reported, and that member is retired for good (its thread parks).
+#pragma once
+
+#include <chrono>
+#include <cstdint>
+#include <functional>
+#include <memory>
+#include <string>
+#include <vector>
+
+namespace rcand::kernel {
+
+class DeadlineCrew {
+ public:
+  struct Job {
+    std::string name;
+    std::function<void()> call;  // a noexcept plugin hook; runs on this job's own thread only
+  };
+  enum class State { Done, Pending, Failed };
+  struct Outcome {
+    std::string name;
+    State state = State::Pending;
+    std::int64_t latency_us = 0;  // Done: how long the call took
+    std::string error;            // Failed: what it threw
+  };
+
+  // Starts one thread per job, named "<role>.<n>".
+  DeadlineCrew(std::string role, std::vector<Job> jobs);
+  // Joins the idle threads; a thread still inside a plugin call (or parked) is detached and keeps the shared state.
+  ~DeadlineCrew();
+  DeadlineCrew(const DeadlineCrew&) = delete;
+  DeadlineCrew& operator=(const DeadlineCrew&) = delete;
+
+  // Any thread, concurrently too; lock-free, allocates only the result. Starts every job (a member still busy with an earlier
+  // round runs it again right after) and waits until each has finished a round started after this call, or failed,
+  // or until `deadline`, whichever comes first.
+  std::vector<Outcome> run_all(std::chrono::steady_clock::time_point deadline) noexcept;
+  // Waits up to `grace` for members still inside a plugin call; true when none is (parked members do not count).
+  bool quiesce(std::chrono::milliseconds grace) noexcept;
+  std::size_t size() const noexcept;
+
+ private:
+  struct Shared;
+  std::shared_ptr<Shared> shared_;
+};
+
+std::string_view to_string(DeadlineCrew::State state) noexcept;
+
+}  // namespace rcand::kernel

@@ -1,0 +1,14 @@
+// Standard base64 (RFC 4648 §4, with padding) for R2R signatures and raw keys, over OpenSSL's EVP encoder.
+#pragma once
+
+#include <optional>
+#include <string>
+#include <string_view>
+
+namespace rcand::kernel::r2r {
+
+std::string base64_encode(std::string_view data);
+// Strict: padded, no whitespace, only the standard alphabet; nullopt otherwise.
+std::optional<std::string> base64_decode(std::string_view text);
+
+}  // namespace rcand::kernel::r2r

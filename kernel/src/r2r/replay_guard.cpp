@@ -1,0 +1,27 @@
+#include "rcand/kernel/r2r/replay_guard.hpp"
+
+#include <algorithm>
+#include <vector>
+
+namespace rcand::kernel::r2r {
+
+bool ReplayGuard::first_time(const std::string& signature, double now_s) {
+  if (now_s - last_prune_s_ >= 1.0 || seen_.size() >= max_entries_) prune(now_s);
+  return seen_.emplace(signature, now_s).second;
+}
+
+void ReplayGuard::prune(double now_s) {
+  last_prune_s_ = now_s;
+  std::erase_if(seen_, [&](const auto& entry) { return entry.second < now_s - window_s_; });
+  if (seen_.size() < max_entries_) return;
+  // Still full of fresh entries (a flood): forget the older half rather than grow without bound.
+  std::vector<double> times;
+  times.reserve(seen_.size());
+  for (const auto& entry : seen_) times.push_back(entry.second);
+  auto middle = times.begin() + static_cast<std::ptrdiff_t>(times.size() / 2);
+  std::nth_element(times.begin(), middle, times.end());
+  const double cutoff = *middle;
+  std::erase_if(seen_, [&](const auto& entry) { return entry.second < cutoff; });
+}
+
+}  // namespace rcand::kernel::r2r

@@ -1,0 +1,108 @@
+// Fault drill: a capability plugin that throws, hangs or returns garbage in each lifecycle hook and in its request
+// handler (tests/plugins/faults). In every case rcand comes up and keeps serving, the faulty capability is reported,
+// the other capabilities keep working, POST /api/stop answers within 500 ms, and no audit entry is lost.
+#include <doctest/doctest.h>
+
+#include <chrono>
+#include <string>
+
+#include "fault_drill.hpp"
+#include "rcand_process.hpp"
+
+using namespace rcand::test;
+using nlohmann::json;
+
+namespace {
+
+const std::string kCapability = "org.rcand.test.faulty";
+const std::string kWork = "/api/cap/" + kCapability + "/work";
+const std::string kMove = R"({"type":"move","linear":0.2,"angular":0.0,"duration_ms":200})";
+
+json faulty_config(const std::string& hook, const std::string& fault) {
+  auto config = sim_config();
+  config["rcan_protocol"]["capabilities"].push_back(kCapability);
+  config["runtime"]["capabilities"][kCapability] = {{"hook", hook}, {"fault", fault}};
+  config["runtime"]["plugin_start_timeout_ms"] = 500;
+  config["runtime"]["handler_timeout_ms"] = 500;
+  return config;
+}
+
+struct Case {
+  std::string hook, fault;
+  int work_status;           // what POST .../work answers
+  bool failed_after_start;   // the capability is out of service once rcand serves
+  bool failed_after_stop;    // ... once a stop ran (on_estop faults)
+};
+
+void run_drill(const Case& c) {
+  CAPTURE(c.hook);
+  CAPTURE(c.fault);
+  RcandProcess rcand(faulty_config(c.hook, c.fault), {plugin_dir(), test_plugin_dir() / "faults"});
+  const std::string tag = "drill-" + c.hook + "-" + c.fault + "-";
+  std::vector<std::string> audited;
+  auto id = [&](const std::string& name) {
+    audited.push_back(tag + name);
+    return audited.back();
+  };
+  auto capability_state = [&] {
+    const auto status = rcand.json("GET", "/api/status", "owner-token");
+    return status["capabilities"][kCapability].value("state", "missing");
+  };
+
+  CHECK(capability_state() == (c.failed_after_start ? "failed" : "ok"));
+  const auto work = drill::tagged(rcand, "POST", kWork, "owner-token", "{}", id("work"));
+  CHECK(work.status == c.work_status);
+  if (work.status >= 300) CHECK(work.body.contains("code"));  // an error always has a code
+  int status = 0;
+  rcand.json("GET", "/api/status", "guest-token", "", &status);
+  CHECK(status == 200);
+  CHECK(drill::tagged(rcand, "POST", "/api/action", "user-token", kMove, id("move")).status == 200);  // teleop unaffected
+
+  const auto stop = drill::stop_within_limit(rcand, id("stop"));
+  CHECK(stop.body.value("motors_stopped", false));
+  CHECK(drill::tagged(rcand, "POST", "/api/action", "user-token", kMove, id("refused")).status == 423);
+  drill::stop_within_limit(rcand, id("stop-again"));  // a hook still hung from the first stop delays nothing
+  CHECK(capability_state() == (c.failed_after_stop ? "failed" : "ok"));
+  drill::check_audit_complete(rcand, audited);
+}
+
+}  // namespace
+
+TEST_CASE("fault drill: plugin factory faults (throws, hangs, returns nothing)") {
+  for (const std::string fault : {"throw", "hang", "garbage"}) run_drill({"factory", fault, 503, true, true});
+}
+
+TEST_CASE("fault drill: plugin start() faults (throws, hangs)") {
+  for (const std::string fault : {"throw", "hang"}) run_drill({"start", fault, 503, true, true});
+}
+
+TEST_CASE("fault drill: plugin routes() faults (throws, hangs, returns unusable routes)") {
+  for (const std::string fault : {"throw", "hang", "garbage"}) run_drill({"routes", fault, 503, true, true});
+}
+
+TEST_CASE("fault drill: request handler faults (throws: 500, hangs: 503 at the timeout, invalid answer: 500)") {
+  run_drill({"handler", "throw", 500, false, true});
+  run_drill({"handler", "hang", 503, false, true});
+  run_drill({"handler", "garbage", 500, false, false});
+}
+
+TEST_CASE("fault drill: status() faults (throws, invalid UTF-8) never break GET /api/status") {
+  run_drill({"status", "throw", 200, false, false});
+  run_drill({"status", "garbage", 200, false, false});
+}
+
+TEST_CASE("fault drill: on_estop() faults (throws out of noexcept, hangs) never hold up the stop") {
+  run_drill({"on_estop", "throw", 200, false, true});
+  run_drill({"on_estop", "hang", 200, false, false});
+}
+
+TEST_CASE("fault drill: a shutdown() hook that hangs cannot keep rcand from exiting after the motors stopped") {
+  RcandProcess rcand(faulty_config("shutdown", "hang"), {plugin_dir(), test_plugin_dir() / "faults"});
+  CHECK(drill::tagged(rcand, "POST", "/api/action", "user-token", kMove, "drill-shutdown-move").status == 200);
+  drill::stop_within_limit(rcand, "drill-shutdown-stop");
+  drill::check_audit_complete(rcand, {"drill-shutdown-move", "drill-shutdown-stop"});
+  const auto start = std::chrono::steady_clock::now();
+  CHECK(rcand.stop() == 1);  // the shutdown watchdog's exit, not the harness's SIGKILL (that would be 137)
+  CHECK(std::chrono::steady_clock::now() - start < std::chrono::seconds(12));
+  CHECK(rcand.stderr_text().find("shutdown still blocked by plugin code") != std::string::npos);
+}

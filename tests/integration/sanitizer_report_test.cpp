@@ -1,0 +1,53 @@
+// The harness's half of the sanitizer build: a report an rcand child writes to its stderr (ASan, LSan at exit, UBSan)
+// fails the test that started it, even when the test never looks at the child's exit status.
+#include <doctest/doctest.h>
+
+#include <signal.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <cstdio>
+#include <string>
+
+#include "rcand_process.hpp"
+
+namespace {
+
+using rcand::test::RcandProcess;
+
+// Runs, in a forked child, a harness-managed "rcand" that is really a shell script: it announces itself as rcand
+// does, writes `report` to stderr and exits 0 on SIGTERM. Returns the child's wait status.
+int run_fake_rcand(const std::string& report) {
+  const pid_t pid = fork();
+  if (pid == 0) {
+    if (!std::freopen("/dev/null", "w", stderr)) _exit(3);  // the expected report would only confuse a CI log
+    {
+      const std::string script = "echo 'rcand: listening on http://127.0.0.1:1'; printf '%s\\n' '" + report +
+                                 "' >&2; trap 'exit 0' TERM; while :; do sleep 0.05; done";
+      RcandProcess fake(rcand::test::sim_config(), {"/bin/sh", "-c", script, "fake-rcand"}, "127.0.0.1");
+    }
+    _exit(0);
+  }
+  int status = 0;
+  waitpid(pid, &status, 0);
+  return status;
+}
+
+}  // namespace
+
+TEST_CASE("a sanitizer report in an rcand child fails the test that started it") {
+  for (const std::string report : {"==42==ERROR: AddressSanitizer: heap-use-after-free on address 0x602",
+                                   "==42==ERROR: LeakSanitizer: detected memory leaks",
+                                   "src/x.cpp:3:5: runtime error: signed integer overflow"}) {
+    CAPTURE(report);
+    const int status = run_fake_rcand(report);
+    CHECK(WIFSIGNALED(status));
+    CHECK(WTERMSIG(status) == SIGABRT);
+  }
+}
+
+TEST_CASE("an rcand child with a clean stderr does not fail the test") {
+  const int status = run_fake_rcand("rcand: shutting down");
+  REQUIRE(WIFEXITED(status));
+  CHECK(WEXITSTATUS(status) == 0);
+}

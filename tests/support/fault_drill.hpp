@@ -1,0 +1,98 @@
+// Fault-drill checks (header-only), shared by tests/integration/fault_drill_*_test.cpp: every drill makes its
+// requests with an X-Message-Id of its own, asserts POST /api/stop answers within the notes §6 limit, and finally
+// that the audit log holds every audited request it made.
+#pragma once
+
+#include <doctest/doctest.h>
+#include <sys/resource.h>
+
+#include <algorithm>
+#include <chrono>
+#include <set>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "rcand_process.hpp"
+
+namespace rcand::test::drill {
+
+inline constexpr auto kStopLimit = std::chrono::milliseconds(500);  // notes §6: MUST answer within 500 ms
+
+struct Answer {
+  int status = 0;
+  nlohmann::json body;
+  std::chrono::milliseconds took{0};
+};
+
+// One request on a fresh connection carrying "X-Message-Id: <id>"; the body parsed as JSON (null when not JSON).
+inline Answer tagged(const RcandProcess& rcand, const std::string& method, const std::string& target, const std::string& token,
+                     const std::string& body, const std::string& id) {
+  const auto start = std::chrono::steady_clock::now();
+  const auto response = rcand.request(method, target, token, body, {{"X-Message-Id", id}});
+  Answer answer;
+  answer.took = std::chrono::duration_cast<std::chrono::milliseconds>(std::chrono::steady_clock::now() - start);
+  answer.status = response.status;
+  answer.body = nlohmann::json::parse(response.body, nullptr, false);
+  return answer;
+}
+
+// POST /api/stop (as the guest: any valid token may stop), checked against the limit; returns the answer.
+inline Answer stop_within_limit(const RcandProcess& rcand, const std::string& id) {
+  const auto answer = tagged(rcand, "POST", "/api/stop", "guest-token", "", id);
+  CHECK(answer.status == 200);
+  CHECK(answer.took < kStopLimit);
+  CHECK(answer.body.value("estopped", false));
+  return answer;
+}
+
+// The message ids of `ids` that GET /api/audit does not hold.
+inline std::vector<std::string> missing_from_audit(const RcandProcess& rcand, const std::vector<std::string>& ids) {
+  const auto audit = rcand.json("GET", "/api/audit?limit=10000", "owner-token");
+  std::set<std::string> present;
+  for (const auto& entry : audit.value("entries", nlohmann::json::array())) present.insert(entry.value("message_id", ""));
+  std::vector<std::string> missing;
+  for (const auto& id : ids)
+    if (!present.contains(id)) missing.push_back(id);
+  return missing;
+}
+
+inline void check_audit_complete(const RcandProcess& rcand, const std::vector<std::string>& ids) {
+  const auto missing = missing_from_audit(rcand, ids);
+  CHECK_MESSAGE(missing.empty(), "audit entries lost: " << nlohmann::json(missing).dump());
+  const auto audit = rcand.json("GET", "/api/audit?limit=1", "owner-token");
+  CHECK(audit.value("dropped", -1) == 0);
+}
+
+// Raises this process's open-file limit (rcand processes it starts inherit it) to at least `wanted`, if the hard
+// limit allows; returns the soft limit in force.
+inline rlim_t raise_open_files(rlim_t wanted) {
+  rlimit limit{};
+  getrlimit(RLIMIT_NOFILE, &limit);
+  if (limit.rlim_cur < wanted) {
+    limit.rlim_cur = std::min(wanted, limit.rlim_max);
+    setrlimit(RLIMIT_NOFILE, &limit);
+    getrlimit(RLIMIT_NOFILE, &limit);
+  }
+  return limit.rlim_cur;
+}
+
+// Sets this process's soft open-file limit (processes it starts inherit it); the hard limit stays.
+inline void set_open_files_soft(rlim_t soft) {
+  rlimit limit{};
+  getrlimit(RLIMIT_NOFILE, &limit);
+  limit.rlim_cur = std::min(soft, limit.rlim_max);
+  setrlimit(RLIMIT_NOFILE, &limit);
+}
+
+// Polls `condition` until it holds or `deadline` passes (generous deadlines: this waits on an event, it does not time it).
+template <class Condition> bool eventually(Condition condition, std::chrono::milliseconds deadline = std::chrono::seconds(20)) {
+  const auto until = std::chrono::steady_clock::now() + deadline;
+  while (!condition()) {
+    if (std::chrono::steady_clock::now() > until) return false;
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  }
+  return true;
+}
+
+}  // namespace rcand::test::drill

@@ -1,0 +1,133 @@
+// A real mosquitto broker for tests (header-only): listens on 127.0.0.1 on a free port with a config of its own in a
+// temporary directory, anonymous or with a password file; ready when its port accepts connections (polled, no fixed
+// sleep); stopped with SIGTERM (SIGKILL if it lingers) and reaped. restart() keeps the port, for reconnect tests.
+#pragma once
+
+#include <boost/asio/io_context.hpp>
+#include <boost/asio/ip/tcp.hpp>
+
+#include <pwd.h>
+#include <signal.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <cstdint>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <random>
+#include <stdexcept>
+#include <string>
+#include <thread>
+
+namespace rcand::test {
+
+inline std::uint16_t free_tcp_port() {
+  boost::asio::io_context io;
+  boost::asio::ip::tcp::acceptor acceptor(io, {boost::asio::ip::make_address("127.0.0.1"), 0});
+  return acceptor.local_endpoint().port();
+}
+
+inline bool tcp_port_open(std::uint16_t port) {
+  boost::asio::io_context io;
+  boost::asio::ip::tcp::socket socket(io);
+  boost::system::error_code ec;
+  socket.connect({boost::asio::ip::make_address("127.0.0.1"), port}, ec);
+  return !ec;
+}
+
+class MosquittoBroker {
+ public:
+  // user/password empty: anonymous clients allowed; otherwise only that user (password file made with mosquitto_passwd).
+  explicit MosquittoBroker(std::string user = {}, std::string password = {})
+      : user_(std::move(user)), password_(std::move(password)) {
+    std::random_device random;
+    dir_ = std::filesystem::temp_directory_path() / ("rcand-mqtt-" + std::to_string(::getpid()) + "-" + std::to_string(random()));
+    std::filesystem::create_directories(dir_);
+    port_ = free_tcp_port();
+    try {
+      configure();
+      start();
+    } catch (...) {
+      std::error_code ec;
+      std::filesystem::remove_all(dir_, ec);
+      throw;
+    }
+  }
+  ~MosquittoBroker() {
+    stop();
+    std::error_code ec;
+    std::filesystem::remove_all(dir_, ec);
+  }
+  MosquittoBroker(const MosquittoBroker&) = delete;
+  MosquittoBroker& operator=(const MosquittoBroker&) = delete;
+
+  void configure() {
+    std::ofstream conf(dir_ / "mosquitto.conf");
+    // Started as root, mosquitto would switch to the `mosquitto` user and lose access to our files: stay who we are.
+    if (const passwd* me = ::getpwuid(::geteuid())) conf << "user " << me->pw_name << "\n";
+    conf << "listener " << port_ << " 127.0.0.1\n"
+         << "persistence false\nset_tcp_nodelay true\nlog_dest stderr\nlog_type error\nlog_type warning\n";
+    if (user_.empty()) {
+      conf << "allow_anonymous true\n";
+    } else {
+      conf << "allow_anonymous false\npassword_file " << (dir_ / "passwd").string() << "\n";
+      const std::string command = "mosquitto_passwd -b -c '" + (dir_ / "passwd").string() + "' '" + user_ + "' '" +
+                                  password_ + "' >/dev/null 2>&1";
+      if (std::system(command.c_str()) != 0) throw std::runtime_error("mosquitto_passwd failed");
+      std::filesystem::permissions(dir_ / "passwd", std::filesystem::perms::owner_read | std::filesystem::perms::owner_write);
+    }
+    conf.close();
+  }
+
+  std::uint16_t port() const noexcept { return port_; }
+  const std::filesystem::path& dir() const noexcept { return dir_; }
+
+  void start() {
+    if (pid_ > 0) return;
+    pid_ = ::fork();
+    if (pid_ < 0) throw std::runtime_error("fork failed");
+    if (pid_ == 0) {
+      const std::string conf = (dir_ / "mosquitto.conf").string();
+      const std::string log = (dir_ / "broker.log").string();
+      if (FILE* out = std::freopen(log.c_str(), "a", stderr); out == nullptr) _exit(126);
+      ::execlp("mosquitto", "mosquitto", "-c", conf.c_str(), static_cast<char*>(nullptr));
+      _exit(127);
+    }
+    const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(10);
+    while (!tcp_port_open(port_)) {
+      int status = 0;
+      if (::waitpid(pid_, &status, WNOHANG) == pid_) {
+        pid_ = -1;
+        throw std::runtime_error("mosquitto exited at start; see " + (dir_ / "broker.log").string());
+      }
+      if (std::chrono::steady_clock::now() > deadline) throw std::runtime_error("mosquitto did not start listening");
+      std::this_thread::sleep_for(std::chrono::milliseconds(10));  // polling the port: there is no event to wait on
+    }
+  }
+
+  void stop() {
+    if (pid_ <= 0) return;
+    ::kill(pid_, SIGTERM);
+    const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(5);
+    int status = 0;
+    while (::waitpid(pid_, &status, WNOHANG) == 0) {
+      if (std::chrono::steady_clock::now() > deadline) {
+        ::kill(pid_, SIGKILL);
+        ::waitpid(pid_, &status, 0);
+        break;
+      }
+      std::this_thread::sleep_for(std::chrono::milliseconds(10));
+    }
+    pid_ = -1;
+  }
+
+ private:
+  std::filesystem::path dir_;
+  std::string user_, password_;
+  std::uint16_t port_ = 0;
+  pid_t pid_ = -1;
+};
+
+}  // namespace rcand::test

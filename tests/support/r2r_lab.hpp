@@ -1,0 +1,66 @@
+// R2R integration-test helpers (header-only): robot configs with runtime.r2r on, the fleet's shared R2R token file,
+// R2R messages built by hand (as a foreign peer would send them), and bounded polling of a robot's HTTP state.
+#pragma once
+
+#include <nlohmann/json.hpp>
+
+#include <chrono>
+#include <filesystem>
+#include <functional>
+#include <optional>
+#include <string>
+#include <thread>
+
+#include "rcand_process.hpp"
+#include "swarm_lab.hpp"
+
+namespace rcand::test {
+
+// A sim robot named `name` at fleet position (x, y) speaking R2R with `token_file` (a token every robot accepts).
+// UDP is off unless the test turns it on; bids are collected for bid_window_ms.
+inline nlohmann::json r2r_robot_config(const std::string& name, const std::filesystem::path& token_file, double x = 0,
+                                       double y = 0, const std::filesystem::path& swarm_file = {}) {
+  auto config = swarm_robot_config(name, swarm_file);
+  config["runtime"]["r2r"] = {{"enabled", true},
+                              {"udp_enabled", false},
+                              {"token_file", token_file.string()},
+                              {"bid_window_ms", 1000},
+                              {"status_interval_ms", 300},
+                              {"origin", {{"x", x}, {"y", y}}}};
+  return config;
+}
+
+inline double unix_now() {
+  return std::chrono::duration<double>(std::chrono::system_clock::now().time_since_epoch()).count();
+}
+
+// A message as a foreign peer writes it (no token: the WebSocket upgrade authenticated the sender).
+inline std::string r2r_message(const std::string& source, const std::string& type, nlohmann::json payload,
+                               const std::optional<std::string>& target = std::nullopt) {
+  nlohmann::json header{{"version", "1.0"}, {"timestamp", unix_now()}, {"source_id", source}};
+  if (target) header["target_id"] = *target;
+  return nlohmann::json{{"header", header}, {"type", type}, {"payload", std::move(payload)}}.dump();
+}
+
+// Polls `probe` until it returns a value (or the deadline); the robots have no event a test could wait on.
+template <class T>
+std::optional<T> poll_until(const std::function<std::optional<T>()>& probe,
+                            std::chrono::milliseconds timeout = std::chrono::seconds(10)) {
+  const auto deadline = std::chrono::steady_clock::now() + timeout;
+  for (;;) {
+    if (auto value = probe()) return value;
+    if (std::chrono::steady_clock::now() > deadline) return std::nullopt;
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  }
+}
+
+// The peer entry `name` in GET /api/r2r/peers of `robot`, once it has a status from it.
+inline std::optional<nlohmann::json> peer_status(const RcandProcess& robot, const std::string& name) {
+  const auto doc = robot.json("GET", "/api/r2r/peers", "owner-token");
+  if (!doc.is_object() || !doc.contains("peers")) return std::nullopt;
+  for (const auto& peer : doc["peers"])
+    if (peer["name"] == name && peer["status"].is_object()) return peer;
+  return std::nullopt;
+}
+
+}  // namespace rcand::test

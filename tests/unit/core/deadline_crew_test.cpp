@@ -1,0 +1,138 @@
+// The stop path's crew: parallel calls, a deadline, and containment of a call that throws out of noexcept.
+#include <doctest/doctest.h>
+
+#include <atomic>
+#include <chrono>
+#include <condition_variable>
+#include <mutex>
+#include <stdexcept>
+#include <thread>
+
+#include "rcand/kernel/core/deadline_crew.hpp"
+#include "rcand/kernel/core/estop.hpp"
+#include "rcand/kernel/core/steady_clock.hpp"
+
+using namespace rcand::kernel;
+using namespace std::chrono_literals;
+
+namespace {
+
+// A gate the test opens: a job blocked on it is "hung" until then.
+struct Gate {
+  std::mutex mutex;
+  std::condition_variable cv;
+  bool open = false;
+  void wait() {
+    std::unique_lock lock(mutex);
+    cv.wait(lock, [&] { return open; });
+  }
+  void release() {
+    {
+      std::lock_guard lock(mutex);
+      open = true;
+    }
+    cv.notify_all();
+  }
+};
+
+[[noreturn]] void fail_hard() { throw std::runtime_error("bus fault during halt"); }
+void throws_out_of_noexcept() noexcept { fail_hard(); }
+
+auto soon(std::chrono::milliseconds d) { return std::chrono::steady_clock::now() + d; }
+
+}  // namespace
+
+TEST_CASE("a hung job delays neither the others nor the caller beyond the deadline, and finishes in a later round") {
+  Gate gate;
+  std::atomic<int> quick{0};
+  DeadlineCrew crew("test", {{"hung", [&] { gate.wait(); }}, {"quick", [&] { ++quick; }}});
+  const auto start = std::chrono::steady_clock::now();
+  auto outcomes = crew.run_all(soon(100ms));
+  const auto took = std::chrono::steady_clock::now() - start;
+  CHECK(took >= 90ms);
+  CHECK(took < 2s);
+  REQUIRE(outcomes.size() == 2);
+  CHECK(outcomes[0].name == "hung");
+  CHECK(outcomes[0].state == DeadlineCrew::State::Pending);
+  CHECK(outcomes[1].state == DeadlineCrew::State::Done);
+  CHECK(quick == 1);
+  CHECK_FALSE(crew.quiesce(10ms));
+  gate.release();
+  CHECK(crew.quiesce(5s));
+  outcomes = crew.run_all(soon(5s));  // the released job runs again for this round and finishes
+  CHECK(outcomes[0].state == DeadlineCrew::State::Done);
+  CHECK(quick == 2);
+}
+
+TEST_CASE("every job of a round runs in parallel: two jobs that each wait for the other both finish") {
+  std::atomic<int> arrived{0};
+  auto meet = [&] {
+    ++arrived;
+    const auto until = soon(2s);
+    while (arrived < 2 && std::chrono::steady_clock::now() < until) std::this_thread::yield();
+  };
+  DeadlineCrew crew("test", {{"a", meet}, {"b", meet}});
+  const auto outcomes = crew.run_all(soon(5s));
+  CHECK(outcomes[0].state == DeadlineCrew::State::Done);
+  CHECK(outcomes[1].state == DeadlineCrew::State::Done);
+  CHECK(outcomes[0].latency_us < 1'000'000);  // they met: neither waited for the 2 s bound
+}
+
+TEST_CASE("a job that throws out of a noexcept function is reported failed and retired; the process lives on") {
+  std::atomic<int> healthy{0};
+  DeadlineCrew crew("test", {{"throws", [] { throws_out_of_noexcept(); }}, {"healthy", [&] { ++healthy; }}});
+  auto outcomes = crew.run_all(soon(5s));
+  CHECK(outcomes[0].state == DeadlineCrew::State::Failed);
+  CHECK(outcomes[0].error == "bus fault during halt");
+  CHECK(outcomes[1].state == DeadlineCrew::State::Done);
+  const auto start = std::chrono::steady_clock::now();
+  outcomes = crew.run_all(soon(5s));  // retired: reported at once, not waited for
+  CHECK(std::chrono::steady_clock::now() - start < 1s);
+  CHECK(outcomes[0].state == DeadlineCrew::State::Failed);
+  CHECK(healthy == 2);
+}
+
+namespace {
+class HungDrive final : public rcand::sdk::DifferentialDrive {
+ public:
+  explicit HungDrive(Gate& gate) : gate_(gate) {}
+  void set_wheel_speeds(double, double) override {}
+  void halt() noexcept override { gate_.wait(); }
+
+ private:
+  Gate& gate_;
+};
+class CountingDrive final : public rcand::sdk::DifferentialDrive {
+ public:
+  void set_wheel_speeds(double, double) override {}
+  void halt() noexcept override { ++halts; }
+  std::atomic<int> halts{0};
+};
+}  // namespace
+
+TEST_CASE("the e-stop latches and halts the healthy driver at once while another driver's halt() hangs") {
+  SteadyClock clock;
+  ActuatorTable table;
+  Estop estop(clock, table);
+  Gate gate;
+  HungDrive hung(gate);
+  CountingDrive good;
+  InstanceHealth hung_health, good_health;
+  table.add("hung0", "differential_drive", "org.test", &hung, &hung_health);
+  table.add("good0", "differential_drive", "org.test", &good, &good_health);
+  DeadlineCrew crew("halt", {{"hung0", [&] { hung.halt(); }}, {"good0", [&] { good.halt(); }}});
+  estop.use_halt_crew(&crew);
+
+  const auto start = std::chrono::steady_clock::now();
+  const auto report = estop.latch("test", "unit");
+  CHECK(std::chrono::steady_clock::now() - start < Estop::kHaltDeadline + 400ms);
+  CHECK(estop.latched());
+  REQUIRE(report.drivers.size() == 2);
+  CHECK(report.drivers[0].state == "halt_pending");
+  CHECK_FALSE(report.drivers[0].halted);
+  CHECK(report.drivers[1].state == "halted");
+  CHECK(good.halts == 1);
+  gate.release();
+  CHECK(crew.quiesce(5s));
+  estop.use_halt_crew(nullptr);
+}

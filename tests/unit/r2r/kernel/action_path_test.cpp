@@ -1,0 +1,192 @@
+// An R2R `command` runs exactly the POST /api/action path of a real kernel (embedded, no socket): the scope check,
+// the e-stop 423 pre-check answered as code 105 with nothing moving, and the audit entry.
+#include <doctest/doctest.h>
+
+#include <chrono>
+#include <condition_variable>
+#include <mutex>
+#include <thread>
+
+#include "loopback_network.hpp"
+#include "rcand/kernel/auth/crypto.hpp"
+#include "rcand/kernel/auth/role_scopes.hpp"
+#include "rcand/kernel/core/api.hpp"
+#include "rcand/kernel/core/kernel.hpp"
+#include "rcand/kernel/r2r/r2r_node.hpp"
+#include "rcand/sdk/testing/manual_clock.hpp"
+
+using namespace rcand::kernel;
+using namespace rcand::kernel::r2r;
+using nlohmann::json;
+using rcand::sdk::Role;
+
+namespace {
+
+const std::string kOwnerToken = "r2r-kernel-test-owner-token";
+
+RobotConfig sim_rover() {
+  const std::string yaml = R"(rcan_version: "1.3"
+metadata: {robot_name: bob, robot_uuid: "5f3c2a1b", manufacturer: rcand, model: sim-rover}
+physics: {type: differential, wheel_circumference_m: 0.21, turn_time_per_deg_s: 0.008}
+drivers:
+  - {id: drive0, protocol: sim_diff_drive}
+rcan_protocol: {port: 8000, capabilities: [status, teleop], enable_mdns: false, enable_jwt: false}
+runtime:
+  listen: {address: 127.0.0.1, port: 0}
+  plugin_paths: [")" RCAND_PLUGIN_DIR R"("]
+  swarm_file: /nonexistent/swarm.yaml
+  auth:
+    tokens:
+      - {principal: owner, role: owner, sha256: )" +
+                         sha256_hex(kOwnerToken) + "}\n";
+  return parse_robot_config(yaml, "bob.rcan.yaml", "/").config;
+}
+
+// Runs the Api with `request` and waits for its answer (capability handlers answer from their worker).
+http::Response call(Api& api, std::string method, std::string path, std::string body = {}) {
+  http::Request request;
+  request.method = std::move(method);
+  request.target = request.path = std::move(path);
+  request.body = std::move(body);
+  request.headers["authorization"] = "Bearer " + kOwnerToken;
+  request.remote = "127.0.0.1:1";
+  std::mutex mutex;
+  std::condition_variable cv;
+  std::optional<http::Response> answer;
+  api.handle(std::move(request), [&](http::Response response) {
+    std::lock_guard lock(mutex);
+    answer = std::move(response);
+    cv.notify_all();
+  });
+  std::unique_lock lock(mutex);
+  REQUIRE(cv.wait_for(lock, std::chrono::seconds(10), [&] { return answer.has_value(); }));
+  return *answer;
+}
+
+struct Answer {
+  int status = 0;
+  json body;
+};
+Answer execute(Api& api, const Principal& who, json body) {
+  std::mutex mutex;
+  std::condition_variable cv;
+  std::optional<Answer> answer;
+  api.execute_action(who, std::move(body), [&](int status, json reply) {
+    std::lock_guard lock(mutex);
+    answer = Answer{status, std::move(reply)};
+    cv.notify_all();
+  });
+  std::unique_lock lock(mutex);
+  REQUIRE(cv.wait_for(lock, std::chrono::seconds(10), [&] { return answer.has_value(); }));
+  return *answer;
+}
+
+// Motion on the sim drive's timeline: events that set a wheel speed other than zero (stops and halts do not count).
+int drive_commands(Api& api) {
+  const json doc = json::parse(call(api, "GET", "/api/drivers/drive0").body);
+  int moving = 0;
+  for (const auto& event : doc["status"]["timeline"])
+    if (event["left"] != 0.0 || event["right"] != 0.0) ++moving;
+  return moving;
+}
+
+const Principal kPeer{"peer-alex", Role::User, default_scopes(Role::User), "signature"};
+const json kMove{{"type", "move"}, {"linear", 0.2}, {"angular", 0.0}, {"duration_ms", 50}};
+
+}  // namespace
+
+TEST_CASE("Api::execute_action: the action route as the principal; 423 while e-stopped and no motion; audited") {
+  Kernel kernel(sim_rover());
+  Api& api = kernel.api();
+
+  const int before = drive_commands(api);
+  const Answer moved = execute(api, kPeer, kMove);
+  CHECK(moved.status == 200);
+  CHECK(drive_commands(api) > before);
+
+  const Principal guest{"peer-guest", Role::Guest, default_scopes(Role::Guest), "token"};
+  const Answer refused = execute(api, guest, kMove);
+  CHECK(refused.status == 403);
+  CHECK(refused.body["required_scope"] == "control");
+
+  CHECK(execute(api, kPeer, {{"type", "teleport"}}).status == 400);
+
+  REQUIRE(call(api, "POST", "/api/stop").status == 200);
+  const int stopped_at = drive_commands(api);
+  const Answer blocked = execute(api, kPeer, kMove);
+  CHECK(blocked.status == 423);
+  CHECK(blocked.body["code"] == "ESTOP_ACTIVE");
+  CHECK(drive_commands(api) == stopped_at);
+
+  const http::Response audit_answer = call(api, "GET", "/api/audit");  // newest 100
+  REQUIRE(audit_answer.status == 200);
+  const json audit = json::parse(audit_answer.body)["entries"];
+  int peer_entries = 0;
+  for (const auto& entry : audit)
+    if (entry["principal"] == "peer-alex" && entry["event"] == "POST /api/action move") ++peer_entries;
+  CHECK(peer_entries == 2);  // the move and the blocked move, each as the R2R sender
+}
+
+TEST_CASE("an R2R command to an e-stopped robot is answered 105 by the node, through the real action path") {
+  Kernel kernel(sim_rover());
+  Api& api = kernel.api();
+  rcand::sdk::testing::ManualClock clock;
+  r2r_test::LoopbackNetwork net;
+  AuthSettings auth;
+  auth.tokens = {{"fleet", Role::User, sha256_hex("fleet-token-for-the-kernel-test")}};
+  const Authenticator authenticator(auth);
+  auto make = [&](const std::string& name, CommandExecutor executor) {
+    R2rSettings settings;
+    settings.outbound_token = "fleet-token-for-the-kernel-test";
+    return std::make_unique<R2rNode>(R2rNodeDeps{.identity = {name, "", {"teleop"}},
+                                                 .clock = clock,
+                                                 .authenticator = authenticator,
+                                                 .settings = settings,
+                                                 .status_source = {},
+                                                 .command_executor = std::move(executor),
+                                                 .cost_function = {},
+                                                 .physics = {},
+                                                 .transports = {&net.endpoint(name)},
+                                                 .log = nullptr});
+  };
+  // bob's executor hands the command to the real Api; answers may come from a capability worker.
+  std::mutex mutex;
+  std::condition_variable cv;
+  int answered = 0;
+  auto bob = make("bob", [&](const Principal& who, json body, CommandDone done) {
+    api.execute_action(who, std::move(body), [&, done](int status, json reply) {
+      done(status, std::move(reply));
+      std::lock_guard lock(mutex);
+      ++answered;
+      cv.notify_all();
+    });
+  });
+  auto alex = make("alex", {});
+  bob->start();
+  alex->start();
+  auto wait_answers = [&](int n) {
+    std::unique_lock lock(mutex);
+    REQUIRE(cv.wait_for(lock, std::chrono::seconds(10), [&] { return answered >= n; }));
+  };
+
+  alex->send(MessageType::Command, kMove, "bob");
+  net.pump();
+  wait_answers(1);
+  net.pump();
+  CHECK(net.sent("error", "bob").empty());
+  const int after_move = drive_commands(api);
+
+  REQUIRE(call(api, "POST", "/api/stop").status == 200);
+  const int stopped_at = drive_commands(api);
+  CHECK(stopped_at >= after_move);
+  alex->send(MessageType::Command, kMove, "bob");
+  net.pump();
+  wait_answers(2);
+  net.pump();
+  const auto errors = net.sent("error", "bob", "alex");
+  REQUIRE(errors.size() == 1);
+  CHECK(errors[0].message["payload"]["code"] == 105);
+  CHECK(drive_commands(api) == stopped_at);
+  bob->stop();
+  alex->stop();
+}

@@ -1,0 +1,145 @@
+// MqttTransport against a real mosquitto on loopback: topics r2r/<name> and r2r/broadcast, password auth, and a
+// broker restart (the transport reconnects and resubscribes on its own).
+#include <doctest/doctest.h>
+#include <nlohmann/json.hpp>
+
+#include <fstream>
+#include <thread>
+
+#include "inbox.hpp"
+#include "mosquitto_broker.hpp"
+#include "rcand/kernel/r2r_transport/mqtt_transport.hpp"
+
+using namespace rcand::kernel::r2r;
+using namespace std::chrono_literals;
+using nlohmann::json;
+
+namespace {
+
+std::string message(const std::string& type, const std::string& source = "a") {
+  return json{{"header", {{"version", "1.0"}, {"timestamp", 1}, {"source_id", source}}}, {"type", type}, {"payload", json::object()}}
+      .dump();
+}
+
+MqttOptions options_for(const std::string& name, std::uint16_t port) {
+  MqttOptions options;
+  options.robot_name = name;
+  options.host = "127.0.0.1";
+  options.port = port;
+  options.keepalive_s = 5;
+  return options;
+}
+
+template <class Condition>
+bool eventually(Condition condition, std::chrono::milliseconds timeout = 10s) {
+  const auto deadline = std::chrono::steady_clock::now() + timeout;
+  while (!condition()) {
+    if (std::chrono::steady_clock::now() > deadline) return false;
+    std::this_thread::sleep_for(5ms);  // polling the client's connected flag: libmosquitto gives us no event here
+  }
+  return true;
+}
+
+}  // namespace
+
+TEST_CASE("targeted messages reach r2r/<name> only; broadcasts reach everyone") {
+  rcand::test::MosquittoBroker broker;
+  MqttTransport a(options_for("robot-a", broker.port())), b(options_for("robot-b", broker.port())),
+      c(options_for("robot-c", broker.port()));
+  rcand::test::Inbox at_a, at_b, at_c;
+  a.start(at_a.deliver());
+  b.start(at_b.deliver());
+  c.start(at_c.deliver());
+  REQUIRE(eventually([&] { return a.connected() && b.connected() && c.connected(); }));
+  // Subscriptions are acknowledged asynchronously: a broadcast seen by everyone proves they are in place.
+  REQUIRE(eventually([&] {
+    a.send(message("task_request"), std::nullopt);
+    return at_b.size() > 0 && at_c.size() > 0;
+  }));
+  REQUIRE(a.send(message("command"), std::string("robot-b")));
+  const auto got = at_b.wait_until([](const InboundMessage& m) { return m.bytes == message("command"); });
+  REQUIRE(got);
+  CHECK(got->transport == "mqtt");
+  CHECK(got->peer == "r2r/robot-b");
+  CHECK_FALSE(got->reply);  // answers go through send() to r2r/<source_id>
+
+  // Status uses QoS 0 but still arrives on a healthy broker.
+  REQUIRE(a.send(message("status"), std::nullopt));
+  CHECK(at_c.wait_until([](const InboundMessage& m) { return m.bytes == message("status"); }));
+  // robot-c never saw the command for robot-b (it arrived at robot-b before the later status reached robot-c).
+  CHECK_FALSE(at_c.wait_until([](const InboundMessage& m) { return m.bytes == message("command"); }, 0ms));
+
+  // Names cannot smuggle topic wildcards or levels.
+  CHECK_FALSE(a.send(message("command"), std::string("robot-#")));
+  CHECK_FALSE(a.send(message("command"), std::string("x/y")));
+}
+
+TEST_CASE("a password-protected broker: right password connects, wrong one never does") {
+  rcand::test::MosquittoBroker broker("robot-a", "s3cret-pass");
+  const auto good_file = broker.dir() / "good.pw";
+  const auto bad_file = broker.dir() / "bad.pw";
+  std::ofstream(good_file) << "s3cret-pass\n";
+  std::ofstream(bad_file) << "wrong\n";
+
+  auto good_options = options_for("robot-a", broker.port());
+  good_options.password_file = good_file;  // username defaults to the robot name
+  MqttTransport good(good_options);
+  rcand::test::Inbox inbox;
+  good.start(inbox.deliver());
+  CHECK(eventually([&] { return good.connected(); }));
+
+  auto bad_options = options_for("robot-a", broker.port());
+  bad_options.client_id = "rcand-robot-a-bad";
+  bad_options.password_file = bad_file;
+  MqttTransport bad(bad_options);
+  bad.start(inbox.deliver());
+  CHECK_FALSE(eventually([&] { return bad.connected(); }, 1500ms));
+
+  auto missing = options_for("robot-a", broker.port());
+  missing.password_file = broker.dir() / "missing.pw";
+  MqttTransport never(missing);
+  CHECK_THROWS_WITH_AS(never.start(inbox.deliver()), doctest::Contains("runtime.r2r.mqtt.password_file: cannot read"),
+                       std::runtime_error);
+}
+
+TEST_CASE("the transport survives a broker restart: it reconnects and resubscribes by itself") {
+  rcand::test::MosquittoBroker broker;
+  MqttTransport a(options_for("robot-a", broker.port())), b(options_for("robot-b", broker.port()));
+  rcand::test::Inbox at_a, at_b;
+  a.start(at_a.deliver());
+  b.start(at_b.deliver());
+  REQUIRE(eventually([&] { return a.connected() && b.connected(); }));
+  broker.stop();
+  REQUIRE(eventually([&] { return !a.connected() && !b.connected(); }));
+  broker.start();
+  REQUIRE(eventually([&] { return a.connected() && b.connected(); }, 40s));
+  CHECK(eventually([&] {
+    a.send(message("command"), std::string("robot-b"));
+    return at_b.size() > 0;
+  }));
+  CHECK(b.counters().connects >= 2);
+}
+
+TEST_CASE("a broker that is down at start is not fatal: the transport connects when it appears") {
+  const auto port = rcand::test::free_tcp_port();
+  MqttTransport a(options_for("robot-a", port));
+  rcand::test::Inbox inbox;
+  CHECK_NOTHROW(a.start(inbox.deliver()));
+  CHECK_FALSE(a.connected());
+  a.stop();
+}
+
+TEST_CASE("runtime.r2r.mqtt is read with errors naming the key") {
+  const auto options = mqtt_options_from_config(json{{"host", "broker.lan"}, {"port", 1884}, {"username", "u"},
+                                                     {"token_file", "r2r.token"}, {"keepalive_s", 10}},
+                                                "robot-a", "/etc/rcand");
+  CHECK(options.host == "broker.lan");
+  CHECK(options.port == 1884);
+  CHECK(options.token_file == std::filesystem::path("/etc/rcand/r2r.token"));
+  CHECK(mqtt_options_from_config(json{{"tls", {{"ca_file", "/ca.pem"}}}}, "r", "/").port == 8883);
+  CHECK_THROWS_WITH_AS(mqtt_options_from_config(json{{"port", 0}}, "r", "/"), "runtime.r2r.mqtt.port: expected an integer from 1 to 65535",
+                       std::invalid_argument);
+  CHECK_THROWS_WITH_AS(mqtt_options_from_config(json{{"tls", {{"cert_file", "c.pem"}}}}, "r", "/"),
+                       "runtime.r2r.mqtt.tls.ca_file: required for TLS", std::invalid_argument);
+  CHECK_THROWS_AS(mqtt_options_from_config(json{{"password_file", "p"}, {"token_file", "t"}}, "r", "/"), std::invalid_argument);
+}
