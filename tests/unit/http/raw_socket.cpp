@@ -2,7 +2,9 @@
 
 // GCC 12 with -fsanitize=address reports a false maybe-uninitialized inside Beast's response parser (a
 // boost::optional in basic_parser::do_field); the library code it flags is not ours.
+#if defined(__GNUC__) && !defined(__clang__)
 #pragma GCC diagnostic ignored "-Wmaybe-uninitialized"
+#endif
 
 #include <arpa/inet.h>
 #include <netinet/in.h>
