@@ -16,14 +16,15 @@ namespace {
 using rcand::test::RcandProcess;
 
 // Runs, in a forked child, a harness-managed "rcand" that is really a shell script: it announces itself as rcand
-// does, writes `report` to stderr and exits 0 on SIGTERM. Returns the child's wait status.
+// does, after writing `report` to stderr, and exits 0 on SIGTERM. Returns the child's wait status.
 int run_fake_rcand(const std::string& report) {
   const pid_t pid = fork();
   if (pid == 0) {
     if (!std::freopen("/dev/null", "w", stderr)) _exit(3);  // the expected report would only confuse a CI log
     {
-      const std::string script = "echo 'rcand: listening on http://127.0.0.1:1'; printf '%s\\n' '" + report +
-                                 "' >&2; trap 'exit 0' TERM; while :; do sleep 0.05; done";
+      // The report is written before the "listening" line, so it is on stderr before the harness can stop us.
+      const std::string script = "trap 'exit 0' TERM; printf '%s\\n' '" + report +
+                                 "' >&2; echo 'rcand: listening on http://127.0.0.1:1'; while :; do sleep 0.05; done";
       RcandProcess fake(rcand::test::sim_config(), {"/bin/sh", "-c", script, "fake-rcand"}, "127.0.0.1");
     }
     _exit(0);
