@@ -7,6 +7,7 @@
 #include "fleet_operation.hpp"
 #include "rcand/kernel/mdns/service_browser.hpp"
 #include "rcand/kernel/swarm/fan_out.hpp"
+#include "text_table.hpp"
 
 namespace rcand::rcanctl {
 namespace {
@@ -47,17 +48,7 @@ void print_table(const std::vector<json>& rows, std::ostream& out) {
     cells.push_back({row["name"], row["ruri"], row["address"], std::to_string(row["port"].get<int>()), joined(row["caps"]),
                      row["status"], check});
   }
-  std::vector<std::size_t> width(cells.front().size(), 0);
-  for (const auto& line : cells)
-    for (std::size_t i = 0; i < line.size(); ++i) width[i] = std::max(width[i], line[i].size());
-  for (const auto& line : cells) {
-    std::string text;
-    for (std::size_t i = 0; i < line.size(); ++i) {
-      text += line[i];
-      if (i + 1 < line.size()) text += std::string(width[i] - line[i].size() + 2, ' ');
-    }
-    out << text << "\n";
-  }
+  print_text_table(cells, out);
 }
 
 }  // namespace

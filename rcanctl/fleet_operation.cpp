@@ -16,6 +16,7 @@
 #include "rcand/kernel/swarm/broadcast_report.hpp"
 #include "rcand/kernel/swarm/fan_out.hpp"
 #include "rcand/kernel/swarm/node_selection.hpp"
+#include "text_table.hpp"
 
 namespace rcand::rcanctl {
 namespace {
@@ -112,17 +113,7 @@ void print_table(Operation op, const std::vector<Row>& rows, std::ostream& out) 
     cells.push_back({text_of(o, "name"), o.value("address", std::string()).empty() ? "-" : text_of(o, "address"),
                      o.value("reachable", false) ? "yes" : "no", state, estop, caps, latency.str(), result_text(op, o)});
   }
-  std::vector<std::size_t> width(cells.front().size(), 0);
-  for (const auto& line : cells)
-    for (std::size_t i = 0; i < line.size(); ++i) width[i] = std::max(width[i], line[i].size());
-  for (const auto& line : cells) {
-    std::string text;
-    for (std::size_t i = 0; i < line.size(); ++i) {
-      text += line[i];
-      if (i + 1 < line.size()) text += std::string(width[i] - line[i].size() + 2, ' ');
-    }
-    out << text << "\n";
-  }
+  print_text_table(cells, out);
 }
 
 }  // namespace

@@ -1,5 +1,7 @@
 #include "rcand/kernel/r2r_transport/udp_transport.hpp"
 
+#include "io_loop.hpp"
+
 #include <boost/asio/executor_work_guard.hpp>
 #include <boost/asio/io_context.hpp>
 #include <boost/asio/ip/udp.hpp>
@@ -121,16 +123,7 @@ void UdpTransport::start(Deliver deliver) {
   }
   s.running = true;
   s.receive();
-  s.thread = std::thread([&s] {
-    for (;;) {
-      try {
-        s.ioc.run();
-        return;
-      } catch (const std::exception& e) {
-        s.log->error("r2r udp loop: {}", e.what());
-      }
-    }
-  });
+  s.thread = start_io_loop(s.ioc, s.log, "r2r udp loop");
   s.log->info("r2r udp: status on port {} to {} destination(s)", s.port.load(), s.destinations.size());
 }
 

@@ -1,5 +1,7 @@
 #include "rcand/kernel/r2r_transport/websocket_transport.hpp"
 
+#include "io_loop.hpp"
+
 #include <boost/asio/executor_work_guard.hpp>
 #include <boost/asio/ip/tcp.hpp>
 #include <boost/asio/post.hpp>
@@ -425,16 +427,7 @@ void WebSocketTransport::start(Deliver deliver) {
   hub.started = true;
   if (!hub.options.dial_peers.empty()) {
     hub.client_work.emplace(hub.client_ioc.get_executor());
-    hub.client_thread = std::thread([&hub] {
-      for (;;) {
-        try {
-          hub.client_ioc.run();
-          return;
-        } catch (const std::exception& e) {
-          hub.log->error("r2r ws client loop: {}", e.what());
-        }
-      }
-    });
+    hub.client_thread = start_io_loop(hub.client_ioc, hub.log, "r2r ws client loop");
   }
 }
 
