@@ -139,6 +139,15 @@ TEST_CASE("bad input gets a clear error naming the field, and nothing moves") {
   auto wrong_method = rcand.json("GET", "/api/stop", "user-token", "", &status);
   CHECK(status == 405);
   CHECK(wrong_method["allowed"] == json{"POST"});
+  // Query parameters: the whole value must be a positive integer (no wrap-around of "-5", no "5abc" read as 5).
+  for (const std::string limit : {"-5", "5abc", "0", "", "99999999999999999999999"}) {
+    CAPTURE(limit);
+    auto answer = rcand.json("GET", "/api/audit?limit=" + limit, "owner-token", "", &status);
+    CHECK(status == 400);
+    CHECK(answer["field"] == "limit");
+  }
+  CHECK(rcand.json("GET", "/api/audit?limit=2", "owner-token", "", &status)["entries"].size() <= 2);
+  CHECK(status == 200);
   // Still serving after all of it.
   rcand.json("GET", "/api/status", "guest-token", "", &status);
   CHECK(status == 200);

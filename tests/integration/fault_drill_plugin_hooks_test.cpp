@@ -4,6 +4,7 @@
 #include <doctest/doctest.h>
 
 #include <chrono>
+#include <future>
 #include <string>
 
 #include "fault_drill.hpp"
@@ -68,6 +69,21 @@ void run_drill(const Case& c) {
 
 }  // namespace
 
+TEST_CASE("fault drill: a plugin whose register() never returns: rcand starts without it and stays stoppable") {
+  auto config = sim_config();
+  config["rcan_protocol"]["capabilities"].push_back("org.rcand.test.hangs_in_register");
+  config["runtime"]["plugin_start_timeout_ms"] = 500;
+  RcandProcess rcand(config, {plugin_dir(), test_plugin_dir() / "hangs_in_register"});
+  const auto status = rcand.json("GET", "/api/status", "owner-token");
+  const auto& hung = status["capabilities"]["org.rcand.test.hangs_in_register"];
+  CHECK(hung["state"] == "failed");
+  CHECK(hung.value("reason", "").find("register() did not return within 500 ms") != std::string::npos);
+  CHECK(drill::tagged(rcand, "POST", "/api/action", "user-token", kMove, "register-hang-move").status == 200);
+  drill::stop_within_limit(rcand, "register-hang-stop");
+  drill::check_audit_complete(rcand, {"register-hang-move", "register-hang-stop"});
+  CHECK(rcand.stop() == 0);
+}
+
 TEST_CASE("fault drill: plugin factory faults (throws, hangs, returns nothing)") {
   for (const std::string fault : {"throw", "hang", "garbage"}) run_drill({"factory", fault, 503, true, true});
 }
@@ -86,9 +102,42 @@ TEST_CASE("fault drill: request handler faults (throws: 500, hangs: 503 at the t
   run_drill({"handler", "garbage", 500, false, false});
 }
 
-TEST_CASE("fault drill: status() faults (throws, invalid UTF-8) never break GET /api/status") {
+TEST_CASE("fault drill: status() faults (throws, invalid UTF-8, hangs) never break GET /api/status") {
   run_drill({"status", "throw", 200, false, false});
   run_drill({"status", "garbage", 200, false, false});
+  run_drill({"status", "hang", 503, true, true});  // the first GET /api/status finds it hung and fails it
+}
+
+TEST_CASE("fault drill: status() hanging in a capability and a driver holds no I/O thread: stops answer meanwhile") {
+  auto config = faulty_config("status", "hang");
+  config["drivers"].push_back({{"id", "bad0"}, {"protocol", "org.rcand.test.faulty_drive"}, {"hook", "status"}, {"fault", "hang"}});
+  RcandProcess rcand(config, {plugin_dir(), test_plugin_dir() / "faults"});
+  // More status readers than rcand has I/O threads, all at once: inline status() calls would hold every thread.
+  std::vector<std::future<drill::Answer>> readers;
+  for (int i = 0; i < 3; ++i) {
+    readers.push_back(std::async(std::launch::async, [&rcand, i] {
+      return drill::tagged(rcand, "GET", "/api/status", "guest-token", "", "status-reader-" + std::to_string(i));
+    }));
+    readers.push_back(std::async(std::launch::async, [&rcand, i] {
+      return drill::tagged(rcand, "GET", "/api/drivers/bad0", "guest-token", "", "driver-reader-" + std::to_string(i));
+    }));
+  }
+  drill::stop_within_limit(rcand, "status-hang-stop");
+  for (auto& reader : readers) {
+    const auto answer = reader.get();
+    CHECK(answer.status == 200);
+    CHECK(answer.took < std::chrono::seconds(5));
+  }
+  const auto status = rcand.json("GET", "/api/status", "guest-token");
+  CHECK(status["capabilities"][kCapability]["state"] == "failed");
+  CHECK(status["capabilities"][kCapability].value("reason", "").find("status() did not return") != std::string::npos);
+  const auto driver = rcand.json("GET", "/api/drivers/bad0", "guest-token");
+  CHECK(driver["state"] == "failed");
+  CHECK_FALSE(driver.contains("status"));
+  CHECK(rcand.json("GET", "/api/drivers/drive0", "guest-token")["status"].is_object());  // the others still answer
+  drill::stop_within_limit(rcand, "status-hang-stop-again");
+  drill::check_audit_complete(rcand, {"status-hang-stop", "status-hang-stop-again"});
+  CHECK(rcand.stop() == 0);  // exits normally: the hung status() threads are left behind, not joined
 }
 
 TEST_CASE("fault drill: on_estop() faults (throws out of noexcept, hangs) never hold up the stop") {
@@ -96,13 +145,19 @@ TEST_CASE("fault drill: on_estop() faults (throws out of noexcept, hangs) never 
   run_drill({"on_estop", "hang", 200, false, false});
 }
 
-TEST_CASE("fault drill: a shutdown() hook that hangs cannot keep rcand from exiting after the motors stopped") {
-  RcandProcess rcand(faulty_config("shutdown", "hang"), {plugin_dir(), test_plugin_dir() / "faults"});
-  CHECK(drill::tagged(rcand, "POST", "/api/action", "user-token", kMove, "drill-shutdown-move").status == 200);
-  drill::stop_within_limit(rcand, "drill-shutdown-stop");
-  drill::check_audit_complete(rcand, {"drill-shutdown-move", "drill-shutdown-stop"});
-  const auto start = std::chrono::steady_clock::now();
-  CHECK(rcand.stop() == 1);  // the shutdown watchdog's exit, not the harness's SIGKILL (that would be 137)
-  CHECK(std::chrono::steady_clock::now() - start < std::chrono::seconds(12));
-  CHECK(rcand.stderr_text().find("shutdown still blocked by plugin code") != std::string::npos);
+TEST_CASE("fault drill: a shutdown() hook that hangs or throws cannot keep rcand from exiting cleanly after the motors stopped") {
+  for (const std::string fault : {"hang", "throw"}) {
+    CAPTURE(fault);
+    RcandProcess rcand(faulty_config("shutdown", fault), {plugin_dir(), test_plugin_dir() / "faults"});
+    const std::string tag = "drill-shutdown-" + fault + "-";
+    CHECK(drill::tagged(rcand, "POST", "/api/action", "user-token", kMove, tag + "move").status == 200);
+    drill::stop_within_limit(rcand, tag + "stop");
+    drill::check_audit_complete(rcand, {tag + "move", tag + "stop"});
+    const auto start = std::chrono::steady_clock::now();
+    CHECK(rcand.stop() == 0);  // neither the shutdown watchdog's exit 1 nor an abort
+    CHECK(std::chrono::steady_clock::now() - start < std::chrono::seconds(12));
+    const std::string expected = fault == "hang" ? "shutdown() did not return within 2000 ms; left running"
+                                                 : "shutdown() threw: fault drill: shutdown throws";
+    CHECK_MESSAGE(rcand.stderr_text().find(expected) != std::string::npos, rcand.stderr_text());
+  }
 }

@@ -144,7 +144,7 @@ const std::vector<KeySpec>& build_schema() {
       {.path = "runtime.handler_timeout_ms", .type = Integer, .default_value = 10000, .min = 0, .max = kIntMax,
        .min_exclusive = true, .description = "longest a capability handler may run"},
       {.path = "runtime.plugin_start_timeout_ms", .type = Integer, .default_value = 10000, .min = 0, .max = kIntMax,
-       .min_exclusive = true, .description = "longest a plugin's factory, start() or routes() may take at startup"},
+       .min_exclusive = true, .description = "longest a plugin's register(), factory, start() or routes() may take at startup"},
       {.path = "runtime.audit_file", .type = String, .non_empty = true,
        .description = "append every audit entry to this file as JSON lines (relative to this file)"},
       {.path = "runtime.capabilities", .type = Mapping, .description = "per-capability plugin settings"},

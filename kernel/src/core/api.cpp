@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <array>
+#include <charconv>
 #include <mutex>
 
 #include <boost/asio/ip/address.hpp>
@@ -204,14 +205,11 @@ void Api::dispatch(http::Request&& request, const Principal* authenticated, http
     const std::string id = request.path.substr(kDriversPrefix.size());
     for (const auto& driver : ctx_.runtime.drivers()) {
       if (driver.id != id) continue;
+      auto status = ctx_.runtime.status_of(driver);  // first: a status() that hangs fails the driver
       json doc{{"id", driver.id}, {"protocol", driver.protocol}, {"plugin", driver.plugin_id},
                {"state", driver.health.failed() ? "failed" : "ok"}};
       if (driver.health.failed()) doc["reason"] = driver.health.reason();
-      std::string failure;
-      if (driver.object) {
-        if (auto status = guarded_result(driver.who, "status", failure, [&] { return driver.object->status(); }))
-          doc["status"] = std::move(*status);
-      }
+      if (status) doc["status"] = std::move(*status);
       reply(json_response(200, doc));
       return;
     }
@@ -444,12 +442,15 @@ void Api::handle_kernel(const std::string& endpoint, http::Request& request, con
   } else if (endpoint == "/api/audit") {
     std::size_t limit = 100;
     if (auto it = request.query.find("limit"); it != request.query.end()) {
-      try {
-        limit = std::clamp<std::size_t>(std::stoul(it->second), 1, 10000);
-      } catch (...) {
+      // The whole value, digits only: "-5" (which stoul would wrap around) and "5abc" are refused, not guessed at.
+      const std::string& text = it->second;
+      std::size_t parsed = 0;
+      const auto [end, ec] = std::from_chars(text.data(), text.data() + text.size(), parsed);
+      if (ec != std::errc{} || end != text.data() + text.size() || parsed == 0) {
         respond(error(400, "BAD_REQUEST", "limit must be a positive integer", {{"field", "limit"}}));
         return;
       }
+      limit = std::min<std::size_t>(parsed, 10000);
     }
     respond(json_response(200, ctx_.audit.to_json(limit)));
   } else if (endpoint == "/api/plugins") {
@@ -460,8 +461,7 @@ void Api::handle_kernel(const std::string& endpoint, http::Request& request, con
 bool Api::nav_running() const {
   const auto* nav = ctx_.runtime.capability("nav");
   if (nav == nullptr || !nav->object || nav->health.failed()) return false;
-  std::string failure;
-  auto status = guarded_result(nav->who, "status", failure, [&] { return nav->object->status(); });
+  auto status = ctx_.runtime.status_of(*nav);
   return status && status->is_object() && status->value("running", false);
 }
 
@@ -484,18 +484,18 @@ json Api::status_document() const {
   json doc = static_status_;
   json capabilities = json::object();
   bool nav_is_running = false;
+  auto statuses = ctx_.runtime.capability_statuses();  // first: a status() that hangs fails its capability
+  std::size_t i = 0;
   for (const auto& instance : ctx_.runtime.capabilities()) {
+    auto& status = statuses[i++];
     json item{{"plugin", instance.plugin_id}, {"state", instance.health.failed() ? "failed" : "ok"}};
     if (instance.health.failed()) item["reason"] = instance.health.reason();
-    if (instance.object && !instance.health.failed()) {
-      std::string failure;
-      if (auto status = guarded_result(instance.who, "status", failure, [&] { return instance.object->status(); })) {
-        if (instance.name == "nav" && status->is_object()) {
-          nav_is_running = status->value("running", false);
-          if (status->contains("pose")) doc["pose"] = (*status)["pose"];  // the dead-reckoned pose, top level too
-        }
-        item["status"] = std::move(*status);
+    if (status && !instance.health.failed()) {
+      if (instance.name == "nav" && status->is_object()) {
+        nav_is_running = status->value("running", false);
+        if (status->contains("pose")) doc["pose"] = (*status)["pose"];  // the dead-reckoned pose, top level too
       }
+      item["status"] = std::move(*status);
     }
     capabilities[instance.name] = std::move(item);
   }

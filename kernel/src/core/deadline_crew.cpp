@@ -61,11 +61,6 @@ struct DeadlineCrew::Shared {
     completions.fetch_add(1, std::memory_order_release);
     futex_wake(completions, INT_MAX);
   }
-  bool all_done(std::uint32_t target) const noexcept {
-    return std::all_of(members.begin(), members.end(), [&](const Member& m) {
-      return m.retired.load(std::memory_order_acquire) || reached(m.finished.load(std::memory_order_acquire), target);
-    });
-  }
   bool quiet() const noexcept {
     return std::all_of(members.begin(), members.end(), [](const Member& m) {
       return m.retired.load() || (!m.busy.load() && reached(m.finished.load(), m.requested.load()));
@@ -125,23 +120,32 @@ DeadlineCrew::~DeadlineCrew() {
   }
 }
 
-std::vector<DeadlineCrew::Outcome> DeadlineCrew::run_all(std::chrono::steady_clock::time_point deadline) noexcept {
+// `each(f)` calls f(member) for every selected member, in the order the outcomes are reported.
+template <class ForEach>
+std::vector<DeadlineCrew::Outcome> DeadlineCrew::run_round(ForEach each, Clock::time_point deadline) noexcept {
   auto& s = *shared_;
   std::uint32_t round = s.round.fetch_add(1) + 1;
   if (round == kStop) round = s.round.fetch_add(1) + 1;  // kStop is the exit request, never a round
-  for (auto& member : s.members) {
-    if (member.retired.load(std::memory_order_acquire)) continue;
+  each([&](Shared::Member& member) {
+    if (member.retired.load(std::memory_order_acquire)) return;
     std::uint32_t current = member.requested.load();
     while (current != kStop && !reached(current, round) && !member.requested.compare_exchange_weak(current, round)) {
     }
     futex_wake(member.requested, 1);
-  }
+  });
+  const auto all_done = [&] {
+    bool done = true;
+    each([&](const Shared::Member& m) {
+      done = done && (m.retired.load(std::memory_order_acquire) || reached(m.finished.load(std::memory_order_acquire), round));
+    });
+    return done;
+  };
   const auto spin_until = std::min(deadline, Clock::now() + kSpinFor);
-  while (!s.all_done(round) && Clock::now() < spin_until) {
+  while (!all_done() && Clock::now() < spin_until) {
   }
   for (;;) {
     const std::uint32_t seen = s.completions.load(std::memory_order_acquire);
-    if (s.all_done(round)) break;
+    if (all_done()) break;
     const auto left = deadline - Clock::now();
     if (left <= Clock::duration::zero()) break;
     const auto ns = std::chrono::duration_cast<std::chrono::nanoseconds>(left).count();
@@ -149,10 +153,9 @@ std::vector<DeadlineCrew::Outcome> DeadlineCrew::run_all(std::chrono::steady_clo
     futex_wait(s.completions, seen, &timeout);
   }
 
-  std::vector<Outcome> outcomes;
+  std::vector<DeadlineCrew::Outcome> outcomes;
   try {
-    outcomes.reserve(s.members.size());
-    for (const auto& member : s.members) {
+    each([&](const Shared::Member& member) {
       auto& outcome = outcomes.emplace_back();
       outcome.name = member.name;
       if (member.retired.load(std::memory_order_acquire)) {
@@ -162,10 +165,24 @@ std::vector<DeadlineCrew::Outcome> DeadlineCrew::run_all(std::chrono::steady_clo
         outcome.state = State::Done;
         outcome.latency_us = member.latency_us.load();
       }
-    }
+    });
   } catch (...) {  // no memory for the report: the calls themselves were started
   }
   return outcomes;
+}
+
+std::vector<DeadlineCrew::Outcome> DeadlineCrew::run_all(std::chrono::steady_clock::time_point deadline) noexcept {
+  auto& members = shared_->members;
+  return run_round([&](auto&& f) { for (auto& member : members) f(member); }, deadline);
+}
+
+std::vector<DeadlineCrew::Outcome> DeadlineCrew::run_some(std::span<const std::size_t> indices,
+                                                          std::chrono::steady_clock::time_point deadline) noexcept {
+  auto& members = shared_->members;
+  return run_round([&](auto&& f) {
+    for (const auto index : indices)
+      if (index < members.size()) f(members[index]);
+  }, deadline);
 }
 
 bool DeadlineCrew::quiesce(std::chrono::milliseconds grace) noexcept {

@@ -140,6 +140,7 @@ Kernel::Kernel(RobotConfig config, KernelOptions options) : state_(std::make_uni
   capabilities.erase("status");
   std::set<std::string> protocols;
   for (const auto& driver : cfg.drivers) protocols.insert(driver.protocol);
+  s.host.set_register_timeout(std::chrono::milliseconds(cfg.runtime.plugin_start_timeout_ms));
   s.host.load_needed(capabilities, protocols);
   for (const auto& record : s.host.records())
     if (is_failure(record->state))

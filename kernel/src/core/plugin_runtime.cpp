@@ -132,11 +132,17 @@ PluginRuntime::PluginRuntime(PluginHost& host, KernelServices& services, Actuato
 PluginRuntime::~PluginRuntime() {
   shutdown();
   estop_crew_.reset();
-  if (abandon_capabilities_)
-    for (auto& instance : capabilities_) {
+  if (status_reader_ && !status_reader_->quiesce(std::chrono::milliseconds(100)))
+    abandon_capabilities_ = abandon_drivers_ = true;  // a status() hangs: which object it reads is not known
+  status_reader_.reset();
+  auto abandon = [](auto& instances) {
+    for (auto& instance : instances) {
       keep_forever(instance.object);
       keep_forever(instance.context);
     }
+  };
+  if (abandon_capabilities_) abandon(capabilities_);
+  if (abandon_drivers_) abandon(drivers_);
 }
 
 void PluginRuntime::start_drivers(const RobotConfig& config) {
@@ -233,6 +239,33 @@ void PluginRuntime::start_capabilities(const std::vector<std::string>& names, co
   for (auto& instance : capabilities_)
     if (instance.object) jobs.push_back({instance.name, [object = instance.object.get()] { object->on_estop(); }});
   estop_crew_ = std::make_unique<DeadlineCrew>("estop.notify", std::move(jobs));
+
+  std::vector<StatusReader::Source> sources;
+  auto add_source = [&sources](auto& instance) {
+    if (!instance.object) return;
+    instance.status_index = sources.size();
+    sources.push_back({instance.who, [object = instance.object.get()] { return object->status(); }, &instance.health});
+  };
+  for (auto& instance : drivers_) add_source(instance);
+  for (auto& instance : capabilities_) add_source(instance);
+  status_reader_ = std::make_unique<StatusReader>(std::move(sources));
+}
+
+std::optional<nlohmann::json> PluginRuntime::status_of(const DriverInstance& instance) {
+  if (!status_reader_ || instance.status_index == kNoStatus) return std::nullopt;
+  return status_reader_->read(instance.status_index);
+}
+
+std::optional<nlohmann::json> PluginRuntime::status_of(const CapabilityInstance& instance) {
+  if (!status_reader_ || instance.status_index == kNoStatus) return std::nullopt;
+  return status_reader_->read(instance.status_index);
+}
+
+std::vector<std::optional<nlohmann::json>> PluginRuntime::capability_statuses() {
+  std::vector<std::size_t> indices;
+  for (const auto& instance : capabilities_) indices.push_back(instance.health.failed() ? kNoStatus : instance.status_index);
+  if (!status_reader_) return std::vector<std::optional<nlohmann::json>>(indices.size());
+  return status_reader_->read(indices);
 }
 
 std::optional<std::string> PluginRuntime::missing_requirement(const PluginRecord& plugin) const {
@@ -271,20 +304,56 @@ void PluginRuntime::notify_estop() noexcept {
   }
 }
 
+namespace {
+
+// Every instance's shutdown() in parallel on a crew of its own, waited for up to `deadline`; then the workers of
+// each instance whose hook returned are joined. A hook that throws out of its noexcept is contained and logged;
+// one still running at the deadline is logged and left running, and true is returned: its object and context must
+// never be destroyed.
+template <class Instances> bool shut_down_all(Instances& instances, std::chrono::milliseconds deadline) noexcept {
+  std::vector<typename Instances::value_type*> members;
+  std::optional<DeadlineCrew> crew;
+  try {
+    std::vector<DeadlineCrew::Job> jobs;
+    for (auto& instance : instances) {
+      if (!instance.object) continue;
+      jobs.push_back({instance.who, [object = instance.object.get()] { object->shutdown(); }});
+      members.push_back(&instance);
+    }
+    crew.emplace("shutdown", std::move(jobs));
+  } catch (...) {  // no memory or no threads for the crew: shut down inline, as a last resort
+    for (auto& instance : instances)
+      if (instance.object) instance.object->shutdown();
+    return false;
+  }
+  const auto outcomes = crew->run_all(std::chrono::steady_clock::now() + deadline);
+  bool abandoned = false;
+  for (std::size_t i = 0; i < members.size(); ++i) {
+    const auto state = i < outcomes.size() ? outcomes[i].state : DeadlineCrew::State::Pending;
+    try {
+      if (state == DeadlineCrew::State::Failed)
+        logger("kernel.plugins")->error("{}: shutdown() threw: {}", members[i]->who, outcomes[i].error);
+      if (state == DeadlineCrew::State::Pending)
+        logger("kernel.plugins")->error("{}: shutdown() did not return within {} ms; left running", members[i]->who,
+                                        deadline.count());
+    } catch (...) {
+    }
+    if (state == DeadlineCrew::State::Pending) abandoned = true;
+    else if (members[i]->context) members[i]->context->join_workers();
+  }
+  return abandoned;
+}
+
+}  // namespace
+
 void PluginRuntime::shutdown() noexcept {
   if (shut_down_) return;
   shut_down_ = true;
   if (estop_crew_ && !estop_crew_->quiesce(std::chrono::milliseconds(500))) abandon_capabilities_ = true;
   for (auto& instance : capabilities_)
     if (instance.handler_worker) instance.handler_worker->join();
-  for (auto& instance : capabilities_) {
-    if (instance.object) instance.object->shutdown();
-    if (instance.context) instance.context->join_workers();
-  }
-  for (auto& instance : drivers_) {
-    if (instance.object) instance.object->shutdown();
-    if (instance.context) instance.context->join_workers();
-  }
+  if (shut_down_all(capabilities_, kShutdownDeadline)) abandon_capabilities_ = true;
+  if (shut_down_all(drivers_, kShutdownDeadline)) abandon_drivers_ = true;
 }
 
 }  // namespace rcand::kernel

@@ -9,6 +9,7 @@
 #include <map>
 #include <sstream>
 
+#include "rcand/kernel/plugin_host/bounded_call.hpp"
 #include "rcand/kernel/plugin_host/descriptor_check.hpp"
 #include "rcand/kernel/plugin_host/guarded.hpp"
 #include "recording_registrar.hpp"
@@ -234,12 +235,28 @@ void PluginHost::open(PluginRecord& record) {
   const rcand_plugin_descriptor& d = **descriptor;
   if (d.build_info != nullptr) record.build_info = d.build_info;
 
-  detail::RecordingRegistrar registrar;
-  sdk::Registrar& base = registrar;
-  if (!guarded_call(who, "register", failure,
-                    [&] { d.register_plugin(reinterpret_cast<rcand_registrar*>(&base)); }))
-    return set_state(record, PluginState::RegistrationFailed, "register threw: " + failure,
+  // register() on a thread of its own, bounded: a plugin stuck in it fails alone instead of keeping the robot from
+  // ever starting. The registrar and the failure text are shared with that thread, which may outlive this call.
+  struct Registration {
+    detail::RecordingRegistrar registrar;
+    std::string failure;
+    bool returned = false;
+  };
+  auto registration = std::make_shared<Registration>();
+  const bool finished = bounded_call("plugin.register", register_timeout_, [registration, who, register_plugin = d.register_plugin] {
+    sdk::Registrar& base = registration->registrar;
+    registration->returned = guarded_call(who, "register", registration->failure,
+                                          [&] { register_plugin(reinterpret_cast<rcand_registrar*>(&base)); });
+  });
+  if (!finished)
+    return set_state(record, PluginState::RegistrationFailed,
+                     "register() did not return within " + std::to_string(register_timeout_.count()) +
+                         " ms (runtime.plugin_start_timeout_ms)",
+                     "see the plugin's log: its register function must only register factories");
+  if (!registration->returned)
+    return set_state(record, PluginState::RegistrationFailed, "register threw: " + registration->failure,
                      "see the plugin's log and fix its register function");
+  auto& registrar = registration->registrar;
   if (!registrar.errors.empty())
     return set_state(record, PluginState::RegistrationFailed, join(registrar.errors, "; "),
                      "fix the plugin's register function");

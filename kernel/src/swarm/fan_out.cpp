@@ -50,7 +50,9 @@ struct IdleConnection {
   std::chrono::steady_clock::time_point since;
 };
 
-struct FanOut::Loop {
+// Owned by the FanOut (and kept alive by helper threads still about to post). Pending handlers in `io` hold the
+// PeerOps and the PeerOps only point at the loop: no cycle, so destroying the loop after stop() frees them all.
+struct FanOut::Loop : std::enable_shared_from_this<FanOut::Loop> {
   net::io_context io{1};
   std::shared_ptr<HostResolver> resolver;  // may be null: getaddrinfo for every host
   std::map<std::string, std::vector<IdleConnection>> idle;  // by "ip:port"; touched only on the loop thread
@@ -96,9 +98,9 @@ struct Batch {
 
 class PeerOp : public std::enable_shared_from_this<PeerOp> {
  public:
-  PeerOp(std::shared_ptr<FanOut::Loop> loop, std::shared_ptr<Batch> batch, std::size_t index, PeerRequest request,
+  PeerOp(FanOut::Loop& loop, std::shared_ptr<Batch> batch, std::size_t index, PeerRequest request,
          Clock::time_point start, std::chrono::milliseconds timeout)
-      : loop_(std::move(loop)), batch_(std::move(batch)), index_(index), request_(std::move(request)), start_(start),
+      : loop_(&loop), batch_(std::move(batch)), index_(index), request_(std::move(request)), start_(start),
         timeout_(timeout), deadline_(start + timeout), timer_(loop_->io) {}
 
   void start() {
@@ -118,7 +120,7 @@ class PeerOp : public std::enable_shared_from_this<PeerOp> {
     });
     if (loop_->resolver && loop_->resolver->handles(request_.host)) return resolve_with(*loop_->resolver);
     // The helper holds the op weakly: the op lives and dies on the loop thread only.
-    std::thread([loop = loop_, weak = weak_from_this(), host = request_.host, port = request_.port]() {
+    std::thread([loop = loop_->shared_from_this(), weak = weak_from_this(), host = request_.host, port = request_.port]() {
       addrinfo hints{};
       hints.ai_family = AF_UNSPEC;
       hints.ai_socktype = SOCK_STREAM;
@@ -144,7 +146,7 @@ class PeerOp : public std::enable_shared_from_this<PeerOp> {
 
   // The resolver answers on any thread (or at once, from its cache): always continue on the loop thread.
   void resolve_with(HostResolver& resolver) {
-    resolver.resolve(request_.host, [loop = loop_, weak = weak_from_this(), port = request_.port](
+    resolver.resolve(request_.host, [loop = loop_->weak_from_this(), weak = weak_from_this(), port = request_.port](
                                         std::vector<std::string> addresses, std::string why) {
       std::vector<tcp::endpoint> endpoints;
       for (const auto& text : addresses) {
@@ -152,9 +154,11 @@ class PeerOp : public std::enable_shared_from_this<PeerOp> {
         const auto address = net::ip::make_address(text, ec);
         if (!ec) endpoints.emplace_back(address, port);
       }
-      loop->post([weak, endpoints = std::move(endpoints), why = std::move(why)]() mutable {
-        if (auto self = weak.lock()) self->resolved(std::move(endpoints), std::move(why));
-      });
+      // Weakly: the resolver is the loop's, and a callback it still holds must not keep the loop alive.
+      if (auto live = loop.lock())
+        live->post([weak, endpoints = std::move(endpoints), why = std::move(why)]() mutable {
+          if (auto self = weak.lock()) self->resolved(std::move(endpoints), std::move(why));
+        });
     });
   }
 
@@ -264,7 +268,7 @@ class PeerOp : public std::enable_shared_from_this<PeerOp> {
     }
   }
 
-  std::shared_ptr<FanOut::Loop> loop_;
+  FanOut::Loop* loop_;  // outlives this op: see FanOut::Loop
   std::shared_ptr<Batch> batch_;
   std::size_t index_;
   PeerRequest request_;
@@ -305,7 +309,7 @@ void FanOut::stop() noexcept {
 
 void FanOut::run(std::vector<PeerRequest> requests, std::chrono::milliseconds timeout, Done done) {
   const auto start = Clock::now();
-  loop_->post([loop = loop_, requests = std::move(requests), timeout, done = std::move(done), start]() mutable {
+  loop_->post([loop = loop_.get(), requests = std::move(requests), timeout, done = std::move(done), start]() mutable {
     auto batch = std::make_shared<Batch>();
     batch->results.resize(requests.size());
     batch->remaining = requests.size();
@@ -316,7 +320,7 @@ void FanOut::run(std::vector<PeerRequest> requests, std::chrono::milliseconds ti
       return;
     }
     for (std::size_t i = 0; i < requests.size(); ++i)
-      std::make_shared<PeerOp>(loop, batch, i, std::move(requests[i]), start, timeout)->start();
+      std::make_shared<PeerOp>(*loop, batch, i, std::move(requests[i]), start, timeout)->start();
   });
 }
 

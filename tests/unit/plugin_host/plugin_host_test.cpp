@@ -6,6 +6,7 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <chrono>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
@@ -211,6 +212,18 @@ TEST_CASE("good serves, register ran exactly once, and a throwing plugin does no
   drive->set_wheel_speeds(0.5, -0.5);
   drive->halt();
   CHECK(drive->status()["halts"] == 1);
+}
+
+TEST_CASE("a register() that never returns is given up on after the register timeout; the next plugin still loads") {
+  PluginHost host;
+  host.set_register_timeout(std::chrono::milliseconds(200));
+  host.scan({kFixtures / "hangs_in_register", kFixtures});
+  host.load_needed({"org.rcand.test.hangs_in_register", "org.rcand.test.good"}, {});
+  const auto& hung = by_manifest(host, "hangs_in_register.json");
+  CHECK(hung.state == PluginState::RegistrationFailed);
+  CHECK(hung.reason == "register() did not return within 200 ms (runtime.plugin_start_timeout_ms)");
+  CHECK(hung.capabilities.empty());
+  CHECK(by_manifest(host, "good.json").state == PluginState::Loaded);
 }
 
 TEST_CASE("providers are found from manifests alone") {

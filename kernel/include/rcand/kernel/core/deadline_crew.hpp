@@ -8,6 +8,7 @@
 #include <cstdint>
 #include <functional>
 #include <memory>
+#include <span>
 #include <string>
 #include <vector>
 
@@ -38,12 +39,17 @@ class DeadlineCrew {
   // round runs it again right after) and waits until each has finished a round started after this call, or failed,
   // or until `deadline`, whichever comes first.
   std::vector<Outcome> run_all(std::chrono::steady_clock::time_point deadline) noexcept;
+  // run_all for the members at `indices` only (outcomes in that order; an index out of range is skipped): the
+  // others are neither started nor waited for.
+  std::vector<Outcome> run_some(std::span<const std::size_t> indices, std::chrono::steady_clock::time_point deadline) noexcept;
   // Waits up to `grace` for members still inside a plugin call; true when none is (parked members do not count).
   bool quiesce(std::chrono::milliseconds grace) noexcept;
   std::size_t size() const noexcept;
 
  private:
   struct Shared;
+  // Starts a round for the members `each` visits and waits for them; defined (and only used) in the .cpp.
+  template <class ForEach> std::vector<Outcome> run_round(ForEach each, std::chrono::steady_clock::time_point deadline) noexcept;
   std::shared_ptr<Shared> shared_;
 };
 

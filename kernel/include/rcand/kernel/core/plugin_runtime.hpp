@@ -16,9 +16,12 @@
 #include "rcand/kernel/core/actuator_table.hpp"
 #include "rcand/kernel/core/deadline_crew.hpp"
 #include "rcand/kernel/core/instance_context.hpp"
+#include "rcand/kernel/core/status_reader.hpp"
 #include "rcand/kernel/plugin_host/plugin_host.hpp"
 
 namespace rcand::kernel {
+
+inline constexpr std::size_t kNoStatus = static_cast<std::size_t>(-1);
 
 struct DriverInstance {
   std::string id, protocol, plugin_id;
@@ -27,6 +30,7 @@ struct DriverInstance {
   InstanceHealth health;
   std::unique_ptr<InstanceContext> context;
   std::unique_ptr<sdk::Driver> object;  // null when it could not be created
+  std::size_t status_index = kNoStatus;  // its source in the status reader
 };
 
 struct CapabilityInstance {
@@ -38,6 +42,7 @@ struct CapabilityInstance {
   std::unique_ptr<sdk::Capability> object;     // null when it could not be created
   std::vector<sdk::Route> routes;
   std::unique_ptr<WorkerThread> handler_worker;  // "cap.<name>": handlers run here, one at a time
+  std::size_t status_index = kNoStatus;          // its source in the status reader
 };
 
 class PluginRuntime {
@@ -54,12 +59,22 @@ class PluginRuntime {
   const std::deque<DriverInstance>& drivers() const noexcept { return drivers_; }
   const std::deque<CapabilityInstance>& capabilities() const noexcept { return capabilities_; }
 
+  // Any thread: an instance's status(), through the status reader (a hang fails the instance instead of holding
+  // the caller). nullopt without an object, after a throw, or once it hung.
+  std::optional<nlohmann::json> status_of(const DriverInstance& instance);
+  std::optional<nlohmann::json> status_of(const CapabilityInstance& instance);
+  // Every started, healthy capability's status(), read in parallel; one entry per capabilities() element.
+  std::vector<std::optional<nlohmann::json>> capability_statuses();
+
   // The stop path, after the halt: every capability's on_estop(), in parallel on the estop crew, waited for up to
   // kEstopNotifyDeadline; one that hangs or throws is logged (a throw marks the capability failed).
   void notify_estop() noexcept;
   static constexpr std::chrono::milliseconds kEstopNotifyDeadline{50};
-  // Main thread, once: capabilities shut down and their workers joined, then drivers shut down.
+  // Main thread, once: capabilities shut down (in parallel) and their workers joined, then drivers likewise. A
+  // shutdown() that throws is logged; one still running after kShutdownDeadline is logged and left running (its
+  // objects are never destroyed), so a stuck plugin cannot keep rcand from exiting.
   void shutdown() noexcept;
+  static constexpr std::chrono::milliseconds kShutdownDeadline{2000};
 
  private:
   // The first interface the plugin's manifest `requires` that no started actuator implements.
@@ -71,9 +86,12 @@ class PluginRuntime {
   std::deque<DriverInstance> drivers_;
   std::deque<CapabilityInstance> capabilities_;
   bool shut_down_ = false;
-  // A capability's on_estop() still running at shutdown: its objects are leaked rather than destroyed under it.
+  // A capability's on_estop() (or any status()) still running at shutdown: objects are leaked rather than
+  // destroyed under it.
   bool abandon_capabilities_ = false;
+  bool abandon_drivers_ = false;
   std::unique_ptr<DeadlineCrew> estop_crew_;  // declared after the instances: stopped before they are destroyed
+  std::unique_ptr<StatusReader> status_reader_;  // likewise
 };
 
 }  // namespace rcand::kernel

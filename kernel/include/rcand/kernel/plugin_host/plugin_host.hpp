@@ -4,6 +4,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include <chrono>
 #include <filesystem>
 #include <memory>
 #include <set>
@@ -38,6 +39,10 @@ class PluginHost {
   // hint. Plugins already opened by an earlier call are left as they are.
   void load_needed(const std::set<std::string>& capabilities, const std::set<std::string>& driver_protocols);
 
+  // How long a plugin's register() may take (runtime.plugin_start_timeout_ms): one that overruns is recorded
+  // registration-failed and left running on its own thread. Applies to plugins opened after the call.
+  void set_register_timeout(std::chrono::milliseconds timeout) noexcept { register_timeout_ = timeout; }
+
   const std::vector<std::unique_ptr<PluginRecord>>& records() const noexcept { return records_; }
   // The first record with this id (a duplicate-id record never comes first).
   PluginRecord* find(std::string_view id) noexcept;
@@ -53,6 +58,7 @@ class PluginHost {
   void open(PluginRecord& record);
 
   std::vector<std::unique_ptr<PluginRecord>> records_;
+  std::chrono::milliseconds register_timeout_{10000};
 };
 
 }  // namespace rcand::kernel
