@@ -48,32 +48,49 @@ dict_for() {
 # What libFuzzer saves when an input crashes, leaks, hangs or runs out of memory.
 artifacts() { find "$1" -maxdepth 1 \( -name 'crash-*' -o -name 'leak-*' -o -name 'timeout-*' -o -name 'oom-*' \); }
 
-failed=0
-printf '%-14s %6s %12s %8s %7s %7s %6s %7s\n' target seconds executions exec/s cov ft corpus crashes
-for bin in "${targets[@]}"; do
-  name="${bin#fuzz_}"
-  mkdir -p "$work/$name/corpus"
-  seeds="$here/corpus/$name"
+# One target: its log, its row of the table, and its crash count in $work/<name>/.
+fuzz_one() {
+  local bin="$1" name="${1#fuzz_}" status=0
+  local seeds="$here/corpus/$name" dict log="$work/$name/log"
   dict="$(dict_for "$name")"
-  log="$work/$name/log"
-  args=(-max_total_time="$seconds" -timeout=20 -rss_limit_mb=2048 -print_final_stats=1
-        -artifact_prefix="$work/$name/")
+  mkdir -p "$work/$name/corpus"
+  local args=(-max_total_time="$seconds" -timeout=20 -rss_limit_mb=2048 -print_final_stats=1
+              -artifact_prefix="$work/$name/")
   [ -n "$dict" ] && args+=(-dict="$dict")
-  status=0
   "$bin_dir/$bin" "${args[@]}" "$work/$name/corpus" "$seeds" > "$log" 2>&1 || status=$?
-  execs=$(grep -o 'stat::number_of_executed_units: *[0-9]*' "$log" | grep -o '[0-9]*$' | tail -1)
-  rate=$(grep -o 'stat::average_exec_per_sec: *[0-9]*' "$log" | grep -o '[0-9]*$' | tail -1)
-  cov=$(grep -o 'cov: [0-9]*' "$log" | tail -1 | grep -o '[0-9]*')
-  ft=$(grep -o 'ft: [0-9]*' "$log" | tail -1 | grep -o '[0-9]*')
+  local execs rate cov ft corpus crashes
+  # A crashed target may print no stats: a missing figure shows as "?".
+  execs=$(grep -o 'stat::number_of_executed_units: *[0-9]*' "$log" | grep -o '[0-9]*$' | tail -1 || true)
+  rate=$(grep -o 'stat::average_exec_per_sec: *[0-9]*' "$log" | grep -o '[0-9]*$' | tail -1 || true)
+  cov=$(grep -o 'cov: [0-9]*' "$log" | tail -1 | grep -o '[0-9]*' || true)
+  ft=$(grep -o 'ft: [0-9]*' "$log" | tail -1 | grep -o '[0-9]*' || true)
   corpus=$(find "$work/$name/corpus" "$seeds" -type f | wc -l)
   crashes=$(artifacts "$work/$name" | wc -l)
   if [ "$status" -ne 0 ] && [ "$crashes" -eq 0 ]; then crashes=1; fi
   printf '%-14s %6s %12s %8s %7s %7s %6s %7s\n' "$name" "$seconds" "${execs:-?}" "${rate:-?}" "${cov:-?}" "${ft:-?}" \
-         "$corpus" "$crashes"
+         "$corpus" "$crashes" > "$work/$name/row"
+  echo "$status $crashes" > "$work/$name/result"
+}
+
+# The targets are independent and single-threaded: RCAND_FUZZ_JOBS of them (default: one per CPU) run at once, so
+# the wall time is about SECONDS x targets / jobs.
+jobs="${RCAND_FUZZ_JOBS:-$(nproc)}"
+for bin in "${targets[@]}"; do
+  while [ "$(jobs -rp | wc -l)" -ge "$jobs" ]; do wait -n || true; done
+  fuzz_one "$bin" &
+done
+wait
+
+failed=0
+printf '%-14s %6s %12s %8s %7s %7s %6s %7s\n' target seconds executions exec/s cov ft corpus crashes
+for bin in "${targets[@]}"; do
+  name="${bin#fuzz_}"
+  status=1 crashes=1
+  if [ -f "$work/$name/result" ]; then cat "$work/$name/row"; read -r status crashes < "$work/$name/result"; fi
   if [ "$crashes" -ne 0 ]; then
     failed=1
     echo "---- $name failed (exit $status); the end of its log:" >&2
-    tail -60 "$log" >&2
+    tail -60 "$work/$name/log" >&2
     mkdir -p "$build/fuzz-artifacts"
     for input in $(artifacts "$work/$name"); do
       cp "$input" "$build/fuzz-artifacts/$name-$(basename "$input")"

@@ -1,9 +1,12 @@
 // Collects what a transport delivers, for tests: thread-safe, with a bounded wait for a condition (no sleeps).
+// The delivery callback shares ownership of the state, so a transport's thread may still deliver after the Inbox
+// itself is gone (tests declare transports and inboxes in either order).
 #pragma once
 
 #include <chrono>
 #include <condition_variable>
 #include <functional>
+#include <memory>
 #include <mutex>
 #include <optional>
 #include <vector>
@@ -15,27 +18,27 @@ namespace rcand::test {
 class Inbox {
  public:
   rcand::kernel::r2r::Deliver deliver() {
-    return [this](rcand::kernel::r2r::InboundMessage message) {
-      std::lock_guard lock(mutex_);
-      messages_.push_back(std::move(message));
-      changed_.notify_all();
+    return [state = state_](rcand::kernel::r2r::InboundMessage message) {
+      std::lock_guard lock(state->mutex);
+      state->messages.push_back(std::move(message));
+      state->changed.notify_all();
     };
   }
   // Waits until `count` messages arrived (or the deadline); returns a copy of what is there.
   std::vector<rcand::kernel::r2r::InboundMessage> wait_for(std::size_t count,
                                                            std::chrono::milliseconds timeout = std::chrono::seconds(5)) {
-    std::unique_lock lock(mutex_);
-    changed_.wait_for(lock, timeout, [&] { return messages_.size() >= count; });
-    return messages_;
+    std::unique_lock lock(state_->mutex);
+    state_->changed.wait_for(lock, timeout, [&] { return state_->messages.size() >= count; });
+    return state_->messages;
   }
   // Waits until some delivered message satisfies `match`; returns it (nullopt at the deadline).
   std::optional<rcand::kernel::r2r::InboundMessage> wait_until(
       const std::function<bool(const rcand::kernel::r2r::InboundMessage&)>& match,
       std::chrono::milliseconds timeout = std::chrono::seconds(5)) {
-    std::unique_lock lock(mutex_);
+    std::unique_lock lock(state_->mutex);
     std::optional<rcand::kernel::r2r::InboundMessage> found;
-    changed_.wait_for(lock, timeout, [&] {
-      for (const auto& message : messages_)
+    state_->changed.wait_for(lock, timeout, [&] {
+      for (const auto& message : state_->messages)
         if (match(message)) {
           found = message;
           return true;
@@ -45,14 +48,17 @@ class Inbox {
     return found;
   }
   std::size_t size() {
-    std::lock_guard lock(mutex_);
-    return messages_.size();
+    std::lock_guard lock(state_->mutex);
+    return state_->messages.size();
   }
 
  private:
-  std::mutex mutex_;
-  std::condition_variable changed_;
-  std::vector<rcand::kernel::r2r::InboundMessage> messages_;
+  struct State {
+    std::mutex mutex;
+    std::condition_variable changed;
+    std::vector<rcand::kernel::r2r::InboundMessage> messages;
+  };
+  std::shared_ptr<State> state_ = std::make_shared<State>();
 };
 
 }  // namespace rcand::test

@@ -44,7 +44,8 @@ typedef struct rcand_plugin_descriptor {
   const char* plugin_id;  /* reverse-domain id, equal to the manifest's "id" */
   const char* version;    /* equal to the manifest's "version" */
   const char* build_info; /* compiler and build date, shown by rcand --check-plugins */
-  /* Called exactly once, on the kernel's main thread, before any other call into the plugin.
+  /* Called exactly once, before any other call into the plugin, on a kernel thread of its own while the
+   * main thread waits (at most runtime.plugin_start_timeout_ms; one that overruns is registration-failed).
    * It registers what the manifest "provides" lists, no more and no less. May throw: the kernel's
    * guarded trampoline catches it and records the plugin as registration-failed. */
   void (*register_plugin)(struct rcand_registrar* registrar);

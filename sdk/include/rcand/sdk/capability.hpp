@@ -34,11 +34,13 @@ class RCAND_INTERFACE Capability {
   virtual void start() {}
   // Main thread, once, after start(). The routes this capability serves.
   virtual std::vector<Route> routes() = 0;
-  // I/O thread, for GET /api/status (under "capabilities.<name>"). Thread-safe; must not block.
+  // The instance's status thread, for GET /api/status (under "capabilities.<name>"). Thread-safe; must not block:
+  // one that has not returned after 250 ms fails the instance and is never called again.
   virtual Json status() const { return Json::object(); }
   // The stop path, right after every actuating driver halted. Cancel running jobs; must not block.
   virtual void on_estop() noexcept {}
-  // Main thread, once, at shutdown. Stop jobs and return; the kernel joins the workers afterwards.
+  // A kernel thread, once, at shutdown (in parallel with other capabilities'). Stop jobs and return; the kernel joins
+  // the workers afterwards. One still running after 2 s is left behind.
   virtual void shutdown() noexcept {}
 };
 

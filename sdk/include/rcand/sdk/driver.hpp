@@ -16,9 +16,11 @@ class RCAND_INTERFACE Driver {
   virtual ~Driver() = default;
   // Main thread, once, before any command. May block (open a port, probe a bus). Throw to fail the instance.
   virtual void start() {}
-  // Main thread, once, at shutdown (after halt() for actuators). May block briefly.
+  // A kernel thread, once, at shutdown (after halt() for actuators; in parallel with other drivers'). May block
+  // briefly; one still running after 2 s is left behind.
   virtual void shutdown() noexcept {}
-  // I/O thread, for /api/status and /api/drivers/<id>. Thread-safe; must not block.
+  // The instance's status thread, for /api/drivers/<id>. Thread-safe; must not block: one that has not returned
+  // after 250 ms fails the instance and is never called again.
   virtual nlohmann::json status() const { return nlohmann::json::object(); }
 };
 
