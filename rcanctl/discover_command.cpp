@@ -14,7 +14,7 @@ namespace {
 
 using nlohmann::json;
 
-constexpr std::string_view kUsage =
+constexpr std::string_view kDiscoverUsage =
     "usage: rcanctl discover [--timeout S] [--json]\n"
     "  Browses _rcan._tcp on the LAN (through avahi-daemon), resolves every robot and checks its DISCOVER document\n"
     "  (GET /api/discovery) against its mDNS TXT record. --timeout: seconds to browse (default 3).\n"
@@ -85,7 +85,7 @@ int run_discover(std::span<const std::string> args, std::ostream& out, std::ostr
   double timeout_s = 3.0;
   for (std::size_t i = 0; i < args.size(); ++i) {
     if (args[i] == "--help" || args[i] == "-h") {
-      out << kUsage;
+      out << kDiscoverUsage;
       return kExitOk;
     }
     if (args[i] == "--json") {
@@ -96,11 +96,11 @@ int run_discover(std::span<const std::string> args, std::ostream& out, std::ostr
         timeout_s = std::stod(args[++i], &used);
         if (used != args[i].size() || !(timeout_s > 0) || timeout_s > 3600) throw std::invalid_argument("range");
       } catch (const std::exception&) {
-        err << "rcanctl discover: --timeout needs a number of seconds in (0, 3600], got '" << args[i] << "'\n" << kUsage;
+        err << "rcanctl discover: --timeout needs a number of seconds in (0, 3600], got '" << args[i] << "'\n" << kDiscoverUsage;
         return kExitUsage;
       }
     } else {
-      err << "rcanctl discover: unknown or incomplete option '" << args[i] << "'\n" << kUsage;
+      err << "rcanctl discover: unknown or incomplete option '" << args[i] << "'\n" << kDiscoverUsage;
       return kExitUsage;
     }
   }

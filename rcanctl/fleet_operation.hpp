@@ -11,13 +11,12 @@
 #include <string_view>
 #include <vector>
 
+#include "exit_codes.hpp"
 #include "rcand/kernel/swarm/swarm_registry.hpp"
 
 namespace rcand::rcanctl {
 
-inline constexpr int kExitOk = 0;
-inline constexpr int kExitPartial = 1;
-inline constexpr int kExitUsage = 2;
+inline constexpr int kExitPartial = kExitFailure;  // some selected nodes failed
 
 enum class Operation { Status, Stop, Command };
 

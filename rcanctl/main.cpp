@@ -7,6 +7,7 @@
 #include <vector>
 
 #include "discover_command.hpp"
+#include "exit_codes.hpp"
 #include "r2r_command.hpp"
 #include "robot_commands.hpp"
 #include "swarm_command.hpp"
@@ -34,8 +35,6 @@ constexpr Subcommand kSubcommands[] = {
      rcand::rcanctl::run_r2r},
 };
 
-constexpr int kUsageError = 2;
-
 void print_usage(std::ostream& out) {
   out << "usage: rcanctl <subcommand> [args...]\n\nsubcommands:\n";
   for (const Subcommand& sub : kSubcommands) {
@@ -51,11 +50,11 @@ int main(int argc, char** argv) {
   const std::vector<std::string> args(argv + (argc > 0 ? 1 : 0), argv + argc);
   if (args.empty()) {
     print_usage(std::cerr);
-    return kUsageError;
+    return rcand::rcanctl::kExitUsage;
   }
   if (args.front() == "--help" || args.front() == "-h" || args.front() == "help") {
     print_usage(std::cout);
-    return 0;
+    return rcand::rcanctl::kExitOk;
   }
   for (const Subcommand& sub : kSubcommands)
     if (args.front() == sub.name) {
@@ -63,10 +62,10 @@ int main(int argc, char** argv) {
         return sub.run(std::span<const std::string>(args).subspan(1));
       } catch (const std::exception& e) {
         std::cerr << "rcanctl " << sub.name << ": " << e.what() << "\n";
-        return 1;
+        return rcand::rcanctl::kExitFailure;
       }
     }
   std::cerr << "rcanctl: unknown subcommand '" << args.front() << "'\n\n";
   print_usage(std::cerr);
-  return kUsageError;
+  return rcand::rcanctl::kExitUsage;
 }

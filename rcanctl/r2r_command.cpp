@@ -22,6 +22,7 @@
 #include <unistd.h>
 #include <thread>
 
+#include "exit_codes.hpp"
 #include "rcand/kernel/http/client.hpp"
 #include "rcand/kernel/r2r_transport/mqtt_transport.hpp"
 
@@ -33,9 +34,7 @@ namespace beast = boost::beast;
 namespace websocket = boost::beast::websocket;
 using nlohmann::json;
 
-constexpr int kOk = 0, kFailed = 1, kUsage = 2;
-
-constexpr std::string_view kUsageText =
+constexpr std::string_view kR2rUsage =
     "usage: rcanctl r2r send --type TYPE [--target NAME] [--payload JSON] [--as NAME] [--wait MS] [robot options]\n"
     "       rcanctl r2r watch [--timeout S] [robot options] | rcanctl r2r watch --mqtt HOST[:PORT] [--timeout S]\n"
     "       rcanctl r2r auction [--task-id ID] [--description TEXT] [--require CAP,...] [--at X,Y] [robot options]\n"
@@ -75,18 +74,18 @@ std::optional<long> number(const std::string& text) {
 // Returns the exit code when parsing ends the command (usage error, --help).
 std::optional<int> parse(std::span<const std::string> args, Options& o, std::ostream& out, std::ostream& err) {
   if (args.empty() || args[0] == "--help" || args[0] == "-h") {
-    (args.empty() ? err : out) << kUsageText;
-    return args.empty() ? kUsage : kOk;
+    (args.empty() ? err : out) << kR2rUsage;
+    return args.empty() ? kExitUsage : kExitOk;
   }
   o.sub = args[0];
   if (o.sub != "send" && o.sub != "watch" && o.sub != "auction") {
-    err << "rcanctl r2r: unknown subcommand '" << o.sub << "'\n" << kUsageText;
-    return kUsage;
+    err << "rcanctl r2r: unknown subcommand '" << o.sub << "'\n" << kR2rUsage;
+    return kExitUsage;
   }
   std::string token_file;
   auto fail = [&](const std::string& message) {
     err << "rcanctl r2r " << o.sub << ": " << message << "\n";
-    return kUsage;
+    return kExitUsage;
   };
   for (std::size_t i = 1; i < args.size(); ++i) {
     const std::string& arg = args[i];
@@ -95,8 +94,8 @@ std::optional<int> parse(std::span<const std::string> args, Options& o, std::ost
       continue;
     }
     if (arg == "--help") {
-      out << kUsageText;
-      return kOk;
+      out << kR2rUsage;
+      return kExitOk;
     }
     if (i + 1 >= args.size()) return fail(arg + " needs a value");
     const std::string& value = args[++i];
@@ -256,9 +255,9 @@ int run_send(const Options& o, std::ostream& out, std::ostream& err) {
     });
   } catch (const std::exception& e) {
     err << "rcanctl r2r send: " << e.what() << "\n";
-    return kFailed;
+    return kExitFailure;
   }
-  return refused ? kFailed : kOk;
+  return refused ? kExitFailure : kExitOk;
 }
 
 int run_watch(const Options& o, std::ostream& out, std::ostream& err) {
@@ -272,7 +271,7 @@ int run_watch(const Options& o, std::ostream& out, std::ostream& err) {
       const auto port = number(o.mqtt->substr(colon + 1));
       if (!port || *port < 1 || *port > 65535) {
         err << "rcanctl r2r watch: --mqtt HOST[:PORT] has a bad port\n";
-        return kUsage;
+        return kExitUsage;
       }
       options.port = static_cast<std::uint16_t>(*port);
     }
@@ -290,23 +289,23 @@ int run_watch(const Options& o, std::ostream& out, std::ostream& err) {
       });
     } catch (const std::exception& e) {
       err << "rcanctl r2r watch: " << e.what() << "\n";
-      return kFailed;
+      return kExitFailure;
     }
     while (!interrupted && std::chrono::steady_clock::now() < until) std::this_thread::sleep_for(std::chrono::milliseconds(100));
     watcher.stop();
-    return kOk;
+    return kExitOk;
   }
   try {
     Link link(o);
     if (!link.receive_until(until, [&](const std::string& frame) { print_message(frame, o.as_json, out); })) {
       err << "rcanctl r2r watch: the robot closed the connection\n";
-      return kFailed;
+      return kExitFailure;
     }
   } catch (const std::exception& e) {
     err << "rcanctl r2r watch: " << e.what() << "\n";
-    return kFailed;
+    return kExitFailure;
   }
-  return kOk;
+  return kExitOk;
 }
 
 int run_auction(const Options& o, std::ostream& out, std::ostream& err) {
@@ -316,18 +315,18 @@ int run_auction(const Options& o, std::ostream& out, std::ostream& err) {
                                      {{"Authorization", "Bearer " + o.token}}, std::chrono::seconds(130));
   } catch (const std::exception& e) {
     err << "rcanctl r2r auction: " << e.what() << "\n";
-    return kFailed;
+    return kExitFailure;
   }
   const json result = json::parse(response.body, nullptr, false);
   if (response.status != 200 || !result.is_object()) {
     err << "rcanctl r2r auction: HTTP " << response.status << ": "
         << (result.is_object() && result.contains("error") ? result["error"].get<std::string>() : response.body) << "\n";
-    return kFailed;
+    return kExitFailure;
   }
   const bool assigned = result.value("state", "") == "assigned";
   if (o.as_json) {
     out << result.dump() << std::endl;
-    return assigned ? kOk : kFailed;
+    return assigned ? kExitOk : kExitFailure;
   }
   out << "task " << result.value("task_id", "?") << ": " << result.value("state", "?") << " after "
       << std::fixed << std::setprecision(0) << result.value("elapsed_ms", 0.0) << " ms, round " << result.value("round", 0) << "\n";
@@ -340,7 +339,7 @@ int run_auction(const Options& o, std::ostream& out, std::ostream& err) {
   }
   if (assigned) out << "winner: " << result["winner"].get<std::string>() << " (estimated " << result.value("estimated_time", 0.0) << " s)\n";
   else out << "no winner\n";
-  return assigned ? kOk : kFailed;
+  return assigned ? kExitOk : kExitFailure;
 }
 
 }  // namespace

@@ -7,7 +7,7 @@
 namespace rcand::rcanctl {
 namespace {
 
-constexpr std::string_view kUsage =
+constexpr std::string_view kRobotUsage =
     "usage: rcanctl status  [--host HOST] [--port PORT] (--token T | --token-file FILE) [--json] [--timeout MS]\n"
     "       rcanctl stop    [same options]\n"
     "       rcanctl command --instruction \"...\" [same options]\n"
@@ -21,7 +21,7 @@ constexpr std::string_view kUsage =
 int run_robot(std::string_view operation, std::span<const std::string> args, std::ostream& out, std::ostream& err) {
   const Operation op = operation_named(operation);
   FleetOptions options;
-  if (auto done = parse_fleet_command(args, op, false, kUsage, options, out, err)) return *done;
+  if (auto done = parse_fleet_command(args, op, false, kRobotUsage, options, out, err)) return *done;
   std::vector<kernel::swarm::SwarmNode> targets;
   if (!options.nodes.empty()) {
     if (!swarm_targets(options, targets, err)) return kExitUsage;

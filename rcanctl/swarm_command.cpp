@@ -7,7 +7,7 @@
 namespace rcand::rcanctl {
 namespace {
 
-constexpr std::string_view kUsage =
+constexpr std::string_view kSwarmUsage =
     "usage: rcanctl swarm status  [--node NAME]... [--tag TAG]... [--swarm FILE] [--json] [--timeout MS]\n"
     "       rcanctl swarm stop    [same options]\n"
     "       rcanctl swarm command --instruction \"...\" [same options]\n"
@@ -20,21 +20,21 @@ constexpr std::string_view kUsage =
 
 int run_swarm(std::span<const std::string> args, std::ostream& out, std::ostream& err) {
   if (args.empty()) {
-    err << "rcanctl swarm: which operation? status, stop or command\n" << kUsage;
+    err << "rcanctl swarm: which operation? status, stop or command\n" << kSwarmUsage;
     return kExitUsage;
   }
   const std::string& verb = args.front();
   if (verb == "--help" || verb == "-h" || verb == "help") {
-    out << kUsage;
+    out << kSwarmUsage;
     return kExitOk;
   }
   if (verb != "status" && verb != "stop" && verb != "command") {
-    err << "rcanctl swarm: unknown operation '" << verb << "' (status, stop or command)\n" << kUsage;
+    err << "rcanctl swarm: unknown operation '" << verb << "' (status, stop or command)\n" << kSwarmUsage;
     return kExitUsage;
   }
   const Operation op = operation_named(verb);
   FleetOptions options;
-  if (auto done = parse_fleet_command(args.subspan(1), op, true, kUsage, options, out, err)) return *done;
+  if (auto done = parse_fleet_command(args.subspan(1), op, true, kSwarmUsage, options, out, err)) return *done;
   std::vector<kernel::swarm::SwarmNode> targets;
   if (!swarm_targets(options, targets, err)) return kExitUsage;
   return run_fleet_operation(op, targets, options, out, err);

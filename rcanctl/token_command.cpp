@@ -8,6 +8,7 @@
 #include <string_view>
 #include <vector>
 
+#include "exit_codes.hpp"
 #include "rcand/kernel/auth/crypto.hpp"
 #include "rcand/kernel/auth/jwt.hpp"
 #include "rcand/kernel/auth/role_scopes.hpp"
@@ -21,9 +22,7 @@ namespace {
 namespace kernel = rcand::kernel;
 namespace sdk = rcand::sdk;
 
-constexpr int kUsageError = 2;
-
-constexpr std::string_view kUsage =
+constexpr std::string_view kTokenUsage =
     "usage: rcanctl token issue --secret-file FILE --role ROLE [--ttl 1h] [--aud RURI] [--sub NAME]\n"
     "                           [--scope a,b] [--fleet id,...]\n"
     "         print an HS256 JWT signed with the secret in FILE (trailing newline ignored).\n"
@@ -76,8 +75,8 @@ int issue(std::span<const std::string> args, std::ostream& out, std::ostream& er
   for (std::size_t i = 0; i < args.size(); ++i) {
     std::string_view word = args[i];
     if (word == "--help" || word == "-h") {
-      out << kUsage;
-      return 0;
+      out << kTokenUsage;
+      return kExitOk;
     }
     std::optional<std::string> inline_value;
     if (const std::size_t eq = word.find('='); word.starts_with("--") && eq != std::string_view::npos) {
@@ -88,13 +87,13 @@ int issue(std::span<const std::string> args, std::ostream& out, std::ostream& er
     for (const auto& [name, target] : options)
       if (word == name) slot = target;
     if (slot == nullptr) {
-      err << "rcanctl token issue: unknown option '" << word << "'\n" << kUsage;
-      return kUsageError;
+      err << "rcanctl token issue: unknown option '" << word << "'\n" << kTokenUsage;
+      return kExitUsage;
     }
     if (!inline_value) {
       if (i + 1 >= args.size()) {
         err << "rcanctl token issue: option '" << word << "' needs a value\n";
-        return kUsageError;
+        return kExitUsage;
       }
       inline_value = args[++i];
     }
@@ -102,24 +101,24 @@ int issue(std::span<const std::string> args, std::ostream& out, std::ostream& er
   }
 
   if (!secret_file) {
-    err << "rcanctl token issue: --secret-file FILE is required\n" << kUsage;
-    return kUsageError;
+    err << "rcanctl token issue: --secret-file FILE is required\n" << kTokenUsage;
+    return kExitUsage;
   }
   if (!role_text) {
     err << "rcanctl token issue: --role ROLE is required (creator, owner, leasee, user or guest)\n";
-    return kUsageError;
+    return kExitUsage;
   }
   const std::optional<sdk::Role> role = sdk::parse_role(*role_text);
   if (!role) {
     err << "rcanctl token issue: --role '" << *role_text
         << "' is not a role; use creator, owner, leasee, user or guest\n";
-    return kUsageError;
+    return kExitUsage;
   }
   const std::optional<std::int64_t> ttl = parse_ttl(ttl_text.value_or("1h"));
   if (!ttl) {
     err << "rcanctl token issue: --ttl '" << *ttl_text
         << "' must be a positive number followed by s, m, h or d (for example 30s, 15m, 1h, 7d)\n";
-    return kUsageError;
+    return kExitUsage;
   }
 
   kernel::JwtClaims claims;
@@ -128,12 +127,12 @@ int issue(std::span<const std::string> args, std::ostream& out, std::ostream& er
   claims.iss = "rcanctl";
   if (claims.sub.empty()) {
     err << "rcanctl token issue: --sub must not be empty\n";
-    return kUsageError;
+    return kExitUsage;
   }
   claims.aud = {aud.value_or("rcan://*")};
   if (const kernel::RuriParse parsed = kernel::parse_ruri(claims.aud.front(), /*allow_wildcards=*/true); !parsed.ruri) {
     err << "rcanctl token issue: --aud: " << parsed.error << "\n";
-    return kUsageError;
+    return kExitUsage;
   }
   if (scope_text) {
     for (const std::string& name : split_list(*scope_text)) {
@@ -141,18 +140,18 @@ int issue(std::span<const std::string> args, std::ostream& out, std::ostream& er
       if (!scope || *scope == sdk::Scope::None) {
         err << "rcanctl token issue: --scope '" << name
             << "' is not a scope; use status, control, config, training or admin\n";
-        return kUsageError;
+        return kExitUsage;
       }
       if (!sdk::role_grants(*role, *scope)) {  // the robot would refuse it anyway: say so now
         err << "rcanctl token issue: --scope '" << name << "' needs role "
             << sdk::role_name(sdk::minimum_role(*scope)) << " or higher, but --role is " << claims.role << "\n";
-        return kUsageError;
+        return kExitUsage;
       }
       claims.scope.emplace_back(sdk::scope_name(*scope));
     }
     if (claims.scope.empty()) {
       err << "rcanctl token issue: --scope lists no scope\n";
-      return kUsageError;
+      return kExitUsage;
     }
   } else {
     for (sdk::Scope scope : kernel::default_scopes(*role)) claims.scope.emplace_back(sdk::scope_name(scope));
@@ -161,44 +160,44 @@ int issue(std::span<const std::string> args, std::ostream& out, std::ostream& er
     claims.fleet = split_list(*fleet_text);
     if (claims.fleet->empty()) {
       err << "rcanctl token issue: --fleet lists no device id\n";
-      return kUsageError;
+      return kExitUsage;
     }
   }
 
   const kernel::SecretFile secret = kernel::read_secret_file(*secret_file);
   if (!secret.secret) {
     err << "rcanctl token issue: --secret-file: " << secret.error << "\n";
-    return kUsageError;
+    return kExitUsage;
   }
   claims.iat = std::chrono::duration_cast<std::chrono::seconds>(std::chrono::system_clock::now().time_since_epoch()).count();
   claims.exp = claims.iat + *ttl;
   out << kernel::issue_jwt_hs256(claims, *secret.secret) << "\n";
-  return 0;
+  return kExitOk;
 }
 
 int hash(std::span<const std::string> args, std::istream& in, std::ostream& out, std::ostream& err) {
   if (!args.empty()) {
     err << "rcanctl token hash: takes no arguments (the token is read from stdin)\n";
-    return kUsageError;
+    return kExitUsage;
   }
   const std::string token = strip_trailing_newlines({std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()});
   if (token.empty()) {
     err << "rcanctl token hash: no token on stdin (try: rcanctl token new, or echo -n TOKEN | rcanctl token hash)\n";
-    return kUsageError;
+    return kExitUsage;
   }
   out << kernel::sha256_hex(token) << "\n";
-  return 0;
+  return kExitOk;
 }
 
 int make_new(std::span<const std::string> args, std::ostream& out, std::ostream& err) {
   if (!args.empty()) {
     err << "rcanctl token new: takes no arguments\n";
-    return kUsageError;
+    return kExitUsage;
   }
   const std::string token = kernel::random_hex(32);
   out << token << "\n";
   err << "sha256: " << kernel::sha256_hex(token) << "\n";  // paste under runtime.auth.tokens[]
-  return 0;
+  return kExitOk;
 }
 
 }  // namespace
@@ -206,23 +205,23 @@ int make_new(std::span<const std::string> args, std::ostream& out, std::ostream&
 int run_token(std::span<const std::string> args, std::istream& in, std::ostream& out, std::ostream& err) {
   try {
     if (args.empty()) {
-      err << kUsage;
-      return kUsageError;
+      err << kTokenUsage;
+      return kExitUsage;
     }
     const std::string_view action = args.front();
     const std::span<const std::string> rest = args.subspan(1);
     if (action == "--help" || action == "-h" || action == "help") {
-      out << kUsage;
-      return 0;
+      out << kTokenUsage;
+      return kExitOk;
     }
     if (action == "issue") return issue(rest, out, err);
     if (action == "hash") return hash(rest, in, out, err);
     if (action == "new") return make_new(rest, out, err);
-    err << "rcanctl token: unknown action '" << action << "'\n" << kUsage;
-    return kUsageError;
+    err << "rcanctl token: unknown action '" << action << "'\n" << kTokenUsage;
+    return kExitUsage;
   } catch (const std::exception& e) {
     err << "rcanctl token: " << e.what() << "\n";
-    return 1;
+    return kExitFailure;
   }
 }
 

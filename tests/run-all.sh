@@ -8,8 +8,11 @@ cd "$(dirname "$0")/.."
 stage() { echo "== run-all: $1 (at ${SECONDS} s)"; }
 stage "dependencies"
 packaging/install-deps.sh
+# Unity builds (CMake merges each target's sources, 8 at a time): Beast, Asio, JSON and doctest are parsed and
+# instantiated once per batch instead of once per file, which takes the clean normal build from ~12 to ~7 minutes
+# on 2 cores. Developers' own builds stay per-file (fast incremental rebuilds); this keeps the code unity-clean.
 stage "normal build"
-cmake -S . -B build -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo > /dev/null
+cmake -S . -B build -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo -DCMAKE_UNITY_BUILD=ON > /dev/null
 cmake --build build
 stage "normal build: tests"
 ctest --test-dir build --output-on-failure --timeout 600
@@ -22,7 +25,7 @@ bench/soak/run-soak.sh build --smoke
 stage "sanitizer build"
 export ASAN_OPTIONS="detect_leaks=1:abort_on_error=1" UBSAN_OPTIONS="print_stacktrace=1:halt_on_error=1"
 cmake -S . -B build-sanitize -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo -DCMAKE_C_COMPILER=clang-14 \
-      -DCMAKE_CXX_COMPILER=clang++-14 -DRCAND_FUZZ=ON -DRCAND_BUILD_BENCH=OFF > /dev/null
+      -DCMAKE_CXX_COMPILER=clang++-14 -DRCAND_FUZZ=ON -DRCAND_BUILD_BENCH=OFF -DCMAKE_UNITY_BUILD=ON > /dev/null
 cmake --build build-sanitize
 stage "sanitizer build: tests"
 ctest --test-dir build-sanitize --output-on-failure --timeout 600

@@ -11,8 +11,6 @@ using nlohmann::json;
 
 namespace {
 
-json drive_status(const RcandProcess& rcand) { return rcand.json("GET", "/api/drivers/drive0", "owner-token")["status"]; }
-
 int count_commands(const RcandProcess& rcand) { return drive_status(rcand)["commands"].get<int>(); }
 
 // Polls the drive until both wheels are at zero (the watchdog is asynchronous); bounded so a failure cannot hang.

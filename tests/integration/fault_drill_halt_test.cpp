@@ -14,7 +14,7 @@ using nlohmann::json;
 
 namespace {
 
-const std::string kMove = R"({"type":"move","linear":0.3,"angular":0.0,"duration_ms":5000})";
+const std::string kHaltDrillMove = R"({"type":"move","linear":0.3,"angular":0.0,"duration_ms":5000})";
 
 json config_with_bad_driver(const std::string& fault) {
   auto config = sim_config();
@@ -34,7 +34,7 @@ void run_drill(const std::string& fault, const std::string& expected_state) {
   CAPTURE(fault);
   RcandProcess rcand(config_with_bad_driver(fault), {plugin_dir(), test_plugin_dir() / "faults"});
   const std::string tag = "halt-" + fault + "-";
-  CHECK(drill::tagged(rcand, "POST", "/api/action", "user-token", kMove, tag + "move").status == 200);
+  CHECK(drill::tagged(rcand, "POST", "/api/action", "user-token", kHaltDrillMove, tag + "move").status == 200);
 
   const auto stop = drill::stop_within_limit(rcand, tag + "stop");
   CHECK_FALSE(stop.body.value("motors_stopped", true));  // not every driver confirmed
@@ -52,7 +52,7 @@ void run_drill(const std::string& fault, const std::string& expected_state) {
   CHECK(drive["status"].value("moving", true) == false);
 
   CHECK(rcand.json("GET", "/api/estop", "guest-token").value("estopped", false));
-  CHECK(drill::tagged(rcand, "POST", "/api/action", "user-token", kMove, tag + "refused").status == 423);
+  CHECK(drill::tagged(rcand, "POST", "/api/action", "user-token", kHaltDrillMove, tag + "refused").status == 423);
   const auto again = drill::stop_within_limit(rcand, tag + "stop-again");  // a halt still running delays nothing
   CHECK(driver_entry(again.body, "bad0").value("state", "") == expected_state);
   if (fault == "throw") {  // a driver that cannot halt stays out of service after a clear

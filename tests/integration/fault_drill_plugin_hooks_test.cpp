@@ -17,7 +17,7 @@ namespace {
 
 const std::string kCapability = "org.rcand.test.faulty";
 const std::string kWork = "/api/cap/" + kCapability + "/work";
-const std::string kMove = R"({"type":"move","linear":0.2,"angular":0.0,"duration_ms":200})";
+const std::string kShortMove = R"({"type":"move","linear":0.2,"angular":0.0,"duration_ms":200})";
 
 json faulty_config(const std::string& hook, const std::string& fault) {
   auto config = sim_config();
@@ -57,11 +57,11 @@ void run_drill(const Case& c) {
   int status = 0;
   rcand.json("GET", "/api/status", "guest-token", "", &status);
   CHECK(status == 200);
-  CHECK(drill::tagged(rcand, "POST", "/api/action", "user-token", kMove, id("move")).status == 200);  // teleop unaffected
+  CHECK(drill::tagged(rcand, "POST", "/api/action", "user-token", kShortMove, id("move")).status == 200);  // teleop unaffected
 
   const auto stop = drill::stop_within_limit(rcand, id("stop"));
   CHECK(stop.body.value("motors_stopped", false));
-  CHECK(drill::tagged(rcand, "POST", "/api/action", "user-token", kMove, id("refused")).status == 423);
+  CHECK(drill::tagged(rcand, "POST", "/api/action", "user-token", kShortMove, id("refused")).status == 423);
   drill::stop_within_limit(rcand, id("stop-again"));  // a hook still hung from the first stop delays nothing
   CHECK(capability_state() == (c.failed_after_stop ? "failed" : "ok"));
   drill::check_audit_complete(rcand, audited);
@@ -78,7 +78,7 @@ TEST_CASE("fault drill: a plugin whose register() never returns: rcand starts wi
   const auto& hung = status["capabilities"]["org.rcand.test.hangs_in_register"];
   CHECK(hung["state"] == "failed");
   CHECK(hung.value("reason", "").find("register() did not return within 500 ms") != std::string::npos);
-  CHECK(drill::tagged(rcand, "POST", "/api/action", "user-token", kMove, "register-hang-move").status == 200);
+  CHECK(drill::tagged(rcand, "POST", "/api/action", "user-token", kShortMove, "register-hang-move").status == 200);
   drill::stop_within_limit(rcand, "register-hang-stop");
   drill::check_audit_complete(rcand, {"register-hang-move", "register-hang-stop"});
   CHECK(rcand.stop() == 0);
@@ -150,7 +150,7 @@ TEST_CASE("fault drill: a shutdown() hook that hangs or throws cannot keep rcand
     CAPTURE(fault);
     RcandProcess rcand(faulty_config("shutdown", fault), {plugin_dir(), test_plugin_dir() / "faults"});
     const std::string tag = "drill-shutdown-" + fault + "-";
-    CHECK(drill::tagged(rcand, "POST", "/api/action", "user-token", kMove, tag + "move").status == 200);
+    CHECK(drill::tagged(rcand, "POST", "/api/action", "user-token", kShortMove, tag + "move").status == 200);
     drill::stop_within_limit(rcand, tag + "stop");
     drill::check_audit_complete(rcand, {tag + "move", tag + "stop"});
     const auto start = std::chrono::steady_clock::now();

@@ -64,13 +64,6 @@ class DroppingPeer {
   std::thread thread_;
 };
 
-json node_named(const json& report, const std::string& name) {
-  for (const auto& node : report.value("nodes", json::array()))
-    if (node.value("name", "") == name) return node;
-  FAIL("no node '" << name << "' in " << report.dump());
-  return {};
-}
-
 }  // namespace
 
 TEST_CASE("fault drill: a peer that drops the connection mid-request during a broadcast stop is reported, the rest stop") {

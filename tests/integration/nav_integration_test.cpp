@@ -20,7 +20,6 @@ json nav_config() {
   return config;
 }
 
-json drive_status(const RcandProcess& rcand) { return rcand.json("GET", "/api/drivers/drive0", "owner-token")["status"]; }
 json nav_status(const RcandProcess& rcand) { return rcand.json("GET", "/api/nav/status", "guest-token"); }
 
 // Polls until `done(status)` or the deadline; returns the last status. Bounded so a failure cannot hang.

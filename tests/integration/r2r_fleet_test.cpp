@@ -29,8 +29,6 @@ json bidders_of(const json& result) {
   return names;
 }
 
-json drive(const RcandProcess& robot) { return robot.json("GET", "/api/drivers/drive0", "owner-token")["status"]; }
-
 std::uint16_t free_udp_port() {
   boost::asio::io_context io;
   boost::asio::ip::udp::socket socket(io, boost::asio::ip::udp::endpoint(boost::asio::ip::make_address("127.0.0.1"), 0));
@@ -149,7 +147,7 @@ TEST_CASE("r2r fleet (mqtt): status, auction, command and errors round-trip thro
              &status);
   REQUIRE(status == 200);
   CHECK(poll_until<bool>([&]() -> std::optional<bool> {
-    if (drive(bravo)["moving"] == true) return true;
+    if (drive_status(bravo)["moving"] == true) return true;
     return std::nullopt;
   }));
   bravo.json("POST", "/api/stop", "guest-token", "", &status);
@@ -160,7 +158,7 @@ TEST_CASE("r2r fleet (mqtt): status, auction, command and errors round-trip thro
     return m["type"] == "error" && m["payload"]["code"] == 105 && m["header"].value("target_id", "") == "alpha";
   });
   REQUIRE(refused);
-  CHECK(drive(bravo)["moving"] == false);
+  CHECK(drive_status(bravo)["moving"] == false);
 
   // 101: a message (with the fleet token) for a robot that is not there, published by hand onto bravo's topic.
   json lost = json::parse(r2r_message("observer", "command", {{"type", "stop"}}, std::string("nobody")));

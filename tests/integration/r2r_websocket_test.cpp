@@ -17,7 +17,7 @@ using namespace std::chrono_literals;
 
 namespace {
 
-const json kMove = {{"type", "move"}, {"linear", 0.3}, {"angular", 0.0}, {"duration_ms", 3000}};
+const json kR2rMove = {{"type", "move"}, {"linear", 0.3}, {"angular", 0.0}, {"duration_ms", 3000}};
 
 // Frames until one satisfies `match` (status broadcasts and the like are skipped), or nullopt at the deadline.
 std::optional<json> read_until(WsClient& client, const std::function<bool(const json&)>& match,
@@ -36,8 +36,6 @@ std::optional<json> read_until(WsClient& client, const std::function<bool(const 
 std::function<bool(const json&)> error_with(int code) {
   return [code](const json& m) { return m.value("type", "") == "error" && m["payload"].value("code", 0) == code; };
 }
-
-json drive(const RcandProcess& robot) { return robot.json("GET", "/api/drivers/drive0", "owner-token")["status"]; }
 
 }  // namespace
 
@@ -78,9 +76,9 @@ TEST_CASE("r2r ws: an upgrade without credentials is 401; a guest's command is 1
 
   WsClient guest;
   REQUIRE(guest.connect(robot.port(), "guest-token") == 101);
-  guest.send(r2r_message("guest-bot", "command", kMove, std::string("alpha")));
+  guest.send(r2r_message("guest-bot", "command", kR2rMove, std::string("alpha")));
   REQUIRE(read_until(guest, error_with(103)));
-  CHECK(drive(robot)["moving"] == false);
+  CHECK(drive_status(robot)["moving"] == false);
 
   WsClient big;
   REQUIRE(big.connect(robot.port(), "user-token") == 101);
@@ -98,9 +96,9 @@ TEST_CASE("r2r ws: a command moves the sim drive; while e-stopped it is answered
   WsClient peer;
   REQUIRE(peer.connect(robot.port(), "user-token") == 101);
 
-  peer.send(r2r_message("commander", "command", kMove, std::string("alpha")));
+  peer.send(r2r_message("commander", "command", kR2rMove, std::string("alpha")));
   CHECK(poll_until<bool>([&]() -> std::optional<bool> {
-    if (drive(robot)["moving"] == true) return true;
+    if (drive_status(robot)["moving"] == true) return true;
     return std::nullopt;
   }));
   // The command went through the same path as POST /api/action: audited as the WebSocket's principal.
@@ -115,12 +113,12 @@ TEST_CASE("r2r ws: a command moves the sim drive; while e-stopped it is answered
   int status = 0;
   robot.json("POST", "/api/stop", "guest-token", "", &status);
   REQUIRE(status == 200);
-  const auto timeline_before = drive(robot)["timeline"].size();
-  peer.send(r2r_message("commander", "command", kMove, std::string("alpha")));
+  const auto timeline_before = drive_status(robot)["timeline"].size();
+  peer.send(r2r_message("commander", "command", kR2rMove, std::string("alpha")));
   const auto refused = read_until(peer, error_with(105));
   REQUIRE(refused);
   CHECK((*refused)["payload"]["http_status"] == 423);
-  const auto motors = drive(robot);
+  const auto motors = drive_status(robot);
   CHECK(motors["moving"] == false);
   CHECK(motors["timeline"].size() == timeline_before);  // no motor command at all
   CHECK(robot.json("GET", "/api/status", "guest-token")["estopped"] == true);

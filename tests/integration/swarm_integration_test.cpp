@@ -15,17 +15,8 @@ using nlohmann::json;
 
 namespace {
 
-const std::string kMove = R"({"type":"move","linear":0.5,"angular":0.0,"duration_ms":5000})";
+const std::string kSwarmMove = R"({"type":"move","linear":0.5,"angular":0.0,"duration_ms":5000})";
 const std::map<std::string, std::string> kBroadcast{{"X-Swarm-Broadcast", "true"}};
-
-json drive(const RcandProcess& robot) { return robot.json("GET", "/api/drivers/drive0", "owner-token")["status"]; }
-
-json node_named(const json& report, const std::string& name) {
-  for (const auto& node : report["nodes"])
-    if (node["name"] == name) return node;
-  FAIL("no node '" << name << "' in " << report.dump());
-  return {};
-}
 
 int count_events(const RcandProcess& robot, const std::string& event) {
   int n = 0;
@@ -57,9 +48,9 @@ TEST_CASE("swarm: a broadcast stop halts this robot first, then every reachable 
   RcandProcess a(swarm_robot_config("alpha", swarm_file));
   int status = 0;
   for (const RcandProcess* robot : {&a, &b, &c}) {
-    robot->json("POST", "/api/action", "user-token", kMove, &status);
+    robot->json("POST", "/api/action", "user-token", kSwarmMove, &status);
     REQUIRE(status == 200);
-    REQUIRE(drive(*robot)["moving"] == true);
+    REQUIRE(drive_status(*robot)["moving"] == true);
   }
 
   const auto before = std::chrono::steady_clock::now();
@@ -94,7 +85,7 @@ TEST_CASE("swarm: a broadcast stop halts this robot first, then every reachable 
 
   // Every reachable robot's motors are at zero and its e-stop is latched.
   for (const RcandProcess* robot : {&a, &b, &c}) {
-    const auto motors = drive(*robot);
+    const auto motors = drive_status(*robot);
     CHECK(motors["moving"] == false);
     CHECK(motors["left"] == 0.0);
     CHECK(motors["right"] == 0.0);
@@ -107,7 +98,7 @@ TEST_CASE("swarm: a broadcast stop halts this robot first, then every reachable 
 
   // Local first: alpha's halt is on the timeline (one steady clock for the whole machine) before the peers even
   // received the forwarded stop.
-  const auto alpha_halt = drive(a)["timeline"].back();
+  const auto alpha_halt = drive_status(a)["timeline"].back();
   CHECK(alpha_halt["cause"] == "halt");
   for (const char* name : {"bravo", "charlie"})
     CHECK(alpha_halt["t_us"].get<std::int64_t>() <= node_named(report, name)["response"]["received_us"].get<std::int64_t>());
@@ -151,7 +142,7 @@ TEST_CASE("swarm: a broadcast command reports each node; a node in e-stop acknow
     CHECK(estopped["response"] == json{{"ack", true}, {"executed", false}, {"reason", "estop_active"}});
     CHECK(node_named(report, "refused")["ok"] == false);
   }
-  CHECK(drive(c)["moving"] == false);
+  CHECK(drive_status(c)["moving"] == false);
   CHECK(c.json("GET", "/api/estop", "guest-token")["estopped"] == true);  // a broadcast never overrides the local e-stop
 
   // The origin's own e-stop is local too: it acknowledges its share and still forwards to the others.
@@ -390,7 +381,7 @@ TEST_CASE("swarm: robots at their own addresses (network namespaces, or loopback
   RcandProcess a(swarm_robot_config("alpha", swarm_file));
   int status = 0;
   for (const auto& peer : peers) {
-    peer->json("POST", "/api/action", "user-token", kMove, &status);
+    peer->json("POST", "/api/action", "user-token", kSwarmMove, &status);
     REQUIRE(status == 200);
   }
   auto report = post(a, "/api/stop", "owner-token", "", kBroadcast, &status);
@@ -399,7 +390,7 @@ TEST_CASE("swarm: robots at their own addresses (network namespaces, or loopback
   CHECK(report["summary"] == json{{"total", 3}, {"ok", 3}, {"failed", 0}});
   CHECK(node_named(report, "bravo")["address"] == addresses[0] + ":" + std::to_string(peers[0]->port()));
   for (const auto& peer : peers) {
-    CHECK(drive(*peer)["moving"] == false);
+    CHECK(drive_status(*peer)["moving"] == false);
     CHECK(peer->json("GET", "/api/estop", "guest-token")["estopped"] == true);
   }
 

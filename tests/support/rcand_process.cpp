@@ -25,23 +25,6 @@ extern char** environ;
 namespace rcand::test {
 namespace fs = std::filesystem;
 
-TempDir::TempDir() {
-  std::string pattern = (fs::temp_directory_path() / "rcand-test-XXXXXX").string();
-  if (mkdtemp(pattern.data()) == nullptr) throw std::runtime_error("mkdtemp failed");
-  path_ = pattern;
-}
-
-TempDir::~TempDir() {
-  std::error_code ignored;
-  fs::remove_all(path_, ignored);
-}
-
-fs::path TempDir::write(const std::string& name, const std::string& content) const {
-  const fs::path file = path_ / name;
-  std::ofstream(file) << content;
-  return file;
-}
-
 std::string rcand_binary() { return RCAND_BINARY; }
 std::string rcanctl_binary() { return RCANCTL_BINARY; }
 fs::path plugin_dir() { return RCAND_PLUGIN_DIR; }

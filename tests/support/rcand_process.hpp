@@ -13,21 +13,9 @@
 #include <vector>
 
 #include "rcand/kernel/http/client.hpp"
+#include "temp_dir.hpp"
 
 namespace rcand::test {
-
-class TempDir {
- public:
-  TempDir();
-  ~TempDir();
-  TempDir(const TempDir&) = delete;
-  TempDir& operator=(const TempDir&) = delete;
-  const std::filesystem::path& path() const noexcept { return path_; }
-  std::filesystem::path write(const std::string& name, const std::string& content) const;
-
- private:
-  std::filesystem::path path_;
-};
 
 // The bundled sim robot's config as JSON (JSON is YAML), with test credentials: a JWT secret and pre-shared tokens
 // "owner-token", "user-token", "guest-token". Tests edit it before starting rcand.
@@ -85,5 +73,10 @@ class RcandProcess {
   std::string host_ = "127.0.0.1";
   void launch(const nlohmann::json& config, std::vector<std::filesystem::path> plugin_paths, const std::vector<std::string>& launcher);
 };
+
+// The sim drive's status as the robot reports it (GET /api/drivers/drive0, as the owner).
+inline nlohmann::json drive_status(const RcandProcess& robot) {
+  return robot.json("GET", "/api/drivers/drive0", "owner-token")["status"];
+}
 
 }  // namespace rcand::test

@@ -7,6 +7,7 @@
 
 #include <cstdint>
 #include <filesystem>
+#include <stdexcept>
 #include <string>
 #include <vector>
 
@@ -61,6 +62,13 @@ class SilentPort {
   boost::asio::io_context io_;
   boost::asio::ip::tcp::acceptor acceptor_;
 };
+
+// The entry of node `name` in a swarm report ({"nodes": [...]}); throws (failing the test) when there is none.
+inline nlohmann::json node_named(const nlohmann::json& report, const std::string& name) {
+  for (const auto& node : report.value("nodes", nlohmann::json::array()))
+    if (node.value("name", "") == name) return node;
+  throw std::runtime_error("no node '" + name + "' in " + report.dump());
+}
 
 // A loopback port nobody listens on (bound, then released): connections are refused.
 inline std::uint16_t refused_port() {

@@ -15,6 +15,7 @@
 #include "rcand/kernel/core/keep_forever.hpp"
 #include "rcand/kernel/core/kernel_motion_gate.hpp"
 #include "rcand/kernel/core/logging.hpp"
+#include "rcand/kernel/core/loopback.hpp"
 #include "rcand/kernel/core/plugin_runtime.hpp"
 #include "rcand/kernel/core/r2r_service.hpp"
 #include "rcand/kernel/core/steady_clock.hpp"
@@ -27,12 +28,6 @@
 namespace rcand::kernel {
 namespace {
 
-bool is_loopback(const std::string& address) {
-  boost::system::error_code ec;
-  const auto parsed = boost::asio::ip::make_address(address, ec);
-  return !ec && parsed.is_loopback();
-}
-
 AuthSettings auth_settings(const RobotConfig& config, const std::string& ruri, const std::string& address) {
   AuthSettings settings;
   settings.robot_ruri = ruri;
@@ -40,7 +35,7 @@ AuthSettings auth_settings(const RobotConfig& config, const std::string& ruri, c
   const auto& auth = config.runtime.auth;
   if (auth.mode == "open") {
     // notes §3 ruling: no-auth mode exists only on loopback.
-    if (!is_loopback(address))
+    if (!is_loopback_address(address))
       throw StartupError("runtime.auth.mode is \"open\" (no authentication), which rcand allows only on a loopback "
                          "address; runtime.listen.address is " + address);
     settings.open_mode = true;

@@ -11,6 +11,7 @@
 #include "rcand/kernel/core/api.hpp"
 #include "rcand/kernel/core/kernel.hpp"
 #include "rcand/kernel/core/logging.hpp"
+#include "rcand/kernel/core/loopback.hpp"
 #include "rcand/kernel/r2r/r2r_settings.hpp"
 #include "rcand/kernel/r2r_transport/mqtt_transport.hpp"
 #include "rcand/kernel/r2r_transport/udp_transport.hpp"
@@ -26,12 +27,6 @@ using SteadyTime = std::chrono::steady_clock::time_point;
 constexpr std::chrono::milliseconds kTickPeriod{20};
 // The status source reads every plugin's status; a tick does not need it fresher than this.
 constexpr std::int64_t kStatusCacheUs = 100'000;
-
-bool is_loopback(const std::string& address) {
-  boost::system::error_code ec;
-  const auto parsed = boost::asio::ip::make_address(address, ec);
-  return !ec && parsed.is_loopback();
-}
 
 http::Response json_answer(int status, const json& body) {
   http::Response response;
@@ -172,7 +167,7 @@ std::unique_ptr<R2rService> R2rService::from_config(R2rServiceDeps deps) {
   s.udp_enabled = r2r_block.value("udp_enabled", true);
   if (r2r_block.contains("udp_port")) s.udp_port = r2r_block["udp_port"].get<std::uint16_t>();
   // A socket bound to one unicast address never sees broadcasts: any address, unless the robot is loopback-only.
-  s.udp_bind = r2r_block.value("udp_bind", is_loopback(cfg.runtime.listen_address) ? cfg.runtime.listen_address : "0.0.0.0");
+  s.udp_bind = r2r_block.value("udp_bind", is_loopback_address(cfg.runtime.listen_address) ? cfg.runtime.listen_address : "0.0.0.0");
   const json destinations = r2r_block.contains("udp_broadcast") ? r2r_block["udp_broadcast"] : json::array({"255.255.255.255"});
   for (std::size_t i = 0; i < destinations.size(); ++i) {
     try {

@@ -9,13 +9,13 @@ namespace {
 // The ABI 1.0 layout ends with register_plugin; fields appended later make the struct larger.
 constexpr std::size_t kMinimumSize = offsetof(rcand_plugin_descriptor, register_plugin) + sizeof(void (*)());
 const std::string kKernelAbi = std::to_string(RCAND_ABI_MAJOR) + "." + std::to_string(RCAND_ABI_MINOR);
-const std::string kRebuildHint = "rebuild against rcand-sdk " + std::to_string(RCAND_ABI_MAJOR) + ".x";
-
-DescriptorVerdict incompatible(std::string reason, std::string hint = kRebuildHint) {
+DescriptorVerdict incompatible(std::string reason, std::string hint = rebuild_hint()) {
   return {PluginState::IncompatibleAbi, std::move(reason), std::move(hint)};
 }
 
 }  // namespace
+
+std::string rebuild_hint() { return "rebuild against rcand-sdk " + std::to_string(RCAND_ABI_MAJOR) + ".x"; }
 
 std::optional<DescriptorVerdict> check_descriptor(const rcand_plugin_descriptor* d, const PluginManifest& manifest) {
   if (d == nullptr) return incompatible("the entry point returned no descriptor", "build it with RCAND_PLUGIN");
@@ -31,13 +31,13 @@ std::optional<DescriptorVerdict> check_descriptor(const rcand_plugin_descriptor*
   if (d->struct_size > sizeof(rcand_plugin_descriptor))
     return incompatible("descriptor size " + std::to_string(d->struct_size) + " is larger than the kernel's (" +
                             std::to_string(sizeof(rcand_plugin_descriptor)) + " bytes): built against a newer SDK",
-                        "upgrade rcand, or " + kRebuildHint);
+                        "upgrade rcand, or " + rebuild_hint());
   if (d->abi_major != RCAND_ABI_MAJOR)
     return incompatible("built for ABI " + std::to_string(d->abi_major) + ", kernel speaks " + std::to_string(RCAND_ABI_MAJOR));
   if (d->abi_minor > RCAND_ABI_MINOR)
     return incompatible("built for ABI " + std::to_string(d->abi_major) + "." + std::to_string(d->abi_minor) +
                             ", kernel speaks " + kKernelAbi + " (minor newer than the kernel's)",
-                        "upgrade rcand, or " + kRebuildHint);
+                        "upgrade rcand, or " + rebuild_hint());
   if (d->register_plugin == nullptr) return incompatible("descriptor has no register function", "build it with RCAND_PLUGIN");
 
   const std::string mismatch_hint = "make RCAND_PLUGIN(id, version, ...) and " + manifest.file.filename().string() +

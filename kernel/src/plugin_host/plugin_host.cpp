@@ -20,8 +20,6 @@ namespace {
 namespace fs = std::filesystem;
 using nlohmann::json;
 
-const std::string kRebuildHint = "rebuild against rcand-sdk " + std::to_string(RCAND_ABI_MAJOR) + ".x";
-
 void set_state(PluginRecord& record, PluginState state, std::string reason, std::string hint) {
   record.state = state;
   record.reason = std::move(reason);
@@ -189,7 +187,7 @@ void PluginHost::open(PluginRecord& record) {
     return set_state(record, PluginState::IncompatibleAbi,
                      "manifest declares ABI " + std::to_string(manifest.abi_major) + ", kernel speaks " +
                          std::to_string(RCAND_ABI_MAJOR) + " (library not opened)",
-                     kRebuildHint);
+                     rebuild_hint());
   std::error_code ec;
   if (!fs::exists(manifest.library, ec))
     return set_state(record, PluginState::FailedToOpen, "library " + lib + " not found",
@@ -218,7 +216,7 @@ void PluginHost::open(PluginRecord& record) {
       if (library->has("rcand_plugin_entry_v" + std::to_string(major)))
         return set_state(record, PluginState::IncompatibleAbi,
                          "built for ABI " + std::to_string(major) + ", kernel speaks " + std::to_string(RCAND_ABI_MAJOR),
-                         kRebuildHint);
+                         rebuild_hint());
     }
     return set_state(record, PluginState::FailedToOpen, std::string("no entry symbol ") + RCAND_ENTRY_SYMBOL + " in " + lib,
                      "build it with RCAND_PLUGIN");

@@ -113,7 +113,7 @@ struct Parser {
   }
 };
 
-std::string join(const std::vector<std::string>& lines) {
+std::string join_lines(const std::vector<std::string>& lines) {
   std::string text;
   for (const auto& line : lines) text += (text.empty() ? "" : "\n") + line;
   return text;
@@ -140,7 +140,7 @@ std::vector<std::string> SwarmRegistry::names() const {
   return out;
 }
 
-SwarmError::SwarmError(std::vector<std::string> errors) : std::runtime_error(join(errors)), errors_(std::move(errors)) {}
+SwarmError::SwarmError(std::vector<std::string> errors) : std::runtime_error(join_lines(errors)), errors_(std::move(errors)) {}
 
 SwarmRegistry parse_swarm(std::string_view yaml, const std::string& display_name) {
   Parser parser{display_name, {}, {}};

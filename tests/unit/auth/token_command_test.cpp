@@ -15,6 +15,7 @@
 #include "rcand/kernel/auth/crypto.hpp"
 #include "rcand/kernel/auth/jwt.hpp"
 #include "rcand/kernel/auth/secret_file.hpp"
+#include "temp_dir.hpp"
 #include "token_command.hpp"
 
 using namespace rcand::kernel;
@@ -24,22 +25,8 @@ namespace fs = std::filesystem;
 
 namespace {
 
-// A private temp directory, removed with everything in it.
-struct TempDir {
-  fs::path path;
-  TempDir() {
-    path = fs::temp_directory_path() / ("rcand-auth-test-" + random_hex(8));
-    fs::create_directories(path);
-  }
-  ~TempDir() {
-    std::error_code ec;
-    fs::remove_all(path, ec);
-  }
-  fs::path write(const std::string& name, const std::string& content) const {
-    std::ofstream(path / name, std::ios::binary) << content;
-    return path / name;
-  }
-};
+using rcand::test::TempDir;
+
 
 struct Run {
   int code = -1;
@@ -73,20 +60,20 @@ const std::string kFileSecret = "s3cret-from-file";
 }  // namespace
 
 TEST_CASE("read_secret_file strips the trailing newline and refuses empty or missing files") {
-  const TempDir dir;
+  const TempDir dir{"rcand-auth-test"};
   CHECK(read_secret_file(dir.write("a", "abc\n")).secret == "abc");
   CHECK(read_secret_file(dir.write("b", "abc\r\n")).secret == "abc");
   CHECK(read_secret_file(dir.write("c", "a b\nc")).secret == "a b\nc");  // only the trailing newline goes
   const SecretFile empty = read_secret_file(dir.write("d", "\n"));
   CHECK_FALSE(empty.secret);
   CHECK(empty.error.find("empty") != std::string::npos);
-  CHECK(read_secret_file(dir.path / "missing").error.find("cannot read") != std::string::npos);
-  CHECK(read_secret_file(dir.path).error.find("directory") != std::string::npos);
+  CHECK(read_secret_file(dir.path() / "missing").error.find("cannot read") != std::string::npos);
+  CHECK(read_secret_file(dir.path()).error.find("directory") != std::string::npos);
   CHECK(read_secret_file(dir.write("e", "topsecret\n")).error.find("topsecret") == std::string::npos);
 }
 
 TEST_CASE("token issue: defaults give the role's scopes, aud rcan://*, a 1 h lifetime") {
-  const TempDir dir;
+  const TempDir dir{"rcand-auth-test"};
   const fs::path secret = dir.write("jwt.key", kFileSecret + "\n");
   const Run run = token({"issue", "--secret-file", secret.string(), "--role", "user"});
   REQUIRE(run.code == 0);
@@ -113,7 +100,7 @@ TEST_CASE("token issue: defaults give the role's scopes, aud rcan://*, a 1 h lif
 }
 
 TEST_CASE("token issue: every option") {
-  const TempDir dir;
+  const TempDir dir{"rcand-auth-test"};
   const fs::path secret = dir.write("jwt.key", kFileSecret);
   const Run run = token({"issue", "--secret-file", secret.string(), "--role", "Creator", "--ttl", "15m", "--aud",
                          "rcan://acme.*.*", "--sub", "ops", "--scope", "status,admin", "--fleet=1a2b3c4d,deadbeef"});
@@ -138,7 +125,7 @@ TEST_CASE("token issue: every option") {
 }
 
 TEST_CASE("token issue: usage and input errors exit 2 with a clear message and no token") {
-  const TempDir dir;
+  const TempDir dir{"rcand-auth-test"};
   const fs::path secret = dir.write("jwt.key", kFileSecret + "\n");
   const fs::path empty = dir.write("empty.key", "\n");
   const std::string s = secret.string();
@@ -151,7 +138,7 @@ TEST_CASE("token issue: usage and input errors exit 2 with a clear message and n
            {{"issue", "--secret-file", s}, "--role"},
            {{"issue", "--secret-file", s, "--role", "wizard"}, "not a role"},
            {{"issue", "--secret-file", empty.string(), "--role", "owner"}, "empty"},
-           {{"issue", "--secret-file", (dir.path / "nope").string(), "--role", "owner"}, "cannot read"},
+           {{"issue", "--secret-file", (dir.path() / "nope").string(), "--role", "owner"}, "cannot read"},
            {{"issue", "--secret-file", s, "--role", "owner", "--ttl", "10"}, "--ttl"},
            {{"issue", "--secret-file", s, "--role", "owner", "--ttl", "-1h"}, "--ttl"},
            {{"issue", "--secret-file", s, "--role", "owner", "--ttl", "0s"}, "--ttl"},
@@ -209,7 +196,7 @@ TEST_CASE("the built rcanctl issues a token the Authenticator accepts") {
     MESSAGE("rcanctl is not built (" RCANCTL_PATH "); skipped");
     return;
   }
-  const TempDir dir;
+  const TempDir dir{"rcand-auth-test"};
   const fs::path secret = dir.write("jwt.key", kFileSecret + "\n");
   const std::string command = std::string("'") + RCANCTL_PATH + "' token issue --secret-file '" + secret.string() +
                               "' --role owner --aud " + auth_test::kRobotRuri + " --fleet " + auth_test::kDeviceId;

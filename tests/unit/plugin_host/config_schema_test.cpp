@@ -20,7 +20,7 @@ const json kSchema = json::parse(R"({
   "port": {"type": "string", "required": true, "description": "serial device"}
 })");
 
-std::string error_of(const json& settings, bool allow_unknown = false) {
+std::string schema_error_of(const json& settings, bool allow_unknown = false) {
   try {
     apply_config_schema(kSchema, settings, allow_unknown);
   } catch (const ConfigSchemaError& e) {
@@ -52,38 +52,38 @@ TEST_CASE("apply_config_schema: null settings and explicit nulls mean 'not set'"
 }
 
 TEST_CASE("apply_config_schema checks types") {
-  CHECK(error_of({{"port", "p"}, {"watchdog_ms", "500"}}) == "watchdog_ms: expected integer >= 1, found string");
-  CHECK(error_of({{"port", "p"}, {"watchdog_ms", 1.5}}) == "watchdog_ms: expected integer >= 1, found number");
-  CHECK(error_of({{"port", "p"}, {"speed", true}}) == "speed: expected number in [0, 1], found boolean");
-  CHECK(error_of({{"port", 3}}) == "port: expected string, found number");
-  CHECK(error_of({{"port", "p"}, {"verbose", "yes"}}) == "verbose: expected boolean, found string");
-  CHECK(error_of({{"port", "p"}, {"waypoints", json::object()}}) == "waypoints: expected array, found object");
-  CHECK(error_of({{"port", "p"}, {"limits", json::array()}}) == "limits: expected object, found array");
-  CHECK(error_of({{"port", "p"}, {"speed", 1}}).empty());  // an integer is a number
-  CHECK(error_of(json::array()) == "settings: expected object, found array");
+  CHECK(schema_error_of({{"port", "p"}, {"watchdog_ms", "500"}}) == "watchdog_ms: expected integer >= 1, found string");
+  CHECK(schema_error_of({{"port", "p"}, {"watchdog_ms", 1.5}}) == "watchdog_ms: expected integer >= 1, found number");
+  CHECK(schema_error_of({{"port", "p"}, {"speed", true}}) == "speed: expected number in [0, 1], found boolean");
+  CHECK(schema_error_of({{"port", 3}}) == "port: expected string, found number");
+  CHECK(schema_error_of({{"port", "p"}, {"verbose", "yes"}}) == "verbose: expected boolean, found string");
+  CHECK(schema_error_of({{"port", "p"}, {"waypoints", json::object()}}) == "waypoints: expected array, found object");
+  CHECK(schema_error_of({{"port", "p"}, {"limits", json::array()}}) == "limits: expected object, found array");
+  CHECK(schema_error_of({{"port", "p"}, {"speed", 1}}).empty());  // an integer is a number
+  CHECK(schema_error_of(json::array()) == "settings: expected object, found array");
 }
 
 TEST_CASE("apply_config_schema checks minimum and maximum") {
-  CHECK(error_of({{"port", "p"}, {"watchdog_ms", -3}}) == "watchdog_ms: expected integer >= 1, found -3");
-  CHECK(error_of({{"port", "p"}, {"watchdog_ms", 0}}) == "watchdog_ms: expected integer >= 1, found 0");
-  CHECK(error_of({{"port", "p"}, {"watchdog_ms", 1}}).empty());
-  CHECK(error_of({{"port", "p"}, {"speed", 1.5}}) == "speed: expected number in [0, 1], found 1.5");
-  CHECK(error_of({{"port", "p"}, {"speed", -0.1}}) == "speed: expected number in [0, 1], found -0.1");
+  CHECK(schema_error_of({{"port", "p"}, {"watchdog_ms", -3}}) == "watchdog_ms: expected integer >= 1, found -3");
+  CHECK(schema_error_of({{"port", "p"}, {"watchdog_ms", 0}}) == "watchdog_ms: expected integer >= 1, found 0");
+  CHECK(schema_error_of({{"port", "p"}, {"watchdog_ms", 1}}).empty());
+  CHECK(schema_error_of({{"port", "p"}, {"speed", 1.5}}) == "speed: expected number in [0, 1], found 1.5");
+  CHECK(schema_error_of({{"port", "p"}, {"speed", -0.1}}) == "speed: expected number in [0, 1], found -0.1");
 }
 
 TEST_CASE("apply_config_schema checks enums, without echoing secret-looking values") {
-  CHECK(error_of({{"port", "p"}, {"mode", "turbo"}}) == "mode: expected one of \"fast\", \"safe\", found \"turbo\"");
-  const std::string secret = error_of({{"port", "p"}, {"api_key", "sk-live-SECRET"}});
+  CHECK(schema_error_of({{"port", "p"}, {"mode", "turbo"}}) == "mode: expected one of \"fast\", \"safe\", found \"turbo\"");
+  const std::string secret = schema_error_of({{"port", "p"}, {"api_key", "sk-live-SECRET"}});
   CHECK(secret.find("api_key: expected one of") == 0);
   CHECK(secret.find("SECRET") == std::string::npos);
 }
 
 TEST_CASE("apply_config_schema reports missing required settings with their description") {
-  CHECK(error_of(json::object()) == "port: required (string: serial device)");
+  CHECK(schema_error_of(json::object()) == "port: required (string: serial device)");
 }
 
 TEST_CASE("apply_config_schema rejects unknown keys unless allowed") {
-  const std::string message = error_of({{"port", "p"}, {"watchdog", 5}});
+  const std::string message = schema_error_of({{"port", "p"}, {"watchdog", 5}});
   CHECK(message.find("watchdog: unknown key; expected one of: ") == 0);
   CHECK(message.find("watchdog_ms") != std::string::npos);
   CHECK(message.find("did you mean 'watchdog_ms'?") != std::string::npos);

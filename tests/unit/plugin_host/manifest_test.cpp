@@ -6,6 +6,7 @@
 #include <fstream>
 #include <string>
 #include <unistd.h>
+#include "temp_dir.hpp"
 
 using nlohmann::json;
 using rcand::kernel::load_manifest;
@@ -14,6 +15,8 @@ using rcand::kernel::parse_manifest;
 using rcand::kernel::ProvidedItem;
 
 namespace {
+
+using rcand::test::TempDir;
 
 json teleop_manifest() {
   return json::parse(R"json({ "id": "org.rcand.teleop", "version": "0.1.0", "library": "rcand_teleop.so",
@@ -27,7 +30,7 @@ json teleop_manifest() {
 }
 
 // The ManifestError message for `doc`, or "" when it parses.
-std::string error_of(const json& doc) {
+std::string manifest_error_of(const json& doc) {
   try {
     parse_manifest(doc, "/plugins/teleop.json");
   } catch (const ManifestError& e) {
@@ -36,19 +39,6 @@ std::string error_of(const json& doc) {
   return "";
 }
 
-// A fresh directory under /tmp, removed at scope exit.
-struct TempDir {
-  std::filesystem::path path;
-  TempDir() {
-    std::string pattern = (std::filesystem::temp_directory_path() / "rcand-manifest-XXXXXX").string();
-    REQUIRE(::mkdtemp(pattern.data()) != nullptr);
-    path = pattern;
-  }
-  ~TempDir() {
-    std::error_code ec;
-    std::filesystem::remove_all(path, ec);
-  }
-};
 
 }  // namespace
 
@@ -85,124 +75,124 @@ TEST_CASE("parse_manifest: optional fields default") {
 
 TEST_CASE("parse_manifest errors name the file and the field") {
   json doc = teleop_manifest();
-  SUBCASE("not an object") { CHECK(error_of(json::array()).find("expected a JSON object, found array") != std::string::npos); }
+  SUBCASE("not an object") { CHECK(manifest_error_of(json::array()).find("expected a JSON object, found array") != std::string::npos); }
   SUBCASE("missing id") {
     doc.erase("id");
-    CHECK(error_of(doc) == "/plugins/teleop.json: id: required field is missing");
+    CHECK(manifest_error_of(doc) == "/plugins/teleop.json: id: required field is missing");
   }
   SUBCASE("bad id") {
     doc["id"] = "has space";
-    CHECK(error_of(doc).find("id: 'has space' is not a reverse-domain id") != std::string::npos);
+    CHECK(manifest_error_of(doc).find("id: 'has space' is not a reverse-domain id") != std::string::npos);
   }
   SUBCASE("version mistyped") {
     doc["version"] = 1;
-    CHECK(error_of(doc) == "/plugins/teleop.json: version: expected string, found number");
+    CHECK(manifest_error_of(doc) == "/plugins/teleop.json: version: expected string, found number");
   }
   SUBCASE("library empty") {
     doc["library"] = "";
-    CHECK(error_of(doc) == "/plugins/teleop.json: library: must not be empty");
+    CHECK(manifest_error_of(doc) == "/plugins/teleop.json: library: must not be empty");
   }
   SUBCASE("library absolute") {
     doc["library"] = "/usr/lib/x.so";
-    CHECK(error_of(doc).find("library: expected a path relative to the manifest's folder") != std::string::npos);
+    CHECK(manifest_error_of(doc).find("library: expected a path relative to the manifest's folder") != std::string::npos);
   }
   SUBCASE("abi missing") {
     doc.erase("abi");
-    CHECK(error_of(doc) == "/plugins/teleop.json: abi: required field is missing");
+    CHECK(manifest_error_of(doc) == "/plugins/teleop.json: abi: required field is missing");
   }
   SUBCASE("abi.major mistyped") {
     doc["abi"]["major"] = "1";
-    CHECK(error_of(doc) == "/plugins/teleop.json: abi.major: expected integer, found string");
+    CHECK(manifest_error_of(doc) == "/plugins/teleop.json: abi.major: expected integer, found string");
   }
   SUBCASE("abi.minor missing") {
     doc["abi"].erase("minor");
-    CHECK(error_of(doc) == "/plugins/teleop.json: abi.minor: required field is missing");
+    CHECK(manifest_error_of(doc) == "/plugins/teleop.json: abi.minor: required field is missing");
   }
   SUBCASE("abi.minor negative") {
     doc["abi"]["minor"] = -1;
-    CHECK(error_of(doc).find("abi.minor: expected an integer in [0, 65535], found -1") != std::string::npos);
+    CHECK(manifest_error_of(doc).find("abi.minor: expected an integer in [0, 65535], found -1") != std::string::npos);
   }
   SUBCASE("provides not an array") {
     doc["provides"] = "teleop";
-    CHECK(error_of(doc) == "/plugins/teleop.json: provides: expected array, found string");
+    CHECK(manifest_error_of(doc) == "/plugins/teleop.json: provides: expected array, found string");
   }
   SUBCASE("provides empty") {
     doc["provides"] = json::array();
-    CHECK(error_of(doc).find("provides: must list at least one") != std::string::npos);
+    CHECK(manifest_error_of(doc).find("provides: must list at least one") != std::string::npos);
   }
   SUBCASE("provides kind unknown") {
     doc["provides"][1]["kind"] = "sensor";
-    CHECK(error_of(doc) == "/plugins/teleop.json: provides[1].kind: expected \"capability\" or \"driver\", found \"sensor\"");
+    CHECK(manifest_error_of(doc) == "/plugins/teleop.json: provides[1].kind: expected \"capability\" or \"driver\", found \"sensor\"");
   }
   SUBCASE("provides name missing") {
     doc["provides"][0].erase("name");
-    CHECK(error_of(doc) == "/plugins/teleop.json: provides[0].name: required field is missing");
+    CHECK(manifest_error_of(doc) == "/plugins/teleop.json: provides[0].name: required field is missing");
   }
   SUBCASE("actuates mistyped") {
     doc["provides"][0]["actuates"] = "yes";
-    CHECK(error_of(doc) == "/plugins/teleop.json: provides[0].actuates: expected boolean, found string");
+    CHECK(manifest_error_of(doc) == "/plugins/teleop.json: provides[0].actuates: expected boolean, found string");
   }
   SUBCASE("actuating driver without interface") {
     doc["provides"][1].erase("interface");
-    CHECK(error_of(doc).find("provides[1].interface: required for an actuating driver") != std::string::npos);
+    CHECK(manifest_error_of(doc).find("provides[1].interface: required for an actuating driver") != std::string::npos);
   }
   SUBCASE("interface on a capability") {
     doc["provides"][0]["interface"] = "differential_drive";
-    CHECK(error_of(doc).find("provides[0].interface: only drivers") != std::string::npos);
+    CHECK(manifest_error_of(doc).find("provides[0].interface: only drivers") != std::string::npos);
   }
   SUBCASE("listed twice") {
     doc["provides"].push_back(doc["provides"][0]);
-    CHECK(error_of(doc).find("provides[2].name: capability 'teleop' is listed twice") != std::string::npos);
+    CHECK(manifest_error_of(doc).find("provides[2].name: capability 'teleop' is listed twice") != std::string::npos);
   }
   SUBCASE("requires mistyped") {
     doc["requires"] = json::array({"differential_drive", 3});
-    CHECK(error_of(doc) == "/plugins/teleop.json: requires[1]: expected string, found number");
+    CHECK(manifest_error_of(doc) == "/plugins/teleop.json: requires[1]: expected string, found number");
   }
   SUBCASE("config entry without type") {
     doc["config"]["watchdog_ms"].erase("type");
-    CHECK(error_of(doc).find("/plugins/teleop.json: config.watchdog_ms.type: required") == 0);
+    CHECK(manifest_error_of(doc).find("/plugins/teleop.json: config.watchdog_ms.type: required") == 0);
   }
   SUBCASE("config type unknown") {
     doc["config"]["watchdog_ms"]["type"] = "int";
-    CHECK(error_of(doc).find("config.watchdog_ms.type: expected one of string, number, integer") != std::string::npos);
+    CHECK(manifest_error_of(doc).find("config.watchdog_ms.type: expected one of string, number, integer") != std::string::npos);
   }
   SUBCASE("config default violates its own minimum") {
     doc["config"]["watchdog_ms"]["default"] = 0;
-    CHECK(error_of(doc) == "/plugins/teleop.json: config.watchdog_ms.default: expected integer >= 1, found 0");
+    CHECK(manifest_error_of(doc) == "/plugins/teleop.json: config.watchdog_ms.default: expected integer >= 1, found 0");
   }
   SUBCASE("config attribute misspelt") {
     doc["config"]["watchdog_ms"]["minumum"] = 1;
-    const std::string message = error_of(doc);
+    const std::string message = manifest_error_of(doc);
     CHECK(message.find("config.watchdog_ms.minumum: unknown key") != std::string::npos);
     CHECK(message.find("did you mean 'minimum'?") != std::string::npos);
   }
   SUBCASE("config minimum on a string") {
     doc["config"]["driver"]["minimum"] = 1;
-    CHECK(error_of(doc).find("config.driver.minimum: only allowed for number and integer") != std::string::npos);
+    CHECK(manifest_error_of(doc).find("config.driver.minimum: only allowed for number and integer") != std::string::npos);
   }
   SUBCASE("config enum of the wrong type") {
     doc["config"]["driver"]["enum"] = json::array({"left", 2});
-    CHECK(error_of(doc).find("config.driver.enum: 2 is not a string") != std::string::npos);
+    CHECK(manifest_error_of(doc).find("config.driver.enum: 2 is not a string") != std::string::npos);
   }
   SUBCASE("config not an object") {
     doc["config"] = json::array();
-    CHECK(error_of(doc) == "/plugins/teleop.json: config: expected object, found array");
+    CHECK(manifest_error_of(doc) == "/plugins/teleop.json: config: expected object, found array");
   }
   SUBCASE("unknown top-level keys are allowed (newer manifests may add fields)") {
     doc["license"] = "Apache-2.0";
-    CHECK(error_of(doc).empty());
+    CHECK(manifest_error_of(doc).empty());
   }
 }
 
 TEST_CASE("load_manifest reads a file and reports bad JSON and missing files with the file name") {
-  TempDir dir;
-  const auto good = dir.path / "teleop.json";
+  TempDir dir{"rcand-manifest"};
+  const auto good = dir.path() / "teleop.json";
   std::ofstream(good) << teleop_manifest().dump(2);
   const auto m = load_manifest(good);
   CHECK(m.id == "org.rcand.teleop");
-  CHECK(m.library == dir.path / "rcand_teleop.so");
+  CHECK(m.library == dir.path() / "rcand_teleop.so");
 
-  const auto bad = dir.path / "bad.json";
+  const auto bad = dir.path() / "bad.json";
   std::ofstream(bad) << R"({ "id": "x" "version": "1" })";
   try {
     load_manifest(bad);
@@ -213,6 +203,6 @@ TEST_CASE("load_manifest reads a file and reports bad JSON and missing files wit
     CHECK(message.find("[json.exception") == std::string::npos);
   }
 
-  CHECK_THROWS_WITH_AS(load_manifest(dir.path / "absent.json"), doctest::Contains("absent.json: (file): cannot be read"),
+  CHECK_THROWS_WITH_AS(load_manifest(dir.path() / "absent.json"), doctest::Contains("absent.json: (file): cannot be read"),
                        ManifestError);
 }

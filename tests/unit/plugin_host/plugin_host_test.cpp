@@ -15,6 +15,7 @@
 
 #include "rcand/kernel/plugin_host/guarded.hpp"
 #include "stub_context.hpp"
+#include "temp_dir.hpp"
 
 extern char** environ;
 
@@ -26,6 +27,8 @@ using rcand::kernel::PluginRecord;
 using rcand::kernel::PluginState;
 
 namespace {
+
+using rcand::test::TempDir;
 
 const fs::path kFixtures = RCAND_TEST_PLUGIN_DIR;
 
@@ -75,18 +78,6 @@ std::unique_ptr<rcand::sdk::Capability> make_capability(const PluginRecord& reco
   return nullptr;
 }
 
-struct TempDir {
-  fs::path path;
-  TempDir() {
-    std::string pattern = (fs::temp_directory_path() / "rcand-plugins-XXXXXX").string();
-    REQUIRE(::mkdtemp(pattern.data()) != nullptr);
-    path = pattern;
-  }
-  ~TempDir() {
-    std::error_code ec;
-    fs::remove_all(path, ec);
-  }
-};
 
 struct Expected {
   PluginState state;
@@ -294,31 +285,31 @@ TEST_CASE("not-needed plugins stay installed-not-enabled and their libraries are
 }
 
 TEST_CASE("a manifest whose library file is missing ends failed-to-open; missing paths are skipped") {
-  TempDir dir;
-  std::ofstream(dir.path / "ghost.json") << R"({"id": "org.rcand.test.ghost", "version": "1.0.0",
+  TempDir dir{"rcand-plugins"};
+  std::ofstream(dir.path() / "ghost.json") << R"({"id": "org.rcand.test.ghost", "version": "1.0.0",
     "library": "rcand_test_ghost.so", "abi": {"major": 1, "minor": 0},
     "provides": [{"kind": "capability", "name": "org.rcand.test.ghost"}]})";
-  std::ofstream(dir.path / "notes.txt") << "not a manifest";
+  std::ofstream(dir.path() / "notes.txt") << "not a manifest";
   PluginHost host;
-  host.scan({dir.path / "does-not-exist", dir.path});
+  host.scan({dir.path() / "does-not-exist", dir.path()});
   REQUIRE(host.records().size() == 1);
   host.load_needed({"org.rcand.test.ghost"}, {});
   const PluginRecord& ghost = *host.records()[0];
   CHECK(ghost.state == PluginState::FailedToOpen);
-  CHECK(ghost.reason.find((dir.path / "rcand_test_ghost.so").string() + " not found") != std::string::npos);
+  CHECK(ghost.reason.find((dir.path() / "rcand_test_ghost.so").string() + " not found") != std::string::npos);
   CHECK(ghost.hint.find("rcand_test_ghost.so") != std::string::npos);
   CHECK(host.any_failed());
 }
 
 TEST_CASE("a manifest declaring another ABI major is refused without opening the library") {
-  TempDir dir;
+  TempDir dir{"rcand-plugins"};
   // Points at a real library that would load fine; the manifest's ABI alone decides.
-  fs::copy_file(kFixtures / "rcand_test_driver.so", dir.path / "rcand_test_future.so");
-  std::ofstream(dir.path / "future.json") << R"({"id": "org.rcand.test.future", "version": "1.0.0",
+  fs::copy_file(kFixtures / "rcand_test_driver.so", dir.path() / "rcand_test_future.so");
+  std::ofstream(dir.path() / "future.json") << R"({"id": "org.rcand.test.future", "version": "1.0.0",
     "library": "rcand_test_future.so", "abi": {"major": 2, "minor": 0},
     "provides": [{"kind": "driver", "name": "org.rcand.test.future"}]})";
   PluginHost host;
-  host.scan({dir.path});
+  host.scan({dir.path()});
   host.load_needed({}, {"org.rcand.test.future"});
   const PluginRecord& future = *host.records()[0];
   CHECK(future.state == PluginState::IncompatibleAbi);
@@ -329,10 +320,10 @@ TEST_CASE("a manifest declaring another ABI major is refused without opening the
 }
 
 TEST_CASE("a second directory's manifest with a known id is a duplicate naming the first file") {
-  TempDir dir;
-  fs::copy_file(kFixtures / "good.json", dir.path / "a_copy.json");
+  TempDir dir{"rcand-plugins"};
+  fs::copy_file(kFixtures / "good.json", dir.path() / "a_copy.json");
   PluginHost host;
-  host.scan({kFixtures, dir.path});
+  host.scan({kFixtures, dir.path()});
   host.scan({kFixtures});  // scanning again adds nothing
   const PluginRecord& copy = by_manifest(host, "a_copy.json");
   CHECK(copy.state == PluginState::DuplicateId);

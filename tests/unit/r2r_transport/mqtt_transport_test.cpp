@@ -9,6 +9,7 @@
 #include "inbox.hpp"
 #include "mosquitto_broker.hpp"
 #include "rcand/kernel/r2r_transport/mqtt_transport.hpp"
+#include "wire_message.hpp"
 
 using namespace rcand::kernel::r2r;
 using namespace std::chrono_literals;
@@ -16,10 +17,7 @@ using nlohmann::json;
 
 namespace {
 
-std::string message(const std::string& type, const std::string& source = "a") {
-  return json{{"header", {{"version", "1.0"}, {"timestamp", 1}, {"source_id", source}}}, {"type", type}, {"payload", json::object()}}
-      .dump();
-}
+using rcand::test::wire_message;
 
 MqttOptions options_for(const std::string& name, std::uint16_t port) {
   MqttOptions options;
@@ -53,25 +51,25 @@ TEST_CASE("targeted messages reach r2r/<name> only; broadcasts reach everyone") 
   REQUIRE(eventually([&] { return a.connected() && b.connected() && c.connected(); }));
   // Subscriptions are acknowledged asynchronously: a broadcast seen by everyone proves they are in place.
   REQUIRE(eventually([&] {
-    a.send(message("task_request"), std::nullopt);
+    a.send(wire_message("task_request"), std::nullopt);
     return at_b.size() > 0 && at_c.size() > 0;
   }));
-  REQUIRE(a.send(message("command"), std::string("robot-b")));
-  const auto got = at_b.wait_until([](const InboundMessage& m) { return m.bytes == message("command"); });
+  REQUIRE(a.send(wire_message("command"), std::string("robot-b")));
+  const auto got = at_b.wait_until([](const InboundMessage& m) { return m.bytes == wire_message("command"); });
   REQUIRE(got);
   CHECK(got->transport == "mqtt");
   CHECK(got->peer == "r2r/robot-b");
   CHECK_FALSE(got->reply);  // answers go through send() to r2r/<source_id>
 
   // Status uses QoS 0 but still arrives on a healthy broker.
-  REQUIRE(a.send(message("status"), std::nullopt));
-  CHECK(at_c.wait_until([](const InboundMessage& m) { return m.bytes == message("status"); }));
+  REQUIRE(a.send(wire_message("status"), std::nullopt));
+  CHECK(at_c.wait_until([](const InboundMessage& m) { return m.bytes == wire_message("status"); }));
   // robot-c never saw the command for robot-b (it arrived at robot-b before the later status reached robot-c).
-  CHECK_FALSE(at_c.wait_until([](const InboundMessage& m) { return m.bytes == message("command"); }, 0ms));
+  CHECK_FALSE(at_c.wait_until([](const InboundMessage& m) { return m.bytes == wire_message("command"); }, 0ms));
 
   // Names cannot smuggle topic wildcards or levels.
-  CHECK_FALSE(a.send(message("command"), std::string("robot-#")));
-  CHECK_FALSE(a.send(message("command"), std::string("x/y")));
+  CHECK_FALSE(a.send(wire_message("command"), std::string("robot-#")));
+  CHECK_FALSE(a.send(wire_message("command"), std::string("x/y")));
 }
 
 TEST_CASE("a password-protected broker: right password connects, wrong one never does") {
@@ -114,7 +112,7 @@ TEST_CASE("the transport survives a broker restart: it reconnects and resubscrib
   broker.start();
   REQUIRE(eventually([&] { return a.connected() && b.connected(); }, 40s));
   CHECK(eventually([&] {
-    a.send(message("command"), std::string("robot-b"));
+    a.send(wire_message("command"), std::string("robot-b"));
     return at_b.size() > 0;
   }));
   CHECK(b.counters().connects >= 2);

@@ -9,15 +9,15 @@
 
 #include "inbox.hpp"
 #include "rcand/kernel/r2r_transport/udp_transport.hpp"
+#include "wire_message.hpp"
 
 using namespace rcand::kernel::r2r;
 using nlohmann::json;
 
 namespace {
-std::string message(const std::string& type) {
-  return json{{"header", {{"version", "1.0"}, {"timestamp", 1}, {"source_id", "a"}}}, {"type", type}, {"payload", json::object()}}
-      .dump();
-}
+
+using rcand::test::wire_message;
+
 UdpOptions loopback(std::vector<UdpDestination> destinations = {}) {
   UdpOptions options;
   options.bind_address = "127.0.0.1";
@@ -36,22 +36,22 @@ TEST_CASE("status broadcasts reach every destination as one datagram each; other
   rcand::test::Inbox at_a;
   a.start(at_a.deliver());
 
-  CHECK(a.send(message("status"), std::nullopt));
+  CHECK(a.send(wire_message("status"), std::nullopt));
   const auto got_b = at_b.wait_for(1);
   const auto got_c = at_c.wait_for(1);
   REQUIRE(got_b.size() == 1);
   REQUIRE(got_c.size() == 1);
-  CHECK(got_b[0].bytes == message("status"));
+  CHECK(got_b[0].bytes == wire_message("status"));
   CHECK(got_b[0].transport == "udp");
   CHECK(got_b[0].peer == "127.0.0.1:" + std::to_string(a.bound_port()));
   CHECK_FALSE(got_b[0].reply);
   CHECK_FALSE(got_b[0].principal);
 
-  CHECK_FALSE(a.send(message("command"), std::nullopt));  // not status: WebSocket or MQTT carry it
-  CHECK_FALSE(a.send(message("status"), std::string("b")));  // no addressing by name over UDP
+  CHECK_FALSE(a.send(wire_message("command"), std::nullopt));  // not status: WebSocket or MQTT carry it
+  CHECK_FALSE(a.send(wire_message("status"), std::string("b")));  // no addressing by name over UDP
   CHECK(a.counters().sent == 2);
   a.stop();
-  CHECK_FALSE(a.send(message("status"), std::nullopt));
+  CHECK_FALSE(a.send(wire_message("status"), std::nullopt));
 }
 
 TEST_CASE("an oversize or garbage datagram is delivered as is: the node refuses it with code 100") {

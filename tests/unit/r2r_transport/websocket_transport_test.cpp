@@ -19,6 +19,7 @@
 #include "rcand/kernel/auth/crypto.hpp"
 #include "rcand/kernel/http/server.hpp"
 #include "rcand/kernel/r2r_transport/websocket_transport.hpp"
+#include "wire_message.hpp"
 
 using namespace rcand::kernel;
 using namespace std::chrono_literals;
@@ -29,18 +30,13 @@ namespace net = boost::asio;
 
 namespace {
 
+using rcand::test::wire_message;
+
 AuthSettings test_auth() {
   AuthSettings settings;
   settings.tokens.push_back({"peer-robot", rcand::sdk::Role::User, sha256_hex("peer-token")});
   settings.tokens.push_back({"watcher", rcand::sdk::Role::Guest, sha256_hex("guest-token")});
   return settings;
-}
-
-std::string message_from(const std::string& source, const std::string& type = "status", std::size_t padding = 0) {
-  return json{{"header", {{"version", "1.0"}, {"timestamp", 1}, {"source_id", source}}},
-              {"type", type},
-              {"payload", {{"pad", std::string(padding, 'x')}}}}
-      .dump();
 }
 
 // A robot's HTTP side: the server with the WS upgrade hook; plain requests get 404.
@@ -78,10 +74,10 @@ TEST_CASE("an authenticated peer exchanges frames with the transport, both ways,
   Robot robot("robot-a");
   Client client;
   REQUIRE(client.connect(robot.port, "peer-token") == 101);
-  client.send(message_from("robot-b"));
+  client.send(wire_message("status", "robot-b"));
   const auto got = robot.inbox.wait_for(1);
   REQUIRE(got.size() == 1);
-  CHECK(got[0].bytes == message_from("robot-b"));
+  CHECK(got[0].bytes == wire_message("status", "robot-b"));
   CHECK(got[0].transport == "ws");
   REQUIRE(got[0].principal.has_value());
   CHECK(got[0].principal->name == "peer-robot");
@@ -119,7 +115,7 @@ TEST_CASE("a frame over 64 KiB closes the connection with 1009 and is never deli
   Robot robot("robot-a");
   Client client;
   REQUIRE(client.connect(robot.port, "peer-token") == 101);
-  client.send(message_from("robot-b", "status", 70 * 1024));
+  client.send(wire_message("status", "robot-b", 70 * 1024));
   beast::error_code error;
   CHECK_FALSE(client.read(5s, &error).has_value());
   CHECK(error);  // closed (or a broken pipe when answering the close: the server has already dropped the socket)
@@ -133,7 +129,7 @@ TEST_CASE("a frame over 64 KiB closes the connection with 1009 and is never deli
   // A message just under the limit passes.
   Client fine;
   REQUIRE(fine.connect(robot.port, "peer-token") == 101);
-  fine.send(message_from("robot-c", "status", 60 * 1024));
+  fine.send(wire_message("status", "robot-c", 60 * 1024));
   CHECK(robot.inbox.wait_for(1).size() == 1);
 }
 
@@ -146,21 +142,21 @@ TEST_CASE("a robot dials a swarm peer it must reach, with the peer's token, and 
   node.token = "peer-token";
   Robot a("robot-a", {node});
 
-  REQUIRE(a.transport->send(message_from("robot-a", "command"), std::string("robot-b")));
+  REQUIRE(a.transport->send(wire_message("command", "robot-a"), std::string("robot-b")));
   const auto at_b = b.inbox.wait_for(1);
   REQUIRE(at_b.size() == 1);
-  CHECK(at_b[0].bytes == message_from("robot-a", "command"));
+  CHECK(at_b[0].bytes == wire_message("command", "robot-a"));
   CHECK(at_b[0].principal->name == "peer-robot");  // b authenticated a with the token from a's swarm.yaml
 
   // b answers by name (a announced itself in its message) over the connection a opened.
-  REQUIRE(b.transport->send(message_from("robot-b", "task_response"), std::string("robot-a")));
+  REQUIRE(b.transport->send(wire_message("task_response", "robot-b"), std::string("robot-a")));
   const auto at_a = a.inbox.wait_for(1);
   REQUIRE(at_a.size() == 1);
-  CHECK(at_a[0].bytes == message_from("robot-b", "task_response"));
+  CHECK(at_a[0].bytes == wire_message("task_response", "robot-b"));
   CHECK(a.transport->counters().dialed == 1);
 
   // A second message reuses the connection.
-  REQUIRE(a.transport->send(message_from("robot-a", "status"), std::string("robot-b")));
+  REQUIRE(a.transport->send(wire_message("status", "robot-a"), std::string("robot-b")));
   CHECK(b.inbox.wait_for(2).size() == 2);
   CHECK(a.transport->counters().dialed == 1);
 }

@@ -21,4 +21,7 @@ struct DescriptorVerdict {
 // descriptor->struct_size says exist.
 std::optional<DescriptorVerdict> check_descriptor(const rcand_plugin_descriptor* descriptor, const PluginManifest& manifest);
 
+// The hint for a plugin built against another SDK major: "rebuild against rcand-sdk <major>.x".
+std::string rebuild_hint();
+
 }  // namespace rcand::kernel
