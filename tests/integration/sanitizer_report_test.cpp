@@ -7,6 +7,7 @@
 #include <unistd.h>
 
 #include <cstdio>
+#include <cstdlib>
 #include <string>
 
 #include "rcand_process.hpp"
@@ -18,9 +19,12 @@ using rcand::test::RcandProcess;
 // Runs, in a forked child, a harness-managed "rcand" that is really a shell script: it announces itself as rcand
 // does, after writing `report` to stderr, and exits 0 on SIGTERM. Returns the child's wait status.
 int run_fake_rcand(const std::string& report) {
+  // The child aborts before its RcandProcess can remove its directory: it makes it in one the parent removes.
+  const rcand::test::TempDir scratch("rcand-sanitizer-report");
   const pid_t pid = fork();
   if (pid == 0) {
     if (!std::freopen("/dev/null", "w", stderr)) _exit(3);  // the expected report would only confuse a CI log
+    if (::setenv("TMPDIR", scratch.path().c_str(), 1) != 0) _exit(3);
     {
       // The report is written before the "listening" line, so it is on stderr before the harness can stop us.
       const std::string script = "trap 'exit 0' TERM; printf '%s\\n' '" + report +
