@@ -25,10 +25,12 @@ class TempDir {
   TempDir& operator=(const TempDir&) = delete;
 
   const std::filesystem::path& path() const noexcept { return path_; }
-  // Writes `content` to the file `name` in the directory; returns its path.
-  std::filesystem::path write(const std::string& name, const std::string& content) const {
-    std::ofstream(path_ / name, std::ios::binary) << content;
-    return path_ / name;
+  // Writes `content` to `relative` (subdirectories made as needed) in the directory; returns its path.
+  std::filesystem::path write(const std::filesystem::path& relative, const std::string& content) const {
+    const auto file = path_ / relative;
+    std::filesystem::create_directories(file.parent_path());
+    std::ofstream(file, std::ios::binary) << content;
+    return file;
   }
 
  private:

@@ -1,11 +1,10 @@
 #include "rcand/kernel/core/plugin_runtime.hpp"
 
-#include <condition_variable>
 #include <mutex>
 #include <set>
-#include <thread>
 
 #include "rcand/kernel/core/keep_forever.hpp"
+#include "rcand/kernel/plugin_host/bounded_call.hpp"
 #include "rcand/kernel/plugin_host/config_schema.hpp"
 #include "rcand/kernel/plugin_host/guarded.hpp"
 
@@ -71,13 +70,12 @@ std::unique_ptr<Object> create_and_start(const std::string& who,
                                          bool& abandoned, std::function<void(Object&)> more = {}) {
   struct Startup {
     std::mutex mutex;
-    std::condition_variable finished_cv;
-    bool finished = false, abandoned = false;
+    bool abandoned = false;
     std::unique_ptr<Object> object;
     std::string failure;  // empty: everything returned normally
   };
   auto startup = std::make_shared<Startup>();
-  std::thread([startup, who, &factory, &context, more = std::move(more)] {
+  const bool finished = bounded_call("plugin.start", timeout, [startup, who, &factory, &context, more = std::move(more)] {
     std::string failure;
     std::unique_ptr<Object> made;
     if (auto object = guarded_result(who, "factory", failure, [&] { return factory(context); }); object && *object) {
@@ -94,13 +92,12 @@ std::unique_ptr<Object> create_and_start(const std::string& who,
     }
     startup->object = std::move(made);
     startup->failure = std::move(failure);
-    startup->finished = true;
-    startup->finished_cv.notify_all();
-  }).detach();
+  });
 
-  std::unique_lock lock(startup->mutex);
-  if (!startup->finished_cv.wait_for(lock, timeout, [&] { return startup->finished; })) {
+  std::lock_guard lock(startup->mutex);
+  if (!finished) {
     startup->abandoned = abandoned = true;
+    keep_forever(startup->object);  // finished right after the timeout: given up on all the same, never destroyed
     health.mark_failed("did not finish starting within " + std::to_string(timeout.count()) +
                        " ms (runtime.plugin_start_timeout_ms)");
     logger("kernel.plugins")->error("{}: {}", who, health.reason());
@@ -251,14 +248,9 @@ void PluginRuntime::start_capabilities(const std::vector<std::string>& names, co
   status_reader_ = std::make_unique<StatusReader>(std::move(sources));
 }
 
-std::optional<nlohmann::json> PluginRuntime::status_of(const DriverInstance& instance) {
-  if (!status_reader_ || instance.status_index == kNoStatus) return std::nullopt;
-  return status_reader_->read(instance.status_index);
-}
-
-std::optional<nlohmann::json> PluginRuntime::status_of(const CapabilityInstance& instance) {
-  if (!status_reader_ || instance.status_index == kNoStatus) return std::nullopt;
-  return status_reader_->read(instance.status_index);
+std::optional<nlohmann::json> PluginRuntime::status_at(std::size_t index) {
+  if (!status_reader_ || index == kNoStatus) return std::nullopt;
+  return status_reader_->read(index);
 }
 
 std::vector<std::optional<nlohmann::json>> PluginRuntime::capability_statuses() {

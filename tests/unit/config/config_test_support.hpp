@@ -7,6 +7,8 @@
 #include <string>
 #include <vector>
 
+#include "temp_dir.hpp"
+
 namespace config_test {
 
 // A SHA-256 in the form the config wants (this one is sha256("test-token")).
@@ -23,18 +25,6 @@ std::vector<rcand::kernel::ConfigDiagnostic> parse_errors(const std::string& yam
 // Only the errors among `diagnostics`.
 std::vector<rcand::kernel::ConfigDiagnostic> errors_only(const std::vector<rcand::kernel::ConfigDiagnostic>& diagnostics);
 
-// A fresh directory under the system temp dir, removed with everything in it on destruction.
-class TempDir {
- public:
-  TempDir();
-  ~TempDir();
-  TempDir(const TempDir&) = delete;
-  TempDir& operator=(const TempDir&) = delete;
-  const std::filesystem::path& path() const { return path_; }
-  std::filesystem::path write(const std::filesystem::path& relative, const std::string& text) const;
-
- private:
-  std::filesystem::path path_;
-};
+using rcand::test::TempDir;
 
 }  // namespace config_test

@@ -2,30 +2,16 @@
 
 #include <filesystem>
 #include <fstream>
-#include <random>
 
 #include "rcand/kernel/config/robot_config.hpp"
 #include "rcand/kernel/r2r/r2r_settings.hpp"
+#include "temp_dir.hpp"
 
 using namespace rcand::kernel;
 using namespace rcand::kernel::r2r;
 using nlohmann::json;
 
 namespace {
-
-class ScratchDir {
- public:
-  ScratchDir() {
-    path_ = std::filesystem::temp_directory_path() / ("r2r-settings-" + std::to_string(std::random_device{}()));
-    std::filesystem::create_directories(path_);
-  }
-  ~ScratchDir() { std::filesystem::remove_all(path_); }
-  const std::filesystem::path& path() const { return path_; }
-  void write(const std::string& name, const std::string& text) const { std::ofstream(path_ / name) << text; }
-
- private:
-  std::filesystem::path path_;
-};
 
 std::string invalid_argument(const json& block, const std::filesystem::path& base) {
   try {
@@ -50,7 +36,7 @@ TEST_CASE("runtime.r2r: defaults, and every key read with files relative to the 
   CHECK_FALSE(defaults.private_key);
   CHECK_FALSE(defaults.outbound_token);
 
-  ScratchDir dir;
+  const rcand::test::TempDir dir{"rcand-r2r-settings"};
   const Ed25519Key own = Ed25519Key::generate();
   const Ed25519Key peer = Ed25519Key::generate();
   dir.write("own.pem", own.private_pem());
@@ -87,7 +73,7 @@ TEST_CASE("runtime.r2r: defaults, and every key read with files relative to the 
 }
 
 TEST_CASE("runtime.r2r: bad settings name the key and never echo key bytes") {
-  ScratchDir dir;
+  const rcand::test::TempDir dir{"rcand-r2r-settings"};
   dir.write("garbage.pem", "-----BEGIN PUBLIC KEY-----\nc2VjcmV0LWJ5dGVz\n-----END PUBLIC KEY-----\n");
   dir.write("empty.token", "\n");
   CHECK(invalid_argument({{"peers", {{{"name", "bob"}, {"public_key_file", "garbage.pem"}}}}}, dir.path())

@@ -61,8 +61,8 @@ class PluginRuntime {
 
   // Any thread: an instance's status(), through the status reader (a hang fails the instance instead of holding
   // the caller). nullopt without an object, after a throw, or once it hung.
-  std::optional<nlohmann::json> status_of(const DriverInstance& instance);
-  std::optional<nlohmann::json> status_of(const CapabilityInstance& instance);
+  std::optional<nlohmann::json> status_of(const DriverInstance& instance) { return status_at(instance.status_index); }
+  std::optional<nlohmann::json> status_of(const CapabilityInstance& instance) { return status_at(instance.status_index); }
   // Every started, healthy capability's status(), read in parallel; one entry per capabilities() element.
   std::vector<std::optional<nlohmann::json>> capability_statuses();
 
@@ -77,6 +77,7 @@ class PluginRuntime {
   static constexpr std::chrono::milliseconds kShutdownDeadline{2000};
 
  private:
+  std::optional<nlohmann::json> status_at(std::size_t status_index);
   // The first interface the plugin's manifest `requires` that no started actuator implements.
   std::optional<std::string> missing_requirement(const PluginRecord& plugin) const;
 
