@@ -33,6 +33,7 @@ class StatusReader {
   struct Slot {
     std::mutex mutex;
     std::optional<nlohmann::json> latest;  // the last value a status() call returned (nullopt: it threw)
+    std::atomic<bool> in_flight{false};    // a reader asked and the call has not returned yet
     std::atomic<bool> hung{false};
   };
   // Well past any status() that keeps its contract (microseconds), and short enough that both I/O threads held by
@@ -44,7 +45,9 @@ class StatusReader {
   StatusReader& operator=(const StatusReader&) = delete;
 
   // Any thread. The status of each source at `indices`, read in parallel: nullopt for one that threw, or that
-  // hangs now or hung before.
+  // hangs now or hung before. A source whose call another reader is already waiting for is not waited for again
+  // (that reader owns its deadline): it answers its last value at once, so concurrent readers of a hung status()
+  // hold I/O threads for one deadline in all, not one each.
   std::vector<std::optional<nlohmann::json>> read(std::span<const std::size_t> indices);
   std::optional<nlohmann::json> read(std::size_t index);
   // True when no status() call is still running after `grace`; false means one hangs, and the objects it reads
