@@ -25,11 +25,33 @@ std::string position(const std::string& file, const YAML::Mark& mark) {
 }
 
 struct Parser {
+  // A key the registry does not know, reported as a warning once every node's token is known.
+  struct UnknownKey {
+    YAML::Mark mark;
+    std::string path, key;
+    std::optional<std::string> hint;
+  };
   std::string file;
-  std::vector<std::string> errors, warnings;
+  std::vector<std::string> errors;
+  std::vector<UnknownKey> unknown_keys;
 
   void error(const YAML::Mark& mark, const std::string& path, const std::string& message) {
     errors.push_back(position(file, mark) + ": error: " + (path.empty() ? "" : path + ": ") + message);
+  }
+
+  // The unknown keys, quoted back, except one that holds a node's token (a mistyped line can put it into a key):
+  // no message leaves with a token in it.
+  std::vector<std::string> warnings(const std::vector<SwarmNode>& nodes) const {
+    std::vector<std::string> out;
+    for (const auto& unknown : unknown_keys) {
+      const bool holds_token = std::any_of(nodes.begin(), nodes.end(), [&](const SwarmNode& node) {
+        return !node.token.empty() && unknown.key.find(node.token) != std::string::npos;
+      });
+      out.push_back(position(file, unknown.mark) + ": warning: " + unknown.path + ": unknown key " +
+                    (holds_token ? "(not quoted: it contains a token)" : "'" + unknown.key + "'") +
+                    (unknown.hint ? " (did you mean '" + *unknown.hint + "'?)" : "") + "; ignored");
+    }
+    return out;
   }
 
   // A scalar string field. Messages never quote the value (the token is a secret).
@@ -68,9 +90,7 @@ struct Parser {
       const std::string key = item.first.IsScalar() ? item.first.Scalar() : "";
       if (std::find(kNodeKeys.begin(), kNodeKeys.end(), key) != kNodeKeys.end()) continue;
       std::vector<std::string> known(kNodeKeys.begin(), kNodeKeys.end());
-      const auto hint = closest_match(key, known);
-      warnings.push_back(position(file, item.first.Mark()) + ": warning: " + path + ": unknown key '" + key + "'" +
-                         (hint ? " (did you mean '" + *hint + "'?)" : "") + "; ignored");
+      unknown_keys.push_back({item.first.Mark(), path, key, closest_match(key, known)});
     }
     if (auto name = string_field(entry, path, "name", true)) node.name = *name;
     if (auto host = string_field(entry, path, "host", true)) node.host = *host;
@@ -178,7 +198,7 @@ SwarmRegistry parse_swarm(std::string_view yaml, const std::string& display_name
     registry.nodes.push_back(std::move(*node));
   }
   if (!parser.errors.empty()) throw SwarmError(parser.errors);
-  registry.warnings = std::move(parser.warnings);
+  registry.warnings = parser.warnings(registry.nodes);
   return registry;
 }
 

@@ -116,6 +116,13 @@ TEST_CASE("the document's shape: nodes list required, invalid YAML located, unkn
   REQUIRE(registry.warnings.size() == 1);
   CHECK(registry.warnings[0].find("swarm.yaml:2:") == 0);
   CHECK(registry.warnings[0].find("unknown key 'tag' (did you mean 'tags'?)") != std::string::npos);
+
+  // A mistyped line that puts the token into a key (found by fuzz_swarm_yaml): the key is not quoted back.
+  const auto typo = parse_swarm("nodes:\n  - name: a\n    host: h\n    token: \"secret-token-a\"\n"
+                                "    token0 \"secret-token-an: x\n", "swarm.yaml");
+  REQUIRE(typo.warnings.size() == 1);
+  CHECK(typo.warnings[0].find("secret-token-a") == std::string::npos);
+  CHECK(typo.warnings[0].find("swarm.yaml:5:5: warning: nodes[0]: unknown key (not quoted: it contains a token)") == 0);
 }
 
 TEST_CASE("load_swarm_file: a missing file is one clear error") {
