@@ -255,9 +255,10 @@ int run_fleet_operation(Operation op, const std::vector<swarm::SwarmNode>& targe
   for (const auto& node : targets) {
     if (op == Operation::Status)
       requests.push_back(swarm::peer_request(node, "GET", "/api/status"));
-    else if (op == Operation::Stop)
+    else if (op == Operation::Stop) {
       requests.push_back(swarm::peer_request(node, "POST", "/api/stop", json{{"reason", "rcanctl stop"}}.dump()));
-    else
+      requests.back().body_limit = swarm::kStopAnswerLimit;
+    } else
       requests.push_back(swarm::peer_request(node, "POST", "/api/command", json{{"instruction", options.instruction}}.dump()));
   }
   const int default_ms = op == Operation::Stop ? 400 : op == Operation::Status ? 2000 : 15000;

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <sstream>
 #include <utility>
 
 namespace rcand::plugins::teleop {
@@ -33,15 +34,26 @@ double read_max_linear(const sdk::PluginContext& ctx) {
   return std::min(max, 1.0);  // wheel speeds are fractions of full speed
 }
 
-// A required finite number; nullopt and `out` set, or the 400 naming the field.
-std::optional<Response> read_number(const Json& body, const char* field, double& out) {
+std::string limit_text(double limit) {
+  std::ostringstream text;  // the shortest spelling: 1 and 0.4, not 1.000000
+  text << "[-" << limit << ", " << limit << "]";
+  return text.str();
+}
+
+// A required finite number in [-limit, limit]; nullopt and `out` set, or the 400 naming the field. Out of range is
+// refused, never clamped: a client that asks for 5x full speed has a bug, and driving it at full speed hides it.
+std::optional<Response> read_number(const Json& body, const char* field, double limit, const char* limit_source,
+                                    double& out) {
+  const std::string range = limit_text(limit);
   const auto it = body.find(field);
   if (it == body.end() || it->is_null())
-    return Response::bad_request(field, std::string(field) + " is required: a number in [-1, 1]");
+    return Response::bad_request(field, std::string(field) + " is required: a number in " + range);
   if (!it->is_number())
-    return Response::bad_request(field, std::string(field) + " must be a number in [-1, 1], found " + it->type_name());
+    return Response::bad_request(field, std::string(field) + " must be a number in " + range + ", found " + it->type_name());
   out = it->get<double>();
-  if (!std::isfinite(out)) return Response::bad_request(field, std::string(field) + " must be a finite number in [-1, 1]");
+  if (!std::isfinite(out) || out < -limit || out > limit)
+    return Response::bad_request(field, std::string(field) + " must be a number in " + range + limit_source + ", found " +
+                                            it->dump());
   return std::nullopt;
 }
 
@@ -93,11 +105,10 @@ Response Teleop::move(const sdk::Request& request) {
   if (!request.body.is_object()) return Response::bad_request("body", "the body must be a JSON object");
   double linear = 0.0, angular = 0.0;
   std::optional<int> duration_ms;
-  if (auto bad = read_number(request.body, "linear", linear)) return *bad;
-  if (auto bad = read_number(request.body, "angular", angular)) return *bad;
+  const char* linear_source = max_linear_ < 1.0 ? " (safety.max_linear_speed)" : "";
+  if (auto bad = read_number(request.body, "linear", max_linear_, linear_source, linear)) return *bad;
+  if (auto bad = read_number(request.body, "angular", 1.0, "", angular)) return *bad;
   if (auto bad = read_duration(request.body, duration_ms)) return *bad;
-  linear = std::clamp(std::clamp(linear, -1.0, 1.0), -max_linear_, max_linear_);
-  angular = std::clamp(angular, -1.0, 1.0);
   const WheelMix wheels = mix(linear, angular);
 
   const auto driver = resolve_driver();

@@ -64,7 +64,7 @@ TEST_CASE("mix: left = linear - angular, right = linear + angular, scaled so nei
   CHECK(mix(0.0, -1.0).right == doctest::Approx(-1.0));
 }
 
-TEST_CASE("move mixes, clamps, drives the wheels and answers every field") {
+TEST_CASE("move mixes, drives the wheels and answers every field") {
   Fixture f;
   auto r = f.post(move(0.5, 0.25));
   REQUIRE(r.status == 200);
@@ -79,21 +79,44 @@ TEST_CASE("move mixes, clamps, drives the wheels and answers every field") {
   CHECK(f.drive.left() == doctest::Approx(0.25));
   CHECK(f.drive.right() == doctest::Approx(0.75));
 
-  r = f.post(move(3.0, -2.0));  // each clamped to [-1, 1], then mixed: left 2, right 0 -> scaled to 1, 0
+  r = f.post(move(1.0, -1.0));  // the full range is accepted, then mixed: left 2, right 0 -> scaled to 1, 0
+  CHECK(r.status == 200);
   CHECK(r.body["linear"] == 1.0);
   CHECK(r.body["angular"] == -1.0);
   CHECK(f.drive.left() == doctest::Approx(1.0));
   CHECK(f.drive.right() == doctest::Approx(0.0));
 }
 
-TEST_CASE("linear is clamped to safety.max_linear_speed") {
+TEST_CASE("out of range is refused with 400 naming the field, never clamped to full speed") {
+  Fixture f;
+  for (const double linear : {5.0, -1.0001, 1e300, -1e300}) {
+    CAPTURE(linear);
+    const auto r = f.post(move(linear, 0.0));
+    CHECK(r.status == 400);
+    CHECK(r.body["field"] == "linear");
+    CHECK(r.body["error"].get<std::string>().find("[-1, 1]") != std::string::npos);
+  }
+  for (const double angular : {2.0, -1e300}) {
+    CAPTURE(angular);
+    const auto r = f.post(move(0.5, angular));
+    CHECK(r.status == 400);
+    CHECK(r.body["field"] == "angular");
+  }
+  CHECK(f.drive.events().empty());
+}
+
+TEST_CASE("linear beyond safety.max_linear_speed is refused, naming the limit and where it comes from") {
   Fixture f({{"safety", {{"max_linear_speed", 0.4}}}});
-  auto r = f.post(move(1.0, 0.0));
-  CHECK(r.body["linear"].get<double>() == doctest::Approx(0.4));
+  auto r = f.post(move(0.4, 0.0));
+  CHECK(r.status == 200);
   CHECK(f.drive.left() == doctest::Approx(0.4));
   r = f.post(move(-0.9, 0.0));
-  CHECK(r.body["linear"].get<double>() == doctest::Approx(-0.4));
-  CHECK(f.drive.right() == doctest::Approx(-0.4));
+  CHECK(r.status == 400);
+  CHECK(r.body["field"] == "linear");
+  const std::string message = r.body["error"];
+  CHECK(message.find("[-0.4, 0.4]") != std::string::npos);
+  CHECK(message.find("safety.max_linear_speed") != std::string::npos);
+  CHECK(f.drive.left() == doctest::Approx(0.4));  // the refused move reached nothing
 }
 
 TEST_CASE("each bad field answers 400 naming it, and the driver receives nothing") {

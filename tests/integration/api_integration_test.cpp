@@ -71,12 +71,22 @@ TEST_CASE("an undeclared capability's endpoint is 404 CAPABILITY_NOT_FOUND and r
   CHECK(status == 401);
 }
 
-TEST_CASE("teleop moves the simulated drive through the gate, with clamping and mixing") {
+TEST_CASE("teleop moves the simulated drive through the gate, with mixing; out of range is refused, not clamped") {
   RcandProcess rcand(sim_config());
   int status = 0;
-  auto answer = rcand.json("POST", "/api/action", "user-token", R"({"type":"move","linear":5,"angular":0,"duration_ms":2000})", &status);
+  for (const char* body : {R"({"type":"move","linear":5,"angular":0,"duration_ms":2000})",
+                           R"({"type":"move","linear":1e300,"angular":0,"duration_ms":2000})",
+                           R"({"type":"move","linear":0.5,"angular":-7,"duration_ms":2000})"}) {
+    CAPTURE(body);
+    auto refused = rcand.json("POST", "/api/action", "user-token", body, &status);
+    CHECK(status == 400);
+    CHECK(refused["code"] == "BAD_REQUEST");
+    CHECK((refused["field"] == "linear" || refused["field"] == "angular"));
+  }
+  CHECK(rcand.json("GET", "/api/drivers/drive0", "owner-token")["status"]["commands"] == 0);
+  auto answer = rcand.json("POST", "/api/action", "user-token", R"({"type":"move","linear":1,"angular":0,"duration_ms":2000})", &status);
   REQUIRE(status == 200);
-  CHECK(answer["linear"] == 1.0);  // clamped to [-1, 1]
+  CHECK(answer["linear"] == 1.0);
   auto drive = rcand.json("GET", "/api/drivers/drive0", "guest-token")["status"];
   CHECK(drive["left"] == doctest::Approx(1.0));
   CHECK(drive["right"] == doctest::Approx(1.0));

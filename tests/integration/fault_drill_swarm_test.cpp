@@ -12,6 +12,7 @@
 #include <thread>
 
 #include "fault_drill.hpp"
+#include "rcand/kernel/http/server.hpp"
 #include "rcand_process.hpp"
 #include "swarm_lab.hpp"
 
@@ -93,4 +94,43 @@ TEST_CASE("fault drill: a peer that drops the connection mid-request during a br
   }
   CHECK(dropper.dropped() >= 3);  // it really received (part of) each forwarded request
   CHECK(bravo.json("GET", "/api/estop", "guest-token").value("estopped", false));
+}
+
+TEST_CASE("fault drill: a lying peer (\"motors_stopped\":\"yes\", \"ack\":\"yes\") is that node's failure; the robot stays up and latched") {
+  // Issue 13 #1: a GUEST's broadcast stop aborted the broadcasting rcand when a peer answered with the wrong types.
+  rcand::kernel::http::ServerOptions options;
+  options.address = "127.0.0.1";
+  options.port = 0;
+  rcand::kernel::http::Server liar(options, [](rcand::kernel::http::Request&& request, rcand::kernel::http::Respond respond) {
+    rcand::kernel::http::Response answer;
+    answer.body = request.path == "/api/stop" ? R"({"status":"stopped","estopped":"yes","motors_stopped":"yes"})"
+                                              : R"({"ack":"yes","executed":"no","reason":["estop_active"]})";
+    respond(std::move(answer));
+  });
+  const auto liar_port = liar.start();
+  TempDir dir;
+  const auto swarm_file = dir.write("swarm.yaml", swarm_yaml({{"liar", "127.0.0.1", liar_port}}));
+  RcandProcess alpha(swarm_robot_config("alpha", swarm_file));
+
+  int status = 0;
+  auto report = alpha.json("POST", "/api/stop", "guest-token", R"({"broadcast":true})", &status);
+  CHECK(status == 200);
+  CHECK(report["estopped"] == true);
+  CHECK(node_named(report, "alpha")["ok"] == true);
+  auto lied = node_named(report, "liar");
+  CHECK(lied["ok"] == false);
+  CHECK(lied["code"] == "MALFORMED_ANSWER");
+  CHECK(report["summary"]["failed"] == 1);
+
+  alpha.json("POST", "/api/estop/clear", "owner-token", "", &status);
+  CHECK(status == 200);
+  report = alpha.json("POST", "/api/command", "user-token", R"({"broadcast":true,"instruction":"wave"})", &status);
+  CHECK(status == 200);
+  CHECK(node_named(report, "liar")["ok"] == false);
+  CHECK(node_named(report, "liar")["code"] == "MALFORMED_ANSWER");
+
+  // Still the same process, still answering; a new stop still latches.
+  CHECK(alpha.json("GET", "/health")["status"] == "ok");
+  CHECK(alpha.json("POST", "/api/stop", "guest-token", "", &status)["estopped"] == true);
+  CHECK(alpha.stop() == 0);
 }

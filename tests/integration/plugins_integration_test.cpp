@@ -20,7 +20,7 @@ const std::vector<std::string> kFixtureCapabilities{
 // Plugin records by manifest file name (the duplicate shares its id with `good`).
 std::map<std::string, json> records_by_manifest(const RcandProcess& rcand) {
   std::map<std::string, json> records;
-  const json document = rcand.json("GET", "/api/plugins", "guest-token");
+  const json document = rcand.json("GET", "/api/plugins", "owner-token");  // manifest paths are for config callers
   for (const auto& record : document["plugins"])
     records[std::filesystem::path(record["manifest"].get<std::string>()).filename().string()] = record;
   return records;

@@ -53,7 +53,9 @@ nlohmann::json sim_config() {
           {"jwt_secret_file", "jwt.secret"},
           {"tokens", json::array({token("owner-principal", "owner", "owner-token"), token("user-principal", "user", "user-token"),
                                   token("guest-principal", "guest", "guest-token")})}}},
-        {"logging", {{"level", "info"}}}}},
+        {"logging", {{"level", "info"}}},
+        // Tests poll as fast as they can; the rate-limit tests turn the limits on themselves.
+        {"rate_limit", {{"per_principal_per_s", 0}, {"per_address_per_s", 0}}}}},
   };
 }
 

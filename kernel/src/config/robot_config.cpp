@@ -147,6 +147,9 @@ RobotConfig extract(config_detail::YamlDocument yaml, const fs::path& source_fil
   r.plugin_start_timeout_ms = static_cast<int>(value_or_default<std::int64_t>(doc, "runtime.plugin_start_timeout_ms"));
   if (const json* audit_file = find(doc, "runtime.audit_file"); audit_file != nullptr && audit_file->is_string())
     r.audit_file = resolve(base_dir, audit_file->get<std::string>());
+  r.rate_limit_principal_per_s = value_or_default<double>(doc, "runtime.rate_limit.per_principal_per_s");
+  r.rate_limit_address_per_s = value_or_default<double>(doc, "runtime.rate_limit.per_address_per_s");
+  r.rate_limit_burst_s = value_or_default<double>(doc, "runtime.rate_limit.burst_s");
   r.capabilities = json::object();
   if (const json* caps = find(doc, "runtime.capabilities"); caps != nullptr && caps->is_object())
     for (const auto& [name, settings] : caps->items()) r.capabilities[name] = object_or_empty(&settings);

@@ -13,6 +13,7 @@
 #include "rcand/kernel/plugin_host/guarded.hpp"
 #include "rcand/kernel/swarm/broadcast_report.hpp"
 #include "rcand/kernel/swarm/node_selection.hpp"
+#include "rcand/kernel/text/bounded_text.hpp"
 
 namespace rcand::kernel {
 namespace {
@@ -37,6 +38,7 @@ constexpr std::array<KernelEndpoint, 8> kKernelEndpoints{{
 constexpr std::string_view kDriversPrefix = "/api/drivers/";
 constexpr std::string_view kCustomPrefix = "/api/cap/";
 constexpr std::string_view kActionPath = "/api/action";
+constexpr std::size_t kMaxAuditLimit = 10000;
 
 // Where each standard capability's endpoints live (§9.2, notes §7); /api/action is routed by body "type".
 struct StandardPrefix {
@@ -83,13 +85,44 @@ bool valid_message_id(std::string_view id) {
   return true;
 }
 
+// True only for a JSON true: a plugin's or a peer's "running": "yes" is not a crash, and not true either.
+bool is_true(const json& object, const char* key) {
+  if (!object.is_object()) return false;
+  const auto found = object.find(key);
+  return found != object.end() && found->is_boolean() && found->get<bool>();
+}
+
+// The e-stop paths (notes §6.4): never rate-limited, never queued behind other work.
+bool is_estop_path(const http::Request& request) {
+  return (request.method == "POST" && (request.path == "/api/stop" || request.path == "/api/estop/clear")) ||
+         (request.method == "GET" && request.path == "/api/estop");
+}
+
+// "127.0.0.1:54321" -> "127.0.0.1", "[::1]:54321" -> "::1": the rate-limit key of a client address.
+std::string client_address(const std::string& remote) {
+  if (!remote.empty() && remote.front() == '[') return remote.substr(1, remote.find(']') - 1);
+  return remote.substr(0, remote.rfind(':'));
+}
+
+http::Response too_many_requests(const std::string& who, double per_s, std::chrono::milliseconds wait) {
+  const auto retry_after_s = std::max<std::int64_t>(1, (wait.count() + 999) / 1000);
+  json limit = per_s;
+  auto response = error(429, "RATE_LIMITED", "too many requests from " + who + " (limit " + limit.dump() + " per second)",
+                        {{"retry_after_s", retry_after_s}});
+  response.headers.emplace_back("Retry-After", std::to_string(retry_after_s));
+  return response;
+}
+
 Scope stricter(Scope a, Scope b) { return sdk::minimum_role(a) >= sdk::minimum_role(b) ? a : b; }
 
 std::string scope_list(Scope scope) { return std::string(sdk::scope_name(scope)); }
 
 }  // namespace
 
-Api::Api(ApiContext& context) : ctx_(context) {
+Api::Api(ApiContext& context)
+    : ctx_(context),
+      principal_limiter_({context.config.runtime.rate_limit_principal_per_s, context.config.runtime.rate_limit_burst_s}),
+      address_limiter_({context.config.runtime.rate_limit_address_per_s, context.config.runtime.rate_limit_burst_s}) {
   const auto& identity = ctx_.registry.identity();
   json plugins = json::array();
   for (const auto& record : ctx_.host.records()) {
@@ -106,6 +139,17 @@ struct Api::Caller {
   sdk::Role role = sdk::Role::Guest;
   std::string message_id;
 };
+
+void Api::log_limited(const std::string& who, const http::Request& request) {
+  constexpr int kLinesPerSecond = 5;
+  const std::int64_t second = ctx_.clock.now_us() / 1'000'000;
+  if (limited_log_second_.exchange(second) != second) {
+    if (const int suppressed = limited_log_count_.exchange(0) - kLinesPerSecond; suppressed > 0)
+      logger("kernel.api")->warn("rate limit: {} more refusals not logged", suppressed);
+  }
+  if (limited_log_count_.fetch_add(1) < kLinesPerSecond)
+    logger("kernel.api")->warn("rate limit: {} {} from {} refused (429)", bounded_text(request.method), bounded_text(request.path), who);
+}
 
 void Api::handle(http::Request&& request, http::Respond respond) { dispatch(std::move(request), nullptr, std::move(respond)); }
 
@@ -133,6 +177,29 @@ void Api::dispatch(http::Request&& request, const Principal* authenticated, http
     respond(std::move(response));
   };
 
+  // Rate limits (notes §6.4): per client address before anything else, per principal once authenticated. The e-stop
+  // paths are exempt; an R2R command comes from the R2R node, which bounds its peers itself.
+  const bool limited = !is_estop_path(request);
+  if (limited && authenticated == nullptr) {
+    const std::string address = client_address(request.remote);
+    if (auto wait = address_limiter_.admit(address, ctx_.clock.now_us())) {
+      log_limited("address " + address, request);
+      reply(too_many_requests("address " + address, address_limiter_.limit().per_s, *wait));
+      return;
+    }
+  }
+  bool principal_admitted = !limited;
+  auto admit_principal = [&](const std::string& name) {
+    if (principal_admitted || name == "anonymous") return true;
+    if (auto wait = principal_limiter_.admit(name, ctx_.clock.now_us())) {
+      log_limited("principal '" + name + "'", request);
+      reply(too_many_requests("principal '" + name + "'", principal_limiter_.limit().per_s, *wait));
+      return false;
+    }
+    principal_admitted = true;
+    return true;
+  };
+
   // Authentication for `scope`; on failure answers and returns false.
   auto authorize = [&](Scope scope) {
     if (authenticated != nullptr) {  // an R2R peer, authenticated by the R2R node: only its scopes are checked here
@@ -144,7 +211,7 @@ void Api::dispatch(http::Request&& request, const Principal* authenticated, http
       }
       caller.principal = authenticated->name;
       caller.role = authenticated->role;
-      return true;
+      return admit_principal(caller.principal);
     }
     std::optional<std::string_view> bearer;
     if (auto header = request.header("authorization")) bearer = bearer_token(*header);
@@ -154,8 +221,8 @@ void Api::dispatch(http::Request&& request, const Principal* authenticated, http
     const auto now_s = ctx_.clock.wall_ms() / 1000;
     auto verdict = ctx_.auth.authorize(bearer, scope, now_s);
     if (auto* failure = std::get_if<AuthError>(&verdict)) {
-      logger("kernel.auth")->info("{} {} from {}: {} ({})", request.method, request.path, request.remote, failure->status,
-                                  failure->message);
+      logger("kernel.auth")->info("{} {} from {}: {} ({})", bounded_text(request.method), bounded_text(request.path),
+                                  request.remote, failure->status, failure->message);
       json extra = json::object();
       if (failure->status == 403) extra["required_scope"] = scope_list(scope);
       reply(error(failure->status, failure->code, failure->message, extra));
@@ -164,7 +231,7 @@ void Api::dispatch(http::Request&& request, const Principal* authenticated, http
     auto& principal = std::get<Principal>(verdict);
     caller.principal = principal.name;
     caller.role = principal.role;
-    return true;
+    return admit_principal(caller.principal);
   };
 
   // §15: broadcasts and swarm-forwarded commands (notes §9).
@@ -193,12 +260,13 @@ void Api::dispatch(http::Request&& request, const Principal* authenticated, http
     return;
   }
   if (path_known) {
-    reply(error(405, "METHOD_NOT_ALLOWED", request.method + " is not allowed on " + request.path, {{"allowed", allowed}}));
+    reply(error(405, "METHOD_NOT_ALLOWED", bounded_text(request.method) + " is not allowed on " + request.path,
+                {{"allowed", allowed}}));
     return;
   }
   if (request.path.rfind(kDriversPrefix, 0) == 0) {
     if (request.method != "GET") {
-      reply(error(405, "METHOD_NOT_ALLOWED", "only GET is allowed on " + request.path, {{"allowed", {"GET"}}}));
+      reply(error(405, "METHOD_NOT_ALLOWED", "only GET is allowed on " + bounded_text(request.path), {{"allowed", {"GET"}}}));
       return;
     }
     if (!authorize(Scope::Status)) return;
@@ -213,7 +281,7 @@ void Api::dispatch(http::Request&& request, const Principal* authenticated, http
       reply(json_response(200, doc));
       return;
     }
-    reply(error(404, "NOT_FOUND", "no driver '" + id + "'"));
+    reply(error(404, "NOT_FOUND", "no driver '" + bounded_text(id) + "'"));
     return;
   }
 
@@ -228,7 +296,7 @@ void Api::dispatch(http::Request&& request, const Principal* authenticated, http
     capability = rest.substr(0, slash);
     subpath = slash == std::string::npos ? "" : rest.substr(slash);
     if (find_standard_capability(capability) != nullptr) {  // standard ones have their own endpoints
-      reply(error(404, "NOT_FOUND", "'" + capability + "' is a standard capability; use its standard endpoint"));
+      reply(error(404, "NOT_FOUND", "'" + bounded_text(capability) + "' is a standard capability; use its standard endpoint"));
       return;
     }
   } else if (!is_action) {
@@ -240,13 +308,18 @@ void Api::dispatch(http::Request&& request, const Principal* authenticated, http
     }
   }
   if (capability.empty() && !is_action) {
-    reply(error(404, "NOT_FOUND", "no endpoint " + request.path));
+    reply(error(404, "NOT_FOUND", "no endpoint " + bounded_text(request.path)));
     return;
   }
 
-  // Custom capabilities need at least control (§9.4). A standard capability's routes say their own scope (notes §7:
-  // GET /api/nav/status is status, POST /api/nav/waypoint control), checked once the route is known.
-  const Scope base_scope = is_action ? Scope::Control : is_custom ? CapabilityRegistry::minimum_scope(capability) : Scope::Status;
+  // Custom capabilities need at least control (§9.4). On a standard capability's endpoints reading needs status and
+  // anything else control (notes §7: GET /api/nav/status, POST /api/nav/waypoint, POST /api/command), checked before
+  // whether the capability is declared: a caller without the scope learns nothing about this robot's capabilities.
+  // A route may ask for more, checked once it is known.
+  const bool reads = request.method == "GET" || request.method == "HEAD";
+  const Scope base_scope = is_action || !reads ? Scope::Control
+                           : is_custom         ? CapabilityRegistry::minimum_scope(capability)
+                                               : Scope::Status;
   if (!authorize(base_scope)) return;
 
   JsonBody body = parse_json_body(request.body);
@@ -268,7 +341,7 @@ void Api::dispatch(http::Request&& request, const Principal* authenticated, http
     for (const auto& type : kActionTypes)
       if (type.type == action_type) capability = type.capability;
     if (capability.empty()) {
-      reply(error(400, "BAD_REQUEST", "unknown action type '" + action_type + "'",
+      reply(error(400, "BAD_REQUEST", "unknown action type '" + bounded_text(action_type) + "'",
                   {{"field", "type"}, {"allowed", declared_types}}));
       return;
     }
@@ -287,8 +360,8 @@ void Api::dispatch(http::Request&& request, const Principal* authenticated, http
 
   // §9.1: an undeclared capability reaches no plugin.
   if (!ctx_.registry.declared(capability)) {
-    refuse(error(404, "CAPABILITY_NOT_FOUND", "this robot does not declare the '" + capability + "' capability",
-                 {{"capability", capability}, {"capabilities", ctx_.registry.names()}}),
+    refuse(error(404, "CAPABILITY_NOT_FOUND", "this robot does not declare the '" + bounded_text(capability) + "' capability",
+                 {{"capability", bounded_text(capability)}, {"capabilities", ctx_.registry.names()}}),
            "blocked", "capability not declared");
     return;
   }
@@ -312,10 +385,12 @@ void Api::dispatch(http::Request&& request, const Principal* authenticated, http
   }
   if (route == nullptr) {
     if (!route_methods.empty())
-      refuse(error(405, "METHOD_NOT_ALLOWED", request.method + " is not allowed on " + request.path, {{"allowed", route_methods}}),
+      refuse(error(405, "METHOD_NOT_ALLOWED", bounded_text(request.method) + " is not allowed on " + bounded_text(request.path),
+                   {{"allowed", route_methods}}),
              "blocked", "method not allowed");
     else
-      refuse(error(404, "NOT_FOUND", "capability '" + capability + "' has no endpoint " + request.path), "blocked", "no such route");
+      refuse(error(404, "NOT_FOUND", "capability '" + capability + "' has no endpoint " + bounded_text(request.path)), "blocked",
+             "no such route");
     return;
   }
   const Scope route_scope = stricter(route->scope, base_scope);
@@ -402,7 +477,7 @@ void Api::handle_kernel(const std::string& endpoint, http::Request& request, con
     std::string reason = "POST /api/stop";
     if (auto body = parse_json_body(request.body); body.error.empty() && body.value.is_object() &&
                                                    body.value.contains("reason") && body.value["reason"].is_string())
-      reason = body.value["reason"].get<std::string>().substr(0, 200);
+      reason = bounded_text(body.value["reason"].get<std::string>());  // never cut inside a UTF-8 character
     const auto seq = record("POST /api/stop");
     const auto report = ctx_.estop.latch(reason, caller.principal);
     json drivers = json::array();
@@ -446,15 +521,16 @@ void Api::handle_kernel(const std::string& endpoint, http::Request& request, con
       const std::string& text = it->second;
       std::size_t parsed = 0;
       const auto [end, ec] = std::from_chars(text.data(), text.data() + text.size(), parsed);
-      if (ec != std::errc{} || end != text.data() + text.size() || parsed == 0) {
-        respond(error(400, "BAD_REQUEST", "limit must be a positive integer", {{"field", "limit"}}));
+      if (ec != std::errc{} || end != text.data() + text.size() || parsed == 0 || parsed > kMaxAuditLimit) {
+        respond(error(400, "BAD_REQUEST", "limit must be an integer in [1, " + std::to_string(kMaxAuditLimit) + "]",
+                      {{"field", "limit"}}));
         return;
       }
-      limit = std::min<std::size_t>(parsed, 10000);
+      limit = parsed;
     }
     respond(json_response(200, ctx_.audit.to_json(limit)));
   } else if (endpoint == "/api/plugins") {
-    respond(json_response(200, {{"plugins", ctx_.host.to_json()}}));
+    respond(json_response(200, {{"plugins", ctx_.host.to_json(sdk::role_grants(caller.role, Scope::Config))}}));
   }
 }
 
@@ -462,7 +538,7 @@ bool Api::nav_running() const {
   const auto* nav = ctx_.runtime.capability("nav");
   if (nav == nullptr || !nav->object || nav->health.failed()) return false;
   auto status = ctx_.runtime.status_of(*nav);
-  return status && status->is_object() && status->value("running", false);
+  return status && is_true(*status, "running");
 }
 
 std::string Api::robot_state(bool nav_running) const {
@@ -492,7 +568,7 @@ json Api::status_document() const {
     if (instance.health.failed()) item["reason"] = instance.health.reason();
     if (status && !instance.health.failed()) {
       if (instance.name == "nav" && status->is_object()) {
-        nav_is_running = status->value("running", false);
+        nav_is_running = is_true(*status, "running");
         if (status->contains("pose")) doc["pose"] = (*status)["pose"];  // the dead-reckoned pose, top level too
       }
       item["status"] = std::move(*status);
@@ -631,6 +707,7 @@ bool Api::handle_swarm(http::Request& request, const Caller& caller, const std::
   std::vector<swarm::PeerRequest> requests;
   for (const auto& node : peers) {
     auto peer = swarm::peer_request(node, "POST", request.path, forwarded_body.dump());
+    if (is_stop) peer.body_limit = swarm::kStopAnswerLimit;
     peer.headers.emplace_back("X-Swarm-Forwarded", ruri);
     peer.headers.emplace_back("X-Message-Id", caller.message_id);
     requests.push_back(std::move(peer));
@@ -676,7 +753,7 @@ bool Api::handle_swarm(http::Request& request, const Caller& caller, const std::
   if (is_stop) {
     json local_doc = json::parse(local_stop.body, nullptr, false);
     if (!local_doc.is_object()) local_doc = json::object();
-    const bool stopped = local_doc.value("motors_stopped", false);
+    const bool stopped = is_true(local_doc, "motors_stopped");
     gather->stop_fields = local_doc;
     gather->local = json{{"name", local_name},
                          {"address", "local"},

@@ -15,8 +15,11 @@ JsonBody parse_json_body(std::string_view text) {
     });
   } catch (const TooDeep&) {
     result.error = "body nests deeper than " + std::to_string(kMaxJsonDepth) + " levels";
-  } catch (const nlohmann::json::exception& e) {
-    result.error = std::string("body is not valid JSON: ") + e.what();
+  } catch (const nlohmann::json::parse_error& e) {
+    // Our words, not the library's: its message quotes the input back ("last read: ...") and names its internals.
+    result.error = "body is not valid JSON (syntax error at byte " + std::to_string(e.byte) + ")";
+  } catch (const nlohmann::json::exception&) {
+    result.error = "body is not valid JSON";
   }
   return result;
 }

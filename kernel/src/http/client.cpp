@@ -204,7 +204,11 @@ ClientResponse Client::request(std::string_view method, std::string_view target,
     bhttp::response_parser<bhttp::string_body> parser;
     parser.body_limit(kResponseBodyLimit);
     if (head) parser.skip(true);
-    if (!ec) ec = impl.run([&](auto handler) { bhttp::async_read(*impl.stream, impl.buffer, parser, handler); });
+    // The header on its own first: Beast 1.74's eager async_read loses the body_limit error of an over-long
+    // Content-Length and would read the whole body.
+    if (!ec) ec = impl.run([&](auto handler) { bhttp::async_read_header(*impl.stream, impl.buffer, parser, handler); });
+    if (!ec && !parser.is_done())
+      ec = impl.run([&](auto handler) { bhttp::async_read(*impl.stream, impl.buffer, parser, handler); });
 
     if (ec) {
       const bool nothing_received = !parser.got_some();

@@ -328,7 +328,34 @@ std::string PluginHost::format_table() const {
   return out.str();
 }
 
-json PluginHost::to_json() const {
+namespace {
+
+// "/usr/lib/rcand/plugins/libx.so: cannot open" -> "libx.so: cannot open": where the robot keeps its files is the
+// operator's business, not every guest's.
+std::string without_directories(const std::string& text) {
+  std::string out;
+  std::size_t i = 0;
+  while (i < text.size()) {
+    const bool starts_path = text[i] == '/' && (i == 0 || text[i - 1] == ' ' || text[i - 1] == '\'' || text[i - 1] == '(');
+    if (!starts_path) {
+      out.push_back(text[i++]);
+      continue;
+    }
+    std::size_t end = i;
+    while (end < text.size() && text[end] != ' ' && text[end] != '\'' && text[end] != ')' && text[end] != ',' &&
+           !(text[end] == ':' && (end + 1 == text.size() || text[end + 1] == ' ')))
+      ++end;
+    const std::string path = text.substr(i, end - i);
+    const auto slash = path.find_last_of('/');
+    out += slash + 1 < path.size() ? path.substr(slash + 1) : path;
+    i = end;
+  }
+  return out;
+}
+
+}  // namespace
+
+json PluginHost::to_json(bool with_paths) const {
   json out = json::array();
   for (const auto& r : records_) {
     json provided = json::array();
@@ -338,14 +365,17 @@ json PluginHost::to_json() const {
         if (!item.interface.empty()) entry["interface"] = item.interface;
         provided.push_back(std::move(entry));
       }
-    out.push_back({{"id", r->id},
-                   {"version", r->version},
-                   {"state", to_string(r->state)},
-                   {"reason", r->reason},
-                   {"hint", r->hint},
-                   {"provides", std::move(provided)},
-                   {"manifest", r->manifest_file.string()},
-                   {"build_info", r->build_info}});
+    json item{{"id", r->id},
+              {"version", r->version},
+              {"state", to_string(r->state)},
+              {"reason", with_paths ? r->reason : without_directories(r->reason)},
+              {"hint", with_paths ? r->hint : without_directories(r->hint)},
+              {"provides", std::move(provided)}};
+    if (with_paths) {
+      item["manifest"] = r->manifest_file.string();
+      item["build_info"] = r->build_info;
+    }
+    out.push_back(std::move(item));
   }
   return out;
 }

@@ -71,7 +71,6 @@ struct FanOut::Loop : std::enable_shared_from_this<FanOut::Loop> {
 
 namespace {
 
-constexpr std::uint64_t kResponseBodyLimit = 1024 * 1024;
 // Well inside rcand's 60 s idle timeout, so a reused connection is rarely one the peer is closing.
 constexpr std::chrono::seconds kMaxIdle{20};
 constexpr std::size_t kMaxIdlePerPeer = 4;
@@ -89,11 +88,41 @@ std::string endpoint_text(const tcp::endpoint& endpoint) {
   return (address.is_v6() ? "[" + address.to_string() + "]" : address.to_string()) + ":" + std::to_string(endpoint.port());
 }
 
-// All results of one run; touched only on the fan-out thread.
+// All results of one run; touched only on the fan-out thread. The run's own deadline timer closes it even when an
+// op is late (its socket's expiry waits behind other work on this thread): `done` runs at most once, and a result that
+// arrives after that is dropped.
 struct Batch {
+  explicit Batch(net::io_context& io) : deadline(io) {}
   std::vector<PeerResult> results;
+  std::vector<bool> finished;
   std::size_t remaining = 0;
   FanOut::Done done;
+  net::steady_timer deadline;
+
+  // Records one peer's result; the last one (or the deadline) answers.
+  void complete(std::size_t index, PeerResult result) {
+    if (!done || finished[index]) return;
+    finished[index] = true;
+    results[index] = std::move(result);
+    if (--remaining == 0) close();
+  }
+  // Every peer still pending failed with `why`; answers now.
+  void expire(const std::vector<std::string>& names, double elapsed_ms, const std::string& why) {
+    for (std::size_t i = 0; i < finished.size() && done; ++i) {
+      if (finished[i]) continue;
+      PeerResult late;
+      late.name = names[i];
+      late.error = why;
+      late.latency_ms = elapsed_ms;
+      complete(i, std::move(late));
+    }
+  }
+  void close() {
+    deadline.cancel();
+    auto answer = std::move(done);
+    done = nullptr;
+    if (answer) answer(std::move(results));
+  }
 };
 
 class PeerOp : public std::enable_shared_from_this<PeerOp> {
@@ -224,14 +253,23 @@ class PeerOp : public std::enable_shared_from_this<PeerOp> {
     });
   }
 
+  // The header first, on its own: Beast 1.74's eager parse (what async_read sets) loses the body_limit error of a
+  // Content-Length over the limit and reads the whole body anyway; read_header reports it.
   void receive() {
     parser_.emplace();
-    parser_->body_limit(kResponseBodyLimit);
-    bhttp::async_read(*stream_, buffer_, *parser_, [self = shared_from_this()](const beast::error_code& ec, std::size_t) {
+    parser_->body_limit(request_.body_limit);
+    bhttp::async_read_header(*stream_, buffer_, *parser_, [self = shared_from_this()](const beast::error_code& ec, std::size_t) {
       if (ec && self->reused_ && is_stale(ec) && !self->parser_->got_some()) {
         self->buffer_.clear();
         return self->fresh_connect();  // the peer had closed the idle connection: once more on a new one
       }
+      if (ec) return self->fail(self->request_.method + " " + self->request_.target + " on " + self->result_.address, ec);
+      self->receive_body();
+    });
+  }
+
+  void receive_body() {
+    bhttp::async_read(*stream_, buffer_, *parser_, [self = shared_from_this()](const beast::error_code& ec, std::size_t) {
       if (ec) return self->fail(self->request_.method + " " + self->request_.target + " on " + self->result_.address, ec);
       auto& response = self->parser_->get();
       self->result_.reachable = true;
@@ -261,11 +299,7 @@ class PeerOp : public std::enable_shared_from_this<PeerOp> {
     result_.name = request_.name;
     result_.error = std::move(error);
     result_.latency_ms = std::chrono::duration<double, std::milli>(Clock::now() - start_).count();
-    batch_->results[index_] = std::move(result_);
-    if (--batch_->remaining == 0 && batch_->done) {
-      auto done = std::move(batch_->done);
-      done(std::move(batch_->results));
-    }
+    batch_->complete(index_, std::move(result_));
   }
 
   FanOut::Loop* loop_;  // outlives this op: see FanOut::Loop
@@ -310,15 +344,20 @@ void FanOut::stop() noexcept {
 void FanOut::run(std::vector<PeerRequest> requests, std::chrono::milliseconds timeout, Done done) {
   const auto start = Clock::now();
   loop_->post([loop = loop_.get(), requests = std::move(requests), timeout, done = std::move(done), start]() mutable {
-    auto batch = std::make_shared<Batch>();
+    auto batch = std::make_shared<Batch>(loop->io);
     batch->results.resize(requests.size());
+    batch->finished.assign(requests.size(), false);
     batch->remaining = requests.size();
     batch->done = std::move(done);
-    if (requests.empty()) {
-      auto finished = std::move(batch->done);
-      if (finished) finished({});
-      return;
-    }
+    if (requests.empty()) return batch->close();
+    auto names = std::make_shared<std::vector<std::string>>();
+    for (const auto& request : requests) names->push_back(request.name);
+    batch->deadline.expires_at(start + timeout);
+    batch->deadline.async_wait([batch, names, start, timeout](const boost::system::error_code& ec) {
+      if (ec) return;
+      const double elapsed = std::chrono::duration<double, std::milli>(Clock::now() - start).count();
+      batch->expire(*names, elapsed, "timed out after " + std::to_string(timeout.count()) + " ms");
+    });
     for (std::size_t i = 0; i < requests.size(); ++i)
       std::make_shared<PeerOp>(*loop, batch, i, std::move(requests[i]), start, timeout)->start();
   });

@@ -68,3 +68,42 @@ TEST_CASE("the document counts ok and failed nodes") {
   CHECK(doc["nodes"].size() == 3);
   CHECK(doc["summary"] == json{{"total", 3}, {"ok", 2}, {"failed", 1}});
 }
+
+TEST_CASE("a lying peer is that node's failure, never an exception: every field it sends is type-checked") {
+  // Issue 13 #1: "motors_stopped":"yes" aborted the broadcasting rcand (json type_error on the fan-out thread).
+  const std::vector<std::pair<json, BroadcastKind>> lies = {
+      {{{"motors_stopped", "yes"}}, BroadcastKind::Stop},
+      {{{"motors_stopped", 1}}, BroadcastKind::Stop},
+      {{{"motors_stopped", nullptr}}, BroadcastKind::Stop},
+      {{{"ack", "yes"}, {"executed", false}}, BroadcastKind::Command},
+      {{{"ack", true}, {"executed", "no"}}, BroadcastKind::Command},
+      {{{"executed", json::array()}}, BroadcastKind::Command},
+      {{{"ack", json::object()}}, BroadcastKind::Stop},
+  };
+  for (const auto& lie : lies) {
+    const auto& body = lie.first;
+    const auto kind = lie.second;
+    CAPTURE(body.dump());
+    json entry;
+    CHECK_NOTHROW(entry = node_entry(answered(200, body), kind));
+    CHECK(entry["ok"] == false);
+    CHECK(entry["executed"] == false);
+    CHECK(entry["code"] == "MALFORMED_ANSWER");
+    CHECK(entry["error"].get<std::string>().find("malformed answer") != std::string::npos);
+  }
+  // Text fields of the wrong type are dropped, and long ones are bounded, in failures too.
+  auto refusal = node_entry(answered(500, {{"error", 42}, {"code", json::array()}}), BroadcastKind::Stop);
+  CHECK(refusal["error"] == "HTTP 500");
+  auto flood = node_entry(answered(503, {{"error", std::string(100000, 'x')}, {"code", "UNAVAILABLE"}}), BroadcastKind::Stop);
+  CHECK(flood["error"].get<std::string>().size() <= 200);
+  // A document whose "ok" is not a boolean counts the node as failed.
+  CHECK(broadcast_document({json{{"name", "x"}, {"ok", "yes"}}})["summary"]["failed"] == 1);
+}
+
+TEST_CASE("a large answer is summarised, not copied into the report") {
+  json big{{"motors_stopped", true}, {"padding", std::string(kEchoedAnswerLimit, 'p')}};
+  auto entry = node_entry(answered(200, big), BroadcastKind::Stop);
+  CHECK(entry["ok"] == true);
+  CHECK_FALSE(entry.contains("response"));
+  CHECK(entry["response_bytes"].get<std::size_t>() > kEchoedAnswerLimit);
+}

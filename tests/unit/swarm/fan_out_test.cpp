@@ -6,12 +6,18 @@
 #include <boost/asio/io_context.hpp>
 #include <boost/asio/ip/tcp.hpp>
 
+#include <algorithm>
+#include <atomic>
 #include <chrono>
+#include <condition_variable>
 #include <memory>
+#include <mutex>
 #include <thread>
+#include <vector>
 
 #include "rcand/kernel/http/server.hpp"
 #include "rcand/kernel/swarm/fan_out.hpp"
+#include "streaming_peer.hpp"
 
 using namespace rcand::kernel;
 using namespace std::chrono_literals;
@@ -165,4 +171,46 @@ TEST_CASE("connections to a peer are kept and reused; one the peer closed while 
   auto again = fan_out.run_and_wait({to("p", port)}, 2000ms).at(0);
   CHECK(again.status == 200);
   CHECK(again.error.empty());
+}
+
+
+TEST_CASE("a stop answer over its body limit is that peer's failure; the others are not held back") {
+  rcand::test::StreamingPeer streaming;
+  Peer a;
+  swarm::FanOut fan_out;
+  auto big = to("streaming", streaming.port());
+  big.body_limit = swarm::kStopAnswerLimit;
+  auto results = fan_out.run_and_wait({big, to("a", a.port)}, 300ms);
+  CHECK_FALSE(results[0].reachable);
+  CAPTURE(results[0].error);
+  CHECK(results[0].error.find("body limit") != std::string::npos);
+  CHECK(results[0].latency_ms < 300.0);  // refused at the limit, not read until the deadline
+  CHECK(results[1].status == 200);
+}
+
+TEST_CASE("100 concurrent broadcast stops with a streaming peer each answer inside the 500 ms stop budget") {
+  rcand::test::StreamingPeer streaming;
+  Peer a;
+  swarm::FanOut fan_out;
+  constexpr int kRuns = 100;
+  std::mutex mutex;
+  std::condition_variable all_done;
+  std::vector<double> elapsed_ms;
+  const auto start = std::chrono::steady_clock::now();
+  for (int i = 0; i < kRuns; ++i) {
+    auto big = to("streaming", streaming.port());
+    big.body_limit = swarm::kStopAnswerLimit;
+    fan_out.run({big, to("a", a.port)}, 300ms, [&](std::vector<swarm::PeerResult> results) {
+      const double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+      std::lock_guard lock(mutex);
+      CHECK(results.size() == 2);
+      elapsed_ms.push_back(ms);
+      if (elapsed_ms.size() == kRuns) all_done.notify_all();
+    });
+  }
+  std::unique_lock lock(mutex);
+  REQUIRE(all_done.wait_for(lock, 10s, [&] { return elapsed_ms.size() == kRuns; }));
+  const double slowest = *std::max_element(elapsed_ms.begin(), elapsed_ms.end());
+  MESSAGE("slowest of " << kRuns << " concurrent broadcasts: " << slowest << " ms");
+  CHECK(slowest < 500.0);  // §15.5 / notes §9: the stop MUST; the peers' own deadline is 300 ms
 }

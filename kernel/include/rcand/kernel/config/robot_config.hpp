@@ -65,6 +65,10 @@ struct RuntimeConfig {
   int handler_timeout_ms = 10000;
   int plugin_start_timeout_ms = 10000;  // a plugin's factory/start()/routes() that takes longer fails its instance
   std::optional<std::filesystem::path> audit_file;  // absolute after loading; every audit entry appended as a JSON line
+  // Request rate limits (notes §6.4); 0 = unlimited. The e-stop paths are never limited.
+  double rate_limit_principal_per_s = 100;
+  double rate_limit_address_per_s = 400;
+  double rate_limit_burst_s = 2;
   nlohmann::json capabilities = nlohmann::json::object();  // name -> settings (a mapping; `name:` with no value gives {})
   nlohmann::json r2r = nlohmann::json::object();
 };

@@ -52,7 +52,9 @@ class PluginHost {
   std::string format_table() const;
   // [{"id","version","state","reason","hint","provides":[{"kind","name","actuates","interface"}],"manifest",
   //   "build_info"}]
-  nlohmann::json to_json() const;
+  // `with_paths` false (a caller who may not read the configuration): no manifest path or build info, and every
+  // absolute path in a reason or hint shortened to its file name.
+  nlohmann::json to_json(bool with_paths = true) const;
 
  private:
   void open(PluginRecord& record);

@@ -19,6 +19,10 @@
 
 namespace rcand::kernel::swarm {
 
+inline constexpr std::uint64_t kDefaultPeerBodyLimit = 1024 * 1024;
+// What a stop answer may take: far above a real one (a few hundred bytes per driver).
+inline constexpr std::uint64_t kStopAnswerLimit = 64 * 1024;
+
 struct PeerRequest {
   std::string name;
   std::string host;                        // IP literal or hostname
@@ -28,6 +32,9 @@ struct PeerRequest {
   std::string target = "/";
   std::string body;
   std::vector<std::pair<std::string, std::string>> headers;  // e.g. Authorization (never logged)
+  // A larger answer is that peer's failure: a stop's answer is small, and a peer streaming megabytes must not
+  // make the fan-out thread (shared by every broadcast) late for everyone else's deadline.
+  std::uint64_t body_limit = kDefaultPeerBodyLimit;
 };
 
 // A request to a registry node: its name, host, ip fallback and port, authorized with the node's own token.
