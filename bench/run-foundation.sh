@@ -11,7 +11,11 @@ token=rcand-dev-owner
 work=$(mktemp -d)
 trap 'kill $pid 2>/dev/null || true; wait $pid 2>/dev/null || true; rm -rf "$work"' EXIT
 
-"$build/kernel/rcand" --config config/sim-rover.rcan.yaml --port $port >"$work/out" 2>"$work/err" &
+# The bundled sim robot, its rate limits off: this measures the server, not the limiter (which would answer 429).
+sed '/^runtime:/a\  rate_limit: {per_principal_per_s: 0, per_address_per_s: 0}' config/sim-rover.rcan.yaml >"$work/robot.rcan.yaml"
+cp config/dev-jwt.secret "$work/"
+chmod 600 "$work/dev-jwt.secret"
+"$build/kernel/rcand" --config "$work/robot.rcan.yaml" --plugin-path "$build/plugins" --port $port >"$work/out" 2>"$work/err" &
 pid=$!
 until grep -q "listening on" "$work/out"; do kill -0 $pid; sleep 0.05; done
 

@@ -11,8 +11,10 @@ token=rcand-dev-owner
 work=$(mktemp -d)
 trap 'kill $pid 2>/dev/null || true; wait $pid 2>/dev/null || true; rm -rf "$work"' EXIT
 
-# The bundled sim robot with nav declared (its physics block already has the §10.2 fields).
-sed 's/capabilities: \[status, teleop, com.acme.gripper\]/capabilities: [status, teleop, nav, com.acme.gripper]/' \
+# The bundled sim robot with nav declared (its physics block already has the §10.2 fields), rate limits off (the
+# benchmark polls as fast as it can).
+sed -e 's/capabilities: \[status, teleop, com.acme.gripper\]/capabilities: [status, teleop, nav, com.acme.gripper]/' \
+    -e '/^runtime:/a\  rate_limit: {per_principal_per_s: 0, per_address_per_s: 0}' \
   config/sim-rover.rcan.yaml >"$work/robot.rcan.yaml"
 cp config/dev-jwt.secret "$work/"
 chmod 600 "$work/dev-jwt.secret"
