@@ -173,7 +173,13 @@ RcandProcess::RcandProcess(const nlohmann::json& config, std::vector<std::string
 
 void RcandProcess::launch(const nlohmann::json& config, std::vector<fs::path> plugin_paths, const std::vector<std::string>& launcher) {
   dir_.write("jwt.secret", kJwtSecret);
-  const auto config_file = dir_.write("robot.rcan.yaml", config.dump(2));
+  // Hermetic: a state dir of this process's own (inside its temp dir) unless the test names one (to share it
+  // between two processes in turn, say); never the system's /var/lib/rcand.
+  nlohmann::json effective = config;
+  if (effective.is_object() && effective.contains("runtime") && effective["runtime"].is_object() &&
+      !effective["runtime"].contains("state_dir"))
+    effective["runtime"]["state_dir"] = (dir_.path() / "state").string();
+  const auto config_file = dir_.write("robot.rcan.yaml", effective.dump(2));
   if (plugin_paths.empty()) plugin_paths.push_back(plugin_dir());
   std::vector<std::string> args{"--config", config_file.string(), "--port", "0"};
   for (const auto& path : plugin_paths) {
@@ -232,6 +238,18 @@ int RcandProcess::stop() {
   if (stdout_fd_ >= 0) close(stdout_fd_);
   stdout_fd_ = -1;
   abort_on_sanitizer_report("rcand", stderr_text());
+  return WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
+}
+
+int RcandProcess::kill_hard() {
+  if (pid_ <= 0) return -1;
+  kill(pid_, SIGKILL);
+  int status = 0;
+  while (waitpid(pid_, &status, 0) < 0 && errno == EINTR) {
+  }
+  pid_ = -1;
+  if (stdout_fd_ >= 0) close(stdout_fd_);
+  stdout_fd_ = -1;
   return WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
 }
 

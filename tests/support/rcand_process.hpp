@@ -40,8 +40,9 @@ std::filesystem::path test_plugin_dir();
 class RcandProcess {
  public:
   // Writes `config` to <tmp>/robot.rcan.yaml (plus the JWT secret file) and starts rcand on port 0 loading plugins
-  // only from `plugin_paths` (default: the build tree's). Throws std::runtime_error with rcand's stderr when it does
-  // not come up.
+  // only from `plugin_paths` (default: the build tree's). Without runtime.state_dir in `config`, the state dir is
+  // <tmp>/state (hermetic); set it to a directory of the test's to share it between processes run in turn.
+  // Throws std::runtime_error with rcand's stderr when it does not come up.
   explicit RcandProcess(const nlohmann::json& config, std::vector<std::filesystem::path> plugin_paths = {});
   // The same started through `launcher` (e.g. {"ip", "netns", "exec", "ns1"}: rcand inside a network namespace),
   // reached at `host` (the config's runtime.listen.address there).
@@ -63,6 +64,8 @@ class RcandProcess {
                       const std::string& body = {}, int* status = nullptr) const;
   // SIGTERM and wait; returns the exit status (or 128+signal).
   int stop();
+  // SIGKILL (no clean shutdown: a crash as far as rcand's state dir is concerned) and reap; returns 128+9.
+  int kill_hard();
   std::string stderr_text() const;
 
  private:

@@ -147,6 +147,13 @@ const std::vector<KeySpec>& build_schema() {
        .min_exclusive = true, .description = "longest a plugin's register(), factory, start() or routes() may take at startup"},
       {.path = "runtime.audit_file", .type = String, .non_empty = true,
        .description = "append every audit entry to this file as JSON lines (relative to this file)"},
+      {.path = "runtime.audit_max_bytes", .type = Integer, .default_value = 67108864, .min = 4096, .max = 1e12,
+       .description = "runtime.audit_file is rotated (FILE.1, FILE.2, ...) when a line would take it past this size"},
+      {.path = "runtime.audit_keep_files", .type = Integer, .default_value = 4, .min = 1, .max = 100,
+       .description = "rotated audit files kept (FILE.1 is the newest); older ones are deleted"},
+      {.path = "runtime.state_dir", .type = String, .non_empty = true,
+       .description = "where rcand keeps its e-stop latch and running marker across restarts (relative to this "
+                      "file); default $STATE_DIRECTORY (systemd StateDirectory=), else /var/lib/rcand"},
       {.path = "runtime.rate_limit", .type = Mapping,
        .description = "request rate limits (429 with Retry-After); the e-stop paths are never limited"},
       {.path = "runtime.rate_limit.per_principal_per_s", .type = Number, .default_value = 100, .min = 0,

@@ -8,6 +8,7 @@
 #include <algorithm>
 #include <cctype>
 #include <cerrno>
+#include <cstdlib>
 #include <cstring>
 #include <fstream>
 
@@ -147,6 +148,14 @@ RobotConfig extract(config_detail::YamlDocument yaml, const fs::path& source_fil
   r.plugin_start_timeout_ms = static_cast<int>(value_or_default<std::int64_t>(doc, "runtime.plugin_start_timeout_ms"));
   if (const json* audit_file = find(doc, "runtime.audit_file"); audit_file != nullptr && audit_file->is_string())
     r.audit_file = resolve(base_dir, audit_file->get<std::string>());
+  r.audit_max_bytes = static_cast<std::uint64_t>(value_or_default<std::int64_t>(doc, "runtime.audit_max_bytes"));
+  r.audit_keep_files = static_cast<int>(value_or_default<std::int64_t>(doc, "runtime.audit_keep_files"));
+  if (const auto state_dir = optional_value<std::string>(doc, "runtime.state_dir")) {
+    r.state_dir = resolve(base_dir, *state_dir);
+  } else if (const char* systemd = std::getenv("STATE_DIRECTORY"); systemd != nullptr && *systemd != '\0') {
+    const std::string first(systemd, std::strcspn(systemd, ":"));  // systemd lists several, colon-separated
+    if (!first.empty()) r.state_dir = first;
+  }
   r.rate_limit_principal_per_s = value_or_default<double>(doc, "runtime.rate_limit.per_principal_per_s");
   r.rate_limit_address_per_s = value_or_default<double>(doc, "runtime.rate_limit.per_address_per_s");
   r.rate_limit_burst_s = value_or_default<double>(doc, "runtime.rate_limit.burst_s");

@@ -16,14 +16,33 @@ void Estop::request_estop(const std::string& reason) noexcept { latch(reason, "p
 Estop::StopReport Estop::latch(const std::string& reason, const std::string& source) noexcept {
   StopReport report;
   const auto start = clock_.now_us();
+  const auto deadline = std::chrono::steady_clock::now() + kHaltDeadline;
   epoch_.fetch_add(1);
   report.newly_latched = !latched_.exchange(true);
-  report.drivers = halt_everything();
+  report.drivers = halt_everything(deadline);
+  // Commands that passed the gate's latch check before the flag was set: wait (bounded) until they left the gate,
+  // which they do only after the gate halted their actuator again (see the ordering guarantee in estop.hpp).
+  report.commands_in_flight = actuators_.wait_for_commands(deadline, latched_);
   report.latency_us = clock_.now_us() - start;
   try {
     if (report.newly_latched) {
       std::lock_guard lock(info_mutex_);
       info_ = {true, clock_.wall_ms(), reason, source};
+    }
+    for (const auto& id : report.commands_in_flight) {
+      const std::string why = "a command that entered the motion gate before the latch was still running at the " +
+                              std::to_string(kHaltDeadline.count()) + " ms deadline; the gate halts " + id + " when it returns";
+      logger("kernel.estop")->error("actuator {}: {}", id, why);
+      for (auto& driver : report.drivers) {
+        if (driver.id != id) continue;
+        driver.halted = false;
+        if (driver.state == "halted") {
+          driver.state = "command_in_flight";
+          driver.error = why;
+        } else {
+          driver.error += "; " + why;
+        }
+      }
     }
     {
       std::lock_guard lock(sleep_mutex_);  // pairs with the predicate check in sleep_unless_latched
@@ -38,10 +57,10 @@ Estop::StopReport Estop::latch(const std::string& reason, const std::string& sou
   return report;
 }
 
-std::vector<HaltReport> Estop::halt_everything() noexcept {
+std::vector<HaltReport> Estop::halt_everything(std::chrono::steady_clock::time_point deadline) noexcept {
   DeadlineCrew* crew = halt_crew_.load();
   if (crew == nullptr) return actuators_.halt_all(clock_);
-  const auto outcomes = crew->run_all(std::chrono::steady_clock::now() + kHaltDeadline);
+  const auto outcomes = crew->run_all(deadline);
   std::vector<HaltReport> reports;
   try {
     reports.reserve(outcomes.size());
@@ -72,8 +91,18 @@ bool Estop::clear() {
   std::lock_guard lock(info_mutex_);
   info_ = {};
   if (was) logger("kernel.estop")->info("e-stop cleared");
+  for (auto& listener : clear_listeners_) listener();
   return was;
 }
+
+void Estop::restate(std::string reason, std::string source) {
+  std::lock_guard lock(info_mutex_);
+  if (!latched_.load()) return;
+  info_.reason = std::move(reason);
+  info_.source = std::move(source);
+}
+
+void Estop::on_cleared(std::function<void()> listener) { clear_listeners_.push_back(std::move(listener)); }
 
 Estop::Snapshot Estop::snapshot() const {
   std::lock_guard lock(info_mutex_);

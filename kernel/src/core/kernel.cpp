@@ -3,6 +3,7 @@
 #include <boost/asio/ip/address.hpp>
 
 #include <algorithm>
+#include <atomic>
 
 #include "rcand/kernel/auth/authenticator.hpp"
 #include "rcand/kernel/auth/ruri.hpp"
@@ -18,12 +19,14 @@
 #include "rcand/kernel/core/loopback.hpp"
 #include "rcand/kernel/core/plugin_runtime.hpp"
 #include "rcand/kernel/core/r2r_service.hpp"
+#include "rcand/kernel/core/state_dir.hpp"
 #include "rcand/kernel/core/steady_clock.hpp"
 #include "rcand/kernel/http/server.hpp"
 #include "rcand/kernel/mdns/host_resolver.hpp"
 #include "rcand/kernel/mdns/service_publisher.hpp"
 #include "rcand/kernel/swarm/fan_out.hpp"
 #include "rcand/kernel/swarm/swarm_registry.hpp"
+#include "rcand/kernel/text/bounded_text.hpp"
 
 namespace rcand::kernel {
 namespace {
@@ -87,6 +90,10 @@ struct Kernel::State {
   std::unique_ptr<swarm::FanOut> fan_out;  // declared after the Api's context: stopped and destroyed before it
   std::unique_ptr<mdns::ServicePublisher> mdns_publisher;  // reads the Api: declared after it, destroyed before it
   bool shut_down = false;
+  // runtime.state_dir, opened by start() (a kernel that never serves, --check-config say, leaves it alone). Last:
+  // destroyed first, its writer reads the e-stop.
+  std::unique_ptr<StateDir> state_dir;
+  std::atomic<StateDir*> state_dir_live{nullptr};  // the e-stop listeners' view: set once the latch is restored
 };
 
 Kernel::Kernel(RobotConfig config, KernelOptions options) : state_(std::make_unique<State>()) {
@@ -106,7 +113,7 @@ Kernel::Kernel(RobotConfig config, KernelOptions options) : state_(std::make_uni
   s.auth = std::make_unique<Authenticator>(auth_settings(cfg, ruri, s.address));
   if (cfg.runtime.audit_file) {
     try {
-      s.audit.persist_to(*cfg.runtime.audit_file);
+      s.audit.persist_to(*cfg.runtime.audit_file, cfg.runtime.audit_max_bytes, cfg.runtime.audit_keep_files);
     } catch (const std::runtime_error& e) {
       throw StartupError(e.what());
     }
@@ -153,6 +160,13 @@ Kernel::Kernel(RobotConfig config, KernelOptions options) : state_(std::make_uni
   s.estop.use_halt_crew(s.halt_crew.get());
   s.runtime->start_capabilities(s.registry->names(), cfg);
   s.estop.on_latched([runtime = s.runtime.get()] { runtime->notify_estop(); });
+  // The latch record in runtime.state_dir follows every latch and clear (written off the stop path).
+  s.estop.on_latched([&s] {
+    if (auto* state = s.state_dir_live.load()) state->latch_changed();
+  });
+  s.estop.on_cleared([&s] {
+    if (auto* state = s.state_dir_live.load()) state->latch_changed();
+  });
   if (cfg.estop_on_startup) s.estop.latch("safety.estop_on_startup", "config");
 
   s.timers = std::make_unique<WorkerThread>("kernel.timers", nullptr);
@@ -199,6 +213,40 @@ Kernel::~Kernel() { shutdown(); }
 
 std::uint16_t Kernel::start() {
   auto& s = *state_;
+  // runtime.state_dir (one rcand per state dir): the e-stop starts latched when the last run ended without a clean
+  // shutdown or while latched, with the reason in GET /api/estop and the audit log. Before anything is served.
+  if (!s.state_dir) {
+    try {
+      s.state_dir = std::make_unique<StateDir>(s.config.runtime.state_dir);
+    } catch (const std::runtime_error& e) {
+      throw StartupError(e.what());
+    }
+    const auto& previous = s.state_dir->previous();
+    const bool was_latched = previous.latch && previous.latch->latched;
+    std::string why;
+    if (previous.unclean_exit) {
+      why = "the previous run of rcand ended without a clean shutdown (killed, crashed or lost power; " + previous.marker + ")";
+      if (was_latched) why += "; it was latched then: " + previous.latch->reason + " (by " + previous.latch->source + ")";
+    } else if (was_latched) {
+      why = "latched when rcand last stopped: " + previous.latch->reason + " (by " + previous.latch->source + ")";
+    }
+    if (!why.empty()) {
+      why = bounded_text(why, 600);
+      if (s.estop.latched()) s.estop.restate(why + "; safety.estop_on_startup is set as well", "startup");
+      else s.estop.latch(why, "startup");
+      const auto now = s.clock.wall_ms();
+      const auto seq = s.audit.record({0, "rcand", s.services.ruri, "startup-" + std::to_string(now), "e-stop latched at startup",
+                                       now, "pending", {}});
+      s.audit.finish(seq, "ok", why);
+      logger("kernel.estop")->warn("starting latched: {}", why);
+    }
+    s.state_dir->start_writer([&s] {
+      const auto now = s.estop.snapshot();
+      return StateDir::LatchRecord{now.estopped, now.reason, now.source, now.since_ms};
+    });
+    s.state_dir_live.store(s.state_dir.get());
+    s.state_dir->latch_changed();  // the record says what this run starts with
+  }
   http::ServerOptions options;
   options.address = s.address;
   options.port = s.port;
@@ -231,6 +279,7 @@ void Kernel::shutdown() noexcept {
   auto& s = *state_;
   s.shut_down = true;
   try {
+    const auto before = s.estop.snapshot();          // what the state dir keeps: the latch as it was, not this one
     s.estop.latch("rcand shutting down", "kernel");  // motors stop first, whatever else happens
     if (s.r2r) s.r2r->stop();  // then no R2R message is handled or sent
     s.r2r_bridge.detach();      // plugins' links no longer reach the node
@@ -248,6 +297,11 @@ void Kernel::shutdown() noexcept {
       keep_forever(s.runtime);
     }
     if (s.timers) s.timers->join();
+    // Last: a shutdown that does not get here (a crash, the grace timer) leaves the running marker.
+    if (s.state_dir) {
+      s.state_dir_live.store(nullptr);
+      s.state_dir->clean_exit({before.estopped, before.reason, before.source, before.since_ms});
+    }
   } catch (const std::exception& e) {
     logger("kernel")->error("during shutdown: {}", e.what());
   }

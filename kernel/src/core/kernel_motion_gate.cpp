@@ -9,6 +9,16 @@ sdk::GateStatus KernelMotionGate::actuate(std::string_view actuator_id,
   ActuatorSlot* slot = actuators_.find(actuator_id);
   if (slot == nullptr || slot->driver == nullptr) return sdk::GateStatus::UnknownActuator;
   if (slot->health != nullptr && slot->health->failed()) return sdk::GateStatus::ActuatorFailed;
+  // Counted in flight BEFORE the latch check (both seq_cst): a stop either sees this command in flight and waits
+  // for it to leave, or this check sees the latch. The count drops only after the command returned and, when a
+  // stop came meanwhile, after the halt below (leaving is the destructor: every return path, exceptions too).
+  struct LeaveGateOnExit {
+    ActuatorTable& table;
+    ActuatorSlot& slot;
+    ~LeaveGateOnExit() { table.leave_command(slot); }
+  };
+  actuators_.enter_command(*slot);
+  const LeaveGateOnExit in_flight{actuators_, *slot};
   const auto epoch = estop_.epoch();
   if (estop_.latched()) return sdk::GateStatus::EstopActive;
   try {

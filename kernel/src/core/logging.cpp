@@ -26,17 +26,52 @@ std::shared_ptr<spdlog::logger> logger(const std::string& name) {
   return created;
 }
 
+LogRateLimiter::Verdict LogRateLimiter::admit(std::string_view source, std::chrono::steady_clock::time_point now) {
+  std::lock_guard lock(mutex_);
+  auto it = windows_.find(std::string(source));
+  if (it == windows_.end()) {
+    if (windows_.size() >= max_sources_) {
+      std::erase_if(windows_, [now](const auto& item) {
+        return now - item.second.start >= std::chrono::seconds(1) && item.second.suppressed == 0;
+      });
+    }
+    // Still full: every source not yet tracked shares one budget (the table stays bounded).
+    it = windows_.size() < max_sources_ ? windows_.try_emplace(std::string(source)).first
+                                        : windows_.try_emplace(std::string("*overflow*")).first;
+  }
+  Window& window = it->second;
+  if (now - window.start >= std::chrono::seconds(1)) {
+    window.start = now;
+    window.count = 0;
+  }
+  if (window.count >= per_second_) {
+    ++window.suppressed;
+    return {false, 0};
+  }
+  ++window.count;
+  Verdict verdict{true, window.suppressed};
+  window.suppressed = 0;
+  return verdict;
+}
+
 PluginLogger::PluginLogger(const std::string& plugin_id) : logger_(logger("plugin." + plugin_id)) {}
 
 void PluginLogger::log(sdk::LogLevel level, std::string_view message) noexcept {
   try {
+    spdlog::level::level_enum spd = spdlog::level::info;
     switch (level) {
-      case sdk::LogLevel::Trace: logger_->trace("{}", message); break;
-      case sdk::LogLevel::Debug: logger_->debug("{}", message); break;
-      case sdk::LogLevel::Info: logger_->info("{}", message); break;
-      case sdk::LogLevel::Warn: logger_->warn("{}", message); break;
-      case sdk::LogLevel::Error: logger_->error("{}", message); break;
+      case sdk::LogLevel::Trace: spd = spdlog::level::trace; break;
+      case sdk::LogLevel::Debug: spd = spdlog::level::debug; break;
+      case sdk::LogLevel::Info: spd = spdlog::level::info; break;
+      case sdk::LogLevel::Warn: spd = spdlog::level::warn; break;
+      case sdk::LogLevel::Error: spd = spdlog::level::err; break;
     }
+    if (!logger_->should_log(spd)) return;  // lines below the level cost nothing and count for nothing
+    const auto verdict = limit_.admit("plugin");
+    if (!verdict.log) return;
+    if (verdict.suppressed > 0)
+      logger_->warn("{} log lines of this plugin suppressed (more than {} a second)", verdict.suppressed, kLinesPerSecond);
+    logger_->log(spd, "{}", message);
   } catch (...) {
   }
 }

@@ -65,6 +65,11 @@ struct RuntimeConfig {
   int handler_timeout_ms = 10000;
   int plugin_start_timeout_ms = 10000;  // a plugin's factory/start()/routes() that takes longer fails its instance
   std::optional<std::filesystem::path> audit_file;  // absolute after loading; every audit entry appended as a JSON line
+  std::uint64_t audit_max_bytes = 64ull << 20;        // audit_file rotates past this size
+  int audit_keep_files = 4;                           // rotated audit files kept
+  // The e-stop latch record and the running marker (absolute after loading): runtime.state_dir, else
+  // $STATE_DIRECTORY (its first entry), else /var/lib/rcand.
+  std::filesystem::path state_dir = "/var/lib/rcand";
   // Request rate limits (notes §6.4); 0 = unlimited. The e-stop paths are never limited.
   double rate_limit_principal_per_s = 100;
   double rate_limit_address_per_s = 400;

@@ -1,6 +1,8 @@
 // Every actuating driver instance, filled at startup and fixed afterwards, so the stop path reads it without locks.
 #pragma once
 
+#include <atomic>
+#include <chrono>
 #include <cstdint>
 #include <deque>
 #include <string>
@@ -16,6 +18,9 @@ struct ActuatorSlot {
   std::string id, interface, plugin_id;
   sdk::ActuatorDriver* driver = nullptr;  // owned by the plugin runtime, which outlives the table's users
   InstanceHealth* health = nullptr;       // the driver instance's health, shared with the runtime
+  // Commands inside the motion gate for this actuator right now (KernelMotionGate: raised before the latch check,
+  // lowered only after the command returned and, if a stop came meanwhile, after the gate halted the actuator).
+  std::atomic<std::uint32_t> commands_in_flight{0};
 };
 
 struct HaltReport {
@@ -38,8 +43,22 @@ class ActuatorTable {
   // move). No queue, lock or worker in between.
   std::vector<HaltReport> halt_all(const sdk::Clock& clock) noexcept;
 
+  // The motion gate's bookkeeping of commands in flight (seq_cst, lock-free): enter before the latch check,
+  // leave after the command (and the gate's own halt). leave() wakes a stop waiting in wait_for_commands().
+  void enter_command(ActuatorSlot& slot) noexcept;
+  void leave_command(ActuatorSlot& slot) noexcept;
+  // The stop path, after latching: waits until no actuator has a command in flight, or until `deadline`, on a
+  // futex (never on a lock a command holds), or until `latched` is cleared. Commands the calling thread is itself
+  // inside do not count. Returns the ids of the actuators that still have one at the deadline.
+  std::vector<std::string> wait_for_commands(std::chrono::steady_clock::time_point deadline,
+                                             const std::atomic<bool>& latched) const noexcept;
+  // How many stops are inside wait_for_commands right now (observability and tests).
+  std::uint32_t stops_waiting() const noexcept { return exit_waiters_.load(); }
+
  private:
   std::deque<ActuatorSlot> slots_;  // deque: slots never move, so pointers stay valid
+  mutable std::atomic<std::uint32_t> command_exits_{0};    // bumped by every leave_command (the futex word)
+  mutable std::atomic<std::uint32_t> exit_waiters_{0};     // stops waiting in wait_for_commands
 };
 
 }  // namespace rcand::kernel

@@ -28,6 +28,9 @@ class Estop final : public sdk::EstopView {
     bool newly_latched = false;
     std::vector<HaltReport> drivers;
     std::int64_t latency_us = 0;  // from entering latch() to every actuator confirmed halted
+    // Actuators with a command that got into the motion gate before the latch and had not left it by the deadline
+    // (their entry in `drivers` says so too: not halted, state "command_in_flight").
+    std::vector<std::string> commands_in_flight;
   };
   struct Snapshot {
     bool estopped = false;
@@ -44,12 +47,27 @@ class Estop final : public sdk::EstopView {
   void request_estop(const std::string& reason) noexcept override;
 
   // Any thread. Latches (a repeated stop re-halts but keeps the first reason and time) and halts every actuator.
+  //
+  // Ordering guarantee: once latch() returns, no motion command reaches a driver until the latch is cleared. The
+  // motion gate counts each command in flight before it checks the latch (both seq_cst), so a command either sees
+  // the latch and never calls the driver, or is counted; latch() sets the flag, halts every actuator, then waits
+  // (lock-free, on a futex; together with the halts at most kHaltDeadline) until no counted command is left in the
+  // gate. A command leaves only after it returned and the gate, seeing the latch, halted its actuator again, so
+  // each driver's last call is a halt. The stop's answer is sent after latch() returns. A command still in the
+  // gate at the deadline (a driver call that hangs) is named in the report (commands_in_flight, and its driver
+  // entry is "command_in_flight"): for it the guarantee is only that the gate halts the actuator when it returns.
+  // A stop requested from inside a command (request_estop) does not wait for the command it is called from. If the
+  // latch is cleared while latch() waits, the wait ends (the gate still halts every command older than the stop).
   StopReport latch(const std::string& reason, const std::string& source) noexcept;
   // Returns true when it was latched.
   bool clear();
+  // Startup only, while latched: replaces the reason and source shown (rcand starts latched for several causes).
+  void restate(std::string reason, std::string source);
   Snapshot snapshot() const;
   // Startup only. Listeners run on the stop path after the halt (they cancel jobs) and must not block.
   void on_latched(std::function<void()> listener);
+  // Startup only. Run by clear() after the latch was released (the state dir's record follows it).
+  void on_cleared(std::function<void()> listener);
   // Startup, once the actuators are registered: halts go through `crew` (one job per actuator, named by its id)
   // from then on; nullptr (the default, and at shutdown) halts inline, in order. The crew outlives its use here.
   void use_halt_crew(DeadlineCrew* crew) noexcept { halt_crew_.store(crew); }
@@ -64,9 +82,10 @@ class Estop final : public sdk::EstopView {
   mutable std::mutex sleep_mutex_;  // only for sleepers' condition variable
   mutable std::condition_variable sleepers_;
   std::vector<std::function<void()>> listeners_;
+  std::vector<std::function<void()>> clear_listeners_;
   std::atomic<DeadlineCrew*> halt_crew_{nullptr};
 
-  std::vector<HaltReport> halt_everything() noexcept;
+  std::vector<HaltReport> halt_everything(std::chrono::steady_clock::time_point deadline) noexcept;
 };
 
 }  // namespace rcand::kernel

@@ -1,7 +1,10 @@
 // The one door to the motors (sdk::MotionGate), implemented without locks on the command path:
 // read the latch epoch and check the latch, run the command, then check both again and halt if a stop came
 // meanwhile. Because the stop path bumps the epoch and latches before it halts, every interleaving ends with the
-// actuator halted, and the stop never waits.
+// actuator halted. Each command is also counted in flight for its actuator (raised before the latch check, lowered
+// after the command and the gate's halt), so Estop::latch can wait, bounded, until every command that got past the
+// check before the latch has left: after latch() returns no command reaches a driver (see Estop::latch). The stop
+// never waits on a lock: the count is an atomic, the wait a futex.
 #pragma once
 
 #include "rcand/kernel/core/actuator_table.hpp"
