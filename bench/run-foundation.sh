@@ -25,13 +25,21 @@ echo "idle RSS after start: $(rss_kb) kB"
 echo "== GET /api/status throughput (wrk -t1 -c64 -d10s) =="
 wrk -t1 -c64 -d10s -H "Authorization: Bearer $token" "http://127.0.0.1:$port/api/status" | grep -E "Requests/sec|Latency|requests in"
 
-echo "== POST /api/stop latency while wrk saturates GET /api/status =="
-wrk -t1 -c32 -d30s -H "Authorization: Bearer $token" "http://127.0.0.1:$port/api/status" >"$work/wrk" &
+echo "== POST /api/stop latency while wrk saturates GET /api/status (the owner, 32 connections) =="
+wrk -t1 -c32 -d60s -H "Authorization: Bearer $token" "http://127.0.0.1:$port/api/status" >"$work/wrk" &
 wrk_pid=$!
 sleep 1
-"$build/bench/bench_stop_latency" $port $token 3000
+echo "-- a guest's stops, each on a fresh connection (issue 13: p99 <= 1 ms) --"
+"$build/bench/bench_stop_latency" $port rcand-dev-guest 3000 fresh $token
+echo "-- the same stops on one kept-alive connection --"
+"$build/bench/bench_stop_latency" $port rcand-dev-guest 3000 keepalive $token
 kill $wrk_pid 2>/dev/null; wait $wrk_pid 2>/dev/null || true
+grep -E "Requests/sec" "$work/wrk" | sed 's/^/status load: /'
 
 echo "== POST /api/stop latency, idle robot =="
 "$build/bench/bench_stop_latency" $port $token 3000
 echo "idle RSS after the runs: $(rss_kb) kB"
+
+echo "== POST /api/stop during a 10,000-connection flood and a slow-loris at the limit =="
+ulimit -n 65536 2>/dev/null || true
+"$build/bench/bench_stop_under_flood" 10000

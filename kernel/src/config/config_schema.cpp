@@ -141,6 +141,14 @@ const std::vector<KeySpec>& build_schema() {
        .choices = {"trace", "debug", "info", "warn", "error"}, .description = "lowest level logged"},
       {.path = "runtime.swarm_file", .type = String, .default_value = "/etc/rcand/swarm.yaml", .non_empty = true,
        .description = "swarm peers file (relative to this file)"},
+      {.path = "runtime.stop_path_priority", .type = Integer, .default_value = 10, .min = 0, .max = 99,
+       .description = "SCHED_FIFO priority of the threads a stop runs on (the HTTP accept thread, the halt crew), so "
+                       "a stop never waits for the scheduler; 0 = normal scheduling. Needs LimitRTPRIO= or CAP_SYS_NICE"},
+      {.path = "runtime.max_connections", .type = Integer, .default_value = 10000, .min = 1, .max = 1000000,
+       .description = "open HTTP connections served; beyond it (or the per-address cap) a new connection gets only "
+                      "the e-stop answered, 503 SERVER_BUSY for anything else"},
+      {.path = "runtime.max_connections_per_address", .type = Integer, .default_value = 256, .min = 1, .max = 1000000,
+       .description = "open HTTP connections one client address may hold (so one host cannot fill max_connections)"},
       {.path = "runtime.handler_timeout_ms", .type = Integer, .default_value = 10000, .min = 0, .max = kIntMax,
        .min_exclusive = true, .description = "longest a capability handler may run"},
       {.path = "runtime.plugin_start_timeout_ms", .type = Integer, .default_value = 10000, .min = 0, .max = kIntMax,

@@ -145,6 +145,9 @@ RobotConfig extract(config_detail::YamlDocument yaml, const fs::path& source_fil
   r.log_level = value_or_default<std::string>(doc, "runtime.logging.level");
   r.swarm_file = resolve(base_dir, value_or_default<std::string>(doc, "runtime.swarm_file"));
   r.handler_timeout_ms = static_cast<int>(value_or_default<std::int64_t>(doc, "runtime.handler_timeout_ms"));
+  r.stop_path_priority = static_cast<int>(value_or_default<std::int64_t>(doc, "runtime.stop_path_priority"));
+  r.max_connections = static_cast<std::size_t>(value_or_default<std::int64_t>(doc, "runtime.max_connections"));
+  r.max_connections_per_address = static_cast<std::size_t>(value_or_default<std::int64_t>(doc, "runtime.max_connections_per_address"));
   r.plugin_start_timeout_ms = static_cast<int>(value_or_default<std::int64_t>(doc, "runtime.plugin_start_timeout_ms"));
   if (const json* audit_file = find(doc, "runtime.audit_file"); audit_file != nullptr && audit_file->is_string())
     r.audit_file = resolve(base_dir, audit_file->get<std::string>());

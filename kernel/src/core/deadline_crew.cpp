@@ -94,7 +94,8 @@ void DeadlineCrew::Shared::serve(Member& member) {
   }
 }
 
-DeadlineCrew::DeadlineCrew(std::string role, std::vector<Job> jobs) : shared_(std::make_shared<Shared>()) {
+DeadlineCrew::DeadlineCrew(std::string role, std::vector<Job> jobs, std::function<void()> on_thread_start)
+    : shared_(std::make_shared<Shared>()) {
   for (std::size_t i = 0; i < jobs.size(); ++i) {
     auto& member = shared_->members.emplace_back();
     member.name = std::move(jobs[i].name);
@@ -103,8 +104,9 @@ DeadlineCrew::DeadlineCrew(std::string role, std::vector<Job> jobs) : shared_(st
   for (std::size_t i = 0; i < shared_->members.size(); ++i) {
     auto& member = shared_->members[i];
     const std::string thread_name = (role + "." + std::to_string(i)).substr(0, 15);
-    member.thread = std::thread([shared = shared_, &member, thread_name] {
+    member.thread = std::thread([shared = shared_, &member, thread_name, on_thread_start] {
       pthread_setname_np(pthread_self(), thread_name.c_str());
+      if (on_thread_start) on_thread_start();
       shared->serve(member);
     });
   }

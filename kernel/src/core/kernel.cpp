@@ -1,6 +1,7 @@
 #include "rcand/kernel/core/kernel.hpp"
 
 #include <boost/asio/ip/address.hpp>
+#include <sys/resource.h>
 
 #include <algorithm>
 #include <atomic>
@@ -20,6 +21,7 @@
 #include "rcand/kernel/core/plugin_runtime.hpp"
 #include "rcand/kernel/core/r2r_service.hpp"
 #include "rcand/kernel/core/state_dir.hpp"
+#include "rcand/kernel/core/stop_path_priority.hpp"
 #include "rcand/kernel/core/steady_clock.hpp"
 #include "rcand/kernel/http/server.hpp"
 #include "rcand/kernel/mdns/host_resolver.hpp"
@@ -30,6 +32,22 @@
 
 namespace rcand::kernel {
 namespace {
+
+// Every connection is a descriptor. Past the open-files limit accept() fails (EMFILE) for everyone, the e-stop
+// included, so max_connections is capped below it (with room for the busy lane and rcand's other files) and a low
+// limit is named at startup.
+std::size_t connections_within_fd_limit(std::size_t configured, std::size_t busy_lane) {
+  constexpr std::size_t kOtherFiles = 256;  // plugins, devices, log and audit files, R2R and swarm sockets
+  rlimit files{};
+  if (getrlimit(RLIMIT_NOFILE, &files) != 0 || files.rlim_cur == RLIM_INFINITY) return configured;
+  const std::size_t limit = files.rlim_cur;
+  if (configured + busy_lane + kOtherFiles <= limit) return configured;
+  const std::size_t fitting = limit > busy_lane + kOtherFiles + 16 ? limit - busy_lane - kOtherFiles : 16;
+  logger("kernel")->warn("the open-files limit is {} (ulimit -n; LimitNOFILE= under systemd): runtime.max_connections {} "
+                         "is served as {} so that a stop can still be accepted; raise the limit to serve more",
+                         limit, configured, fitting);
+  return fitting;
+}
 
 AuthSettings auth_settings(const RobotConfig& config, const std::string& ruri, const std::string& address) {
   AuthSettings settings;
@@ -156,7 +174,9 @@ Kernel::Kernel(RobotConfig config, KernelOptions options) : state_(std::make_uni
   std::vector<DeadlineCrew::Job> halts;
   for (const auto& slot : s.actuators.slots())
     if (slot.driver != nullptr) halts.push_back({slot.id, [driver = slot.driver] { driver->halt(); }});
-  s.halt_crew = std::make_unique<DeadlineCrew>("estop.halt", std::move(halts));
+  s.halt_crew = std::make_unique<DeadlineCrew>("estop.halt", std::move(halts), [priority = cfg.runtime.stop_path_priority] {
+    enter_stop_path_priority(priority);
+  });
   s.estop.use_halt_crew(s.halt_crew.get());
   s.runtime->start_capabilities(s.registry->names(), cfg);
   s.estop.on_latched([runtime = s.runtime.get()] { runtime->notify_estop(); });
@@ -250,6 +270,16 @@ std::uint16_t Kernel::start() {
   http::ServerOptions options;
   options.address = s.address;
   options.port = s.port;
+  options.max_connections = connections_within_fd_limit(s.config.runtime.max_connections, options.busy_lane);
+  options.max_connections_per_address = s.config.runtime.max_connections_per_address;
+  // The e-stop is read and handled on the accept thread, ahead of any other work, and is answered even when every
+  // connection slot is taken (issue 13: neither load nor a flood may delay or lock out a stop).
+  options.on_thread_start = [priority = s.config.runtime.stop_path_priority](bool accept_loop) {
+    if (accept_loop) enter_stop_path_priority(priority);
+  };
+  options.priority = [](const http::Request& request) {
+    return (request.method == "POST" && request.path == "/api/stop") || (request.method == "GET" && request.path == "/api/estop");
+  };
   if (s.r2r) options.upgrade = s.r2r->upgrade_handler();  // WS /ws/r2r on the robot's own port
   s.server = std::make_unique<http::Server>(options, [api = s.api.get()](http::Request&& request, http::Respond respond) {
     api->handle(std::move(request), std::move(respond));

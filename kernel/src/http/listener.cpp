@@ -6,6 +6,7 @@
 #include <stdexcept>
 #include <string>
 
+#include "connection_ticket.hpp"
 #include "session.hpp"
 
 namespace rcand::kernel::http::detail {
@@ -54,15 +55,15 @@ void Listener::close() noexcept {
 
 void Listener::accept() {
   if (!acceptor_.is_open()) return;
-  IoSlot& slot = *core_.slots[next_slot_++ % core_.slots.size()];
-  // The socket is born on its session's loop, so the session never touches another thread's loop.
+  // Without priority requests the socket is born on its worker's loop, so the session never touches another
+  // thread's loop; with them it is born here, where its first request is read.
+  IoSlot& slot = core_.options.priority ? *core_.slots.front() : core_.next_worker();
   acceptor_.async_accept(slot.ioc, [this, &slot](boost::system::error_code ec, Stream::socket_type socket) {
     on_accept(ec, slot, std::move(socket));
   });
 }
 
-void Listener::on_accept(boost::system::error_code ec, IoSlot& slot,
-                         Stream::socket_type socket) {
+void Listener::on_accept(boost::system::error_code ec, IoSlot& slot, Stream::socket_type socket) {
   if (ec == net::error::operation_aborted || core_.stopping.load(std::memory_order_acquire)) return;
   if (ec) {
     if (ec == net::error::connection_aborted) return accept();  // the client gave up while queued
@@ -74,24 +75,49 @@ void Listener::on_accept(boost::system::error_code ec, IoSlot& slot,
     return;
   }
   boost::system::error_code ignored;
-  // Only this thread adds connections, so the check cannot be raced past the limit.
-  if (core_.connections.load(std::memory_order_relaxed) >= core_.options.max_connections) {
-    if (!core_.limit_logged.exchange(true)) {
-      core_.log->warn("connection limit of {} reached; closing new connections until one ends",
-                      core_.options.max_connections);
-    }
-    socket.close(ignored);
-    return accept();
-  }
-  core_.limit_logged.store(false, std::memory_order_relaxed);
   socket.set_option(tcp::no_delay(true), ignored);
+  const auto remote = socket.remote_endpoint(ignored);
+  std::string address = ignored ? std::string("unknown") : remote.address().to_string();
   try {
-    auto session = std::make_shared<Session>(core_, slot, std::move(socket));
-    net::post(slot.ioc, [session = std::move(session)] { session->start(); });
+    if (!core_.fits(address)) {
+      admit_busy(std::move(socket), std::move(address));
+      return accept();
+    }
+    core_.limit_logged.store(false, std::memory_order_relaxed);
+    const auto placement = core_.options.priority ? Session::Placement::AcceptLoop : Session::Placement::Worker;
+    auto session = std::make_shared<Session>(core_, slot, std::move(socket),
+                                             std::make_unique<ConnectionTicket>(core_, std::move(address), false), placement);
+    if (&slot == core_.slots.front().get()) session->start();
+    else net::post(slot.ioc, [session = std::move(session)] { session->start(); });
   } catch (const std::exception& e) {
     core_.log->error("cannot start a connection: {}", e.what());
   }
   accept();
+}
+
+void Listener::admit_busy(Stream::socket_type socket, std::string address) {
+  if (!core_.limit_logged.exchange(true)) {
+    core_.log->warn("connection limit reached ({} in all, {} per address); new connections {} until one ends",
+                    core_.options.max_connections, core_.options.max_connections_per_address,
+                    core_.options.priority ? "only get priority requests answered (503 for the rest)" : "are closed");
+  }
+  boost::system::error_code ignored;
+  if (!core_.options.priority || core_.options.busy_lane == 0) {
+    socket.close(ignored);
+    return;
+  }
+  std::erase_if(busy_lane_, [](const std::weak_ptr<Session>& weak) { return weak.expired(); });
+  // Full: the oldest waiter goes. A priority request is sent at once on connecting; a connection that has waited
+  // longest without one is the likeliest to be a slow-loris.
+  while (busy_lane_.size() >= core_.options.busy_lane) {
+    if (auto oldest = busy_lane_.front().lock()) oldest->close();
+    busy_lane_.pop_front();
+  }
+  auto session = std::make_shared<Session>(core_, *core_.slots.front(), std::move(socket),
+                                           std::make_unique<ConnectionTicket>(core_, std::move(address), true),
+                                           Session::Placement::BusyLane);
+  busy_lane_.push_back(session);
+  session->start();
 }
 
 }  // namespace rcand::kernel::http::detail

@@ -1,4 +1,6 @@
-// The listening socket: accepts on the first event loop and spreads connections round-robin over all of them.
+// The listening socket, on the accept loop (slots[0], a thread of its own). Without ServerOptions::priority it hands
+// each connection to a worker loop round-robin and closes those beyond the limits. With it, new connections stay on
+// the accept loop for their first request (see Session), and those beyond the limits join the busy lane.
 #pragma once
 
 #include <boost/asio/ip/tcp.hpp>
@@ -6,6 +8,8 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <deque>
+#include <memory>
 #include <string_view>
 
 #include "server_core.hpp"
@@ -26,11 +30,13 @@ class Listener {
  private:
   void accept();
   void on_accept(boost::system::error_code ec, IoSlot& slot, Stream::socket_type socket);
+  // A connection beyond the limits: into the busy lane (evicting its oldest when full), or closed without priority.
+  void admit_busy(Stream::socket_type socket, std::string address);
 
   ServerCore& core_;
   boost::asio::ip::tcp::acceptor acceptor_;
   boost::asio::steady_timer backoff_;  // after accept errors such as EMFILE, so a full fd table does not spin us
-  std::size_t next_slot_ = 0;
+  std::deque<std::weak_ptr<Session>> busy_lane_;  // oldest first; the accept loop's only
 };
 
 }  // namespace rcand::kernel::http::detail

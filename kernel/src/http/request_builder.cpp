@@ -1,7 +1,9 @@
 #include "request_builder.hpp"
 
+#include <algorithm>
 #include <string_view>
 
+#include "rcand/kernel/text/bounded_text.hpp"
 #include "target.hpp"
 
 namespace rcand::kernel::http::detail {
@@ -20,6 +22,24 @@ std::string ascii_case(std::string_view text, char from, char to) {
 
 }  // namespace
 
+std::optional<HeaderRefusal> check_header(const RequestParser::value_type& message) {
+  const auto method = ssv(message.method_string());
+  if (std::any_of(method.begin(), method.end(), [](char c) { return c >= 'a' && c <= 'z'; }))
+    return HeaderRefusal{400, "BAD_REQUEST", "method '" + bounded_text(method, 32) + "' is not upper case (HTTP methods are case-sensitive)"};
+  if (message.version() >= 11 && message.find(boost::beast::http::field::host) == message.end())
+    return HeaderRefusal{400, "BAD_REQUEST", "an HTTP/1.1 request needs a Host header"};
+  if (const auto coding = message.find(boost::beast::http::field::transfer_encoding); coding != message.end()) {
+    std::string codings;
+    for (const auto& field : message)
+      if (field.name() == boost::beast::http::field::transfer_encoding) codings += (codings.empty() ? "" : ",") + std::string(ssv(field.value()));
+    std::erase_if(codings, [](char c) { return c == ' ' || c == '\t'; });
+    if (ascii_case(codings, 'A', 'a') != "chunked")
+      return HeaderRefusal{501, "NOT_IMPLEMENTED",
+                           "Transfer-Encoding '" + bounded_text(codings, 64) + "' is not supported: only chunked alone is"};
+  }
+  return std::nullopt;
+}
+
 void configure_parser(RequestParser& parser, std::size_t body_limit) {
   parser.header_limit(kHeaderLimit);
   parser.body_limit(static_cast<std::uint64_t>(body_limit));
@@ -27,7 +47,7 @@ void configure_parser(RequestParser& parser, std::size_t body_limit) {
 }
 
 std::string build_request(RequestParser::value_type& message, std::string remote, Request& out) {
-  out.method = ascii_case(ssv(message.method_string()), 'a', 'A');
+  out.method = std::string{ssv(message.method_string())};  // upper case already (check_header)
   out.target = std::string{ssv(message.target())};
   if (auto problem = parse_target(out.target, out.path, out.query); !problem.empty()) return problem;
   for (const auto& field : message) {

@@ -7,6 +7,7 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <optional>
 #include <string>
 
 #include "rcand/kernel/http/request.hpp"
@@ -19,6 +20,15 @@ inline constexpr std::uint32_t kHeaderLimit = 16 * 1024;
 
 // The limits every request is parsed under: kHeaderLimit, `body_limit`, and eager body parsing.
 void configure_parser(RequestParser& parser, std::size_t body_limit);
+
+struct HeaderRefusal {
+  int status;
+  std::string code, message;
+};
+// What rcand refuses in a parsed header, before reading any body: a method not in upper case (methods are
+// case-sensitive: "get" is not GET), HTTP/1.1 without Host (RFC 9112 §3.2), and any transfer coding but chunked
+// alone (RFC 9112 §6.1: 501; "gzip, chunked" would otherwise reach the handler still compressed).
+std::optional<HeaderRefusal> check_header(const RequestParser::value_type& message);
 
 // Fills `out` from a complete message (its body is moved out). Returns "" on success, else why the request is
 // refused with a 400 (never quoting the target, whose query may carry a token).

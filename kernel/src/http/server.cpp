@@ -4,6 +4,8 @@
 #include <boost/asio/ip/tcp.hpp>
 #include <boost/asio/post.hpp>
 
+#include <pthread.h>
+
 #include <exception>
 #include <stdexcept>
 #include <string>
@@ -24,6 +26,7 @@ void validate(const ServerOptions& options, const Handler& handler) {
     bad("io_threads must be between 1 and 256, got " + std::to_string(options.io_threads));
   }
   if (options.max_connections < 1) bad("max_connections must be at least 1, got 0");
+  if (options.max_connections_per_address < 1) bad("max_connections_per_address must be at least 1, got 0");
   if (options.header_timeout.count() <= 0) {
     bad("header_timeout must be positive, got " + std::to_string(options.header_timeout.count()) + " ms");
   }
@@ -82,7 +85,8 @@ std::uint16_t Server::start() {
   const std::string shown = shown_address(options);
   const auto endpoint = resolve_listen_endpoint(options, shown);
 
-  for (int i = 0; i < options.io_threads; ++i) core_->slots.push_back(std::make_unique<detail::IoSlot>());
+  // The accept loop, then io_threads workers (server_core.hpp).
+  for (int i = 0; i <= options.io_threads; ++i) core_->slots.push_back(std::make_unique<detail::IoSlot>());
   try {
     listener_ = std::make_unique<detail::Listener>(*core_, endpoint, shown);
   } catch (...) {
@@ -92,8 +96,13 @@ std::uint16_t Server::start() {
   started_ = true;
   listener_->start();
   try {
-    for (auto& slot : core_->slots) {
-      threads_.emplace_back([core = core_, slot = slot.get()] { run_loop(core, *slot); });
+    for (std::size_t i = 0; i < core_->slots.size(); ++i) {
+      threads_.emplace_back([core = core_, slot = core_->slots[i].get(), i] {
+        const std::string name = i == 0 ? "http.accept" : "http.io." + std::to_string(i);
+        pthread_setname_np(pthread_self(), name.c_str());
+        if (core->options.on_thread_start) core->options.on_thread_start(i == 0);
+        run_loop(core, *slot);
+      });
     }
   } catch (const std::exception& e) {
     stop_locked();
@@ -151,6 +160,8 @@ void Server::stop_locked() noexcept {
   core_->log->info("stopped");
 }
 
-std::size_t Server::connection_count() const noexcept { return core_->connections.load(std::memory_order_relaxed); }
+std::size_t Server::connection_count() const noexcept {
+  return core_->connections.load(std::memory_order_relaxed) + core_->busy_connections.load(std::memory_order_relaxed);
+}
 
 }  // namespace rcand::kernel::http

@@ -8,6 +8,9 @@
 #include <atomic>
 #include <cstddef>
 #include <memory>
+#include <mutex>
+#include <string>
+#include <unordered_map>
 #include <vector>
 
 #include "rcand/kernel/http/handler.hpp"
@@ -37,11 +40,28 @@ struct ServerCore : std::enable_shared_from_this<ServerCore> {
   const ServerOptions options;
   const Handler handler;
   const std::shared_ptr<spdlog::logger> log;
-  std::atomic<std::size_t> connections{0};
+  std::atomic<std::size_t> connections{0};       // within the limits (ConnectionTicket)
+  std::atomic<std::size_t> busy_connections{0};  // in the busy lane
   std::atomic<bool> stopping{false};
   std::atomic<bool> limit_logged{false};
+
+  // The acceptor's thread only: whether one more connection from `address` fits max_connections and
+  // max_connections_per_address (only the acceptor adds connections, so the answer cannot be raced past).
+  bool fits(const std::string& address) const;
+  // Any thread (ConnectionTicket).
+  void count_address(const std::string& address, int delta);
+  // A worker loop, round-robin (any thread).
+  IoSlot& next_worker() noexcept;
+  bool is_priority(const Request& request) const;
+
   // Last member, so destroyed first: sessions freed from the loops' queues still use the members above.
+  // slots[0] is the accept loop; slots[1..] are the workers (io_threads of them).
   std::vector<std::unique_ptr<IoSlot>> slots;
+
+ private:
+  mutable std::mutex address_mutex_;  // held for a map lookup or update only
+  std::unordered_map<std::string, std::size_t> per_address_;
+  std::atomic<std::size_t> next_worker_{0};
 };
 
 }  // namespace rcand::kernel::http::detail

@@ -6,8 +6,12 @@
 #include <boost/beast/http/read.hpp>
 #include <boost/beast/http/write.hpp>
 
+#include <unistd.h>
+
 #include <algorithm>
+#include <cerrno>
 #include <chrono>
+#include <cstring>
 #include <exception>
 
 #include <boost/beast/websocket/rfc6455.hpp>
@@ -30,6 +34,8 @@ constexpr std::size_t kReadChunk = 16 * 1024;
 constexpr std::chrono::milliseconds kLingerTime{2000};
 constexpr std::size_t kLingerBytes = 4 * 1024 * 1024;
 constexpr std::string_view kContinue = "HTTP/1.1 100 Continue\r\n\r\n";
+// The longest a busy-lane connection may take to send its request (a priority request comes with the connection).
+constexpr std::chrono::milliseconds kBusyLaneWait{2000};
 
 std::string format_endpoint(const net::ip::tcp::endpoint& endpoint) {
   const auto address = endpoint.address();
@@ -71,12 +77,9 @@ bool is_http_error(const beast::error_code& ec) {
 
 }  // namespace
 
-Session::Session(ServerCore& core, IoSlot& slot, Stream::socket_type socket)
-    : core_(core), slot_(slot), stream_(std::move(socket)) {
-  core_.connections.fetch_add(1, std::memory_order_relaxed);
-}
-
-Session::~Session() { core_.connections.fetch_sub(1, std::memory_order_relaxed); }
+Session::Session(ServerCore& core, IoSlot& slot, Stream::socket_type socket, std::unique_ptr<ConnectionTicket> ticket,
+                 Placement placement)
+    : core_(core), slot_(slot), ticket_(std::move(ticket)), placement_(placement), stream_(std::move(socket)) {}
 
 void Session::start() {
   slot_.track(weak_from_this());
@@ -87,6 +90,14 @@ void Session::start() {
   beast::error_code ec;
   auto endpoint = stream_.socket().remote_endpoint(ec);
   remote_ = ec ? std::string{"unknown"} : format_endpoint(endpoint);
+  if (placement_ != Placement::Worker) {
+    // A client that sends its request with the connection (a stop does) is answered without another trip through
+    // the loop: read what is there now, without waiting.
+    auto& socket = stream_.socket();
+    socket.non_blocking(true, ec);
+    const std::size_t bytes = ec ? 0 : socket.read_some(buffer_.prepare(kReadChunk), ec);
+    if (!ec) buffer_.commit(bytes);
+  }
   wait_for_request();
 }
 
@@ -100,7 +111,8 @@ void Session::wait_for_request() {
   if (closed_) return;
   if (fresh_ || buffer_.size() > 0) {  // first request, or the next one is already (partly) buffered
     fresh_ = false;
-    stream_.expires_after(core_.options.header_timeout);
+    stream_.expires_after(placement_ == Placement::BusyLane ? std::min(core_.options.header_timeout, kBusyLaneWait)
+                                                            : core_.options.header_timeout);
     if (buffer_.size() > 0) return parse_buffered();
     read_header();
     return;
@@ -149,6 +161,10 @@ void Session::on_header(beast::error_code ec) {
   if (ec) return on_read_error(ec);
   if (closed_) return;
   if (parser_->is_done()) return dispatch_request();
+  if (auto refusal = check_header(parser_->get())) {  // before reading a body that would be refused anyway
+    core_.log->debug("{}: {}", remote_, refusal->message);
+    return send_error_and_close(refusal->status, refusal->code, refusal->message);
+  }
   const auto& header = parser_->get();
   if (header.version() >= 11 && beast::iequals(header[bhttp::field::expect], "100-continue")) {
     net::async_write(stream_, net::buffer(kContinue.data(), kContinue.size()),
@@ -197,19 +213,33 @@ void Session::on_read_error(beast::error_code ec) {
 }
 
 void Session::dispatch_request() {
-  auto& message = parser_->get();
+  message_ = parser_->release();  // the parser is done with it; a new one reads the next request
+  auto& message = message_;
   version_ = message.version();
   keep_alive_ = message.keep_alive();
   head_ = message.method() == bhttp::verb::head;
 
+  if (auto refusal = check_header(message)) {
+    core_.log->debug("{}: {}", remote_, refusal->message);
+    return send_error_and_close(refusal->status, refusal->code, refusal->message);
+  }
   Request request;
   if (auto problem = build_request(message, remote_, request); !problem.empty()) {
     core_.log->debug("{}: {}", remote_, problem);
     return send_error_and_close(400, "BAD_REQUEST", problem);
   }
+  if (placement_ != Placement::Worker && !core_.is_priority(request)) {
+    if (placement_ == Placement::BusyLane) return answer_busy();
+    return move_to_worker(std::move(request));
+  }
+  if (placement_ == Placement::BusyLane) keep_alive_ = false;  // beyond the limits: one answer, then the slot is freed
+  handle(std::move(request));
+}
+
+void Session::handle(Request request) {
   // Never the target or query: a ?token= may ride there.
   core_.log->trace("{}: {} {}", remote_, request.method, request.path);
-  if (core_.options.upgrade && beast::websocket::is_upgrade(message) && try_upgrade(request)) return;
+  if (core_.options.upgrade && beast::websocket::is_upgrade(message_) && try_upgrade(request)) return;
 
   awaiting_response_ = true;
   auto responder = std::make_shared<Responder>(shared_from_this());
@@ -226,6 +256,57 @@ void Session::dispatch_request() {
   }
 }
 
+void Session::answer_busy() {
+  keep_alive_ = false;
+  auto response = error_response(503, "SERVER_BUSY",
+                                 "the server is at its connection limit (" + std::to_string(core_.options.max_connections) +
+                                     " in all, " + std::to_string(core_.options.max_connections_per_address) +
+                                     " per client address); only the e-stop is served beyond it. Retry later");
+  response.headers.emplace_back("Retry-After", "1");
+  write(std::move(response), true);
+}
+
+void Session::move_to_worker(std::optional<Request> request) {
+  // A socket belongs to one loop: the descriptor is duplicated onto a socket of the worker's loop and this one is
+  // closed, which leaves the connection itself untouched. Nothing of this session is pending at this point.
+  IoSlot& worker = core_.next_worker();
+  beast::error_code ec;
+  auto& socket = stream_.socket();
+  const auto protocol = socket.local_endpoint(ec).protocol();
+  const int fd = ec ? -1 : ::dup(socket.native_handle());
+  close();
+  if (fd < 0) {
+    core_.log->warn("{}: cannot hand the connection to a worker ({}); closing it", remote_,
+                    ec ? ec.message() : std::string(std::strerror(errno)));
+    return;
+  }
+  try {
+    Stream::socket_type moved(worker.ioc);
+    moved.assign(protocol, fd, ec);
+    if (ec) {
+      ::close(fd);
+      core_.log->warn("{}: cannot hand the connection to a worker ({}); closing it", remote_, ec.message());
+      return;
+    }
+    auto next = std::make_shared<Session>(core_, worker, std::move(moved), std::move(ticket_), Placement::Worker);
+    next->remote_ = remote_;
+    next->buffer_ = std::move(buffer_);
+    next->message_ = std::move(message_);
+    next->version_ = version_;
+    next->keep_alive_ = keep_alive_;
+    next->head_ = head_;
+    next->fresh_ = false;
+    net::post(worker.ioc, [next = std::move(next), request = std::move(request)]() mutable {
+      next->slot_.track(next->weak_from_this());
+      if (next->core_.stopping.load(std::memory_order_acquire)) return next->close();
+      if (request) return next->handle(std::move(*request));
+      next->wait_for_request();
+    });
+  } catch (const std::exception& e) {
+    core_.log->error("{}: cannot hand the connection to a worker: {}", remote_, e.what());
+  }
+}
+
 bool Session::try_upgrade(Request& request) {
   UpgradeVerdict verdict;
   try {
@@ -234,9 +315,15 @@ bool Session::try_upgrade(Request& request) {
     core_.log->error("{}: upgrade hook for {} threw: {}", remote_, request.path, e.what());
     verdict.refuse = error_response(500, "INTERNAL", "internal error");
   }
+  // RFC 6455 §4.4: a version we do not speak gets 426 naming the one we do (as JSON, like every error here).
+  if (auto version = request.header("sec-websocket-version"); verdict.take && (!version || *version != "13")) {
+    verdict.take = nullptr;
+    verdict.refuse = error_response(426, "UPGRADE_REQUIRED", "unsupported WebSocket version (Sec-WebSocket-Version): only 13 is spoken");
+    verdict.refuse->headers.emplace_back("Sec-WebSocket-Version", "13");
+  }
   if (verdict.take) {
     closed_ = true;  // the stream is the taker's from here on; this session just ends
-    Upgraded upgraded{std::move(stream_), parser_->release(), std::move(buffer_), std::move(request)};
+    Upgraded upgraded{std::move(stream_), std::move(message_), std::move(buffer_), std::move(request)};
     try {
       verdict.take(std::move(upgraded));
     } catch (const std::exception& e) {
@@ -313,6 +400,7 @@ void Session::on_write(beast::error_code ec, bool close_after) {
   }
   if (closed_) return;
   if (close_after) return linger_close();
+  if (placement_ == Placement::AcceptLoop) return move_to_worker(std::nullopt);  // the accept loop keeps no connection
   wait_for_request();
 }
 

@@ -1,6 +1,10 @@
 // One HTTP connection: reads a request, hands it to the Handler, writes the answer, repeats while kept alive.
 // Every member function runs on the owning slot's thread; only Responder crosses threads, by dispatching there.
 //
+// Placement: on the accept loop (ServerOptions::priority set) a new connection's first request is read there; a
+// priority request is handled there too, anything else moves the connection (its socket, buffered bytes and the
+// parsed request) to a worker loop for good. A busy-lane connection answers one priority request, or 503.
+//
 // WebSocket seam: an upgrade request is offered to ServerOptions::upgrade in dispatch_request(); when the hook takes
 // it, the stream, the raw request and the buffered bytes move out (http/upgrade.hpp) and this object simply ends.
 #pragma once
@@ -17,6 +21,8 @@
 #include <string>
 #include <string_view>
 
+#include "connection_ticket.hpp"
+#include "rcand/kernel/http/request.hpp"
 #include "rcand/kernel/http/response.hpp"
 #include "server_core.hpp"
 
@@ -27,9 +33,10 @@ using Stream = boost::beast::basic_stream<boost::asio::ip::tcp, boost::asio::io_
 
 class Session : public std::enable_shared_from_this<Session> {
  public:
-  // Counts itself in core.connections for its whole life.
-  Session(ServerCore& core, IoSlot& slot, Stream::socket_type socket);
-  ~Session();
+  enum class Placement { Worker, AcceptLoop, BusyLane };
+  // Holds `ticket` (its place in the limits) for its whole life, or hands it on when it moves to a worker.
+  Session(ServerCore& core, IoSlot& slot, Stream::socket_type socket, std::unique_ptr<ConnectionTicket> ticket,
+          Placement placement);
   Session(const Session&) = delete;
   Session& operator=(const Session&) = delete;
 
@@ -49,6 +56,10 @@ class Session : public std::enable_shared_from_this<Session> {
   void read_body();
   void on_read_error(boost::beast::error_code ec);
   void dispatch_request();
+  void handle(Request request);
+  // From the accept loop to a worker loop, for good: there it handles `request`, or waits for the next one.
+  void move_to_worker(std::optional<Request> request);
+  void answer_busy();
   // A WebSocket upgrade offered to ServerOptions::upgrade; false when the hook leaves it to the Handler.
   bool try_upgrade(Request& request);
   void send_error_and_close(int status, std::string_view code, std::string_view message);
@@ -59,9 +70,12 @@ class Session : public std::enable_shared_from_this<Session> {
 
   ServerCore& core_;
   IoSlot& slot_;
+  std::unique_ptr<ConnectionTicket> ticket_;
+  Placement placement_;
   Stream stream_;
   boost::beast::flat_buffer buffer_;
   std::optional<boost::beast::http::request_parser<boost::beast::http::string_body>> parser_;
+  boost::beast::http::request<boost::beast::http::string_body> message_;  // the request being handled (parser's)
   boost::beast::http::response<boost::beast::http::string_body> response_;  // alive while being written
   std::string remote_;
   std::size_t drained_ = 0;

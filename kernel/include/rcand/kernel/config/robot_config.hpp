@@ -63,6 +63,10 @@ struct RuntimeConfig {
   std::string log_level = "info";
   std::filesystem::path swarm_file = "/etc/rcand/swarm.yaml";  // absolute after loading (relative ones resolve like plugin_paths)
   int handler_timeout_ms = 10000;
+  // HTTP connection limits: beyond them only the e-stop is served (503 SERVER_BUSY for the rest).
+  std::size_t max_connections = 10000;
+  std::size_t max_connections_per_address = 256;
+  int stop_path_priority = 10;  // SCHED_FIFO priority of the threads a stop runs on; 0 = leave them as they are
   int plugin_start_timeout_ms = 10000;  // a plugin's factory/start()/routes() that takes longer fails its instance
   std::optional<std::filesystem::path> audit_file;  // absolute after loading; every audit entry appended as a JSON line
   std::uint64_t audit_max_bytes = 64ull << 20;        // audit_file rotates past this size

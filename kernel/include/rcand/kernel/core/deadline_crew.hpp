@@ -28,8 +28,8 @@ class DeadlineCrew {
     std::string error;            // Failed: what it threw
   };
 
-  // Starts one thread per job, named "<role>.<n>".
-  DeadlineCrew(std::string role, std::vector<Job> jobs);
+  // Starts one thread per job, named "<role>.<n>"; each runs `on_thread_start` first (when set).
+  DeadlineCrew(std::string role, std::vector<Job> jobs, std::function<void()> on_thread_start = {});
   // Joins the idle threads; a thread still inside a plugin call (or parked) is detached and keeps the shared state.
   ~DeadlineCrew();
   DeadlineCrew(const DeadlineCrew&) = delete;

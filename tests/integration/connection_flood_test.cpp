@@ -1,0 +1,116 @@
+// Issue 13, findings 3 and 4: neither a connection flood nor a slow-loris at the limit locks out or delays the stop.
+// A real rcand with small connection limits; the attacker is this process on loopback, the same address as the
+// operator (the hardest case: the per-address cap cannot tell them apart, only the busy lane lets the stop in).
+// The 500 ms e-stop MUST is the one timed assertion; the figures are bench/stop_under_flood's.
+#include <doctest/doctest.h>
+
+#include <algorithm>
+#include <atomic>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "connection_flood.hpp"
+#include "rcand_process.hpp"
+
+using namespace rcand::test;
+using nlohmann::json;
+
+namespace {
+
+constexpr std::size_t kFloodMaxConnections = 256;
+
+nlohmann::json flood_config(std::size_t per_address) {
+  auto config = sim_config();
+  config["runtime"]["max_connections"] = kFloodMaxConnections;
+  config["runtime"]["max_connections_per_address"] = per_address;
+  return config;
+}
+
+void check_stops(const std::vector<flood::TimedStop>& stops) {
+  double worst = 0;
+  for (const auto& stop : stops) {
+    INFO(stop.error);
+    CHECK(stop.status == 200);
+    CHECK(stop.ms < 500.0);  // the e-stop MUST (notes §2), with every connection slot taken
+    worst = std::max(worst, stop.ms);
+  }
+  MESSAGE(stops.size() << " stops, slowest " << worst << " ms");
+}
+
+}  // namespace
+
+TEST_CASE("a 10,000-connection flood from the operator's own address: every stop is answered within 500 ms") {
+  const std::size_t fd_limit = flood::raise_open_files();
+  const std::size_t flood_size = std::min<std::size_t>(10'000, fd_limit > 600 ? fd_limit - 500 : 100);
+  if (flood_size < 10'000) MESSAGE("the open-files limit " << fd_limit << " allows a flood of " << flood_size << " only");
+  RcandProcess rcand(flood_config(128));
+  const std::uint16_t port = rcand.port();
+
+  std::atomic<bool> flooding{true};
+  std::vector<int> attack;
+  attack.reserve(flood_size);
+  std::jthread attacker([&] {
+    // Each connection sends an unauthenticated status request and keeps its socket open.
+    const std::string request = "GET /api/status HTTP/1.1\r\nHost: robot\r\n\r\n";
+    for (std::size_t i = 0; i < flood_size; ++i) {
+      const int fd = flood::connect_to(port);
+      if (fd < 0) break;
+      attack.push_back(fd);
+      if (i % 64 == 63)  // a batch's handshakes done, a request on each
+        for (std::size_t j = i - 63; j <= i; ++j) flood::send_when_connected(attack[j], request);
+    }
+    flooding = false;
+  });
+  std::vector<flood::TimedStop> stops;
+  while (flooding.load()) stops.push_back(flood::timed_stop(rcand));  // a repeated stop halts again
+  attacker.join();
+  for (int i = 0; i < 10; ++i) stops.push_back(flood::timed_stop(rcand));  // with the whole flood open
+  MESSAGE(attack.size() << " flood connections");
+  CHECK(attack.size() >= std::min<std::size_t>(flood_size, 1000));
+  check_stops(stops);
+  CHECK(rcand.json("GET", "/api/estop", "guest-token")["estopped"] == true);
+
+  // Anything else beyond the limit is told to come back, not left hanging.
+  const auto busy = rcand.request("GET", "/api/status", "guest-token");
+  CHECK(busy.status == 503);
+  CHECK(json::parse(busy.body)["code"] == "SERVER_BUSY");
+  CHECK(busy.headers.count("retry-after") == 1);
+
+  flood::close_all(attack);
+  // Once the flood is gone the robot serves everyone again (the closes reach rcand asynchronously).
+  int status = 0;
+  for (int attempt = 0; attempt < 500 && status != 200; ++attempt)
+    status = rcand.request("GET", "/api/status", "guest-token").status;
+  CHECK(status == 200);
+}
+
+TEST_CASE("a slow-loris at the limit, with more silent connections churning the busy lane: every stop gets in") {
+  flood::raise_open_files();
+  RcandProcess rcand(flood_config(kFloodMaxConnections));  // one address may fill the server
+  const std::uint16_t port = rcand.port();
+  // Every slot held by a request that never ends: a header line now and then, never the blank line.
+  std::vector<int> loris;
+  for (std::size_t i = 0; i < kFloodMaxConnections; ++i) {
+    const int fd = flood::connect_to(port);
+    REQUIRE(fd >= 0);
+    flood::send_when_connected(fd, "GET /api/status HTTP/1.1\r\nHost: robot\r\n");
+    loris.push_back(fd);
+  }
+  std::vector<int> silent;
+  std::vector<flood::TimedStop> stops;
+  for (int round = 0; round < 20; ++round) {
+    for (const int fd : loris) flood::send_now(fd, "X-Loris: 1\r\n");
+    for (int i = 0; i < 100; ++i) {  // 100 more that send nothing, each round: more than the busy lane holds
+      const int fd = flood::connect_to(port);
+      if (fd >= 0) silent.push_back(fd);
+    }
+    stops.push_back(flood::timed_stop(rcand));
+  }
+  check_stops(stops);
+  const auto busy = rcand.request("GET", "/api/status", "guest-token");
+  CHECK(busy.status == 503);
+  CHECK(busy.headers.count("retry-after") == 1);
+  flood::close_all(loris);
+  flood::close_all(silent);
+}
