@@ -1,6 +1,6 @@
 // The listening socket, on the accept loop (slots[0], a thread of its own). Without ServerOptions::priority it hands
 // each connection to a worker loop round-robin and closes those beyond the limits. With it, new connections stay on
-// the accept loop for their first request (see Session), and those beyond the limits join the busy lane.
+// the accept loop while they send priority requests (see Session), and those beyond the limits join the busy lane.
 #pragma once
 
 #include <boost/asio/ip/tcp.hpp>

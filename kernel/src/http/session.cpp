@@ -266,7 +266,7 @@ void Session::answer_busy() {
   write(std::move(response), true);
 }
 
-void Session::move_to_worker(std::optional<Request> request) {
+void Session::move_to_worker(Request request) {
   // A socket belongs to one loop: the descriptor is duplicated onto a socket of the worker's loop and this one is
   // closed, which leaves the connection itself untouched. Nothing of this session is pending at this point.
   IoSlot& worker = core_.next_worker();
@@ -299,8 +299,7 @@ void Session::move_to_worker(std::optional<Request> request) {
     net::post(worker.ioc, [next = std::move(next), request = std::move(request)]() mutable {
       next->slot_.track(next->weak_from_this());
       if (next->core_.stopping.load(std::memory_order_acquire)) return next->close();
-      if (request) return next->handle(std::move(*request));
-      next->wait_for_request();
+      next->handle(std::move(request));
     });
   } catch (const std::exception& e) {
     core_.log->error("{}: cannot hand the connection to a worker: {}", remote_, e.what());
@@ -400,7 +399,8 @@ void Session::on_write(beast::error_code ec, bool close_after) {
   }
   if (closed_) return;
   if (close_after) return linger_close();
-  if (placement_ == Placement::AcceptLoop) return move_to_worker(std::nullopt);  // the accept loop keeps no connection
+  // On the accept loop a connection stays while it sends only priority requests (a stop button's kept-alive
+  // connection); its first other request moves it to a worker (dispatch_request).
   wait_for_request();
 }
 

@@ -1,9 +1,9 @@
 // One HTTP connection: reads a request, hands it to the Handler, writes the answer, repeats while kept alive.
 // Every member function runs on the owning slot's thread; only Responder crosses threads, by dispatching there.
 //
-// Placement: on the accept loop (ServerOptions::priority set) a new connection's first request is read there; a
-// priority request is handled there too, anything else moves the connection (its socket, buffered bytes and the
-// parsed request) to a worker loop for good. A busy-lane connection answers one priority request, or 503.
+// Placement: on the accept loop (ServerOptions::priority set) a new connection's requests are read there while they
+// are priority requests, and handled there too; the first other request moves the connection (its socket, buffered
+// bytes and that request) to a worker loop for good. A busy-lane connection answers one priority request, or 503.
 //
 // WebSocket seam: an upgrade request is offered to ServerOptions::upgrade in dispatch_request(); when the hook takes
 // it, the stream, the raw request and the buffered bytes move out (http/upgrade.hpp) and this object simply ends.
@@ -57,8 +57,8 @@ class Session : public std::enable_shared_from_this<Session> {
   void on_read_error(boost::beast::error_code ec);
   void dispatch_request();
   void handle(Request request);
-  // From the accept loop to a worker loop, for good: there it handles `request`, or waits for the next one.
-  void move_to_worker(std::optional<Request> request);
+  // From the accept loop to a worker loop, for good: there it handles `request`.
+  void move_to_worker(Request request);
   void answer_busy();
   // A WebSocket upgrade offered to ServerOptions::upgrade; false when the hook leaves it to the Handler.
   bool try_upgrade(Request& request);

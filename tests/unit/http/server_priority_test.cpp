@@ -2,6 +2,8 @@
 #include <doctest/doctest.h>
 #include <nlohmann/json.hpp>
 
+#include <pthread.h>
+
 #include <condition_variable>
 #include <memory>
 #include <mutex>
@@ -77,13 +79,26 @@ TEST_CASE("a priority request is answered while every worker loop is held by oth
   CHECK(busy.read_response().status == 200);
 }
 
-TEST_CASE("after a priority request the connection moves to a worker and keeps working") {
-  StartedServer s(echo_handler(), priority_options());
+TEST_CASE("a connection stays on the accept thread while it sends priority requests, then moves to a worker") {
+  // The handler answers with the name of the thread it ran on.
+  StartedServer s([](http::Request&& request, http::Respond respond) {
+    char name[16] = {};
+    pthread_getname_np(pthread_self(), name, sizeof name);
+    auto response = echo_response(request);
+    response.body = json{{"path", request.path}, {"thread", name}, {"body", request.body}}.dump();
+    respond(std::move(response));
+  }, priority_options());
   RawSocket raw(s.port);
-  raw.send(kStop);
-  CHECK(raw.read_response().status == 200);
+  for (int i = 0; i < 2; ++i) {
+    raw.send(kStop);
+    CHECK(json::parse(raw.read_response().body)["thread"] == "http.accept");
+  }
   raw.send(kGet);
-  CHECK(json::parse(raw.read_response().body)["path"] == "/x");
+  const auto moved = json::parse(raw.read_response().body);
+  CHECK(moved["path"] == "/x");
+  CHECK(moved["thread"].get<std::string>().rfind("http.io.", 0) == 0);
+  raw.send(kStop);  // for good: a later stop on it is the worker's
+  CHECK(json::parse(raw.read_response().body)["thread"].get<std::string>().rfind("http.io.", 0) == 0);
   raw.send(std::string(kGet) + "GET /y HTTP/1.1\r\nHost: h\r\nContent-Length: 3\r\n\r\nabc");  // pipelined
   CHECK(json::parse(raw.read_response().body)["path"] == "/x");
   auto second = json::parse(raw.read_response().body);

@@ -38,8 +38,8 @@ struct ServerOptions {
   std::size_t max_connections_per_address = 256;    // one client address holds at most this many; beyond: busy
   UpgradeHandler upgrade;                           // empty: upgrade requests go to the Handler
   // The requests nothing may delay or lock out (rcand: the e-stop). When set, the accept thread (an event loop of
-  // its own, on which no other work ever waits) reads each new connection's first request and handles it there
-  // when this says so; anything else moves to a worker loop. A connection beyond the limits is not closed at once
+  // its own, on which no other work ever waits) reads each new connection's requests and handles them there while
+  // this says so; the first other request moves the connection to a worker loop for good. A connection beyond the limits is not closed at once
   // but joins the busy lane (at most busy_lane of them, the oldest evicted first, each given at most 2 s to send its
   // request): a priority request is answered, anything else gets 503 SERVER_BUSY with Retry-After. Unset: the
   // acceptor hands connections straight to the workers and closes those beyond the limits.
