@@ -114,3 +114,24 @@ TEST_CASE("a slow-loris at the limit, with more silent connections churning the 
   flood::close_all(loris);
   flood::close_all(silent);
 }
+
+TEST_CASE("a low open-files limit is named at startup, and connections are capped under it so a stop still gets in") {
+  flood::raise_open_files();
+  auto config = sim_config();
+  config["runtime"]["max_connections_per_address"] = 10'000;
+  RcandProcess rcand(config, {"/usr/bin/prlimit", "--nofile=600:600"}, "127.0.0.1");
+  // 600 files, less the busy lane (64) and 256 for everything else: 280 connections.
+  CHECK(rcand.stderr_text().find("the open-files limit is 600") != std::string::npos);
+  CHECK(rcand.stderr_text().find("runtime.max_connections 10000 is served as 280") != std::string::npos);
+  std::vector<int> held;
+  for (int i = 0; i < 700; ++i) {  // more than rcand has descriptors for: without the cap accept() fails (EMFILE)
+    const int fd = flood::connect_to(rcand.port());
+    REQUIRE(fd >= 0);
+    flood::send_when_connected(fd, "GET /health HTTP/1.1\r\nHost: robot\r\n\r\n");
+    held.push_back(fd);
+  }
+  std::vector<flood::TimedStop> stops;
+  for (int i = 0; i < 5; ++i) stops.push_back(flood::timed_stop(rcand));
+  check_stops(stops);
+  flood::close_all(held);
+}
