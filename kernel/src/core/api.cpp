@@ -140,15 +140,14 @@ struct Api::Caller {
   std::string message_id;
 };
 
-void Api::log_limited(const std::string& who, const http::Request& request) {
-  constexpr int kLinesPerSecond = 5;
-  const std::int64_t second = ctx_.clock.now_us() / 1'000'000;
-  if (limited_log_second_.exchange(second) != second) {
-    if (const int suppressed = limited_log_count_.exchange(0) - kLinesPerSecond; suppressed > 0)
-      logger("kernel.api")->warn("rate limit: {} more refusals not logged", suppressed);
-  }
-  if (limited_log_count_.fetch_add(1) < kLinesPerSecond)
-    logger("kernel.api")->warn("rate limit: {} {} from {} refused (429)", bounded_text(request.method), bounded_text(request.path), who);
+void Api::log_refusal(const char* logger_name, const http::Request& request, const std::string& what) {
+  const std::string address = client_address(request.remote);
+  const auto verdict = refusal_log_.admit(address);
+  if (!verdict.log) return;
+  auto log = logger(logger_name);
+  if (verdict.suppressed > 0)
+    log->warn("{} more refusals for {} not logged (more than {} a second)", verdict.suppressed, address, kRefusalLogLines);
+  log->warn("{} {} from {}: {}", bounded_text(request.method), bounded_text(request.path), request.remote, what);
 }
 
 void Api::handle(http::Request&& request, http::Respond respond) { dispatch(std::move(request), nullptr, std::move(respond)); }
@@ -183,7 +182,7 @@ void Api::dispatch(http::Request&& request, const Principal* authenticated, http
   if (limited && authenticated == nullptr) {
     const std::string address = client_address(request.remote);
     if (auto wait = address_limiter_.admit(address, ctx_.clock.now_us())) {
-      log_limited("address " + address, request);
+      log_refusal("kernel.api", request, "address " + address + " over its rate limit (429)");
       reply(too_many_requests("address " + address, address_limiter_.limit().per_s, *wait));
       return;
     }
@@ -192,7 +191,7 @@ void Api::dispatch(http::Request&& request, const Principal* authenticated, http
   auto admit_principal = [&](const std::string& name) {
     if (principal_admitted || name == "anonymous") return true;
     if (auto wait = principal_limiter_.admit(name, ctx_.clock.now_us())) {
-      log_limited("principal '" + name + "'", request);
+      log_refusal("kernel.api", request, "principal '" + name + "' over its rate limit (429)");
       reply(too_many_requests("principal '" + name + "'", principal_limiter_.limit().per_s, *wait));
       return false;
     }
@@ -221,8 +220,7 @@ void Api::dispatch(http::Request&& request, const Principal* authenticated, http
     const auto now_s = ctx_.clock.wall_ms() / 1000;
     auto verdict = ctx_.auth.authorize(bearer, scope, now_s);
     if (auto* failure = std::get_if<AuthError>(&verdict)) {
-      logger("kernel.auth")->info("{} {} from {}: {} ({})", bounded_text(request.method), bounded_text(request.path),
-                                  request.remote, failure->status, failure->message);
+      log_refusal("kernel.auth", request, std::to_string(failure->status) + " (" + failure->message + ")");
       json extra = json::object();
       if (failure->status == 403) extra["required_scope"] = scope_list(scope);
       reply(error(failure->status, failure->code, failure->message, extra));

@@ -13,6 +13,7 @@
 #include "rcand/kernel/core/audit_log.hpp"
 #include "rcand/kernel/core/capability_registry.hpp"
 #include "rcand/kernel/core/estop.hpp"
+#include "rcand/kernel/core/logging.hpp"
 #include "rcand/kernel/core/plugin_runtime.hpp"
 #include "rcand/kernel/core/rate_limiter.hpp"
 #include "rcand/kernel/core/worker_thread.hpp"
@@ -81,14 +82,15 @@ class Api {
   std::string robot_state(bool nav_running) const;
   bool nav_running() const;
 
-  // One log line per refusal would let a flood write the log at its own rate: the first few per second only.
-  void log_limited(const std::string& who, const http::Request& request);
+  // One log line per refusal (429, 401, 403) would let a flood write the log at its own rate: at most
+  // kRefusalLogLines a second per client address, then one line saying how many were left out.
+  static constexpr std::uint32_t kRefusalLogLines = 5;
+  void log_refusal(const char* logger_name, const http::Request& request, const std::string& what);
 
   ApiContext& ctx_;
   std::atomic<std::uint64_t> message_counter_{0};
   RateLimiter principal_limiter_, address_limiter_;
-  std::atomic<std::int64_t> limited_log_second_{0};
-  std::atomic<int> limited_log_count_{0};
+  LogRateLimiter refusal_log_{kRefusalLogLines};
   // What /api/status says that cannot change after startup (identity, plugin table), built once: the status
   // endpoint is the one clients poll hardest.
   nlohmann::json static_status_;
