@@ -72,8 +72,8 @@ TEST_CASE("a clean exit keeps the latch as it was") {
 TEST_CASE("the writer records each change off the caller's thread; a pending one is written before it stops") {
   StateScratch scratch;
   {
+    const StateDir::LatchRecord now{true, "bumper", "plugin", 42};  // outlives the writer, which reads it
     StateDir state(scratch.dir);
-    StateDir::LatchRecord now{true, "bumper", "plugin", 42};
     state.start_writer([&now] { return now; });
     state.latch_changed();
   }  // no clean exit: a crash right after the latch
