@@ -14,6 +14,7 @@
 
 #include "mosquitto_broker.hpp"
 #include "r2r_lab.hpp"
+#include "rcand/kernel/r2r/message_auth.hpp"
 #include "rcand/kernel/r2r_transport/mqtt_transport.hpp"
 #include "rcand_process.hpp"
 
@@ -33,6 +34,24 @@ std::uint16_t free_udp_port() {
   boost::asio::io_context io;
   boost::asio::ip::udp::socket socket(io, boost::asio::ip::udp::endpoint(boost::asio::ip::make_address("127.0.0.1"), 0));
   return socket.local_endpoint().port();
+}
+
+// Ed25519 keys for a fleet: each robot signs with its own and accepts the others' (role USER). UDP and MQTT never
+// carry the R2R token (issue 13 #10), so robots that talk over them authenticate by signature.
+void sign_fleet(const std::vector<json*>& configs, const TempDir& dir) {
+  std::vector<std::pair<std::string, std::filesystem::path>> public_keys;
+  for (json* config : configs) {
+    const std::string name = (*config)["metadata"]["robot_name"];
+    const auto key = rcand::kernel::r2r::Ed25519Key::generate();
+    (*config)["runtime"]["r2r"]["private_key_file"] = dir.write(name + ".pem", key.private_pem()).string();
+    public_keys.emplace_back(name, dir.write(name + ".pub.pem", key.public_pem()));
+  }
+  for (json* config : configs) {
+    json peers = json::array();
+    for (const auto& [name, file] : public_keys)
+      if (name != (*config)["metadata"]["robot_name"]) peers.push_back({{"name", name}, {"public_key_file", file.string()}, {"role", "USER"}});
+    (*config)["runtime"]["r2r"]["peers"] = std::move(peers);
+  }
 }
 
 }  // namespace
@@ -98,8 +117,11 @@ TEST_CASE("r2r fleet (mqtt): status, auction, command and errors round-trip thro
     config["runtime"]["r2r"]["mqtt"] = {{"host", "127.0.0.1"}, {"port", broker.port()}, {"keepalive_s", 5}};
     return config;
   };
-  RcandProcess bravo(with_mqtt(r2r_robot_config("bravo", token, 2.0, 0.0)));
-  RcandProcess alpha(with_mqtt(r2r_robot_config("alpha", token, 0.0, 0.0)));
+  auto bravo_config = with_mqtt(r2r_robot_config("bravo", token, 2.0, 0.0));
+  auto alpha_config = with_mqtt(r2r_robot_config("alpha", token, 0.0, 0.0));
+  sign_fleet({&bravo_config, &alpha_config}, dir);
+  RcandProcess bravo(bravo_config);
+  RcandProcess alpha(alpha_config);
 
   // An observer on r2r/# sees the fleet's traffic, as `rcanctl r2r watch` does.
   rcand::kernel::r2r::MqttOptions observer_options;
@@ -139,7 +161,15 @@ TEST_CASE("r2r fleet (mqtt): status, auction, command and errors round-trip thro
   REQUIRE(status == 200);
   CHECK(result["winner"] == "bravo");
   CHECK(seen_where([](const json& m) { return m["type"] == "task_response" && m["payload"]["task_id"] == "M1"; }));
-  // Tokens ride inside the messages; the observer sees them - which is why the broker needs auth (README).
+  // No token rides over MQTT (anyone on the broker would see it): the robots' messages are signed instead.
+  {
+    std::lock_guard lock(seen_mutex);
+    for (const auto& m : seen)
+      if (m.is_object() && m["header"].is_object()) {
+        CHECK_FALSE(m["header"].contains("auth"));
+        CHECK(m["header"].contains("signature"));
+      }
+  }
 
   // command: moves bravo; then bravo is e-stopped and the next command comes back to alpha as error 105.
   alpha.json("POST", "/api/r2r/send", "user-token",
@@ -183,11 +213,12 @@ TEST_CASE("r2r fleet (udp): status datagrams reach the robots listed; garbage da
   bravo_config["runtime"]["r2r"]["udp_enabled"] = true;
   bravo_config["runtime"]["r2r"]["udp_port"] = bravo_udp;
   bravo_config["runtime"]["r2r"]["udp_broadcast"] = json::array();
-  RcandProcess bravo(bravo_config);
   auto alpha_config = r2r_robot_config("alpha", token, -3.0, 0.0);
   alpha_config["runtime"]["r2r"]["udp_enabled"] = true;
   alpha_config["runtime"]["r2r"]["udp_port"] = 0;
   alpha_config["runtime"]["r2r"]["udp_broadcast"] = {"127.0.0.1:" + std::to_string(bravo_udp)};
+  sign_fleet({&bravo_config, &alpha_config}, dir);
+  RcandProcess bravo(bravo_config);
   RcandProcess alpha(alpha_config);
 
   const auto heard = poll_until<json>([&] { return peer_status(bravo, "alpha"); });

@@ -127,15 +127,20 @@ void handle_r2r_route(ApiContext& ctx, const http::Request& request, const std::
       target = b["target"].get<std::string>();
     }
     const json payload = b.contains("payload") ? b["payload"] : json::object();
-    auto sent = service->node().send(*type, payload, target);
+    auto sent = service->node().send_message(*type, payload, target);
     if (auto* error = std::get_if<r2r::R2rError>(&sent)) {
       return refuse(failure(400, "BAD_REQUEST", error->message, error->field.empty() ? "payload" : error->field),
                     "invalid message");
     }
-    ctx.audit.finish(seq, "ok", target ? "to " + *target : "broadcast");
-    json message = json::parse(std::get<std::string>(sent), nullptr, false);
+    const r2r::SendOutcome& outcome = std::get<r2r::SendOutcome>(sent);
+    // Queued, not sent: the transports take the message for delivery and nothing confirms it arrived (UDP, MQTT QoS 0,
+    // a WebSocket write queue). No transport taking it (an unknown, unreachable target) is queued: false.
+    const bool queued = !outcome.queued_on.empty();
+    ctx.audit.finish(seq, queued ? "ok" : "failed",
+                     std::string(target ? "to " + *target : "broadcast") + (queued ? "" : ": no transport could take it"));
+    json message = json::parse(outcome.bytes, nullptr, false);
     if (message.is_object() && message.contains("header")) message["header"].erase("auth");  // never echo the token
-    respond(answer(200, {{"sent", true}, {"message", message}}));
+    respond(answer(200, {{"queued", queued}, {"transports", outcome.queued_on}, {"message", message}}));
     return;
   }
 

@@ -72,15 +72,17 @@ struct R2rService::Impl {
   r2r::LocalStatus local_status() {
     const std::int64_t now = deps.clock.now_us();
     std::lock_guard lock(status_mutex);
-    if (cached && now - cached_at_us < kStatusCacheUs) {
-      cached_status.estopped = deps.estop.latched();  // never stale: a latch is reported at once
-      if (cached_status.estopped) cached_status.state = "estop";
-      return cached_status;
-    }
+    // The latch is never stale: a latch or a clear is reported at once, and `state` follows it (a cache taken while
+    // latched says "estop" - it is refetched on a clear rather than patched).
+    const bool latched = deps.estop.latched();
+    if (cached && now - cached_at_us < kStatusCacheUs && cached_status.estopped == latched) return cached_status;
     r2r::LocalStatus status;
     const json doc = deps.api.status_document();
-    status.state = doc.value("state", "idle");
-    status.estopped = deps.estop.latched();
+    const auto state = doc.find("state");
+    status.state = state != doc.end() && state->is_string() ? state->get<std::string>() : "idle";
+    status.estopped = latched;
+    if (latched) status.state = "estop";
+    else if (status.state == "estop") status.state = "idle";  // the document was read just before the clear
     const auto pose = doc.find("pose");
     if (pose != doc.end() && pose->is_object() && (*pose)["x_m"].is_number() && (*pose)["y_m"].is_number()) {
       const double heading = (*pose)["heading_deg"].is_number() ? (*pose)["heading_deg"].get<double>() : 0.0;
@@ -168,7 +170,8 @@ std::unique_ptr<R2rService> R2rService::from_config(R2rServiceDeps deps) {
   if (r2r_block.contains("udp_port")) s.udp_port = r2r_block["udp_port"].get<std::uint16_t>();
   // A socket bound to one unicast address never sees broadcasts: any address, unless the robot is loopback-only.
   s.udp_bind = r2r_block.value("udp_bind", is_loopback_address(cfg.runtime.listen_address) ? cfg.runtime.listen_address : "0.0.0.0");
-  const json destinations = r2r_block.contains("udp_broadcast") ? r2r_block["udp_broadcast"] : json::array({"255.255.255.255"});
+  // No implicit destination (issue 13 #10): status datagrams go only where the operator says (udp_broadcast).
+  const json destinations = r2r_block.contains("udp_broadcast") ? r2r_block["udp_broadcast"] : json::array();
   for (std::size_t i = 0; i < destinations.size(); ++i) {
     try {
       s.udp_destinations.push_back(r2r::parse_udp_destination(destinations[i].get<std::string>(),
@@ -194,6 +197,15 @@ std::unique_ptr<R2rService> R2rService::from_config(R2rServiceDeps deps) {
       .log = s.log,
   };
   if (s.mqtt) node_deps.transports.push_back(s.mqtt.get());
+  // UDP and MQTT never carry the bearer token (header.auth.token goes only over WebSocket): without a signing key,
+  // what this robot sends over them is unauthenticated and peers that require credentials refuse it.
+  if (node_deps.settings.outbound_token && !node_deps.settings.private_key && (s.mqtt || s.udp_enabled))
+    s.log->warn("r2r: runtime.r2r.token_file is sent over WebSocket only, never over {}; set runtime.r2r.private_key_file "
+                "so peers can authenticate those messages (signed)",
+                s.mqtt && s.udp_enabled ? "UDP or MQTT" : s.mqtt ? "MQTT" : "UDP");
+  if (s.udp_enabled && s.udp_destinations.empty())
+    s.log->warn("r2r: runtime.r2r.udp_broadcast is not set: status is not sent over UDP (received only); name the "
+                "destinations, e.g. udp_broadcast: [\"192.168.1.255\"]");
   s.node = std::make_unique<r2r::R2rNode>(std::move(node_deps));
   return std::unique_ptr<R2rService>(new R2rService(std::move(impl)));
 }
@@ -260,7 +272,14 @@ json R2rService::peers() const {
   doc["name"] = s.deps.config.robot_name;
   json transports = {{"ws", s.ws->connections()}};
   if (s.mqtt) transports["mqtt"] = {{"connected", s.mqtt->connected()}};
-  if (s.udp) transports["udp"] = {{"port", s.udp->bound_port()}};
+  if (s.udp) {
+    json destinations = json::array();
+    for (const auto& destination : s.udp_destinations)
+      destinations.push_back(!destination.port                                 ? destination.host
+                             : destination.host.find(':') != std::string::npos ? "[" + destination.host + "]:" + std::to_string(destination.port)
+                                                                               : destination.host + ":" + std::to_string(destination.port));
+    transports["udp"] = {{"port", s.udp->bound_port()}, {"destinations", std::move(destinations)}};
+  }
   doc["transports"] = std::move(transports);
   const auto counters = s.node->counters();
   doc["counters"] = {{"received", counters.received}, {"accepted", counters.accepted}, {"rejected", counters.rejected},

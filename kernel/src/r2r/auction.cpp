@@ -54,9 +54,30 @@ std::vector<Outgoing> Auctioneer::open(const TaskSpec& task, double bid_window_s
   Auction& a = auctions_[task.task_id];
   a = Auction{};
   a.task = task;
+  a.opened_s = now_s;
   a.bid_window_s = bid_window_s;
   a.bid_deadline = now_s + bid_window_s;
-  return {{MessageType::TaskRequest, request_payload(a), std::nullopt}};
+  std::vector<Outgoing> out{{MessageType::TaskRequest, request_payload(a), std::nullopt}};
+  evict_beyond_limit(task.task_id);
+  return out;
+}
+
+void Auctioneer::evict_beyond_limit(const std::string& keep) {
+  while (auctions_.size() > std::max<std::size_t>(limits_.max_auctions, 1)) {
+    // The oldest decided auction goes first; when every one is still running, the oldest of those.
+    auto victim = auctions_.end();
+    for (bool decided_only : {true, false}) {
+      for (auto it = auctions_.begin(); it != auctions_.end(); ++it) {
+        if (it->first == keep) continue;
+        const bool decided = it->second.state == State::Assigned || it->second.state == State::NoBids;
+        if (decided_only && !decided) continue;
+        if (victim == auctions_.end() || it->second.opened_s < victim->second.opened_s) victim = it;
+      }
+      if (victim != auctions_.end()) break;
+    }
+    if (victim == auctions_.end()) return;
+    auctions_.erase(victim);
+  }
 }
 
 void Auctioneer::on_bid(const std::string& task_id, Bid bid) {
@@ -65,7 +86,9 @@ void Auctioneer::on_bid(const std::string& task_id, Bid bid) {
   Auction& a = it->second;
   if (a.state != State::Bidding || a.excluded.contains(bid.bidder) || !has_all(bid.capabilities, a.task.required_capabilities))
     return;
-  a.history.push_back({{"round", a.round}, {"bidder", bid.bidder}, {"cost", bid.cost}, {"capabilities", bid.capabilities}});
+  if (a.bids.size() >= limits_.max_bids_per_auction && !a.bids.contains(bid.bidder)) return;
+  if (a.history.size() < limits_.max_history)
+    a.history.push_back({{"round", a.round}, {"bidder", bid.bidder}, {"cost", bid.cost}, {"capabilities", bid.capabilities}});
   a.bids[bid.bidder] = std::move(bid);
 }
 
@@ -170,11 +193,22 @@ json Auctioneer::results() const {
 std::optional<Outgoing> Bidder::on_task_request(const std::string& requester, const TaskSpec& task, double bid_deadline,
                                                 const Context& context) {
   if (!has_all(context.capabilities, task.required_capabilities)) return std::nullopt;
+  if (!(bid_deadline <= context.now_s + limits_.max_bid_horizon_s)) return std::nullopt;  // far off (or NaN): no bid
   if (const auto held = held_.find(task.task_id); held != held_.end() && held->second.requester != requester)
     return std::nullopt;  // already doing it for someone else
   const std::optional<double> cost = context.cost ? context.cost(CostInput{task, context.position, held_.size()}) : std::nullopt;
   if (!cost || !(*cost >= 0)) return std::nullopt;  // also refuses NaN from a plugin's cost function
-  bids_[{requester, task.task_id}] = {*cost, std::max(bid_deadline, context.now_s) + kForgetBidAfterS};
+  const std::pair<std::string, std::string> key{requester, task.task_id};
+  if (bids_.size() >= limits_.max_pending_bids && !bids_.contains(key)) {
+    prune(context.now_s);
+    while (!bids_.empty() && bids_.size() >= std::max<std::size_t>(limits_.max_pending_bids, 1)) {
+      const auto soonest = std::min_element(bids_.begin(), bids_.end(), [](const auto& x, const auto& y) {
+        return x.second.forget_after_s < y.second.forget_after_s;
+      });
+      bids_.erase(soonest);
+    }
+  }
+  bids_[key] = {*cost, std::max(bid_deadline, context.now_s) + kForgetBidAfterS, task.deadline};
   json payload{{"task_id", task.task_id}, {"action", "bid"}, {"cost", *cost}, {"capabilities", context.capabilities}};
   return Outgoing{MessageType::Negotiation, std::move(payload), requester};
 }
@@ -195,20 +229,26 @@ Outgoing Bidder::on_direct_request(const std::string& requester, const TaskSpec&
   }
   if (!has_all(context.capabilities, task.required_capabilities))
     return task_response(task.task_id, false, std::nullopt, requester, "missing a required capability");
+  prune(context.now_s);
+  if (held_.size() >= limits_.max_held_tasks)
+    return task_response(task.task_id, false, std::nullopt, requester, "this robot already holds as many tasks as it takes");
   const std::optional<double> cost = context.cost ? context.cost(CostInput{task, context.position, held_.size()}) : std::nullopt;
   if (!cost || !(*cost >= 0)) return task_response(task.task_id, false, std::nullopt, requester, "cannot estimate the task");
-  held_[task.task_id] = {requester, *cost, context.now_s};
+  held_[task.task_id] = {requester, *cost, context.now_s, held_expiry(task.deadline, context.now_s)};
   return task_response(task.task_id, true, *cost, requester);
 }
 
 Outgoing Bidder::on_award(const std::string& requester, const std::string& task_id, const json& award_header, double now_s) {
+  prune(now_s);  // first: nothing below may hold an iterator across it
   if (const auto held = held_.find(task_id); held != held_.end()) {
     if (held->second.requester != requester) return assigned_elsewhere(requester, task_id, award_header);
     return task_response(task_id, true, held->second.estimated_time, requester);  // a repeated award
   }
   const auto bid = bids_.find({requester, task_id});
   if (bid == bids_.end()) return task_response(task_id, false, std::nullopt, requester, "this robot did not bid on the task");
-  held_[task_id] = {requester, bid->second.cost, now_s};
+  if (held_.size() >= limits_.max_held_tasks)
+    return task_response(task_id, false, std::nullopt, requester, "this robot already holds as many tasks as it takes");
+  held_[task_id] = {requester, bid->second.cost, now_s, held_expiry(bid->second.deadline, now_s)};
   bids_.erase(bid);
   return task_response(task_id, true, held_[task_id].estimated_time, requester);
 }
@@ -222,6 +262,12 @@ bool Bidder::release(const std::string& task_id) { return held_.erase(task_id) >
 
 void Bidder::prune(double now_s) {
   std::erase_if(bids_, [now_s](const auto& entry) { return entry.second.forget_after_s < now_s; });
+  std::erase_if(held_, [now_s](const auto& entry) { return entry.second.expires_s < now_s; });
+}
+
+double Bidder::held_expiry(std::optional<double> deadline, double now_s) const {
+  const double ttl = now_s + limits_.held_task_ttl_s;
+  return deadline && *deadline > now_s ? std::min(*deadline, ttl) : ttl;
 }
 
 }  // namespace rcand::kernel::r2r

@@ -26,6 +26,9 @@ std::optional<std::string> base64_decode(std::string_view text) {
                                 reinterpret_cast<const unsigned char*>(text.data()), static_cast<int>(text.size()));
   if (n < 0) return std::nullopt;
   out.resize(static_cast<std::size_t>(n) - padding);  // EVP_DecodeBlock counts the padding as zero bytes
+  // Canonical only (RFC 4648 §3.5): the unused bits of the last symbol must be zero, so exactly one text decodes to
+  // these bytes. Anything else would let one signature travel under several spellings.
+  if (base64_encode(out) != text) return std::nullopt;
   return out;
 }
 

@@ -42,6 +42,9 @@ std::optional<R2rError> read_id(const json& header, const char* key, bool requir
   }
   if (!it->is_string()) return invalid(field, std::string("header.") + key + " must be a string, found " + found(*it));
   if (it->get_ref<const std::string&>().empty()) return invalid(field, std::string("header.") + key + " must not be empty");
+  if (it->get_ref<const std::string&>().size() > kMaxIdBytes)
+    return invalid(field, std::string("header.") + key + " is longer than " + std::to_string(kMaxIdBytes) +
+                              " bytes (a robot name or RURI)");
   out = it->get<std::string>();
   return std::nullopt;
 }
@@ -86,7 +89,8 @@ std::variant<Envelope, R2rError> parse_envelope(std::string_view bytes) {
     ref = *header_it;
     ref->erase("auth");  // never echo a token back
     ref->erase("signature");
-    if (const auto s = header_it->find("source_id"); s != header_it->end() && s->is_string() && !s->get_ref<const std::string&>().empty())
+    if (const auto s = header_it->find("source_id"); s != header_it->end() && s->is_string() &&
+        !s->get_ref<const std::string&>().empty() && s->get_ref<const std::string&>().size() <= kMaxIdBytes)
       received_source = s->get<std::string>();
   }
   if (const auto t = doc.find("type"); t != doc.end() && t->is_string()) received_type = t->get<std::string>();

@@ -8,6 +8,7 @@
 #include "rcand/kernel/auth/ruri.hpp"
 #include "rcand/kernel/r2r/payload_schema.hpp"
 #include "rcand/kernel/r2r/replay_guard.hpp"
+#include "rcand/kernel/text/bounded_text.hpp"
 
 namespace rcand::kernel::r2r {
 namespace {
@@ -17,12 +18,58 @@ using nlohmann::json;
 // A change in status is sent at once, but never more often than this (a moving robot changes every tick).
 constexpr std::int64_t kMinStatusGapUs = 200'000;
 
-// One message to put on the wire once the node's lock is released.
+// A transport that may carry this robot's bearer token (header.auth.token): a WebSocket has an authenticated peer at
+// each end (and "local" is the in-process test network). UDP datagrams and MQTT publishes go to a broadcast address
+// or through a broker to every subscriber: they never carry it (issue 13 #10) - sign instead (private_key_file).
+bool r2r_route_may_carry_secrets(std::string_view transport) { return transport == "ws" || transport == "local"; }
+
+// A way back to one sender (the connection its message came on), and whether that transport may carry the token.
+struct Route {
+  std::function<void(std::string)> send;
+  bool may_carry_secrets = false;
+  explicit operator bool() const noexcept { return static_cast<bool>(send); }
+};
+
+// One message to put on the wire once the node's lock is released, in two spellings: `bytes` with the bearer token
+// (when this robot has one) for the transports that may carry it, `open_bytes` without it for every other.
 struct Wire {
   std::string bytes;
+  std::string open_bytes;
   std::optional<std::string> target;
-  std::function<void(std::string)> reply;  // preferred route for a direct answer (same connection), may be empty
+  Route reply;  // preferred route for a direct answer (same connection), may be empty
 };
+
+// What the peer table keeps of a peer's status: the ruled fields only, each bounded, so one peer costs at most a few
+// KiB whatever it sends (issue 13 #14).
+constexpr std::size_t kStatusTextBytes = 64;
+constexpr std::size_t kStatusCapabilities = 64;
+json r2r_bounded_peer_status(const json& p) {
+  json out = json::object();
+  for (const char* key : {"battery", "task_progress", "tasks_held"})
+    if (const auto it = p.find(key); it != p.end() && (it->is_number() || it->is_null())) out[key] = *it;
+  if (const auto it = p.find("estopped"); it != p.end() && it->is_boolean()) out["estopped"] = *it;
+  if (const auto it = p.find("state"); it != p.end() && it->is_string())
+    out["state"] = bounded_text(it->get_ref<const std::string&>(), kStatusTextBytes);
+  if (const auto it = p.find("position"); it != p.end()) {
+    if (it->is_object()) {
+      json position = json::object();
+      for (const char* key : {"x", "y", "heading_deg"})
+        if (const auto v = it->find(key); v != it->end() && v->is_number()) position[key] = *v;
+      out["position"] = std::move(position);
+    } else if (it->is_null()) {
+      out["position"] = nullptr;
+    }
+  }
+  if (const auto it = p.find("capabilities"); it != p.end() && it->is_array()) {
+    json caps = json::array();
+    for (const auto& cap : *it) {
+      if (caps.size() >= kStatusCapabilities) break;
+      if (cap.is_string()) caps.push_back(bounded_text(cap.get_ref<const std::string&>(), kStatusTextBytes));
+    }
+    out["capabilities"] = std::move(caps);
+  }
+  return out;
+}
 
 std::optional<FleetPoint> point_of(const json& payload, const char* key) {
   const auto it = payload.find(key);
@@ -49,25 +96,29 @@ struct R2rNode::Impl {
     default_cost = nav_time_cost({deps.physics, 0.5, deps.settings.seconds_per_task});
     cost = deps.cost_function ? deps.cost_function : default_cost;
     if (const RuriParse parsed = parse_ruri(deps.identity.ruri); parsed.ruri) own_ruri = parsed.ruri;
+    started_s = now_s();
   }
 
   R2rNodeDeps deps;
   MessageAuthenticator auth;
   std::shared_ptr<spdlog::logger> log;
   std::optional<Ruri> own_ruri;
+  // Wall time this node started: a signed message timestamped earlier is refused, so nothing signed before a restart
+  // (when the replay memory was lost) can be replayed after it.
+  double started_s = 0.0;
 
   mutable std::mutex mutex;  // everything below
   ReplayGuard replays{deps.settings.auth.replay_window_s + deps.settings.auth.future_skew_s};
-  Auctioneer auctioneer;
-  Bidder bidder;
+  Auctioneer auctioneer{deps.settings.auctioneer};
+  Bidder bidder{deps.settings.bidder};
   CostFunction cost, default_cost;
   std::map<std::uint64_t, std::pair<MessageType, Subscriber>> subscribers;
   std::uint64_t next_subscriber = 1;
   struct Peer {
     std::int64_t last_seen_ms = 0;
     std::string transport;
-    json status;  // null until a status arrives
-    std::function<void(std::string)> reply;
+    json status;  // null until a status arrives (the ruled fields only, bounded)
+    Route reply;
   };
   std::map<std::string, Peer> peers;
   json last_status;  // what was last broadcast
@@ -88,28 +139,35 @@ struct R2rNode::Impl {
     return parsed.ruri && ruri_matches(*parsed.ruri, *own_ruri);
   }
 
-  // The signed/tokened bytes of a message from this robot.
-  std::string build(MessageType type, json payload, const std::optional<std::string>& target) const {
-    json header{{"version", std::string(kProtocolVersion)}, {"timestamp", now_s()}, {"source_id", deps.identity.name}};
+  // The signed (and, with `with_token`, tokened) bytes of a message from this robot.
+  std::string build(MessageType type, json payload, const std::optional<std::string>& target, double timestamp,
+                    bool with_token) const {
+    json header{{"version", std::string(kProtocolVersion)}, {"timestamp", timestamp}, {"source_id", deps.identity.name}};
     if (target) header["target_id"] = *target;
     json message{{"header", std::move(header)}, {"type", std::string(type_name(type))}, {"payload", std::move(payload)}};
-    if (deps.settings.outbound_token) add_token(message, *deps.settings.outbound_token);
+    if (with_token && deps.settings.outbound_token) add_token(message, *deps.settings.outbound_token);
     if (deps.settings.private_key) sign_message(message, deps.identity.name, *deps.settings.private_key);
     return message.dump(-1, ' ', false, json::error_handler_t::replace);
   }
 
-  Wire wire(const Outgoing& out, std::function<void(std::string)> reply = {}) const {
-    return {build(out.type, out.payload, out.target), out.target, std::move(reply)};
+  Wire wire(const Outgoing& out, Route reply = {}) const {
+    const double timestamp = now_s();
+    std::string open = build(out.type, out.payload, out.target, timestamp, false);
+    std::string full = deps.settings.outbound_token ? build(out.type, out.payload, out.target, timestamp, true) : open;
+    return {std::move(full), std::move(open), out.target, std::move(reply)};
   }
 
   // Sends outside `mutex`. A direct answer goes back on the connection it came from when it can; otherwise every
-  // transport is tried (broadcasts go to all of them), then the peer's last known route.
-  void transmit(std::vector<Wire> batch) {
-    for (Wire& w : batch) {
-      bool sent = false;
+  // transport is tried (broadcasts go to all of them), then the peer's last known route. Each transport gets the
+  // spelling it may carry. Returns the names of the transports (or "reply"/"route") that took each message.
+  std::vector<std::vector<std::string>> transmit(std::vector<Wire> batch) {
+    std::vector<std::vector<std::string>> taken(batch.size());
+    for (std::size_t i = 0; i < batch.size(); ++i) {
+      Wire& w = batch[i];
+      std::vector<std::string>& by = taken[i];
       if (w.reply) {
-        w.reply(w.bytes);
-        sent = true;
+        w.reply.send(w.reply.may_carry_secrets ? w.bytes : w.open_bytes);
+        by.emplace_back("reply");
       } else {
         std::vector<Transport*> targets;
         {
@@ -117,32 +175,51 @@ struct R2rNode::Impl {
           if (started) targets = transports;
         }
         for (Transport* transport : targets) {
-          if (transport->send(w.bytes, w.target)) {
-            sent = true;
+          if (transport->send(r2r_route_may_carry_secrets(transport->name()) ? w.bytes : w.open_bytes, w.target)) {
+            by.emplace_back(transport->name());
             if (w.target) break;
           }
         }
-        if (!sent && w.target) {
-          std::function<void(std::string)> route;
+        if (by.empty() && w.target) {
+          Route route;
           {
             std::lock_guard lock(mutex);
             if (const auto peer = peers.find(*w.target); peer != peers.end()) route = peer->second.reply;
           }
           if (route) {
-            route(w.bytes);
-            sent = true;
+            route.send(route.may_carry_secrets ? w.bytes : w.open_bytes);
+            by.emplace_back("route");
           }
         }
       }
       std::lock_guard lock(mutex);
-      ++(sent ? counters.sent : counters.send_failed);
+      ++(!by.empty() ? counters.sent : counters.send_failed);
     }
+    return taken;
+  }
+
+  // The peer table entry for `source`, made room for (the least recently heard goes when the table is full). Under
+  // `mutex`.
+  Peer& peer_entry_locked(const std::string& source) {
+    if (const auto it = peers.find(source); it != peers.end()) return it->second;
+    while (!peers.empty() && peers.size() >= std::max<std::size_t>(deps.settings.max_peers, 1)) {
+      const auto oldest = std::min_element(peers.begin(), peers.end(), [](const auto& a, const auto& b) {
+        return a.second.last_seen_ms < b.second.last_seen_ms;
+      });
+      peers.erase(oldest);
+    }
+    return peers[source];
+  }
+
+  void prune_peers_locked(std::int64_t now_ms) {
+    const auto expiry_ms = static_cast<std::int64_t>(deps.settings.peer_expiry_s * 1000.0);
+    std::erase_if(peers, [&](const auto& entry) { return now_ms - entry.second.last_seen_ms > expiry_ms; });
   }
 
   // An `error` answering a message from `source` (never to an `error`, never to ourselves).
   // `source` is nullopt when the message was too broken to say who sent it (then only `reply` can carry the answer).
   Wire error_reply(ErrorCode code, std::string message, const std::optional<json>& ref,
-                   const std::optional<std::string>& source, const std::function<void(std::string)>& reply,
+                   const std::optional<std::string>& source, const Route& reply,
                    std::optional<json> extra = std::nullopt) const {
     json payload = make_error_payload(code, std::move(message), ref);
     if (extra) payload.update(*extra);
@@ -209,6 +286,7 @@ void R2rNode::stop() noexcept {
 
 void R2rNode::receive(InboundMessage message) {
   Impl& s = *impl_;
+  const Route reply{message.reply, r2r_route_may_carry_secrets(message.transport)};
   std::vector<Wire> out;
   {
     std::lock_guard lock(s.mutex);
@@ -227,7 +305,7 @@ void R2rNode::receive(InboundMessage message) {
     s.log->info("r2r: refused a message from {} via {}: {}{}{}", message.peer, message.transport, bad->message,
                 bad->field.empty() ? "" : " at ", bad->field);
     const bool answerable = bad->type != "error" && !(bad->source_id && s.is_self(*bad->source_id)) &&
-                            (bad->source_id || message.reply);
+                            (bad->source_id || reply);
     if (!answerable) {
       std::lock_guard lock(s.mutex);
       ++s.counters.rejected;
@@ -235,7 +313,7 @@ void R2rNode::receive(InboundMessage message) {
     }
     json extra = json::object();
     if (!bad->field.empty()) extra["field"] = bad->field;  // rcand extension: where the fault is
-    reject(s.error_reply(bad->code, bad->message, bad->ref, bad->source_id, message.reply, extra));
+    reject(s.error_reply(bad->code, bad->message, bad->ref, bad->source_id, reply, extra));
     return;
   }
   Envelope envelope = std::move(std::get<Envelope>(parsed));
@@ -256,15 +334,31 @@ void R2rNode::receive(InboundMessage message) {
       ++s.counters.rejected;
       return;
     }
-    reject(s.error_reply(ErrorCode::Unauthorized, failure->message, clean_ref, source, message.reply));
+    reject(s.error_reply(ErrorCode::Unauthorized, failure->message, clean_ref, source, reply));
     return;
   }
   const Principal principal = std::move(std::get<Principal>(who));
   if (principal.via == "signature") {
-    // A copy of a signed message already handled: a replay, or the same broadcast over another transport. Dropped
-    // without an answer (the original was answered).
+    // Signed before this robot started: its replay memory cannot know whether it was handled before a restart, so it
+    // is refused (103) - nothing signed before a restart is replayable after it.
+    if (envelope.timestamp < s.started_s) {
+      const std::string why = "signed message timestamped before this robot started (" + json(s.started_s).dump() +
+                              "): refused as a possible replay";
+      s.log->info("r2r: refused a signed {} from '{}' via {}: {}", type_name(envelope.type), source, message.transport, why);
+      if (is_error) {
+        std::lock_guard lock(s.mutex);
+        ++s.counters.rejected;
+        return;
+      }
+      reject(s.error_reply(ErrorCode::Unauthorized, why, clean_ref, source, reply));
+      return;
+    }
+    // A copy of a signed message already handled: a replay, or the same broadcast over another transport. Keyed on
+    // the canonical signed message, so no other spelling of it counts as new. Dropped without an answer (the
+    // original was answered).
+    const std::string key = replay_key(envelope.received);
     std::lock_guard lock(s.mutex);
-    if (!s.replays.first_time(envelope.header_extra["signature"]["sig"].get<std::string>(), now)) {
+    if (!s.replays.first_time(key, now)) {
       ++s.counters.rejected;
       s.log->debug("r2r: dropped a repeated signed {} from '{}'", type_name(envelope.type), source);
       return;
@@ -279,7 +373,7 @@ void R2rNode::receive(InboundMessage message) {
     }
     reject(s.error_reply(ErrorCode::UnknownTarget, "unknown target robot '" + *envelope.target_id + "': this is '" +
                                                        s.deps.identity.name + "' and it does not forward",
-                         clean_ref, source, message.reply));
+                         clean_ref, source, reply));
     return;
   }
 
@@ -292,22 +386,22 @@ void R2rNode::receive(InboundMessage message) {
   {
     std::lock_guard lock(s.mutex);
     ++s.counters.accepted;
-    Impl::Peer& peer = s.peers[source];
+    Impl::Peer& peer = s.peer_entry_locked(source);
     peer.last_seen_ms = s.deps.clock.wall_ms();
     peer.transport = message.transport;
-    if (message.reply) peer.reply = message.reply;
+    if (reply) peer.reply = reply;
     const json& p = envelope.payload;
     const Bidder::Context context{s.deps.identity.capabilities, s.cost, position, now};
 
     switch (envelope.type) {
-      case MessageType::Status: peer.status = p; break;
+      case MessageType::Status: peer.status = r2r_bounded_peer_status(p); break;
       case MessageType::TaskRequest: {
         const TaskSpec task = task_from(p);
         if (p.contains("bid_deadline")) {
           if (auto bid = s.bidder.on_task_request(source, task, p["bid_deadline"].get<double>(), context))
-            out.push_back(s.wire(*bid, message.reply));
+            out.push_back(s.wire(*bid, reply));
         } else {
-          out.push_back(s.wire(s.bidder.on_direct_request(source, task, clean_ref, context), message.reply));
+          out.push_back(s.wire(s.bidder.on_direct_request(source, task, clean_ref, context), reply));
         }
         break;
       }
@@ -318,7 +412,7 @@ void R2rNode::receive(InboundMessage message) {
           Bid bid{source, p["cost"].get<double>(), p.value("capabilities", std::vector<std::string>{}), now};
           s.auctioneer.on_bid(task_id, std::move(bid));
         } else if (action == "award") {
-          out.push_back(s.wire(s.bidder.on_award(source, task_id, clean_ref, now), message.reply));
+          out.push_back(s.wire(s.bidder.on_award(source, task_id, clean_ref, now), reply));
         } else {
           s.bidder.on_withdraw(source, task_id);
         }
@@ -351,12 +445,12 @@ void R2rNode::receive(InboundMessage message) {
 
   if (run_command) {
     if (!s.deps.command_executor) {
-      reject(s.error_reply(ErrorCode::Unauthorized, "this robot does not accept R2R commands", clean_ref, source, message.reply));
+      reject(s.error_reply(ErrorCode::Unauthorized, "this robot does not accept R2R commands", clean_ref, source, reply));
       return;
     }
     std::weak_ptr<Impl> weak = impl_;
     s.deps.command_executor(principal, envelope.payload,
-                            [weak, clean_ref, source, reply = message.reply](int status, json body) {
+                            [weak, clean_ref, source, reply](int status, json body) {
                               const auto self = weak.lock();
                               if (!self || (status >= 200 && status < 300)) return;
                               const std::string why = body.is_object() && body.contains("error") && body["error"].is_string()
@@ -405,11 +499,19 @@ void R2rNode::tick() {
     const double now = s.now_s();
     for (const Outgoing& next : s.auctioneer.tick(now)) out.push_back(s.wire(next));
     s.bidder.prune(now);
+    s.prune_peers_locked(s.deps.clock.wall_ms());
   }
   s.transmit(std::move(out));
 }
 
 std::variant<std::string, R2rError> R2rNode::send(MessageType type, json payload, const std::optional<std::string>& target) {
+  auto outcome = send_message(type, std::move(payload), target);
+  if (auto* error = std::get_if<R2rError>(&outcome)) return std::move(*error);
+  return std::move(std::get<SendOutcome>(outcome).bytes);
+}
+
+std::variant<SendOutcome, R2rError> R2rNode::send_message(MessageType type, json payload,
+                                                          const std::optional<std::string>& target) {
   auto invalid = [](std::string field, std::string message) {
     R2rError error;
     error.field = std::move(field);
@@ -419,12 +521,15 @@ std::variant<std::string, R2rError> R2rNode::send(MessageType type, json payload
   if (!payload.is_object()) return invalid("/payload", "payload must be an object");
   if (auto fault = check_payload(type, payload)) return invalid(fault->field, fault->message);
   if (target && target->empty()) return invalid("/header/target_id", "target_id must not be empty");
-  std::string bytes = impl_->build(type, std::move(payload), target);
-  if (bytes.size() > kMaxMessageBytes)
-    return invalid("", "message is " + std::to_string(bytes.size()) + " bytes, more than the " +
+  Wire w = impl_->wire({type, std::move(payload), target});
+  const std::size_t size = std::max(w.bytes.size(), w.open_bytes.size());
+  if (size > kMaxMessageBytes)
+    return invalid("", "message is " + std::to_string(size) + " bytes, more than the " +
                            std::to_string(kMaxMessageBytes) + " allowed");
-  impl_->transmit({Wire{bytes, target, {}}});
-  return bytes;
+  SendOutcome outcome;
+  outcome.bytes = w.open_bytes;
+  outcome.queued_on = std::move(impl_->transmit({std::move(w)}).front());
+  return outcome;
 }
 
 std::variant<std::string, R2rError> R2rNode::open_auction(TaskSpec task) {

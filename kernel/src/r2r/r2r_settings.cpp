@@ -60,6 +60,15 @@ R2rSettings load_r2r_settings(const json& r2r, const std::filesystem::path& base
   if (s.seconds_per_task < 0) bad("cost_per_queued_task_s", "expected a number >= 0");
   s.auth.replay_window_s = number_at(r2r, "replay_window_s", "replay_window_s", s.auth.replay_window_s);
   if (s.auth.replay_window_s <= 0) bad("replay_window_s", "expected a number > 0");
+  const auto count_at = [&](const char* key, std::size_t fallback) {
+    const double v = number_at(r2r, key, key, static_cast<double>(fallback));
+    if (v < 1 || v > 1'000'000 || v != std::floor(v)) bad(key, "expected an integer from 1 to 1000000");
+    return static_cast<std::size_t>(v);
+  };
+  s.max_peers = count_at("max_peers", s.max_peers);
+  s.bidder.max_held_tasks = count_at("max_held_tasks", s.bidder.max_held_tasks);
+  s.peer_expiry_s = number_at(r2r, "peer_expiry_s", "peer_expiry_s", s.peer_expiry_s);
+  if (s.peer_expiry_s <= 0) bad("peer_expiry_s", "expected a number of seconds > 0");
 
   if (const auto require = r2r.find("require_signatures"); require != r2r.end()) {
     if (!require->is_boolean()) bad("require_signatures", "expected true or false");

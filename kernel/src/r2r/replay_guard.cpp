@@ -1,13 +1,29 @@
 #include "rcand/kernel/r2r/replay_guard.hpp"
 
+#include <openssl/evp.h>
+
 #include <algorithm>
+#include <stdexcept>
 #include <vector>
+
+#include "rcand/kernel/r2r/message_auth.hpp"
 
 namespace rcand::kernel::r2r {
 
-bool ReplayGuard::first_time(const std::string& signature, double now_s) {
+std::string replay_key(const nlohmann::json& message) {
+  const std::string input = signing_input(message);
+  std::string digest(EVP_MAX_MD_SIZE, '\0');
+  unsigned int length = 0;
+  if (EVP_Digest(input.data(), input.size(), reinterpret_cast<unsigned char*>(digest.data()), &length, EVP_sha256(),
+                 nullptr) != 1)
+    throw std::runtime_error("SHA-256 failed");
+  digest.resize(length);
+  return digest;
+}
+
+bool ReplayGuard::first_time(const std::string& key, double now_s) {
   if (now_s - last_prune_s_ >= 1.0 || seen_.size() >= max_entries_) prune(now_s);
-  return seen_.emplace(signature, now_s).second;
+  return seen_.emplace(key, now_s).second;
 }
 
 void ReplayGuard::prune(double now_s) {

@@ -37,6 +37,14 @@ struct Bid {
 class Auctioneer {
  public:
   enum class State { Bidding, Awarded, Assigned, NoBids };
+  // Memory bounds (issue 13 #14): nothing a peer sends can grow the requester's state without limit.
+  struct Limits {
+    std::size_t max_auctions = 256;          // remembered auctions; beyond, the oldest decided one is forgotten
+    std::size_t max_bids_per_auction = 256;  // distinct bidders per round; later ones are ignored
+    std::size_t max_history = 1024;          // bid history kept per auction (repeated bids beyond it are not logged)
+  };
+  Auctioneer() = default;
+  explicit Auctioneer(Limits limits) : limits_(limits) {}
 
   // Opens an auction: the task_request broadcast (with bid_deadline = now_s + bid_window_s). A task_id already
   // open is re-opened from scratch.
@@ -55,6 +63,7 @@ class Auctioneer {
   std::vector<Outgoing> tick(double now_s);
 
   bool knows(const std::string& task_id) const { return auctions_.contains(task_id); }
+  std::size_t size() const noexcept { return auctions_.size(); }
   // {"task_id","state","round","bid_deadline","winner","estimated_time","excluded":[],"bids":[{bidder,cost,...}]}
   std::optional<nlohmann::json> result(const std::string& task_id) const;
   nlohmann::json results() const;
@@ -63,6 +72,7 @@ class Auctioneer {
  private:
   struct Auction {
     TaskSpec task;
+    double opened_s = 0.0;
     double bid_window_s = 1.0;
     double bid_deadline = 0.0;
     State state = State::Bidding;
@@ -77,7 +87,9 @@ class Auctioneer {
   std::vector<Outgoing> award_next(Auction& auction, double now_s);
   std::vector<Outgoing> reopen(Auction& auction, double now_s);
   static nlohmann::json request_payload(const Auction& auction);
+  void evict_beyond_limit(const std::string& keep);
 
+  Limits limits_;
   std::map<std::string, Auction> auctions_;
 };
 
@@ -88,7 +100,17 @@ class Bidder {
     std::string requester;
     double estimated_time = 0.0;
     double accepted_s = 0.0;
+    double expires_s = 0.0;  // released by prune() after this (the task's deadline, or accepted + held_task_ttl_s)
   };
+  // Memory bounds (issue 13 #14): a task_request or award flood cannot grow the bidder's state without limit.
+  struct Limits {
+    std::size_t max_held_tasks = 64;      // beyond: direct requests and awards are declined ("this robot is full")
+    double held_task_ttl_s = 3600.0;      // a held task nobody completes is released after this (or at its deadline)
+    std::size_t max_pending_bids = 1024;  // bids awaiting an award; beyond, the one forgotten soonest goes first
+    double max_bid_horizon_s = 300.0;     // a task_request whose bid_deadline is further away than this gets no bid
+  };
+  Bidder() = default;
+  explicit Bidder(Limits limits) : limits_(limits) {}
   struct Context {
     const std::vector<std::string>& capabilities;  // this robot's
     const CostFunction& cost;
@@ -118,6 +140,7 @@ class Bidder {
   void prune(double now_s);
 
   std::size_t queue_length() const { return held_.size(); }
+  std::size_t pending_bids() const { return bids_.size(); }
   const std::map<std::string, Held>& held() const { return held_; }
 
  private:
@@ -125,7 +148,10 @@ class Bidder {
   struct PendingBid {
     double cost = 0.0;
     double forget_after_s = 0.0;
+    std::optional<double> deadline;  // the task's
   };
+  double held_expiry(std::optional<double> deadline, double now_s) const;
+  Limits limits_;
   std::map<std::pair<std::string, std::string>, PendingBid> bids_;  // (requester, task_id)
   std::map<std::string, Held> held_;                                 // by task_id
 };

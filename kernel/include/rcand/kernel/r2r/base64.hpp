@@ -8,7 +8,8 @@
 namespace rcand::kernel::r2r {
 
 std::string base64_encode(std::string_view data);
-// Strict: padded, no whitespace, only the standard alphabet; nullopt otherwise.
+// Strict: padded, no whitespace, only the standard alphabet, and canonical (the unused bits of the last symbol zero:
+// the text is exactly base64_encode of the result); nullopt otherwise.
 std::optional<std::string> base64_decode(std::string_view text);
 
 }  // namespace rcand::kernel::r2r

@@ -16,6 +16,7 @@ namespace rcand::kernel::r2r {
 
 inline constexpr std::size_t kMaxMessageBytes = 64 * 1024;  // notes §11: larger is refused with code 100
 inline constexpr int kMaxMessageDepth = 32;                  // JSON nesting; deeper is refused with code 100
+inline constexpr std::size_t kMaxIdBytes = 256;  // source_id / target_id: longer is refused with code 100
 inline constexpr std::string_view kProtocolVersion = "1.0";
 
 enum class MessageType { Status, TaskRequest, TaskResponse, Command, Negotiation, Error };

@@ -75,6 +75,14 @@ struct R2rNodeDeps {
   std::shared_ptr<spdlog::logger> log; // null: spdlog's default logger
 };
 
+// What send_message() did: the message as sent without any bearer token (the spelling safe to show), and the
+// transports that accepted it for delivery (queued: true delivery is not confirmed - UDP, MQTT QoS 0, a WebSocket
+// write queue). Empty when no transport could take it (for example an unknown target).
+struct SendOutcome {
+  std::string bytes;
+  std::vector<std::string> queued_on;  // "ws" | "udp" | "mqtt" | "route" (the peer's last connection)
+};
+
 struct NodeCounters {
   std::uint64_t received = 0, accepted = 0, rejected = 0, sent = 0, send_failed = 0;
 };
@@ -103,6 +111,9 @@ class R2rNode {
   // type. True delivery is not confirmed (UDP, MQTT QoS 0).
   std::variant<std::string, R2rError> send(MessageType type, nlohmann::json payload,
                                            const std::optional<std::string>& target);
+  // The same, saying which transports took it.
+  std::variant<SendOutcome, R2rError> send_message(MessageType type, nlohmann::json payload,
+                                                   const std::optional<std::string>& target);
 
   // Opens an auction for `task` (task_request broadcast with bid_deadline = now + bid_window). task_id may be
   // empty: one is generated. Returns the task id, or an R2rError when the task is invalid.
@@ -120,7 +131,8 @@ class R2rNode {
   // Replaces the cost function (a plugin's); empty restores the default.
   void set_cost_function(CostFunction cost);
 
-  // {"peers":[{"name","last_seen_ms","transport","status":{...}}]}: the last status of every robot heard from.
+  // {"peers":[{"name","last_seen_ms","transport","status":{...}}]}: the last status (its ruled fields, bounded) of
+  // every robot heard from within runtime.r2r.peer_expiry_s, at most runtime.r2r.max_peers of them.
   nlohmann::json peers() const;
   // The status payload this robot would send now.
   nlohmann::json status_payload() const;

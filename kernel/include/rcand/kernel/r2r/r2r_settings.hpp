@@ -9,6 +9,7 @@
 #include <string>
 #include <vector>
 
+#include "rcand/kernel/r2r/auction.hpp"
 #include "rcand/kernel/r2r/cost_function.hpp"
 #include "rcand/kernel/r2r/fleet_geometry.hpp"
 #include "rcand/kernel/r2r/message_auth.hpp"
@@ -24,6 +25,11 @@ struct R2rSettings {
   std::shared_ptr<const Ed25519Key> private_key;     // runtime.r2r.private_key_file: signs every outbound message
   MessageAuthSettings auth;                          // require_signatures, peers[] {name, public_key_file|public_key, role},
                                                      // replay_window_s
+  // Memory bounds (issue 13 #14).
+  std::size_t max_peers = 1024;                      // runtime.r2r.max_peers: the peer table; the least recently heard goes
+  double peer_expiry_s = 120.0;                      // runtime.r2r.peer_expiry_s: a peer silent this long is forgotten
+  Bidder::Limits bidder;                             // runtime.r2r.max_held_tasks (64); the rest fixed
+  Auctioneer::Limits auctioneer;
 };
 
 // Reads `runtime_r2r` (the runtime.r2r block as JSON; relative files resolve against `base_dir`). Throws
