@@ -81,10 +81,7 @@ std::variant<Principal, AuthError> Authenticator::authorize_jwt(std::string_view
   if (!role) return unauthorized("JWT claim 'role' is not a known role (CREATOR, OWNER, LEASEE, USER, GUEST)");
   if (!sdk::role_grants(*role, needed)) return forbidden(role_too_low(*role, needed));
 
-  std::vector<sdk::Scope> scopes;
-  for (const std::string& name : claims.scope)
-    if (const std::optional<sdk::Scope> scope = sdk::parse_scope(name); scope && *scope != sdk::Scope::None)
-      scopes.push_back(*scope);  // unknown scope names are someone else's extension: ignore them
+  std::vector<sdk::Scope> scopes = granted_scopes(*role, claims.scope);  // claim ∩ role, for every transport
   if (std::find(scopes.begin(), scopes.end(), needed) == scopes.end())
     return forbidden("JWT scope[] does not include '" + std::string(sdk::scope_name(needed)) + "'");
 

@@ -6,6 +6,7 @@
 #include "rcand/kernel/auth/authenticator.hpp"
 #include "rcand/kernel/auth/crypto.hpp"
 #include "rcand/kernel/auth/jwt.hpp"
+#include "rcand/kernel/auth/role_scopes.hpp"
 
 using namespace rcand::kernel;
 using namespace auth_test;
@@ -173,6 +174,21 @@ TEST_CASE("role level and scope[] decide 403 INSUFFICIENT_PRIVILEGES") {
   auto creator = good_payload("Creator");
   creator["scope"] = {"admin"};
   CHECK(allowed(auth.authorize(forge(creator), Scope::Admin, kNow)).role == Role::Creator);
+}
+
+TEST_CASE("the scopes granted are the claim intersected with the role's: a GUEST claiming control has status only") {
+  const Authenticator auth(settings());
+  auto guest = good_payload("GUEST");
+  guest["scope"] = {"status", "control", "config", "admin"};
+  // Authorized for status (what the /ws/r2r upgrade asks), the principal carries status alone: every later check
+  // (each R2R message's scope) sees what the role allows, not what the token claims.
+  const Principal p = allowed(auth.authorize(forge(guest), Scope::Status, kNow));
+  CHECK(p.scopes == std::vector<Scope>{Scope::Status});
+  auto user = good_payload("USER");
+  user["scope"] = {"admin", "config", "control", "status"};
+  CHECK(allowed(auth.authorize(forge(user), Scope::Status, kNow)).scopes == std::vector<Scope>{Scope::Status, Scope::Control});
+  CHECK(granted_scopes(Role::User, {"training", "status", "nonsense"}) == std::vector<Scope>{Scope::Status});
+  CHECK(granted_scopes(Role::Creator, {}).empty());
 }
 
 TEST_CASE("role names are case-insensitive") {
