@@ -84,7 +84,9 @@ TEST_CASE("r2r ws: an upgrade without credentials is 401; a guest's command is 1
   REQUIRE(big.connect(robot.port(), "user-token") == 101);
   big.send(r2r_message("big-bot", "status", {{"pad", std::string(70 * 1024, 'x')}}));
   boost::beast::error_code error;
-  CHECK_FALSE(big.read(5s, &error));
+  for (int frames = 0; frames < 10 && big.read(5s, &error); ++frames) {
+  }  // a status broadcast may come first; then the close (answering it may meet the socket already gone: EPIPE)
+  CHECK(error);
   CHECK(big.ws.reason().code == boost::beast::websocket::close_code::too_big);
   CHECK(robot.json("GET", "/health")["status"] == "ok");
 }

@@ -13,8 +13,9 @@ namespace rcand::test::flood {
 
 // Raises this process's open-files soft limit to its hard limit; returns the soft limit now.
 std::size_t raise_open_files();
-// A non-blocking connect to 127.0.0.1:port (completing in the background); -1 when no descriptor is left.
-int connect_to(std::uint16_t port);
+// A non-blocking connect to 127.0.0.1:port (completing in the background) from `source` (another loopback address
+// such as "127.0.0.2": another host as far as rcand can tell), or 127.0.0.1; -1 when no descriptor is left.
+int connect_to(std::uint16_t port, const char* source = nullptr);
 // Waits (bounded) until the connection is established, then sends `bytes` (whatever the socket takes).
 void send_when_connected(int fd, const std::string& bytes);
 void send_now(int fd, const std::string& bytes);

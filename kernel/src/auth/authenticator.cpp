@@ -2,6 +2,8 @@
 
 #include <algorithm>
 #include <cctype>
+#include <cstdint>
+#include <limits>
 #include <stdexcept>
 
 #include "rcand/kernel/auth/crypto.hpp"
@@ -51,6 +53,7 @@ bool Authenticator::open_mode() const noexcept {
 void Authenticator::replace(AuthSettings settings) {
   replacement_.store(std::make_shared<const Authenticator>(std::move(settings)));
   replaced_.store(true, std::memory_order_release);
+  generation_.fetch_add(1, std::memory_order_acq_rel);
 }
 
 std::variant<Principal, AuthError> Authenticator::authorize(std::optional<std::string_view> bearer, sdk::Scope needed,
@@ -88,7 +91,11 @@ std::variant<Principal, AuthError> Authenticator::authorize_jwt(std::string_view
   if (claims.fleet && std::find(claims.fleet->begin(), claims.fleet->end(), settings_.device_id) == claims.fleet->end())
     return unauthorized("JWT fleet does not include this robot's device id");
 
-  return Principal{claims.sub, *role, std::move(scopes), "jwt"};
+  // Good until exp plus the leeway the check above allows (saturating: exp may be any int64).
+  const std::int64_t expires_s = claims.exp > std::numeric_limits<std::int64_t>::max() - kJwtExpLeewayS
+                                     ? std::numeric_limits<std::int64_t>::max()
+                                     : claims.exp + kJwtExpLeewayS;
+  return Principal{claims.sub, *role, std::move(scopes), "jwt", expires_s};
 }
 
 std::variant<Principal, AuthError> Authenticator::authorize_preshared(std::string_view token, sdk::Scope needed) const {

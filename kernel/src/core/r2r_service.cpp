@@ -154,6 +154,7 @@ std::unique_ptr<R2rService> R2rService::from_config(R2rServiceDeps deps) {
   ws_options.self_name = cfg.robot_name;
   if (ws_dial) ws_options.dial_peers = s.deps.swarm.nodes;
   ws_options.log = s.log;
+  r2r::apply_websocket_config(r2r_block, ws_options);  // slot caps, reserved slots, send queue (issue 13 #12, #15)
   s.ws = std::make_unique<r2r::WebSocketTransport>(ws_options, s.deps.authenticator);
 
   if (has_mqtt) {

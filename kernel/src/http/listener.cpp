@@ -5,6 +5,7 @@
 #include <chrono>
 #include <stdexcept>
 #include <string>
+#include <unordered_map>
 
 #include "connection_ticket.hpp"
 #include "session.hpp"
@@ -106,18 +107,45 @@ void Listener::admit_busy(Stream::socket_type socket, std::string address) {
     socket.close(ignored);
     return;
   }
-  std::erase_if(busy_lane_, [](const std::weak_ptr<Session>& weak) { return weak.expired(); });
-  // Full: the oldest waiter goes. A priority request is sent at once on connecting; a connection that has waited
-  // longest without one is the likeliest to be a slow-loris.
-  while (busy_lane_.size() >= core_.options.busy_lane) {
-    if (auto oldest = busy_lane_.front().lock()) oldest->close();
-    busy_lane_.pop_front();
+  std::erase_if(busy_lane_, [](const BusyWaiter& waiter) { return waiter.session.expired(); });
+  // Full: a waiter that has sent nothing goes (a slow-loris or a silent flood): the oldest from the newcomer's own
+  // address, else from the address holding most of the lane, so a flood evicts itself and not the one operator. A
+  // stop is sent with the connection: one whose bytes are waiting to be read is never evicted. When every waiter
+  // has sent something, the newcomer is refused instead (those are answered soon).
+  if (busy_lane_.size() >= core_.options.busy_lane && !evict_silent_waiter(address) && !evict_silent_waiter(busiest_lane_address())) {
+    socket.close(ignored);
+    return;
   }
+  std::string lane_address = address;
   auto session = std::make_shared<Session>(core_, *core_.slots.front(), std::move(socket),
                                            std::make_unique<ConnectionTicket>(core_, std::move(address), true),
                                            Session::Placement::BusyLane);
-  busy_lane_.push_back(session);
+  busy_lane_.push_back({session, std::move(lane_address)});
   session->start();
+}
+
+std::string Listener::busiest_lane_address() const {
+  std::unordered_map<std::string_view, std::size_t> held;
+  std::string_view busiest;
+  std::size_t most = 0;
+  for (const auto& waiter : busy_lane_)
+    if (const std::size_t count = ++held[waiter.address]; count > most) {
+      most = count;
+      busiest = waiter.address;
+    }
+  return std::string(busiest);
+}
+
+bool Listener::evict_silent_waiter(const std::string& address) {
+  for (auto it = busy_lane_.begin(); it != busy_lane_.end(); ++it) {
+    if (it->address != address) continue;
+    auto waiter = it->session.lock();
+    if (waiter && waiter->has_pending_input()) continue;
+    if (waiter) waiter->close();
+    busy_lane_.erase(it);
+    return true;
+  }
+  return false;
 }
 
 }  // namespace rcand::kernel::http::detail

@@ -36,7 +36,15 @@ class Listener {
   ServerCore& core_;
   boost::asio::ip::tcp::acceptor acceptor_;
   boost::asio::steady_timer backoff_;  // after accept errors such as EMFILE, so a full fd table does not spin us
-  std::deque<std::weak_ptr<Session>> busy_lane_;  // oldest first; the accept loop's only
+  // Evicts the oldest busy-lane waiter from `address` that has sent nothing; false when there is none.
+  bool evict_silent_waiter(const std::string& address);
+  std::string busiest_lane_address() const;
+
+  struct BusyWaiter {
+    std::weak_ptr<Session> session;
+    std::string address;
+  };
+  std::deque<BusyWaiter> busy_lane_;  // oldest first; the accept loop's only
 };
 
 }  // namespace rcand::kernel::http::detail

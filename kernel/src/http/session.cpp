@@ -6,6 +6,7 @@
 #include <boost/beast/http/read.hpp>
 #include <boost/beast/http/write.hpp>
 
+#include <sys/ioctl.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -99,6 +100,13 @@ void Session::start() {
     if (!ec) buffer_.commit(bytes);
   }
   wait_for_request();
+}
+
+bool Session::has_pending_input() noexcept {
+  if (closed_) return false;
+  if (buffer_.size() > 0) return true;
+  int waiting = 0;
+  return ::ioctl(stream_.socket().native_handle(), FIONREAD, &waiting) == 0 && waiting > 0;
 }
 
 void Session::close() noexcept {

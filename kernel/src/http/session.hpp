@@ -42,6 +42,8 @@ class Session : public std::enable_shared_from_this<Session> {
 
   void start();
   void close() noexcept;
+  // Bytes of the client's wait to be read (buffered here or in the socket): it has sent its request, or part of it.
+  bool has_pending_input() noexcept;
   // Answers the request in flight; ignored when closed or when nothing is in flight.
   void send(Response response);
   boost::asio::io_context::executor_type executor() const noexcept { return slot_.ioc.get_executor(); }

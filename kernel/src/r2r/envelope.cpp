@@ -5,6 +5,7 @@
 #include <utility>
 
 #include "rcand/kernel/r2r/payload_schema.hpp"
+#include "rcand/kernel/text/bounded_text.hpp"
 
 namespace rcand::kernel::r2r {
 namespace {
@@ -86,14 +87,13 @@ std::variant<Envelope, R2rError> parse_envelope(std::string_view bytes) {
   std::optional<std::string> received_type, received_source;
   const auto header_it = doc.find("header");
   if (header_it != doc.end() && header_it->is_object()) {
-    ref = *header_it;
-    ref->erase("auth");  // never echo a token back
-    ref->erase("signature");
+    ref = error_ref(*header_it);
     if (const auto s = header_it->find("source_id"); s != header_it->end() && s->is_string() &&
         !s->get_ref<const std::string&>().empty() && s->get_ref<const std::string&>().size() <= kMaxIdBytes)
       received_source = s->get<std::string>();
   }
-  if (const auto t = doc.find("type"); t != doc.end() && t->is_string()) received_type = t->get<std::string>();
+  if (const auto t = doc.find("type"); t != doc.end() && t->is_string())
+    received_type = bounded_text(t->get_ref<const std::string&>(), 64);  // only compared with "error"
   auto fail = [&](R2rError error) {
     error.ref = ref;
     error.type = received_type;
@@ -133,7 +133,7 @@ std::variant<Envelope, R2rError> parse_envelope(std::string_view bytes) {
   if (!type->is_string()) return fail(invalid("/type", "type must be a string, found " + found(*type)));
   const auto parsed_type = parse_message_type(type->get_ref<const std::string&>());
   if (!parsed_type)
-    return fail(invalid("/type", "unknown message type '" + type->get<std::string>() +
+    return fail(invalid("/type", "unknown message type '" + bounded_text(type->get_ref<const std::string&>(), 64) +
                                      "' (known: status, task_request, task_response, command, negotiation, error)"));
   envelope.type = *parsed_type;
 

@@ -1,5 +1,7 @@
 #include "rcand/kernel/r2r/error_code.hpp"
 
+#include "rcand/kernel/text/bounded_text.hpp"
+
 namespace rcand::kernel::r2r {
 
 std::string_view error_code_name(int code) noexcept {
@@ -15,9 +17,23 @@ std::string_view error_code_name(int code) noexcept {
 }
 
 nlohmann::json make_error_payload(ErrorCode code, std::string message, const std::optional<nlohmann::json>& ref) {
+  if (message.size() > kMaxErrorMessageBytes) message = bounded_text(message, kMaxErrorMessageBytes);
   nlohmann::json payload{{"code", static_cast<int>(code)}, {"message", std::move(message)}};
-  if (ref) payload["ref"] = *ref;
+  if (ref) payload["ref"] = error_ref(*ref);
   return payload;
+}
+
+nlohmann::json error_ref(const nlohmann::json& header) {
+  constexpr std::size_t kMaxRefTextBytes = 256;  // kMaxIdBytes: an id longer than that was refused anyway
+  nlohmann::json ref = nlohmann::json::object();
+  if (!header.is_object()) return ref;
+  for (const char* key : {"version", "timestamp", "source_id", "target_id"}) {
+    const auto it = header.find(key);
+    if (it == header.end()) continue;
+    if (it->is_string()) ref[key] = bounded_text(it->get_ref<const std::string&>(), kMaxRefTextBytes);
+    else if (it->is_number() || it->is_boolean()) ref[key] = *it;
+  }
+  return ref;
 }
 
 }  // namespace rcand::kernel::r2r

@@ -18,11 +18,6 @@ using nlohmann::json;
 // A change in status is sent at once, but never more often than this (a moving robot changes every tick).
 constexpr std::int64_t kMinStatusGapUs = 200'000;
 
-// A transport that may carry this robot's bearer token (header.auth.token): a WebSocket has an authenticated peer at
-// each end (and "local" is the in-process test network). UDP datagrams and MQTT publishes go to a broadcast address
-// or through a broker to every subscriber: they never carry it (issue 13 #10) - sign instead (private_key_file).
-bool r2r_route_may_carry_secrets(std::string_view transport) { return transport == "ws" || transport == "local"; }
-
 // A way back to one sender (the connection its message came on), and whether that transport may carry the token.
 struct Route {
   std::function<void(std::string)> send;
@@ -175,7 +170,7 @@ struct R2rNode::Impl {
           if (started) targets = transports;
         }
         for (Transport* transport : targets) {
-          if (transport->send(r2r_route_may_carry_secrets(transport->name()) ? w.bytes : w.open_bytes, w.target)) {
+          if (transport->send_own(w.bytes, w.open_bytes, w.target)) {
             by.emplace_back(transport->name());
             if (w.target) break;
           }
@@ -286,7 +281,7 @@ void R2rNode::stop() noexcept {
 
 void R2rNode::receive(InboundMessage message) {
   Impl& s = *impl_;
-  const Route reply{message.reply, r2r_route_may_carry_secrets(message.transport)};
+  const Route reply{message.reply, transport_may_carry_secrets(message.transport) && message.trusted_with_secrets};
   std::vector<Wire> out;
   {
     std::lock_guard lock(s.mutex);

@@ -5,10 +5,14 @@
 #include <boost/asio/executor_work_guard.hpp>
 #include <boost/asio/ip/tcp.hpp>
 #include <boost/asio/post.hpp>
+#include <boost/asio/steady_timer.hpp>
 #include <boost/beast/core/buffers_to_string.hpp>
 #include <boost/beast/websocket.hpp>
 #include <spdlog/spdlog.h>
 
+#include <algorithm>
+#include <cstdint>
+#include <limits>
 #include <deque>
 #include <map>
 #include <mutex>
@@ -18,6 +22,7 @@
 
 #include "rcand/kernel/http/upgrade.hpp"
 #include "rcand/kernel/r2r_transport/message_peek.hpp"
+#include "rcand/kernel/text/bounded_text.hpp"
 
 namespace rcand::kernel::r2r {
 
@@ -57,6 +62,7 @@ struct WebSocketTransport::Hub : std::enable_shared_from_this<Hub> {
   std::map<std::string, std::weak_ptr<Connection>> by_name;
   std::map<std::string, Clock::time_point> dial_failed_at;
   std::size_t inbound = 0;
+  std::map<std::string, std::size_t> inbound_by_principal;  // capped principals only (below OWNER)
   WebSocketCounters counters;
 
   // Dialed connections run here, never on the HTTP server's I/O threads.
@@ -70,6 +76,13 @@ struct WebSocketTransport::Hub : std::enable_shared_from_this<Hub> {
     deliver(std::move(message));
   }
   void bind_name(const std::string& name, const std::shared_ptr<Connection>& connection);
+  // Gives back an inbound slot (and the principal's count, when it is capped). Under `mutex`.
+  void release_slot_locked(const std::string& counted_as) {
+    if (inbound > 0) --inbound;
+    if (counted_as.empty()) return;
+    if (auto it = inbound_by_principal.find(counted_as); it != inbound_by_principal.end() && --it->second == 0)
+      inbound_by_principal.erase(it);
+  }
   void closed(const std::shared_ptr<Connection>& connection, bool dial_failed, bool oversize);
   std::shared_ptr<Connection> dial_locked(const swarm::SwarmNode& node);
   const swarm::SwarmNode* dial_peer(const std::string& name) const {
@@ -89,6 +102,25 @@ namespace {
 using Hub = WebSocketTransport::Hub;
 using Stream = http::UpgradeStream;
 
+// An inbound slot, counted when the upgrade is checked (so concurrent upgrades cannot all slip under a limit) and
+// given back here unless a connection took it over (the server may still drop the upgrade after the hook).
+struct WsSlotClaim {
+  std::weak_ptr<Hub> hub;
+  std::string counted_as;  // the capped principal, or empty
+  bool taken = false;
+  WsSlotClaim(std::weak_ptr<Hub> hub_in, std::string counted_as_in)
+      : hub(std::move(hub_in)), counted_as(std::move(counted_as_in)) {}
+  WsSlotClaim(const WsSlotClaim&) = delete;
+  WsSlotClaim& operator=(const WsSlotClaim&) = delete;
+  ~WsSlotClaim() {
+    if (taken) return;
+    if (auto owner = hub.lock()) {
+      std::lock_guard lock(owner->mutex);
+      if (!owner->stopped) owner->release_slot_locked(counted_as);  // stop() has zeroed the counts already
+    }
+  }
+};
+
 // One WebSocket connection, inbound (upgraded by the HTTP server) or dialed. Every member below the public ones runs
 // on the stream's executor (one thread), so the queue needs no lock.
 class Connection : public std::enable_shared_from_this<Connection> {
@@ -98,10 +130,18 @@ class Connection : public std::enable_shared_from_this<Connection> {
   Connection(std::weak_ptr<Hub> hub, Stream stream, Direction direction, std::string peer,
              std::optional<Principal> principal, const WebSocketOptions& options)
       : hub_(std::move(hub)), ws_(std::move(stream)), direction_(direction), peer_(std::move(peer)),
-        principal_(std::move(principal)), max_queued_(options.max_queued_bytes) {
+        principal_(std::move(principal)),
+        trusted_(direction == Direction::Outbound || (principal_ && sdk::role_grants(principal_->role, sdk::Scope::Config))),
+        max_queued_(options.max_queued_bytes) {
     ws_.read_message_max(options.max_message_bytes);
     idle_timeout_ = options.idle_timeout;
     handshake_timeout_ = options.handshake_timeout;
+  }
+
+  // Inbound: the credential the upgrade was authorized with, checked again while the socket lives (credential_holds).
+  void hold_credential(std::string bearer, std::uint64_t generation) {
+    bearer_ = std::move(bearer);
+    auth_generation_ = generation;
   }
 
   // Inbound: answers the upgrade, then reads.
@@ -113,6 +153,7 @@ class Connection : public std::enable_shared_from_this<Connection> {
         [](websocket::response_type& response) { response.set(beast::http::field::server, "rcand"); }));
     ws_.async_accept(request, [self = shared_from_this()](beast::error_code ec) {
       if (ec) return self->fail(ec, "accept");
+      self->close_at_expiry();
       self->opened();
     });
   }
@@ -142,9 +183,13 @@ class Connection : public std::enable_shared_from_this<Connection> {
   }
 
   Direction direction() const noexcept { return direction_; }
+  // Whether the peer may see this robot's bearer token: a robot we dialed (we chose it), or a client that
+  // authenticated as OWNER or above (a fleet peer). Never a guest or user watching the fleet. Any thread.
+  bool trusted_with_secrets() const noexcept { return trusted_.load(std::memory_order_acquire); }
   const std::string& peer() const noexcept { return peer_; }
   std::size_t queued_bytes() const noexcept { return queued_bytes_.load(std::memory_order_relaxed); }
   std::string name_;  // the robot this connection reaches (guarded by Hub::mutex)
+  std::string counted_as_;  // inbound, capped: the principal it counts against (guarded by Hub::mutex)
 
  private:
   void on_resolved(beast::error_code ec, tcp::resolver::results_type results) {
@@ -189,6 +234,61 @@ class Connection : public std::enable_shared_from_this<Connection> {
                         });
   }
 
+  // A socket never outlives its credential (notes §3): an inbound one is closed (1008, policy) once its JWT expires,
+  // and re-authorized after a config reload (the next frame in or out), so a token removed by SIGHUP ends it. The
+  // principal's role and scopes follow the reload. Returns false when it closed the connection.
+  bool credential_holds() {
+    if (direction_ != Direction::Inbound || !principal_ || closed_) return !closed_;
+    auto hub = hub_.lock();
+    if (!hub) return false;
+    const std::int64_t now_s =
+        std::chrono::duration_cast<std::chrono::seconds>(std::chrono::system_clock::now().time_since_epoch()).count();
+    std::string why;
+    const char* reason = nullptr;  // the close frame's reason (at most 123 bytes): what the client is told
+    if (principal_->expires_s && now_s > *principal_->expires_s) {
+      why = "its JWT expired";
+      reason = "R2R credential expired (JWT exp); reconnect with a fresh one";
+    } else if (const std::uint64_t generation = hub->authenticator.generation(); generation != auth_generation_) {
+      auth_generation_ = generation;  // read first: a reload racing this check is caught by the next one
+      auto verdict = hub->authenticator.authorize(bearer_, sdk::Scope::Status, now_s);
+      if (auto* failure = std::get_if<AuthError>(&verdict)) {
+        why = "its credential is no longer accepted: " + failure->message;
+        reason = "R2R credential revoked (config reload)";
+      } else {
+        principal_ = std::get<Principal>(std::move(verdict));
+        trusted_.store(sdk::role_grants(principal_->role, sdk::Scope::Config), std::memory_order_release);
+      }
+    }
+    if (why.empty()) return true;
+    hub->log->info("r2r ws: {} ({}) closed: {}", peer_, bounded_text(principal_->name, 64), why);
+    {
+      std::lock_guard lock(hub->mutex);
+      ++hub->counters.closed_credentials;
+    }
+    close_reason_ = websocket::close_reason(websocket::close_code::policy_error, reason);
+    shut();
+    return false;
+  }
+
+  // Arms the expiry timer: at most an hour at a time (exp may be any int64; the wall clock may jump), re-armed
+  // while the credential holds.
+  void close_at_expiry() {
+    if (closed_ || !principal_ || !principal_->expires_s) return;
+    constexpr std::int64_t kMaxWaitMs = 3'600'000;
+    const std::int64_t now_ms =
+        std::chrono::duration_cast<std::chrono::milliseconds>(std::chrono::system_clock::now().time_since_epoch()).count();
+    const std::int64_t expires_s = *principal_->expires_s;
+    // Closed once the whole second after expires_s has begun (credential_holds: now_s > expires_s).
+    const std::int64_t left_ms = expires_s >= (std::numeric_limits<std::int64_t>::max() / 1000) - 1
+                                     ? kMaxWaitMs
+                                     : std::clamp<std::int64_t>((expires_s + 1) * 1000 - now_ms, 0, kMaxWaitMs);
+    if (!expiry_) expiry_.emplace(ws_.get_executor());
+    expiry_->expires_after(std::chrono::milliseconds(left_ms));
+    expiry_->async_wait([self = shared_from_this()](beast::error_code ec) {
+      if (!ec && self->credential_holds()) self->close_at_expiry();
+    });
+  }
+
   void opened() {
     if (closed_) return;
     open_ = true;
@@ -207,7 +307,7 @@ class Connection : public std::enable_shared_from_this<Connection> {
     std::string bytes = beast::buffers_to_string(buffer_.data());
     buffer_.consume(buffer_.size());
     auto hub = hub_.lock();
-    if (!hub || closed_) return;
+    if (!hub || closed_ || !credential_holds()) return;
     {
       std::lock_guard lock(hub->mutex);
       ++hub->counters.frames_in;
@@ -219,6 +319,7 @@ class Connection : public std::enable_shared_from_this<Connection> {
     message.transport = "ws";
     message.peer = peer_;
     message.principal = principal_;
+    message.trusted_with_secrets = trusted_with_secrets();
     message.reply = [weak = weak_from_this()](std::string answer) {
       if (auto self = weak.lock()) self->send(std::move(answer));
     };
@@ -227,7 +328,7 @@ class Connection : public std::enable_shared_from_this<Connection> {
   }
 
   void enqueue(std::string bytes) {
-    if (closed_) return;
+    if (closed_ || !credential_holds()) return;
     if (queued_bytes_ + bytes.size() > max_queued_) {  // a peer that does not read: drop it, not our memory
       if (auto hub = hub_.lock()) hub->log->warn("r2r ws: {} is not reading ({} bytes queued); closing", peer_, queued_bytes_.load());
       return shut();
@@ -274,11 +375,12 @@ class Connection : public std::enable_shared_from_this<Connection> {
     if (closed_) return;
     closed_ = true;
     if (resolver_) resolver_->cancel();
+    if (expiry_) expiry_->cancel();
     auto& lowest = beast::get_lowest_layer(ws_);
     if (open_ && ws_.is_open()) {
       // A clean close when we can (the peer learns we are going away); the socket goes when it completes or times out.
       lowest.expires_after(std::chrono::milliseconds(500));
-      ws_.async_close(websocket::close_code::going_away, [self = shared_from_this()](beast::error_code) {
+      ws_.async_close(close_reason_, [self = shared_from_this()](beast::error_code) {
         beast::get_lowest_layer(self->ws_).close();
       });
     } else {
@@ -294,6 +396,11 @@ class Connection : public std::enable_shared_from_this<Connection> {
   Direction direction_;
   std::string peer_;
   std::optional<Principal> principal_;
+  std::atomic<bool> trusted_;  // follows principal_ (a reload may lower its role)
+  std::string bearer_;                // inbound: the credential, to re-authorize after a reload
+  std::uint64_t auth_generation_ = 0;  // the authenticator's generation it was last authorized under
+  std::optional<net::steady_timer> expiry_;
+  websocket::close_reason close_reason_{websocket::close_code::going_away};
   std::size_t max_queued_;
   std::chrono::milliseconds idle_timeout_{30'000}, handshake_timeout_{5'000};
   beast::flat_buffer buffer_;
@@ -326,7 +433,7 @@ void Hub::bind_name(const std::string& name, const std::shared_ptr<Connection>& 
 void Hub::closed(const std::shared_ptr<Connection>& connection, bool dial_failed, bool oversize) {
   std::lock_guard lock(mutex);
   if (connections.erase(connection) == 0) return;
-  if (connection->direction() == Connection::Direction::Inbound && inbound > 0) --inbound;
+  if (connection->direction() == Connection::Direction::Inbound) release_slot_locked(connection->counted_as_);
   for (auto it = by_name.begin(); it != by_name.end();) {
     if (auto holder = it->second.lock(); !holder || holder == connection) it = by_name.erase(it);
     else ++it;
@@ -389,6 +496,7 @@ http::UpgradeHandler WebSocketTransport::upgrade_handler() {
     else if (auto token = request.query.find("token"); token != request.query.end()) bearer = token->second;
     const auto now_s =
         std::chrono::duration_cast<std::chrono::seconds>(std::chrono::system_clock::now().time_since_epoch()).count();
+    const std::uint64_t generation = hub->authenticator.generation();  // before: a reload in between is re-checked
     auto outcome = hub->authenticator.authorize(bearer, sdk::Scope::Status, now_s);
     if (auto* failure = std::get_if<AuthError>(&outcome)) {
       hub->log->info("r2r ws: upgrade from {} refused: {} ({})", request.remote, failure->status, failure->message);
@@ -397,19 +505,60 @@ http::UpgradeHandler WebSocketTransport::upgrade_handler() {
       verdict.refuse = http::error_response(failure->status, failure->code, failure->message);
       return verdict;
     }
-    verdict.take = [weak, principal = std::get<Principal>(std::move(outcome))](http::Upgraded&& upgraded) {
+    const Principal& principal = std::get<Principal>(outcome);
+    // Slots (issue 13 #12): below OWNER a principal holds at most max_connections_per_principal sockets (429), and
+    // the last reserved_connections slots are the OWNER's and CREATOR's (503), so no guest can lock an operator out.
+    // The slot is counted here, under the lock, so concurrent upgrades cannot all slip under a limit.
+    const bool capped = !sdk::role_grants(principal.role, sdk::Scope::Config);
+    std::shared_ptr<WsSlotClaim> slot;
+    {
+      std::lock_guard lock(hub->mutex);
+      const WebSocketOptions& o = hub->options;
+      const std::size_t open_to_all = o.max_connections - std::min(o.reserved_connections, o.max_connections);
+      const auto held = capped ? hub->inbound_by_principal.find(principal.name) : hub->inbound_by_principal.end();
+      const std::size_t holds = held == hub->inbound_by_principal.end() ? 0 : held->second;
+      std::optional<http::Response> refusal;
+      if (hub->stopped || !hub->started) {
+        refusal = http::error_response(503, "UNAVAILABLE", "R2R is not running");
+      } else if (hub->inbound >= o.max_connections) {
+        refusal = http::error_response(503, "UNAVAILABLE", "too many R2R connections");
+      } else if (capped && holds >= o.max_connections_per_principal) {
+        refusal = http::error_response(
+            429, "TOO_MANY_CONNECTIONS",
+            "principal '" + bounded_text(principal.name, 64) + "' already holds " + std::to_string(holds) +
+                " R2R WebSocket connections, the most a " + std::string(sdk::role_name(principal.role)) +
+                " may (runtime.r2r.ws_max_connections_per_principal); close one first");
+      } else if (capped && hub->inbound >= open_to_all) {
+        refusal = http::error_response(503, "R2R_SLOTS_RESERVED",
+                                       "the remaining R2R WebSocket connections are reserved for OWNER and CREATOR "
+                                       "principals (runtime.r2r.ws_reserved_connections)");
+      }
+      if (refusal) {
+        ++hub->counters.inbound_refused;
+        refusal->headers.emplace_back("Retry-After", "5");
+        verdict.refuse = std::move(refusal);
+        return verdict;
+      }
+      ++hub->inbound;
+      if (capped) ++hub->inbound_by_principal[principal.name];
+      slot = std::make_shared<WsSlotClaim>(weak, capped ? principal.name : std::string());
+    }
+    verdict.take = [weak, principal = std::get<Principal>(std::move(outcome)), credential = std::string(bearer.value_or("")),
+                    generation, slot](http::Upgraded&& upgraded) {
       auto taker = weak.lock();
       if (!taker) return;
       auto connection = std::make_shared<Connection>(weak, std::move(upgraded.stream), Connection::Direction::Inbound,
                                                      upgraded.request.remote, principal, taker->options);
+      connection->hold_credential(credential, generation);
       {
         std::lock_guard lock(taker->mutex);
         if (taker->stopped) return;  // the connection closes as it goes out of scope
         taker->connections.insert(connection);
-        ++taker->inbound;
+        connection->counted_as_ = slot->counted_as;  // the slot is the connection's now: Hub::closed gives it back
+        slot->taken = true;
         ++taker->counters.inbound_accepted;
       }
-      taker->log->debug("r2r ws: {} connected as {}", upgraded.request.remote, principal.name);
+      taker->log->debug("r2r ws: {} connected as {}", upgraded.request.remote, bounded_text(principal.name, 64));
       connection->accept(std::move(upgraded.raw));
     };
     return verdict;
@@ -432,6 +581,11 @@ void WebSocketTransport::start(Deliver deliver) {
 }
 
 bool WebSocketTransport::send(const std::string& bytes, const std::optional<std::string>& target_id) {
+  return send_own(bytes, bytes, target_id);
+}
+
+bool WebSocketTransport::send_own(const std::string& with_token, const std::string& open,
+                                  const std::optional<std::string>& target_id) {
   Hub& hub = *hub_;
   std::vector<std::shared_ptr<Connection>> recipients;
   {
@@ -461,7 +615,7 @@ bool WebSocketTransport::send(const std::string& bytes, const std::optional<std:
       }
     }
   }
-  for (const auto& connection : recipients) connection->send(bytes);
+  for (const auto& connection : recipients) connection->send(connection->trusted_with_secrets() ? with_token : open);
   return !recipients.empty();
 }
 
@@ -479,6 +633,7 @@ void WebSocketTransport::stop() noexcept {
     open.swap(hub.connections);
     hub.by_name.clear();
     hub.inbound = 0;
+    hub.inbound_by_principal.clear();
   }
   for (const auto& connection : open) {
     try {
@@ -508,6 +663,18 @@ nlohmann::json WebSocketTransport::connections() const {
 WebSocketCounters WebSocketTransport::counters() const {
   std::lock_guard lock(hub_->mutex);
   return hub_->counters;
+}
+
+void apply_websocket_config(const nlohmann::json& r2r_block, WebSocketOptions& options) {
+  if (!r2r_block.is_object()) return;
+  auto size_key = [&](const char* key, std::size_t& out) {
+    if (const auto it = r2r_block.find(key); it != r2r_block.end() && it->is_number_integer() && it->get<std::int64_t>() >= 0)
+      out = static_cast<std::size_t>(it->get<std::int64_t>());
+  };
+  size_key("ws_max_connections", options.max_connections);
+  size_key("ws_max_connections_per_principal", options.max_connections_per_principal);
+  size_key("ws_reserved_connections", options.reserved_connections);
+  size_key("ws_max_queued_bytes", options.max_queued_bytes);
 }
 
 }  // namespace rcand::kernel::r2r

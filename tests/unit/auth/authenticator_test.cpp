@@ -1,5 +1,7 @@
 #include <doctest/doctest.h>
 
+#include <cstdint>
+#include <limits>
 #include <stdexcept>
 
 #include "jwt_helpers.hpp"
@@ -301,4 +303,15 @@ TEST_CASE("any one-character change to a valid JWT is refused with 401") {
     CHECK(std::get<AuthError>(result).status == 401);
   }
   CHECK(tried > 100);
+}
+
+TEST_CASE("a JWT principal carries when it stops being good (exp + leeway), saturating for any int64 exp") {
+  const Authenticator auth(settings());
+  const Principal p = allowed(auth.authorize(forge(good_payload()), Scope::Status, kNow));
+  REQUIRE(p.expires_s);
+  CHECK(*p.expires_s == kNow + 3600 + kJwtExpLeewayS);  // an R2R socket opened with it is closed after this
+  auto forever = good_payload();
+  forever["exp"] = std::numeric_limits<std::int64_t>::max();  // was a signed overflow (UB) in exp + leeway
+  CHECK(*allowed(auth.authorize(forge(forever), Scope::Status, kNow)).expires_s == std::numeric_limits<std::int64_t>::max());
+  CHECK_FALSE(allowed(auth.authorize(kOwnerToken, Scope::Status, kNow)).expires_s);  // a token has no exp
 }

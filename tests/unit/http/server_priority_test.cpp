@@ -252,3 +252,20 @@ TEST_CASE("a WebSocket version other than 13 gets 426 as JSON naming the version
   CHECK(json::parse(answer.body)["code"] == "UPGRADE_REQUIRED");
   CHECK_FALSE(taken);
 }
+
+TEST_CASE("the busy lane evicts connections that sent nothing before one whose request is on its way") {
+  auto options = priority_options();
+  options.max_connections = 1;
+  options.busy_lane = 3;
+  StartedServer s(echo_handler(), options);
+  RawSocket held(s.port);
+  held.send(kGet);
+  CHECK(held.read_response().status == 200);
+  RawSocket stop(s.port);  // in the lane, its request half sent
+  stop.send("POST /stop HTTP/1.1\r\nHost: h\r\n");
+  std::vector<std::unique_ptr<RawSocket>> silent;
+  for (int i = 0; i < 6; ++i) silent.push_back(std::make_unique<RawSocket>(s.port));  // newer, but silent
+  for (int i = 0; i < 4; ++i) CHECK(silent[i]->wait_closed());  // they went, oldest first
+  stop.send("Content-Length: 0\r\n\r\n");
+  CHECK(stop.read_response().status == 200);
+}

@@ -220,3 +220,15 @@ TEST_CASE("the received header is echoed without credentials") {
   CHECK_FALSE(error.ref->contains("signature"));
   CHECK((*error.ref)["source_id"] == "robot_001");
 }
+
+TEST_CASE("the echoed header is the seed's fields only, bounded, whatever the sender packed into it") {
+  json message = valid_status();
+  message["header"]["padding"] = std::string(40'000, 'x');  // an extension field: not echoed (64 KiB in all)
+  message["header"]["version"] = std::string(10'000, 'v');        // a wrong-but-string field: cut
+  message["payload"]["battery"] = "bad";
+  const R2rError error = refused(message);
+  REQUIRE(error.ref);
+  CHECK_FALSE(error.ref->contains("padding"));
+  CHECK((*error.ref)["source_id"] == "robot_001");
+  CHECK(error.ref->dump().size() < 600);  // was the whole 50 KB header, echoed to every bad message
+}

@@ -9,6 +9,7 @@
 #include <boost/beast/websocket.hpp>
 
 #include <chrono>
+#include <functional>
 #include <memory>
 #include <optional>
 #include <string>
@@ -17,6 +18,7 @@
 #include "inbox.hpp"
 #include "ws_client.hpp"
 #include "rcand/kernel/auth/crypto.hpp"
+#include "rcand/kernel/auth/jwt.hpp"
 #include "rcand/kernel/http/server.hpp"
 #include "rcand/kernel/r2r_transport/websocket_transport.hpp"
 #include "wire_message.hpp"
@@ -32,10 +34,16 @@ namespace {
 
 using rcand::test::wire_message;
 
+constexpr const char* kWsJwtSecret = "ws-test-jwt-secret-0123456789";
+
 AuthSettings test_auth() {
   AuthSettings settings;
   settings.tokens.push_back({"peer-robot", rcand::sdk::Role::User, sha256_hex("peer-token")});
   settings.tokens.push_back({"watcher", rcand::sdk::Role::Guest, sha256_hex("guest-token")});
+  settings.tokens.push_back({"operator", rcand::sdk::Role::Owner, sha256_hex("owner-token")});
+  settings.jwt_secret = kWsJwtSecret;
+  settings.robot_ruri = "rcan://acme.rover.1a2b3c4d";
+  settings.device_id = "1a2b3c4d";
   return settings;
 }
 
@@ -47,10 +55,12 @@ struct Robot {
   std::uint16_t port = 0;
   rcand::test::Inbox inbox;
 
-  explicit Robot(std::string name, std::vector<swarm::SwarmNode> dial = {}) {
+  explicit Robot(std::string name, std::vector<swarm::SwarmNode> dial = {},
+                 const std::function<void(r2r::WebSocketOptions&)>& adjust = {}) {
     r2r::WebSocketOptions options;
     options.self_name = std::move(name);
     options.dial_peers = std::move(dial);
+    if (adjust) adjust(options);
     transport = std::make_unique<r2r::WebSocketTransport>(options, auth);
     http::ServerOptions server_options;
     server_options.upgrade = transport->upgrade_handler();
@@ -193,4 +203,101 @@ TEST_CASE("after stop nothing is delivered and upgrades answer 503") {
   Client late;
   CHECK(late.connect(robot.port, "peer-token") == 503);
   CHECK(robot.inbox.size() == 0);
+}
+
+namespace {
+
+// The close code a client saw, once the connection ended (0 while it is open, or when it timed out).
+int close_code_seen(Client& client, std::chrono::milliseconds within) {
+  const auto deadline = std::chrono::steady_clock::now() + within;
+  while (std::chrono::steady_clock::now() < deadline) {
+    beast::error_code error;
+    if (client.read(std::chrono::duration_cast<std::chrono::milliseconds>(deadline - std::chrono::steady_clock::now()), &error))
+      continue;  // a frame: keep reading
+    if (error == websocket::error::closed) return static_cast<int>(client.ws.reason().code);
+    return 0;
+  }
+  return 0;
+}
+
+}  // namespace
+
+TEST_CASE("a socket whose token a config reload removed is closed (1008) at its next frame, in or out") {
+  Robot robot("robot-a");
+  Client watcher;
+  REQUIRE(watcher.connect(robot.port, "guest-token") == 101);
+  Client peer;
+  REQUIRE(peer.connect(robot.port, "peer-token") == 101);
+  auto reloaded = test_auth();
+  reloaded.tokens.erase(reloaded.tokens.begin() + 1);  // the watcher's token is gone (SIGHUP)
+  robot.auth.replace(reloaded);
+  CHECK(robot.transport->send(wire_message("robot-a", "status"), std::nullopt));  // a broadcast: re-checked first
+  CHECK(close_code_seen(watcher, 5s) == 1008);
+  peer.send(wire_message("peer-robot", "status"));  // the peer's token still holds: its frame is delivered
+  CHECK(robot.inbox.wait_for(1).size() == 1);
+  CHECK(robot.transport->counters().closed_credentials == 1);
+}
+
+TEST_CASE("a socket opened with a JWT is closed (1008) when the JWT expires, even when nothing is sent") {
+  Robot robot("robot-a");
+  JwtClaims claims;
+  claims.sub = "short-lived";
+  claims.iss = "test";
+  claims.role = "user";
+  claims.aud = {"rcan://*"};
+  claims.scope = {"status", "control"};
+  claims.iat = std::chrono::duration_cast<std::chrono::seconds>(std::chrono::system_clock::now().time_since_epoch()).count();
+  claims.exp = claims.iat - kJwtExpLeewayS + 2;  // good for 2 more seconds, leeway included
+  Client holder;
+  REQUIRE(holder.connect(robot.port, issue_jwt_hs256(claims, kWsJwtSecret)) == 101);
+  const auto opened = std::chrono::steady_clock::now();
+  CHECK(close_code_seen(holder, 10s) == 1008);
+  CHECK(std::chrono::steady_clock::now() - opened >= 1s);  // at expiry, not at once
+  CHECK(robot.transport->counters().closed_credentials == 1);
+}
+
+TEST_CASE("below OWNER a principal holds a few sockets at most, and the last slots are the owners'") {
+  Robot robot("robot-a", {}, [](r2r::WebSocketOptions& options) {
+    options.max_connections = 6;
+    options.reserved_connections = 2;
+    options.max_connections_per_principal = 3;
+  });
+  std::vector<std::unique_ptr<Client>> held;
+  auto open = [&](const std::string& token) {
+    held.push_back(std::make_unique<Client>());
+    return held.back()->connect(robot.port, token);
+  };
+  for (int i = 0; i < 3; ++i) CHECK(open("guest-token") == 101);
+  CHECK(open("guest-token") == 429);  // the guest's cap: TOO_MANY_CONNECTIONS
+  CHECK(open("peer-token") == 101);   // 4 of 6: the rest are reserved
+  CHECK(open("peer-token") == 503);
+  CHECK(open("owner-token") == 101);  // an owner gets in regardless
+  CHECK(open("owner-token") == 101);
+  CHECK(open("owner-token") == 503);  // max_connections
+}
+
+TEST_CASE("a client that does not read is dropped once its queue passes max_queued_bytes") {
+  Robot robot("robot-a", {}, [](r2r::WebSocketOptions& options) { options.max_queued_bytes = 256 * 1024; });
+  Client sleeper;
+  REQUIRE(sleeper.connect(robot.port, "guest-token") == 101);  // and never reads
+  const std::string big(60 * 1024, 'x');
+  for (int i = 0; i < 400 && !robot.transport->connections()["connections"].empty(); ++i) {
+    robot.transport->send(big, std::nullopt);
+    for (const auto& connection : robot.transport->connections()["connections"])
+      CHECK(connection["queued_bytes"].get<std::size_t>() <= 256 * 1024);
+  }
+  const auto deadline = std::chrono::steady_clock::now() + 5s;
+  while (!robot.transport->connections()["connections"].empty() && std::chrono::steady_clock::now() < deadline)
+    std::this_thread::sleep_for(5ms);  // the close completes on the server's loop: polled, bounded
+  CHECK(robot.transport->connections()["connections"].empty());  // 24 MB offered: dropped, not queued
+}
+
+TEST_CASE("this robot's token goes only to connections trusted with it: an OWNER client, never a guest") {
+  Robot robot("robot-a");
+  Client guest, owner;
+  REQUIRE(guest.connect(robot.port, "guest-token") == 101);
+  REQUIRE(owner.connect(robot.port, "owner-token") == 101);
+  CHECK(robot.transport->send_own("with-token", "open", std::nullopt));
+  CHECK(guest.read() == std::optional<std::string>("open"));
+  CHECK(owner.read() == std::optional<std::string>("with-token"));
 }

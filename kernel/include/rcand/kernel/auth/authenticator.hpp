@@ -34,6 +34,7 @@ struct Principal {
   sdk::Role role = sdk::Role::Guest;
   std::vector<sdk::Scope> scopes;
   std::string via;  // "token" | "jwt" | "open" | "anonymous"
+  std::optional<std::int64_t> expires_s = std::nullopt;  // a JWT's exp (Unix s): what was authorized with it is void from then on
 };
 
 struct AuthError {
@@ -56,6 +57,8 @@ class Authenticator {
   // Config reload (SIGHUP): from now on every authorize() answers with `settings` (validated exactly as by the
   // constructor, which throws std::invalid_argument and leaves the current settings in force). Any thread.
   void replace(AuthSettings settings);
+  // Bumped by every replace(): a holder of a long-lived authorization (an R2R WebSocket) re-authorizes when it moved.
+  std::uint64_t generation() const noexcept { return generation_.load(std::memory_order_acquire); }
 
  private:
   std::variant<Principal, AuthError> authorize_jwt(std::string_view token, sdk::Scope needed, std::int64_t now_s) const;
@@ -66,6 +69,7 @@ class Authenticator {
   // The reloaded settings, when there was a reload; the flag keeps the common path to one relaxed load.
   std::atomic<bool> replaced_{false};
   std::atomic<std::shared_ptr<const Authenticator>> replacement_;
+  std::atomic<std::uint64_t> generation_{0};
 };
 
 // Splits "Bearer <t>" (case-insensitive scheme); nullopt when absent or another scheme.

@@ -44,7 +44,7 @@ struct ServerOptions {
   // request): a priority request is answered, anything else gets 503 SERVER_BUSY with Retry-After. Unset: the
   // acceptor hands connections straight to the workers and closes those beyond the limits.
   std::function<bool(const Request&)> priority;
-  std::size_t busy_lane = 64;
+  std::size_t busy_lane = 256;  // more than a burst of silent connections can fill while a stop is being sent
   // Run first on each I/O thread: `accept_loop` true on the accept thread (rcand makes it real-time there).
   std::function<void(bool accept_loop)> on_thread_start;
 };

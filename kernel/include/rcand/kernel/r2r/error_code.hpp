@@ -22,7 +22,13 @@ enum class ErrorCode : int {
 std::string_view error_code_name(int code) noexcept;
 
 // The `error` payload (notes §11): {"code", "message", "ref"}; ref = the header of the message it answers (omitted
-// when unknown, e.g. when the bytes were not JSON).
+// when unknown, e.g. when the bytes were not JSON), as error_ref gives it; message bounded to kMaxErrorMessageBytes.
 nlohmann::json make_error_payload(ErrorCode code, std::string message, const std::optional<nlohmann::json>& ref);
+
+// What an error reply echoes of the header it answers (issue 13 #15): the seed's fields only (version, timestamp,
+// source_id, target_id), strings bounded, never `auth`, `signature` or whatever else a sender packed in - a 60 KiB
+// header echoed to every bad message pinned megabytes per client that does not read.
+nlohmann::json error_ref(const nlohmann::json& header);
+inline constexpr std::size_t kMaxErrorMessageBytes = 1024;
 
 }  // namespace rcand::kernel::r2r

@@ -21,7 +21,15 @@ struct InboundMessage {
   // Sends bytes back to this sender on the same transport (WebSocket: the same connection); empty when the
   // transport cannot answer one sender (UDP broadcasts: answers go out through send()).
   std::function<void(std::string bytes)> reply;
+  // False when the sender may not see this robot's bearer token in an answer (a WebSocket client below OWNER: a
+  // guest watching the fleet must not learn the credential this robot acts with).
+  bool trusted_with_secrets = true;
 };
+
+// A transport that may carry this robot's bearer token (header.auth.token): a WebSocket has an authenticated peer at
+// each end (and "local" is the in-process test network). UDP datagrams and MQTT publishes go to a broadcast address
+// or through a broker to every subscriber: they never carry it (issue 13 #10) - sign instead (private_key_file).
+inline bool transport_may_carry_secrets(std::string_view transport) { return transport == "ws" || transport == "local"; }
 
 // Called on the transport's own thread; must not block.
 using Deliver = std::function<void(InboundMessage)>;
@@ -35,6 +43,12 @@ class Transport {
   // Queues bytes for target_id (a robot name), or for every peer when nullopt. Never blocks. False when this
   // transport cannot reach the target (for example an unknown peer), so the node can try the next transport.
   virtual bool send(const std::string& bytes, const std::optional<std::string>& target_id) = 0;
+  // A message of this robot's in two spellings: `with_token` carries its bearer token, `open` does not. By default
+  // a transport that may carry secrets sends `with_token`, any other `open`; the WebSocket transport chooses per
+  // connection (only peers trusted with it get the token).
+  virtual bool send_own(const std::string& with_token, const std::string& open, const std::optional<std::string>& target_id) {
+    return send(transport_may_carry_secrets(name()) ? with_token : open, target_id);
+  }
   // Stops receiving and sending; idempotent. No Deliver call runs after it returns.
   virtual void stop() noexcept = 0;
 };

@@ -32,14 +32,20 @@ struct WebSocketOptions {
   std::chrono::milliseconds idle_timeout{30'000};       // no frame (pongs count) this long: closed; pings at half
   std::chrono::milliseconds handshake_timeout{5'000};   // dial: connect + upgrade
   std::chrono::milliseconds redial_backoff{2'000};      // after a failed dial, messages to that peer are refused
-  std::size_t max_connections = 256;                    // inbound; beyond it the upgrade answers 503
-  std::size_t max_queued_bytes = 8 * 1024 * 1024;       // per connection; beyond it the connection is dropped
+  std::size_t max_connections = 256;                    // inbound; beyond it the upgrade answers 503 UNAVAILABLE
+  std::size_t max_connections_per_principal = 8;        // inbound sockets one principal below OWNER may hold (429)
+  std::size_t reserved_connections = 32;                // of max_connections, only for OWNER and CREATOR (503)
+  std::size_t max_queued_bytes = 1024 * 1024;           // per connection; beyond it (a peer that does not read) dropped
   std::shared_ptr<spdlog::logger> log;                  // null: spdlog's default logger
 };
 
+// The runtime.r2r keys of the WebSocket transport (validated by the config schema): ws_max_connections,
+// ws_max_connections_per_principal, ws_reserved_connections, ws_max_queued_bytes. Absent keys keep `options`' values.
+void apply_websocket_config(const nlohmann::json& r2r_block, WebSocketOptions& options);
+
 struct WebSocketCounters {
   std::uint64_t inbound_accepted = 0, inbound_refused = 0, dialed = 0, dial_failed = 0, frames_in = 0, frames_out = 0,
-                closed_oversize = 0;
+                closed_oversize = 0, closed_credentials = 0;
 };
 
 class WebSocketTransport : public Transport {
@@ -55,6 +61,8 @@ class WebSocketTransport : public Transport {
   std::string_view name() const noexcept override { return "ws"; }
   void start(Deliver deliver) override;
   bool send(const std::string& bytes, const std::optional<std::string>& target_id) override;
+  // `with_token` to dialed peers and to clients of OWNER rank; `open` to every other connection.
+  bool send_own(const std::string& with_token, const std::string& open, const std::optional<std::string>& target_id) override;
   void stop() noexcept override;
 
   // {"connections":[{"peer","name","direction","queued"}]}: for GET /api/r2r/peers.
