@@ -2,7 +2,8 @@
 // (latency_us in the answer). Clears the e-stop between samples (with CLEAR_TOKEN, default TOKEN).
 //   bench_stop_latency PORT TOKEN [SAMPLES] [keepalive|fresh] [CLEAR_TOKEN]
 // keepalive (default): every stop on one kept-alive connection; fresh: each on a new connection, timed from
-// connect() to the whole answer (an operator's panic button, or rcanctl stop).
+// connect() to the whole answer (an operator's panic button, or rcanctl stop), with Beast's blocking calls (no event
+// loop: the client itself adds as few wake-ups, each a wait for a CPU on a saturated machine, as a client can).
 #include <nlohmann/json.hpp>
 
 #include <algorithm>
@@ -11,9 +12,40 @@
 #include <string>
 #include <vector>
 
+#include <boost/asio/ip/tcp.hpp>
+#include <boost/beast/core/flat_buffer.hpp>
+#include <boost/beast/http/empty_body.hpp>
+#include <boost/beast/http/read.hpp>
+#include <boost/beast/http/string_body.hpp>
+#include <boost/beast/http/write.hpp>
+
 #include "rcand/kernel/http/client.hpp"
 
 namespace {
+
+namespace net = boost::asio;
+namespace bhttp = boost::beast::http;
+
+// POST /api/stop on a new connection: connect, write, read, each blocking.
+rcand::kernel::http::ClientResponse blocking_stop(net::io_context& ioc, std::uint16_t port, const std::string& token) {
+  net::ip::tcp::socket socket(ioc);
+  socket.connect({net::ip::make_address("127.0.0.1"), port});
+  socket.set_option(net::ip::tcp::no_delay(true));
+  bhttp::request<bhttp::empty_body> request{bhttp::verb::post, "/api/stop", 11};
+  request.set(bhttp::field::host, "127.0.0.1");
+  request.set(bhttp::field::authorization, "Bearer " + token);
+  request.set(bhttp::field::connection, "close");
+  request.content_length(0);
+  bhttp::write(socket, request);
+  boost::beast::flat_buffer buffer;
+  bhttp::response<bhttp::string_body> response;
+  bhttp::read(socket, buffer, response);
+  rcand::kernel::http::ClientResponse answer;
+  answer.status = static_cast<int>(response.result_int());
+  answer.body = std::move(response.body());
+  return answer;
+}
+
 double percentile(std::vector<double> values, double p) {
   std::sort(values.begin(), values.end());
   const auto index = static_cast<std::size_t>(p * static_cast<double>(values.size() - 1));
@@ -33,11 +65,11 @@ int main(int argc, char** argv) {
   const std::map<std::string, std::string> clear_auth{{"Authorization", std::string("Bearer ") + (argc > 5 ? argv[5] : argv[2])}};
   rcand::kernel::http::Client stop_client("127.0.0.1", port);
   rcand::kernel::http::Client clear_client("127.0.0.1", port);
+  net::io_context blocking_ioc;  // owns the blocking sockets only: never run
   std::vector<double> end_to_end_us, server_us;
   for (int i = 0; i < samples; ++i) {
     const auto start = std::chrono::steady_clock::now();
-    const auto answer = fresh ? rcand::kernel::http::request("127.0.0.1", port, "POST", "/api/stop", "", auth)
-                              : stop_client.request("POST", "/api/stop", "", auth);
+    const auto answer = fresh ? blocking_stop(blocking_ioc, port, argv[2]) : stop_client.request("POST", "/api/stop", "", auth);
     const auto elapsed = std::chrono::duration<double, std::micro>(std::chrono::steady_clock::now() - start).count();
     if (answer.status != 200) {
       std::fprintf(stderr, "stop answered %d: %s\n", answer.status, answer.body.c_str());

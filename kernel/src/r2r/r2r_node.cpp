@@ -11,12 +11,10 @@
 #include "rcand/kernel/text/bounded_text.hpp"
 
 namespace rcand::kernel::r2r {
-namespace {
-
 using nlohmann::json;
 
-// A change in status is sent at once, but never more often than this (a moving robot changes every tick).
-constexpr std::int64_t kMinStatusGapUs = 200'000;
+// Named, not anonymous: R2rNode::Impl (external linkage) keeps Routes in its peer table.
+namespace node_detail {
 
 // A way back to one sender (the connection its message came on), and whether that transport may carry the token.
 struct Route {
@@ -33,6 +31,16 @@ struct Wire {
   std::optional<std::string> target;
   Route reply;  // preferred route for a direct answer (same connection), may be empty
 };
+
+}  // namespace node_detail
+
+using node_detail::Route;
+using node_detail::Wire;
+
+namespace {
+
+// A change in status is sent at once, but never more often than this (a moving robot changes every tick).
+constexpr std::int64_t kMinStatusGapUs = 200'000;
 
 // What the peer table keeps of a peer's status: the ruled fields only, each bounded, so one peer costs at most a few
 // KiB whatever it sends (issue 13 #14).
