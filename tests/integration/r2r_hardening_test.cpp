@@ -20,6 +20,7 @@
 #include "rcand/kernel/r2r/message_auth.hpp"
 #include "rcand/kernel/r2r_transport/mqtt_transport.hpp"
 #include "rcand_process.hpp"
+#include "sanitized_build.hpp"
 #include "ws_client.hpp"
 
 using namespace rcand::test;
@@ -272,7 +273,7 @@ TEST_CASE("r2r growth: 20,000 status messages from distinct senders keep the pee
   CHECK(doc["peers"].size() <= 1024);
   CHECK(answer.body.size() < 512 * 1024);  // was 147 MB at the attack's scale
   REQUIRE(rss_before > 0);
-  CHECK(rss_after - rss_before < 8 * 1024);
+  if (!kSanitizedBuild) CHECK(rss_after - rss_before < 8 * 1024);  // ASan's quarantine makes RSS meaningless there
   CHECK(robot.json("GET", "/health")["status"] == "ok");
 }
 

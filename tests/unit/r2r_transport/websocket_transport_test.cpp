@@ -283,8 +283,8 @@ TEST_CASE("a client that does not read is dropped once its queue passes max_queu
   const std::string big(60 * 1024, 'x');
   for (int i = 0; i < 400 && !robot.transport->connections()["connections"].empty(); ++i) {
     robot.transport->send(big, std::nullopt);
-    for (const auto& connection : robot.transport->connections()["connections"])
-      CHECK(connection["queued_bytes"].get<std::size_t>() <= 256 * 1024);
+    const auto open = robot.transport->connections();  // kept: the loop below reads into it
+    for (const auto& connection : open["connections"]) CHECK(connection["queued_bytes"].get<std::size_t>() <= 256 * 1024);
   }
   const auto deadline = std::chrono::steady_clock::now() + 5s;
   while (!robot.transport->connections()["connections"].empty() && std::chrono::steady_clock::now() < deadline)
