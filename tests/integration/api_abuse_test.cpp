@@ -65,22 +65,17 @@ TEST_CASE("rate limit per address: unauthenticated floods get 429, the stop stil
 
 TEST_CASE("refusals are logged at most 5 lines a second per client address, then how many were left out") {
   RcandProcess rcand(sim_config());
-  const auto count = [](const std::string& text, const std::string& what) {
-    std::size_t n = 0;
-    for (auto at = text.find(what); at != std::string::npos; at = text.find(what, at + 1)) ++n;
-    return n;
-  };
   for (int i = 0; i < 300; ++i) CHECK(rcand.request("GET", "/api/status", "not-a-token").status == 401);
   // A line after the flood carries the count of the lines held back (the next window's first refusal).
   const auto give_up = std::chrono::steady_clock::now() + std::chrono::seconds(10);
-  while (count(rcand.stderr_text(), "more refusals for 127.0.0.1 not logged") == 0 && std::chrono::steady_clock::now() < give_up)
+  while (count_of(rcand.stderr_text(), "more refusals for 127.0.0.1 not logged") == 0 && std::chrono::steady_clock::now() < give_up)
     rcand.request("GET", "/api/status", "not-a-token");
   const std::string log = rcand.stderr_text();
-  const auto logged = count(log, "GET /api/status from 127.0.0.1:");
+  const auto logged = count_of(log, "GET /api/status from 127.0.0.1:");
   MESSAGE(logged << " refusal lines logged");
   CHECK(logged >= 5);
   CHECK(logged < 100);  // 300+ refusals in a few seconds: 5 a second, not one each
-  CHECK(count(log, "more refusals for 127.0.0.1 not logged") >= 1);
+  CHECK(count_of(log, "more refusals for 127.0.0.1 not logged") >= 1);
   CHECK(log.find("not-a-token") == std::string::npos);
 }
 

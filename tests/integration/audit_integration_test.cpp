@@ -34,12 +34,6 @@ std::vector<json> audit_test_lines(const std::filesystem::path& file) {
   return lines;
 }
 
-long audit_test_rss_kb(pid_t pid) {
-  std::ifstream status("/proc/" + std::to_string(pid) + "/status");
-  for (std::string line; std::getline(status, line);)
-    if (line.rfind("VmRSS:", 0) == 0) return std::stol(line.substr(6));
-  return -1;
-}
 
 std::uintmax_t audit_test_file_size(const std::filesystem::path& file) {
   std::error_code ec;
@@ -61,14 +55,14 @@ TEST_CASE("audit: 300 requests with a 1 MB \"type\" grow neither the audit file,
   const std::string body = json{{"type", huge_type}, {"distance_m", "not a number"}}.dump();
   // Warm up (first-use allocations, thread stacks) so the figure measures what the requests leave behind.
   for (int i = 0; i < 5; ++i) rcand.request("POST", "/api/nav/waypoint", "user-token", body);
-  const long rss_before = audit_test_rss_kb(rcand.pid());
+  const long rss_before = resident_kb(rcand.pid());
   const auto stderr_before = audit_test_file_size(rcand.dir().path() / "stderr");
   for (int i = 0; i < 300; ++i) {
     const auto response = rcand.request("POST", "/api/nav/waypoint", "user-token", body);
     REQUIRE(response.status == 400);
     if (i == 0) CHECK(response.body.size() < 4096);  // the error body does not echo it either
   }
-  const long rss_after = audit_test_rss_kb(rcand.pid());
+  const long rss_after = resident_kb(rcand.pid());
   const auto stderr_grew = audit_test_file_size(rcand.dir().path() / "stderr") - stderr_before;
   const auto audit_bytes = audit_test_file_size(audit_file);
   MESSAGE("RSS before " << rss_before << " kB, after " << rss_after << " kB (+" << rss_after - rss_before

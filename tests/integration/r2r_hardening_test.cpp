@@ -29,22 +29,6 @@ using namespace std::chrono_literals;
 
 namespace {
 
-std::optional<json> hardening_read_until(WsClient& client, const std::function<bool(const json&)>& match,
-                                         std::chrono::milliseconds timeout = 8s) {
-  const auto deadline = std::chrono::steady_clock::now() + timeout;
-  while (std::chrono::steady_clock::now() < deadline) {
-    const auto left = std::chrono::duration_cast<std::chrono::milliseconds>(deadline - std::chrono::steady_clock::now());
-    auto frame = client.read(std::max(left, 1ms));
-    if (!frame) return std::nullopt;
-    json message = json::parse(*frame, nullptr, false);
-    if (message.is_object() && match(message)) return message;
-  }
-  return std::nullopt;
-}
-
-std::function<bool(const json&)> hardening_error_with(int code) {
-  return [code](const json& m) { return m.value("type", "") == "error" && m["payload"].value("code", 0) == code; };
-}
 
 // Audit entries of R2R-driven moves by `principal`.
 int hardening_moves_by(const RcandProcess& robot, const std::string& principal) {
@@ -57,13 +41,6 @@ int hardening_moves_by(const RcandProcess& robot, const std::string& principal) 
   return moves;
 }
 
-long hardening_rss_kb(pid_t pid) {
-  std::ifstream status("/proc/" + std::to_string(pid) + "/status");
-  std::string line;
-  while (std::getline(status, line))
-    if (line.rfind("VmRSS:", 0) == 0) return std::stol(line.substr(6));
-  return -1;
-}
 
 // A UDP socket of the test's on loopback: the destination rcand is told to send status to.
 struct HardeningUdpCapture {
@@ -136,7 +113,7 @@ TEST_CASE("r2r replay: a signed command under other spellings moves once; after 
     peer.send(R"({"payload":)" + captured["payload"].dump() + R"(,"type":"command","header":)" + captured["header"].dump() + "}");
     // Messages on one connection are handled in order: once this one is answered, every replay above was handled.
     peer.send("not json");
-    REQUIRE(hardening_read_until(peer, hardening_error_with(100)));
+    REQUIRE(read_until(peer, error_with(100)));
     CHECK(hardening_moves_by(robot, "commander") == 1);
     robot.stop();
   }
@@ -146,7 +123,7 @@ TEST_CASE("r2r replay: a signed command under other spellings moves once; after 
   WsClient peer;
   REQUIRE(peer.connect(restarted.port(), "guest-token") == 101);
   peer.send(captured.dump());
-  const auto refused = hardening_read_until(peer, hardening_error_with(103));
+  const auto refused = read_until(peer, error_with(103));
   REQUIRE(refused);
   CHECK((*refused)["payload"]["message"].get<std::string>().find("before this robot started") != std::string::npos);
   CHECK(hardening_moves_by(restarted, "commander") == 0);
@@ -256,16 +233,16 @@ TEST_CASE("r2r growth: 20,000 status messages from distinct senders keep the pee
   for (int i = 0; i < 2000; ++i)
     guest.send(r2r_message("warm-" + std::to_string(i), "status", {{"battery", 50}, {"pad", std::string(2048, 'p')}}));
   guest.send("not json");
-  REQUIRE(hardening_read_until(guest, hardening_error_with(100), 30s));
-  const long rss_before = hardening_rss_kb(robot.pid());
+  REQUIRE(read_until(guest, error_with(100), 30s));
+  const long rss_before = resident_kb(robot.pid());
 
   for (int i = 0; i < 20000; ++i)
     guest.send(r2r_message("guest-" + std::to_string(i), "status",
                            {{"battery", 50}, {"state", "idle"}, {"pad", std::string(2048, 'p')}}));
   guest.send("not json");
-  REQUIRE(hardening_read_until(guest, hardening_error_with(100), 60s));
+  REQUIRE(read_until(guest, error_with(100), 60s));
   const auto answer = robot.request("GET", "/api/r2r/peers", "guest-token");
-  const long rss_after = hardening_rss_kb(robot.pid());
+  const long rss_after = resident_kb(robot.pid());
   REQUIRE(answer.status == 200);
   const json doc = json::parse(answer.body);
   MESSAGE("peers " << doc["peers"].size() << ", answer " << answer.body.size() << " bytes; RSS before " << rss_before
@@ -289,7 +266,7 @@ TEST_CASE("r2r status follows the latch after a clear; /api/r2r/send answers que
     int status = 0;
     robot.json("POST", "/api/stop", "guest-token", "", &status);
     REQUIRE(status == 200);
-    auto latched = hardening_read_until(peer, [&](const json& m) { return is_status(m) && m["payload"]["estopped"] == true; });
+    auto latched = read_until(peer, [&](const json& m) { return is_status(m) && m["payload"]["estopped"] == true; });
     REQUIRE(latched);
     statuses.push_back(*latched);
     // Past the 200 ms minimum gap between statuses, so the clear is reported by the very next tick (the old cache
@@ -297,7 +274,7 @@ TEST_CASE("r2r status follows the latch after a clear; /api/r2r/send answers que
     std::this_thread::sleep_for(250ms);
     robot.json("POST", "/api/estop/clear", "owner-token", "", &status);
     REQUIRE(status == 200);
-    auto cleared = hardening_read_until(peer, [&](const json& m) {
+    auto cleared = read_until(peer, [&](const json& m) {
       if (!is_status(m)) return false;
       statuses.push_back(m);
       return m["payload"]["estopped"] == false;

@@ -74,18 +74,7 @@ rcand::kernel::http::ClientResponse raw_upgrade(const RcandProcess& robot, const
                         {"Sec-WebSocket-Key", "dGhlIHNhbXBsZSBub25jZQ=="}});
 }
 
-long socket_limits_rss_kb(pid_t pid) {
-  std::ifstream status("/proc/" + std::to_string(pid) + "/status");
-  for (std::string line; std::getline(status, line);)
-    if (line.rfind("VmRSS:", 0) == 0) return std::stol(line.substr(6));
-  return -1;
-}
 
-std::size_t socket_limits_count(const std::string& text, const std::string& needle) {
-  std::size_t n = 0;
-  for (auto at = text.find(needle); at != std::string::npos; at = text.find(needle, at + 1)) ++n;
-  return n;
-}
 
 }  // namespace
 
@@ -118,10 +107,10 @@ TEST_CASE("r2r credentials: a token removed from the config closes its socket at
     it = (*it)["principal"] == "user-principal" ? tokens.erase(it) : it + 1;
   config["runtime"]["state_dir"] = (robot.dir().path() / "state").string();  // as RcandProcess wrote it
   robot.dir().write("robot.rcan.yaml", config.dump(2));
-  const auto reloads = socket_limits_count(robot.stderr_text(), "config reload from");
+  const auto reloads = count_of(robot.stderr_text(), "config reload from");
   REQUIRE(::kill(robot.pid(), SIGHUP) == 0);
   REQUIRE(poll_until<bool>([&]() -> std::optional<bool> {
-    if (socket_limits_count(robot.stderr_text(), "config reload from") > reloads) return true;
+    if (count_of(robot.stderr_text(), "config reload from") > reloads) return true;
     return std::nullopt;
   }));
   CHECK(raw_upgrade(robot, "user-token").status == 401);  // the reload took
@@ -205,7 +194,7 @@ TEST_CASE("r2r memory: a client that sends bad messages with 60 KiB headers and 
     sleepers.push_back(std::make_unique<WsClient>());
     REQUIRE(sleepers.back()->connect(robot.port(), "user-token") == 101);
   }
-  const long rss_before = socket_limits_rss_kb(robot.pid());
+  const long rss_before = resident_kb(robot.pid());
   std::size_t queued_most = 0;  // the most the server held for one connection, sampled during the flood
   auto sample_queues = [&] {
     const auto peers = robot.json("GET", "/api/r2r/peers", "owner-token");
@@ -222,7 +211,7 @@ TEST_CASE("r2r memory: a client that sends bad messages with 60 KiB headers and 
     if (n % 20 == 19) sample_queues();
   }
   sample_queues();  // every message sent was read and answered (or its socket dropped)
-  const long rss_after = socket_limits_rss_kb(robot.pid());
+  const long rss_after = resident_kb(robot.pid());
   MESSAGE("sent " << sent << " bad messages of " << frame.size() << " bytes on " << kSockets
                   << " non-reading sockets; most queued for one: " << queued_most << " bytes; RSS " << rss_before
                   << " kB -> " << rss_after << " kB (+" << rss_after - rss_before << " kB)");

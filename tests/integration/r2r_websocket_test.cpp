@@ -19,23 +19,6 @@ namespace {
 
 const json kR2rMove = {{"type", "move"}, {"linear", 0.3}, {"angular", 0.0}, {"duration_ms", 3000}};
 
-// Frames until one satisfies `match` (status broadcasts and the like are skipped), or nullopt at the deadline.
-std::optional<json> read_until(WsClient& client, const std::function<bool(const json&)>& match,
-                               std::chrono::milliseconds timeout = 8s) {
-  const auto deadline = std::chrono::steady_clock::now() + timeout;
-  while (std::chrono::steady_clock::now() < deadline) {
-    const auto left = std::chrono::duration_cast<std::chrono::milliseconds>(deadline - std::chrono::steady_clock::now());
-    auto frame = client.read(std::max(left, 1ms));
-    if (!frame) return std::nullopt;
-    json message = json::parse(*frame, nullptr, false);
-    if (message.is_object() && match(message)) return message;
-  }
-  return std::nullopt;
-}
-
-std::function<bool(const json&)> error_with(int code) {
-  return [code](const json& m) { return m.value("type", "") == "error" && m["payload"].value("code", 0) == code; };
-}
 
 }  // namespace
 

@@ -4,6 +4,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include <algorithm>
 #include <chrono>
 #include <filesystem>
 #include <functional>
@@ -12,6 +13,7 @@
 #include <thread>
 
 #include "rcand_process.hpp"
+#include "ws_client.hpp"
 #include "swarm_lab.hpp"
 
 namespace rcand::test {
@@ -61,6 +63,25 @@ inline std::optional<nlohmann::json> peer_status(const RcandProcess& robot, cons
   for (const auto& peer : doc["peers"])
     if (peer["name"] == name && peer["status"].is_object()) return peer;
   return std::nullopt;
+}
+
+// Frames until one satisfies `match` (status broadcasts and the like are skipped), or nullopt at the deadline.
+inline std::optional<nlohmann::json> read_until(WsClient& client, const std::function<bool(const nlohmann::json&)>& match,
+                                                std::chrono::milliseconds timeout = std::chrono::seconds(8)) {
+  const auto deadline = std::chrono::steady_clock::now() + timeout;
+  while (std::chrono::steady_clock::now() < deadline) {
+    const auto left = std::chrono::duration_cast<std::chrono::milliseconds>(deadline - std::chrono::steady_clock::now());
+    auto frame = client.read(std::max(left, std::chrono::milliseconds(1)));
+    if (!frame) return std::nullopt;
+    nlohmann::json message = nlohmann::json::parse(*frame, nullptr, false);
+    if (message.is_object() && match(message)) return message;
+  }
+  return std::nullopt;
+}
+
+// An R2R `error` message with `code`.
+inline std::function<bool(const nlohmann::json&)> error_with(int code) {
+  return [code](const nlohmann::json& m) { return m.value("type", "") == "error" && m["payload"].value("code", 0) == code; };
 }
 
 }  // namespace rcand::test

@@ -77,6 +77,11 @@ class RcandProcess {
   void launch(const nlohmann::json& config, std::vector<std::filesystem::path> plugin_paths, const std::vector<std::string>& launcher);
 };
 
+// The resident memory of `pid` in kB (VmRSS), -1 when it cannot be read.
+long resident_kb(pid_t pid);
+// How many times `needle` occurs in `text` (log lines, say).
+std::size_t count_of(const std::string& text, const std::string& needle);
+
 // The sim drive's status as the robot reports it (GET /api/drivers/drive0, as the owner).
 inline nlohmann::json drive_status(const RcandProcess& robot) {
   return robot.json("GET", "/api/drivers/drive0", "owner-token")["status"];
