@@ -11,14 +11,14 @@
 #include <string>
 #include <vector>
 
-#include "rcand/kernel/http/client.hpp"
+#include "libs/http/client.hpp"
 #include "rcand_process.hpp"
 #include "streaming_peer.hpp"
 #include "swarm_lab.hpp"
 
 using namespace rcand::test;
 using nlohmann::json;
-namespace http = rcand::kernel::http;
+namespace http = rcand::http;
 
 namespace {
 

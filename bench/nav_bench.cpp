@@ -13,7 +13,7 @@
 #include <thread>
 #include <vector>
 
-#include "rcand/kernel/http/client.hpp"
+#include "libs/http/client.hpp"
 
 namespace {
 
@@ -31,7 +31,7 @@ void report(const char* what, const std::vector<double>& v) {
 }
 
 struct Bench {
-  rcand::kernel::http::Client client;
+  rcand::http::Client client;
   std::map<std::string, std::string> auth;
 
   json call(const std::string& method, const std::string& target, const std::string& body = {}) {
@@ -57,7 +57,7 @@ int main(int argc, char** argv) {
   }
   const auto port = static_cast<std::uint16_t>(std::stoi(argv[1]));
   const int samples = argc > 3 ? std::stoi(argv[3]) : 200;
-  Bench bench{rcand::kernel::http::Client("127.0.0.1", port), {{"Authorization", std::string("Bearer ") + argv[2]}}};
+  Bench bench{rcand::http::Client("127.0.0.1", port), {{"Authorization", std::string("Bearer ") + argv[2]}}};
 
   // 1. Stop latency during a running job. Turn 90 deg at 0.5 (1.44 s) then drive: stopping 20-60 ms in lands
   //    mid-turn; waiting for "driving" first lands mid-drive.

@@ -20,8 +20,8 @@
 
 #include "mosquitto_broker.hpp"
 #include "r2r_lab.hpp"
-#include "rcand/kernel/r2r_transport/mqtt_transport.hpp"
-#include "rcand/kernel/r2r_transport/udp_transport.hpp"
+#include "services/r2r/transports/mqtt_transport.hpp"
+#include "services/r2r/transports/udp_transport.hpp"
 #include "rcand_process.hpp"
 #include "ws_client.hpp"
 

@@ -19,7 +19,7 @@
 #include <boost/beast/http/string_body.hpp>
 #include <boost/beast/http/write.hpp>
 
-#include "rcand/kernel/http/client.hpp"
+#include "libs/http/client.hpp"
 
 namespace {
 
@@ -27,7 +27,7 @@ namespace net = boost::asio;
 namespace bhttp = boost::beast::http;
 
 // POST /api/stop on a new connection: connect, write, read, each blocking.
-rcand::kernel::http::ClientResponse blocking_stop(net::io_context& ioc, std::uint16_t port, const std::string& token) {
+rcand::http::ClientResponse blocking_stop(net::io_context& ioc, std::uint16_t port, const std::string& token) {
   net::ip::tcp::socket socket(ioc);
   socket.connect({net::ip::make_address("127.0.0.1"), port});
   socket.set_option(net::ip::tcp::no_delay(true));
@@ -40,7 +40,7 @@ rcand::kernel::http::ClientResponse blocking_stop(net::io_context& ioc, std::uin
   boost::beast::flat_buffer buffer;
   bhttp::response<bhttp::string_body> response;
   bhttp::read(socket, buffer, response);
-  rcand::kernel::http::ClientResponse answer;
+  rcand::http::ClientResponse answer;
   answer.status = static_cast<int>(response.result_int());
   answer.body = std::move(response.body());
   return answer;
@@ -63,8 +63,8 @@ int main(int argc, char** argv) {
   const int samples = argc > 3 ? std::stoi(argv[3]) : 2000;
   const bool fresh = argc > 4 && std::string(argv[4]) == "fresh";
   const std::map<std::string, std::string> clear_auth{{"Authorization", std::string("Bearer ") + (argc > 5 ? argv[5] : argv[2])}};
-  rcand::kernel::http::Client stop_client("127.0.0.1", port);
-  rcand::kernel::http::Client clear_client("127.0.0.1", port);
+  rcand::http::Client stop_client("127.0.0.1", port);
+  rcand::http::Client clear_client("127.0.0.1", port);
   net::io_context blocking_ioc;  // owns the blocking sockets only: never run
   std::vector<double> end_to_end_us, server_us;
   for (int i = 0; i < samples; ++i) {

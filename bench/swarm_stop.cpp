@@ -15,13 +15,13 @@
 #include <string>
 #include <vector>
 
-#include "rcand/kernel/http/client.hpp"
+#include "libs/http/client.hpp"
 #include "rcand_process.hpp"
 #include "swarm_lab.hpp"
 
 using namespace rcand::test;
 using nlohmann::json;
-namespace http = rcand::kernel::http;
+namespace http = rcand::http;
 
 namespace {
 

@@ -5,7 +5,7 @@
 #                     (-fsanitize=fuzzer-no-link) and builds tests/fuzz: ONE build serves the sanitizer test run
 #                     and the fuzz targets, which is what keeps CI inside its time budget.
 #
-# Sanitizer builds compile with RCAND_SANITIZE_FLAGS. Default -O0 -g1: clang 14 builds kernel/src/core/api.cpp with
+# Sanitizer builds compile with RCAND_SANITIZE_FLAGS. Default -O0 -g1: clang 14 builds kernel/api/api.cpp with
 # ASan + UBSan + fuzzer coverage in 14 s at -O0 -g1 against 25 s at -O1 -g1 (g++ -O2 -g: 21 s), which is what fits
 # both builds in CI's 30 minutes; the tests are I/O-bound and barely notice, and line tables are all a symbolized
 # stack trace needs. For long fuzzing runs configure a second build with -DRCAND_SANITIZE_FLAGS="-O1 -g1".

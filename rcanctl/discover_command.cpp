@@ -5,8 +5,8 @@
 #include <sstream>
 
 #include "fleet_operation.hpp"
-#include "rcand/kernel/mdns/service_browser.hpp"
-#include "rcand/kernel/swarm/fan_out.hpp"
+#include "libs/mdns/service_browser.hpp"
+#include "libs/swarm/fan_out.hpp"
 #include "text_table.hpp"
 
 namespace rcand::rcanctl {
@@ -105,7 +105,7 @@ int run_discover(std::span<const std::string> args, std::ostream& out, std::ostr
     }
   }
 
-  const auto browsed = kernel::mdns::browse_services("_rcan._tcp", std::chrono::milliseconds(static_cast<long>(timeout_s * 1000)));
+  const auto browsed = mdns::browse_services("_rcan._tcp", std::chrono::milliseconds(static_cast<long>(timeout_s * 1000)));
   if (!browsed.error.empty()) {
     err << "rcanctl discover: " << browsed.error << " (is avahi-daemon running?)\n";
     return kExitUsage;
@@ -115,17 +115,17 @@ int run_discover(std::span<const std::string> args, std::ostream& out, std::ostr
     return kExitPartial;
   }
 
-  // Every robot's DISCOVER document, fetched in parallel (no token: DISCOVER is public, notes §5).
-  std::vector<kernel::swarm::PeerRequest> requests;
+  // Every robot's DISCOVER document, fetched in parallel (no token: DISCOVER is public, docs/protocol.md §5).
+  std::vector<swarm::PeerRequest> requests;
   for (const auto& service : browsed.services) {
-    kernel::swarm::PeerRequest request;
+    swarm::PeerRequest request;
     request.name = service.name;
     request.host = service.address;
     request.port = service.port;
     request.target = "/api/discovery";
     requests.push_back(std::move(request));
   }
-  kernel::swarm::FanOut fan_out;
+  swarm::FanOut fan_out;
   const auto fetched = fan_out.run_and_wait(std::move(requests), kFetchTimeout);
 
   std::vector<json> rows;

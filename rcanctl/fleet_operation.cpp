@@ -13,15 +13,15 @@
 #include <sstream>
 #include <variant>
 
-#include "rcand/kernel/swarm/broadcast_report.hpp"
-#include "rcand/kernel/swarm/fan_out.hpp"
-#include "rcand/kernel/swarm/node_selection.hpp"
+#include "libs/swarm/broadcast_report.hpp"
+#include "libs/swarm/fan_out.hpp"
+#include "libs/swarm/node_selection.hpp"
 #include "text_table.hpp"
 
 namespace rcand::rcanctl {
 namespace {
 
-namespace swarm = rcand::kernel::swarm;
+namespace swarm = rcand::swarm;
 using nlohmann::json;
 
 std::string_view operation_name(Operation op) {

@@ -12,7 +12,7 @@
 #include <vector>
 
 #include "exit_codes.hpp"
-#include "rcand/kernel/swarm/swarm_registry.hpp"
+#include "libs/swarm/swarm_registry.hpp"
 
 namespace rcand::rcanctl {
 
@@ -22,14 +22,14 @@ enum class Operation { Status, Stop, Command };
 
 struct FleetOptions {
   std::vector<std::string> nodes, tags;
-  std::string swarm_file = kernel::swarm::kDefaultSwarmFile;
+  std::string swarm_file = swarm::kDefaultSwarmFile;
   bool json = false;
   bool help = false;
   int timeout_ms = 0;  // 0: the operation's default (stop 400 ms, inside the 500 ms budget)
   std::string instruction;
   // One robot (rcanctl status|stop|command without --node): address and token.
   std::string host = "127.0.0.1";
-  std::uint16_t port = kernel::swarm::kDefaultSwarmPort;
+  std::uint16_t port = swarm::kDefaultSwarmPort;
   std::string token;  // --token, --token-file or $RCAND_TOKEN
 };
 
@@ -42,10 +42,10 @@ std::optional<int> parse_fleet_command(std::span<const std::string> args, Operat
 bool parse_fleet_options(std::span<const std::string> args, Operation op, bool swarm, FleetOptions& options, std::ostream& err);
 
 // Runs `op` on every target in parallel and prints the result. `targets` is never empty.
-int run_fleet_operation(Operation op, const std::vector<kernel::swarm::SwarmNode>& targets, const FleetOptions& options,
+int run_fleet_operation(Operation op, const std::vector<swarm::SwarmNode>& targets, const FleetOptions& options,
                         std::ostream& out, std::ostream& err);
 
 // Targets from swarm.yaml (selection by --node/--tag), or nullopt after writing the error (exit 2) to `err`.
-bool swarm_targets(const FleetOptions& options, std::vector<kernel::swarm::SwarmNode>& targets, std::ostream& err);
+bool swarm_targets(const FleetOptions& options, std::vector<swarm::SwarmNode>& targets, std::ostream& err);
 
 }  // namespace rcand::rcanctl

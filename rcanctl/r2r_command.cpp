@@ -23,8 +23,8 @@
 #include <thread>
 
 #include "exit_codes.hpp"
-#include "rcand/kernel/http/client.hpp"
-#include "rcand/kernel/r2r_transport/mqtt_transport.hpp"
+#include "libs/http/client.hpp"
+#include "services/r2r/transports/mqtt_transport.hpp"
 
 namespace rcand::rcanctl {
 namespace {
@@ -309,9 +309,9 @@ int run_watch(const Options& o, std::ostream& out, std::ostream& err) {
 }
 
 int run_auction(const Options& o, std::ostream& out, std::ostream& err) {
-  kernel::http::ClientResponse response;
+  http::ClientResponse response;
   try {
-    response = kernel::http::request(o.host, o.port, "POST", "/api/r2r/auction", o.task.dump(),
+    response = http::request(o.host, o.port, "POST", "/api/r2r/auction", o.task.dump(),
                                      {{"Authorization", "Bearer " + o.token}}, std::chrono::seconds(130));
   } catch (const std::exception& e) {
     err << "rcanctl r2r auction: " << e.what() << "\n";

@@ -1,4 +1,4 @@
-// `rcanctl r2r send|watch|auction` (notes §11): talk R2R to a robot over its WS /ws/r2r (or watch a fleet's MQTT
+// `rcanctl r2r send|watch|auction` (docs/protocol.md §11): talk R2R to a robot over its WS /ws/r2r (or watch a fleet's MQTT
 // broker), and run auctions through POST /api/r2r/auction.
 #pragma once
 

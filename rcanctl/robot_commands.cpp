@@ -22,11 +22,11 @@ int run_robot(std::string_view operation, std::span<const std::string> args, std
   const Operation op = operation_named(operation);
   FleetOptions options;
   if (auto done = parse_fleet_command(args, op, false, kRobotUsage, options, out, err)) return *done;
-  std::vector<kernel::swarm::SwarmNode> targets;
+  std::vector<swarm::SwarmNode> targets;
   if (!options.nodes.empty()) {
     if (!swarm_targets(options, targets, err)) return kExitUsage;
   } else {
-    kernel::swarm::SwarmNode robot;
+    swarm::SwarmNode robot;
     robot.name = options.host;
     robot.host = options.host;
     robot.port = options.port;

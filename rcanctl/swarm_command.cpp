@@ -35,7 +35,7 @@ int run_swarm(std::span<const std::string> args, std::ostream& out, std::ostream
   const Operation op = operation_named(verb);
   FleetOptions options;
   if (auto done = parse_fleet_command(args.subspan(1), op, true, kSwarmUsage, options, out, err)) return *done;
-  std::vector<kernel::swarm::SwarmNode> targets;
+  std::vector<swarm::SwarmNode> targets;
   if (!swarm_targets(options, targets, err)) return kExitUsage;
   return run_fleet_operation(op, targets, options, out, err);
 }

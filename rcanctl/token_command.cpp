@@ -9,17 +9,16 @@
 #include <vector>
 
 #include "exit_codes.hpp"
-#include "rcand/kernel/auth/crypto.hpp"
-#include "rcand/kernel/auth/jwt.hpp"
-#include "rcand/kernel/auth/role_scopes.hpp"
-#include "rcand/kernel/auth/ruri.hpp"
-#include "rcand/kernel/auth/secret_file.hpp"
+#include "libs/rcan/crypto.hpp"
+#include "libs/rcan/jwt.hpp"
+#include "libs/rcan/role_scopes.hpp"
+#include "libs/rcan/ruri.hpp"
+#include "libs/rcan/secret_file.hpp"
 #include "rcand/sdk/scope.hpp"
 
 namespace rcand::rcanctl {
 namespace {
 
-namespace kernel = rcand::kernel;
 namespace sdk = rcand::sdk;
 
 constexpr std::string_view kTokenUsage =
@@ -121,7 +120,7 @@ int issue(std::span<const std::string> args, std::ostream& out, std::ostream& er
     return kExitUsage;
   }
 
-  kernel::JwtClaims claims;
+  rcand::JwtClaims claims;
   claims.role = std::string(sdk::role_name(*role));
   claims.sub = sub.value_or("rcanctl");
   claims.iss = "rcanctl";
@@ -130,7 +129,7 @@ int issue(std::span<const std::string> args, std::ostream& out, std::ostream& er
     return kExitUsage;
   }
   claims.aud = {aud.value_or("rcan://*")};
-  if (const kernel::RuriParse parsed = kernel::parse_ruri(claims.aud.front(), /*allow_wildcards=*/true); !parsed.ruri) {
+  if (const rcand::RuriParse parsed = rcand::parse_ruri(claims.aud.front(), /*allow_wildcards=*/true); !parsed.ruri) {
     err << "rcanctl token issue: --aud: " << parsed.error << "\n";
     return kExitUsage;
   }
@@ -154,7 +153,7 @@ int issue(std::span<const std::string> args, std::ostream& out, std::ostream& er
       return kExitUsage;
     }
   } else {
-    for (sdk::Scope scope : kernel::default_scopes(*role)) claims.scope.emplace_back(sdk::scope_name(scope));
+    for (sdk::Scope scope : rcand::default_scopes(*role)) claims.scope.emplace_back(sdk::scope_name(scope));
   }
   if (fleet_text) {
     claims.fleet = split_list(*fleet_text);
@@ -164,14 +163,14 @@ int issue(std::span<const std::string> args, std::ostream& out, std::ostream& er
     }
   }
 
-  const kernel::SecretFile secret = kernel::read_secret_file(*secret_file);
+  const rcand::SecretFile secret = rcand::read_secret_file(*secret_file);
   if (!secret.secret) {
     err << "rcanctl token issue: --secret-file: " << secret.error << "\n";
     return kExitUsage;
   }
   claims.iat = std::chrono::duration_cast<std::chrono::seconds>(std::chrono::system_clock::now().time_since_epoch()).count();
   claims.exp = claims.iat + *ttl;
-  out << kernel::issue_jwt_hs256(claims, *secret.secret) << "\n";
+  out << rcand::issue_jwt_hs256(claims, *secret.secret) << "\n";
   return kExitOk;
 }
 
@@ -185,7 +184,7 @@ int hash(std::span<const std::string> args, std::istream& in, std::ostream& out,
     err << "rcanctl token hash: no token on stdin (try: rcanctl token new, or echo -n TOKEN | rcanctl token hash)\n";
     return kExitUsage;
   }
-  out << kernel::sha256_hex(token) << "\n";
+  out << rcand::sha256_hex(token) << "\n";
   return kExitOk;
 }
 
@@ -194,9 +193,9 @@ int make_new(std::span<const std::string> args, std::ostream& out, std::ostream&
     err << "rcanctl token new: takes no arguments\n";
     return kExitUsage;
   }
-  const std::string token = kernel::random_hex(32);
+  const std::string token = rcand::random_hex(32);
   out << token << "\n";
-  err << "sha256: " << kernel::sha256_hex(token) << "\n";  // paste under runtime.auth.tokens[]
+  err << "sha256: " << rcand::sha256_hex(token) << "\n";  // paste under runtime.auth.tokens[]
   return kExitOk;
 }
 

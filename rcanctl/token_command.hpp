@@ -1,4 +1,4 @@
-// `rcanctl token ...`: issue HS256 JWTs and make pre-shared tokens for runtime.auth.tokens[] (notes §3).
+// `rcanctl token ...`: issue HS256 JWTs and make pre-shared tokens for runtime.auth.tokens[] (docs/protocol.md §3).
 #pragma once
 
 #include <iosfwd>

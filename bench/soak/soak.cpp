@@ -20,13 +20,13 @@
 #include <thread>
 #include <vector>
 
-#include "rcand/kernel/http/client.hpp"
+#include "libs/http/client.hpp"
 #include "rcand_process.hpp"
 #include "swarm_lab.hpp"
 
 using namespace rcand::test;
 using nlohmann::json;
-namespace http = rcand::kernel::http;
+namespace http = rcand::http;
 using Clock = std::chrono::steady_clock;
 
 namespace {

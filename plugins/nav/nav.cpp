@@ -22,7 +22,7 @@ std::int64_t read_max_job_us(const sdk::PluginContext& ctx) {
   return ms * 1000;
 }
 
-// notes §8: agent.min_obstacle_m (spec), safety.obstacle_stop_cm accepted as an alias; none: no obstacle stop.
+// docs/protocol.md §8: agent.min_obstacle_m (spec), safety.obstacle_stop_cm accepted as an alias; none: no obstacle stop.
 std::optional<double> read_min_obstacle_cm(const sdk::PluginContext& ctx) {
   std::optional<double> cm;
   std::string key = "agent.min_obstacle_m";
@@ -59,7 +59,7 @@ Nav::Nav(sdk::PluginContext& ctx, Sleeper sleeper)
 std::vector<sdk::Route> Nav::routes() {
   return {
       {"POST", "/api/nav/waypoint", sdk::Scope::Control, true, "", [this](const sdk::Request& r) { return waypoint(r); }},
-      // A stop is never refused by the e-stop (notes §7: a non-latching stop of the running job).
+      // A stop is never refused by the e-stop (docs/protocol.md §7: a non-latching stop of the running job).
       {"POST", "/api/nav/cancel", sdk::Scope::Control, false, "", [this](const sdk::Request& r) { return cancel(r); }},
       {"GET", "/api/nav/status", sdk::Scope::Status, false, "", [this](const sdk::Request& r) { return get_status(r); }},
   };

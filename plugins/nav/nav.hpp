@@ -1,4 +1,4 @@
-// The nav capability (seed §10, notes §8): dead-reckoning waypoints on a differential_drive actuator.
+// The nav capability (seed §10, docs/protocol.md §8): dead-reckoning waypoints on a differential_drive actuator.
 //
 // POST /api/nav/waypoint validates, checks the obstacle source, and sends the first wheel command itself (so a job
 // that cannot start answers 423/503 with nothing moving); the rest of the job — waiting out the turn, the drive,

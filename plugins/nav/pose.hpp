@@ -1,4 +1,4 @@
-// The dead-reckoned pose (notes §8): integrated from the time each phase actually ran, in the frame of the pose at
+// The dead-reckoned pose (docs/protocol.md §8): integrated from the time each phase actually ran, in the frame of the pose at
 // startup (x forward, y left, heading counter-clockwise positive).
 #pragma once
 

@@ -1,4 +1,4 @@
-// A waypoint request turned into a plan (seed §10.2-10.3, notes §8): validation that names the field at fault,
+// A waypoint request turned into a plan (seed §10.2-10.3, docs/protocol.md §8): validation that names the field at fault,
 // and the dead-reckoning timing from the physics block. Pure functions, no I/O.
 #pragma once
 
@@ -40,7 +40,7 @@ struct Plan {
   double drive_wheels() const noexcept { return waypoint.distance_m < 0 ? -waypoint.speed : waypoint.speed; }
 };
 
-// The request body checked field by field (notes §8): distance_m and heading_deg required finite numbers; speed
+// The request body checked field by field (docs/protocol.md §8): distance_m and heading_deg required finite numbers; speed
 // optional (default 0.5), a finite number in (0, 1]. A plan longer than max_job_us is refused too. Returns the plan
 // or the 400 answer naming the field. Never touches a motor.
 std::variant<Plan, sdk::Response> plan_waypoint(const sdk::Json& body, const Physics& physics, std::int64_t max_job_us);

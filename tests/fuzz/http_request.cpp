@@ -15,9 +15,9 @@
 namespace {
 
 namespace bhttp = boost::beast::http;
-using rcand::kernel::http::detail::build_request;
-using rcand::kernel::http::detail::configure_parser;
-using rcand::kernel::http::detail::RequestParser;
+using rcand::http::detail::build_request;
+using rcand::http::detail::configure_parser;
+using rcand::http::detail::RequestParser;
 
 constexpr std::size_t kBodyLimit = 1024 * 1024;  // ServerOptions' default
 constexpr int kMaxRequestsPerInput = 16;
@@ -36,7 +36,7 @@ bool serve_one(std::string_view& bytes) {
     if (used == 0 && !parser.is_done()) return false;
     ec = {};
   }
-  rcand::kernel::http::Request request;
+  rcand::http::Request request;
   if (!build_request(parser.get(), "127.0.0.1:40000", request).empty()) return false;  // 400, close
   const bool keep_alive = parser.get().keep_alive();
   rcand::fuzz::call(std::move(request));

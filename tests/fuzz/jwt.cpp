@@ -9,12 +9,13 @@
 #include <variant>
 
 #include "fuzz_check.hpp"
-#include "rcand/kernel/auth/authenticator.hpp"
-#include "rcand/kernel/auth/crypto.hpp"
-#include "rcand/kernel/auth/jwt.hpp"
+#include "kernel/auth/authenticator.hpp"
+#include "libs/rcan/crypto.hpp"
+#include "libs/rcan/jwt.hpp"
 
 namespace {
 
+using namespace rcand;
 using namespace rcand::kernel;
 
 constexpr std::string_view kSecret = "fuzz-jwt-secret-0123456789abcdef";

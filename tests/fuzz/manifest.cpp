@@ -7,7 +7,7 @@
 #include <cstdint>
 
 #include "fuzz_check.hpp"
-#include "rcand/kernel/plugin_host/manifest.hpp"
+#include "kernel/plugins/manifest.hpp"
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
   const auto doc = nlohmann::json::parse(data, data + size, nullptr, /*allow_exceptions=*/false);

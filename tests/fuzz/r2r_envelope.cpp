@@ -8,7 +8,7 @@
 #include <variant>
 
 #include "fuzz_check.hpp"
-#include "rcand/kernel/r2r/envelope.hpp"
+#include "services/r2r/envelope.hpp"
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
   using namespace rcand::kernel::r2r;

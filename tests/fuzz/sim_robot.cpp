@@ -11,11 +11,11 @@
 #include <memory>
 
 #include "fuzz_check.hpp"
-#include "rcand/kernel/auth/crypto.hpp"
-#include "rcand/kernel/config/robot_config.hpp"
-#include "rcand/kernel/core/api.hpp"
-#include "rcand/kernel/core/kernel.hpp"
-#include "rcand/kernel/core/logging.hpp"
+#include "libs/rcan/crypto.hpp"
+#include "kernel/config/robot_config.hpp"
+#include "kernel/api/api.hpp"
+#include "kernel/kernel.hpp"
+#include "libs/base/logging.hpp"
 
 namespace rcand::fuzz {
 namespace {
@@ -42,8 +42,8 @@ runtime:
     mode: tokens
     jwt_secret_file: jwt.secret
     tokens:
-      - {principal: fuzz-owner, role: owner, sha256: )" + kernel::sha256_hex(kOwnerToken) + R"(}
-      - {principal: fuzz-guest, role: guest, sha256: )" + kernel::sha256_hex(kGuestToken) + R"(}
+      - {principal: fuzz-owner, role: owner, sha256: )" + rcand::sha256_hex(kOwnerToken) + R"(}
+      - {principal: fuzz-guest, role: guest, sha256: )" + rcand::sha256_hex(kGuestToken) + R"(}
   logging: {level: error}
   rate_limit: {per_principal_per_s: 0, per_address_per_s: 0}   # every input reaches the code it aims at
 )";
@@ -63,7 +63,7 @@ struct Robot {
   std::unique_ptr<kernel::Kernel> instance;
 
   Robot() {
-    kernel::configure_logging("off");
+    rcand::configure_logging("off");
     // The config, secret and swarm files live only while the kernel reads them.
     char pattern[] = "/tmp/rcand-fuzz-XXXXXX";
     const char* made = ::mkdtemp(pattern);

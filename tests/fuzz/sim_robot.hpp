@@ -5,12 +5,12 @@
 
 #include <string>
 
-#include "rcand/kernel/http/request.hpp"
-#include "rcand/kernel/http/response.hpp"
+#include "libs/http/request.hpp"
+#include "libs/http/response.hpp"
 
 namespace rcand::fuzz {
 
-namespace http = rcand::kernel::http;
+namespace http = rcand::http;
 
 inline constexpr const char* kOwnerToken = "fuzz-owner-token";  // pre-shared, role OWNER (every scope)
 inline constexpr const char* kGuestToken = "fuzz-guest-token";   // pre-shared, role GUEST (status only)

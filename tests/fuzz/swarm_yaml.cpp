@@ -8,12 +8,12 @@
 #include <string_view>
 
 #include "fuzz_check.hpp"
-#include "rcand/kernel/swarm/swarm_registry.hpp"
+#include "libs/swarm/swarm_registry.hpp"
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
   const std::string_view yaml(reinterpret_cast<const char*>(data), size);
   try {
-    const auto registry = rcand::kernel::swarm::parse_swarm(yaml, "fuzz-swarm.yaml");
+    const auto registry = rcand::swarm::parse_swarm(yaml, "fuzz-swarm.yaml");
     std::set<std::string> names;
     for (const auto& node : registry.nodes) {
       RCAND_FUZZ_CHECK(!node.name.empty() && !node.host.empty() && !node.token.empty(), "a node has name, host, token");
@@ -23,7 +23,7 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
         if (node.token.size() >= 8)
           RCAND_FUZZ_CHECK(warning.find(node.token) == std::string::npos, "a warning quotes a token");
     }
-  } catch (const rcand::kernel::swarm::SwarmError& error) {
+  } catch (const rcand::swarm::SwarmError& error) {
     RCAND_FUZZ_CHECK(!error.errors().empty(), "a SwarmError carries an error");
     for (const auto& message : error.errors())
       RCAND_FUZZ_CHECK(message.rfind("fuzz-swarm.yaml", 0) == 0, "a swarm error starts with the file name");

@@ -1,4 +1,4 @@
-// The HTTP API of notes §7 and §9 against a running rcand: discovery, status, capabilities and bad input.
+// The HTTP API of docs/protocol.md §7 and §9 against a running rcand: discovery, status, capabilities and bad input.
 #include <doctest/doctest.h>
 
 #include "rcand_process.hpp"

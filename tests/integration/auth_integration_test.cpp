@@ -1,11 +1,11 @@
-// notes §3/§4 against a running rcand: every auth failure, with the exact status and body.
+// docs/protocol.md §3/§4 against a running rcand: every auth failure, with the exact status and body.
 #include <doctest/doctest.h>
 
 #include <algorithm>
 #include <functional>
 
-#include "rcand/kernel/auth/crypto.hpp"
-#include "rcand/kernel/auth/jwt.hpp"
+#include "libs/rcan/crypto.hpp"
+#include "libs/rcan/jwt.hpp"
 #include "rcand_process.hpp"
 
 using namespace rcand::test;
@@ -21,8 +21,8 @@ void check_error_body(const json& body, int status, const std::string& code) {
   CHECK_FALSE(body["error"].get<std::string>().empty());
 }
 
-std::string jwt_with(const std::function<void(rcand::kernel::JwtClaims&)>& edit, const std::string& secret = kJwtSecret) {
-  rcand::kernel::JwtClaims claims;
+std::string jwt_with(const std::function<void(rcand::JwtClaims&)>& edit, const std::string& secret = kJwtSecret) {
+  rcand::JwtClaims claims;
   claims.sub = "tester";
   claims.iss = "test";
   claims.role = "owner";
@@ -31,7 +31,7 @@ std::string jwt_with(const std::function<void(rcand::kernel::JwtClaims&)>& edit,
   claims.iat = std::chrono::duration_cast<std::chrono::seconds>(std::chrono::system_clock::now().time_since_epoch()).count();
   claims.exp = claims.iat + 600;
   edit(claims);
-  return rcand::kernel::issue_jwt_hs256(claims, secret);
+  return rcand::issue_jwt_hs256(claims, secret);
 }
 
 }  // namespace
@@ -85,8 +85,8 @@ TEST_CASE("auth: each JWT failure is a 401 with a clear message, never echoing t
   const std::string wrong_aud = jwt_with([](auto& c) { c.aud = {"rcan://other.robot.deadbeef"}; });
   // alg none: header {"alg":"none","typ":"JWT"} with the good payload and no signature.
   const auto payload = good.substr(good.find('.') + 1, good.rfind('.') - good.find('.') - 1);
-  const std::string alg_none = rcand::kernel::base64url_encode(R"({"alg":"none","typ":"JWT"})") + "." + payload + ".";
-  const std::string alg_none_signed = rcand::kernel::base64url_encode(R"({"alg":"none","typ":"JWT"})") + "." + payload + "." +
+  const std::string alg_none = rcand::base64url_encode(R"({"alg":"none","typ":"JWT"})") + "." + payload + ".";
+  const std::string alg_none_signed = rcand::base64url_encode(R"({"alg":"none","typ":"JWT"})") + "." + payload + "." +
                                       good.substr(good.rfind('.') + 1);
 
   for (const auto& entry : std::vector<std::pair<std::string, std::string>>{{"bad signature", tampered},

@@ -1,4 +1,4 @@
-// notes §10: config errors stop startup with file:line:column and the key path; --check-config validates only.
+// docs/protocol.md §10: config errors stop startup with file:line:column and the key path; --check-config validates only.
 #include <doctest/doctest.h>
 
 #include "rcand_process.hpp"

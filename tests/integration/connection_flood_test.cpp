@@ -28,7 +28,7 @@ nlohmann::json flood_config(std::size_t per_address) {
   return config;
 }
 
-// Every stop answered; within the 500 ms MUST (notes §2) unless `timed` is false (the sanitizer build runs rcand at
+// Every stop answered; within the 500 ms MUST (docs/protocol.md §6.5) unless `timed` is false (the sanitizer build runs rcand at
 // -O0 many times slower: it checks the paths, the normal build their timing).
 void check_stops(const std::vector<flood::TimedStop>& stops, bool timed = !kSanitizedBuild) {
   double worst = 0;

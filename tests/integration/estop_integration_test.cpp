@@ -1,4 +1,4 @@
-// notes §6 against a running rcand on the sim drive: the latched e-stop, the motion gate on every motion path,
+// docs/protocol.md §6 against a running rcand on the sim drive: the latched e-stop, the motion gate on every motion path,
 // the dead-man watchdog and the audit log, read back from the sim drive's motor timeline.
 #include <doctest/doctest.h>
 

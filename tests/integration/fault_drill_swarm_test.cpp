@@ -12,7 +12,7 @@
 #include <thread>
 
 #include "fault_drill.hpp"
-#include "rcand/kernel/http/server.hpp"
+#include "libs/http/server.hpp"
 #include "rcand_process.hpp"
 #include "swarm_lab.hpp"
 
@@ -98,11 +98,11 @@ TEST_CASE("fault drill: a peer that drops the connection mid-request during a br
 
 TEST_CASE("fault drill: a lying peer (\"motors_stopped\":\"yes\", \"ack\":\"yes\") is that node's failure; the robot stays up and latched") {
   // Issue 13 #1: a GUEST's broadcast stop aborted the broadcasting rcand when a peer answered with the wrong types.
-  rcand::kernel::http::ServerOptions options;
+  rcand::http::ServerOptions options;
   options.address = "127.0.0.1";
   options.port = 0;
-  rcand::kernel::http::Server liar(options, [](rcand::kernel::http::Request&& request, rcand::kernel::http::Respond respond) {
-    rcand::kernel::http::Response answer;
+  rcand::http::Server liar(options, [](rcand::http::Request&& request, rcand::http::Respond respond) {
+    rcand::http::Response answer;
     answer.body = request.path == "/api/stop" ? R"({"status":"stopped","estopped":"yes","motors_stopped":"yes"})"
                                               : R"({"ack":"yes","executed":"no","reason":["estop_active"]})";
     respond(std::move(answer));

@@ -1,4 +1,4 @@
-// Navigation (seed §10, notes §8) against a running rcand on the sim drive, read back from the drive's motor
+// Navigation (seed §10, docs/protocol.md §8) against a running rcand on the sim drive, read back from the drive's motor
 // timeline (t_us on the kernel's steady clock): turn-then-drive durations, one job at a time, validation that never
 // moves a wheel, cancel and e-stop mid-turn and mid-drive, a throwing driver, and the obstacle stop (§10.5).
 #include <doctest/doctest.h>

@@ -6,7 +6,7 @@
 #include <string>
 
 #include "r2r_lab.hpp"
-#include "rcand/kernel/auth/jwt.hpp"
+#include "libs/rcan/jwt.hpp"
 #include "rcand_process.hpp"
 #include "temp_dir.hpp"
 #include "ws_client.hpp"
@@ -18,7 +18,7 @@ using namespace std::chrono_literals;
 namespace {
 
 std::string guest_jwt_claiming_control() {
-  rcand::kernel::JwtClaims claims;
+  rcand::JwtClaims claims;
   claims.sub = "sneaky-guest";
   claims.iss = "integration-test";
   claims.role = "guest";
@@ -26,7 +26,7 @@ std::string guest_jwt_claiming_control() {
   claims.scope = {"status", "control"};
   claims.iat = std::chrono::duration_cast<std::chrono::seconds>(std::chrono::system_clock::now().time_since_epoch()).count();
   claims.exp = claims.iat + 600;
-  return rcand::kernel::issue_jwt_hs256(claims, kJwtSecret);
+  return rcand::issue_jwt_hs256(claims, kJwtSecret);
 }
 
 }  // namespace

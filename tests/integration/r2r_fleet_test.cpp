@@ -14,8 +14,8 @@
 
 #include "mosquitto_broker.hpp"
 #include "r2r_lab.hpp"
-#include "rcand/kernel/r2r/message_auth.hpp"
-#include "rcand/kernel/r2r_transport/mqtt_transport.hpp"
+#include "services/r2r/message_auth.hpp"
+#include "services/r2r/transports/mqtt_transport.hpp"
 #include "rcand_process.hpp"
 
 using namespace rcand::test;

@@ -16,9 +16,9 @@
 
 #include "mosquitto_broker.hpp"
 #include "r2r_lab.hpp"
-#include "rcand/kernel/r2r/base64.hpp"
-#include "rcand/kernel/r2r/message_auth.hpp"
-#include "rcand/kernel/r2r_transport/mqtt_transport.hpp"
+#include "libs/rcan/base64.hpp"
+#include "services/r2r/message_auth.hpp"
+#include "services/r2r/transports/mqtt_transport.hpp"
 #include "rcand_process.hpp"
 #include "sanitized_build.hpp"
 #include "ws_client.hpp"

@@ -13,7 +13,7 @@
 #include <vector>
 
 #include "r2r_lab.hpp"
-#include "rcand/kernel/auth/jwt.hpp"
+#include "libs/rcan/jwt.hpp"
 #include "rcand_process.hpp"
 #include "sanitized_build.hpp"
 #include "temp_dir.hpp"
@@ -54,7 +54,7 @@ SocketEnd read_until_closed(WsClient& client, std::chrono::milliseconds within) 
 }
 
 std::string socket_limits_jwt(const std::string& role, std::vector<std::string> scope, std::int64_t exp_from_now_s) {
-  rcand::kernel::JwtClaims claims;
+  rcand::JwtClaims claims;
   claims.sub = "short-lived-" + role;
   claims.iss = "integration-test";
   claims.role = role;
@@ -62,11 +62,11 @@ std::string socket_limits_jwt(const std::string& role, std::vector<std::string> 
   claims.scope = std::move(scope);
   claims.iat = std::chrono::duration_cast<std::chrono::seconds>(std::chrono::system_clock::now().time_since_epoch()).count();
   claims.exp = claims.iat + exp_from_now_s;
-  return rcand::kernel::issue_jwt_hs256(claims, kJwtSecret);
+  return rcand::issue_jwt_hs256(claims, kJwtSecret);
 }
 
 // The upgrade as a plain HTTP request, to read a refusal's JSON body (WsClient only reports the status).
-rcand::kernel::http::ClientResponse raw_upgrade(const RcandProcess& robot, const std::string& token) {
+rcand::http::ClientResponse raw_upgrade(const RcandProcess& robot, const std::string& token) {
   return robot.request("GET", "/ws/r2r", token, "",
                        {{"Connection", "Upgrade"},
                         {"Upgrade", "websocket"},

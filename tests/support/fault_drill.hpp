@@ -1,5 +1,5 @@
 // Fault-drill checks (header-only), shared by tests/integration/fault_drill_*_test.cpp: every drill makes its
-// requests with an X-Message-Id of its own, asserts POST /api/stop answers within the notes §6 limit, and finally
+// requests with an X-Message-Id of its own, asserts POST /api/stop answers within the docs/protocol.md §6 limit, and finally
 // that the audit log holds every audited request it made.
 #pragma once
 
@@ -17,7 +17,7 @@
 
 namespace rcand::test::drill {
 
-inline constexpr auto kStopLimit = std::chrono::milliseconds(500);  // notes §6: MUST answer within 500 ms
+inline constexpr auto kStopLimit = std::chrono::milliseconds(500);  // docs/protocol.md §6: MUST answer within 500 ms
 
 struct Answer {
   int status = 0;

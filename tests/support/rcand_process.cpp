@@ -16,8 +16,8 @@
 #include <sstream>
 #include <stdexcept>
 
-#include "rcand/kernel/auth/crypto.hpp"
-#include "rcand/kernel/auth/jwt.hpp"
+#include "libs/rcan/crypto.hpp"
+#include "libs/rcan/jwt.hpp"
 #include "rcand/sdk/scope.hpp"
 
 extern char** environ;
@@ -33,7 +33,7 @@ fs::path test_plugin_dir() { return RCAND_TEST_PLUGIN_DIR; }
 nlohmann::json sim_config() {
   using nlohmann::json;
   auto token = [](const char* principal, const char* role, const char* plain) {
-    return json{{"principal", principal}, {"role", role}, {"sha256", kernel::sha256_hex(plain)}};
+    return json{{"principal", principal}, {"role", role}, {"sha256", rcand::sha256_hex(plain)}};
   };
   return {
       {"rcan_version", "1.3"},
@@ -60,7 +60,7 @@ nlohmann::json sim_config() {
 }
 
 std::string jwt_for(const std::string& role, const std::string& secret) {
-  kernel::JwtClaims claims;
+  rcand::JwtClaims claims;
   claims.sub = "test-" + role;
   claims.iss = "integration-test";
   claims.role = role;
@@ -70,7 +70,7 @@ std::string jwt_for(const std::string& role, const std::string& secret) {
     if (sdk::role_grants(parsed_role, scope)) claims.scope.emplace_back(sdk::scope_name(scope));
   claims.iat = std::chrono::duration_cast<std::chrono::seconds>(std::chrono::system_clock::now().time_since_epoch()).count();
   claims.exp = claims.iat + 3600;
-  return kernel::issue_jwt_hs256(claims, secret);
+  return rcand::issue_jwt_hs256(claims, secret);
 }
 
 namespace {
@@ -255,10 +255,10 @@ int RcandProcess::kill_hard() {
 
 std::string RcandProcess::stderr_text() const { return slurp(dir_.path() / "stderr"); }
 
-kernel::http::ClientResponse RcandProcess::request(const std::string& method, const std::string& target, const std::string& token,
+http::ClientResponse RcandProcess::request(const std::string& method, const std::string& target, const std::string& token,
                                                    const std::string& body, std::map<std::string, std::string> headers) const {
   if (!token.empty()) headers["Authorization"] = "Bearer " + token;
-  return kernel::http::request(host_, port_, method, target, body, headers, std::chrono::seconds(10));
+  return http::request(host_, port_, method, target, body, headers, std::chrono::seconds(10));
 }
 
 nlohmann::json RcandProcess::json(const std::string& method, const std::string& target, const std::string& token,

@@ -12,7 +12,7 @@
 #include <string>
 #include <vector>
 
-#include "rcand/kernel/http/client.hpp"
+#include "libs/http/client.hpp"
 #include "temp_dir.hpp"
 
 namespace rcand::test {
@@ -57,7 +57,7 @@ class RcandProcess {
   const TempDir& dir() const noexcept { return dir_; }
 
   // One request on a fresh connection; `token` becomes "Authorization: Bearer <token>" when non-empty.
-  kernel::http::ClientResponse request(const std::string& method, const std::string& target, const std::string& token = {},
+  http::ClientResponse request(const std::string& method, const std::string& target, const std::string& token = {},
                                        const std::string& body = {}, std::map<std::string, std::string> headers = {}) const;
   // request() with the body parsed as JSON (null when it is not JSON).
   nlohmann::json json(const std::string& method, const std::string& target, const std::string& token = {},

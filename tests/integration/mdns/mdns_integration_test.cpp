@@ -1,4 +1,4 @@
-// mDNS for real (notes §5, §9): robots publish `_rcan._tcp` through avahi-daemon in network namespaces and are
+// mDNS for real (docs/protocol.md §5, §9): robots publish `_rcan._tcp` through avahi-daemon in network namespaces and are
 // found from another namespace; TXT status follows the e-stop; the service goes with rcand and comes back after an
 // avahi-daemon restart; a taken name is replaced; swarm "*.local" hosts resolve through mDNS with the ip fallback.
 // Where the machine cannot make namespaces (or lacks avahi), each test says so and skips.
@@ -68,7 +68,7 @@ TEST_CASE("mdns: a robot is found from another namespace with the registry's TXT
   CHECK(txt["@address"] == lab.address(1));
   CHECK(txt["@port"] == std::to_string(robot->port()));
 
-  // Exactly the notes §5 keys, each equal to the DISCOVER document's txt_record; caps == capabilities[] (§9.5).
+  // Exactly the docs/protocol.md §5 keys, each equal to the DISCOVER document's txt_record; caps == capabilities[] (§9.5).
   const json discovery = robot->json("GET", "/api/discovery");
   std::set<std::string> keys;
   for (const auto& [key, value] : txt)
@@ -98,7 +98,7 @@ TEST_CASE("mdns: a robot is found from another namespace with the registry's TXT
   CHECK(table.out.find("NAME") != std::string::npos);
   CHECK(table.out.find(name) != std::string::npos);
 
-  // An e-stop shows in TXT status within 5 s (notes §5).
+  // An e-stop shows in TXT status within 5 s (docs/protocol.md §5).
   int status = 0;
   robot->json("POST", "/api/stop", "guest-token", "{}", &status);
   REQUIRE(status == 200);

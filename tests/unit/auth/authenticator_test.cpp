@@ -5,11 +5,12 @@
 #include <stdexcept>
 
 #include "jwt_helpers.hpp"
-#include "rcand/kernel/auth/authenticator.hpp"
-#include "rcand/kernel/auth/crypto.hpp"
-#include "rcand/kernel/auth/jwt.hpp"
-#include "rcand/kernel/auth/role_scopes.hpp"
+#include "kernel/auth/authenticator.hpp"
+#include "libs/rcan/crypto.hpp"
+#include "libs/rcan/jwt.hpp"
+#include "libs/rcan/role_scopes.hpp"
 
+using namespace rcand;
 using namespace rcand::kernel;
 using namespace auth_test;
 using rcand::sdk::Role;

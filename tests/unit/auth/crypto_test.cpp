@@ -3,9 +3,9 @@
 #include <set>
 #include <string>
 
-#include "rcand/kernel/auth/crypto.hpp"
+#include "libs/rcan/crypto.hpp"
 
-using namespace rcand::kernel;
+using namespace rcand;
 
 namespace {
 std::string hex(const std::string& raw) {

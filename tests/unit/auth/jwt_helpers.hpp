@@ -5,7 +5,7 @@
 
 #include <nlohmann/json.hpp>
 
-#include "rcand/kernel/auth/crypto.hpp"
+#include "libs/rcan/crypto.hpp"
 
 namespace auth_test {
 
@@ -22,9 +22,9 @@ inline nlohmann::json good_payload(const std::string& role = "OWNER") {
 // header.payload.signature with an HS256 signature over the encoded parts (signature_key empty = empty signature).
 inline std::string forge(const nlohmann::json& header, const nlohmann::json& payload, const std::string& key = kSecret,
                          bool sign = true) {
-  using rcand::kernel::base64url_encode;
+  using rcand::base64url_encode;
   const std::string input = base64url_encode(header.dump()) + "." + base64url_encode(payload.dump());
-  return input + "." + (sign ? base64url_encode(rcand::kernel::hmac_sha256(key, input)) : std::string());
+  return input + "." + (sign ? base64url_encode(rcand::hmac_sha256(key, input)) : std::string());
 }
 
 inline std::string forge(const nlohmann::json& payload) { return forge({{"alg", "HS256"}, {"typ", "JWT"}}, payload); }

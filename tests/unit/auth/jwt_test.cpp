@@ -1,10 +1,10 @@
 #include <doctest/doctest.h>
 
 #include "jwt_helpers.hpp"
-#include "rcand/kernel/auth/crypto.hpp"
-#include "rcand/kernel/auth/jwt.hpp"
+#include "libs/rcan/crypto.hpp"
+#include "libs/rcan/jwt.hpp"
 
-using namespace rcand::kernel;
+using namespace rcand;
 using namespace auth_test;
 
 namespace {

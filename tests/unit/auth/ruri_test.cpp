@@ -2,9 +2,9 @@
 
 #include <string>
 
-#include "rcand/kernel/auth/ruri.hpp"
+#include "libs/rcan/ruri.hpp"
 
-using namespace rcand::kernel;
+using namespace rcand;
 
 namespace {
 Ruri must_parse(std::string_view text, bool wild = false) {

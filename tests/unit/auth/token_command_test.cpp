@@ -11,13 +11,14 @@
 #include <vector>
 
 #include "jwt_helpers.hpp"
-#include "rcand/kernel/auth/authenticator.hpp"
-#include "rcand/kernel/auth/crypto.hpp"
-#include "rcand/kernel/auth/jwt.hpp"
-#include "rcand/kernel/auth/secret_file.hpp"
+#include "kernel/auth/authenticator.hpp"
+#include "libs/rcan/crypto.hpp"
+#include "libs/rcan/jwt.hpp"
+#include "libs/rcan/secret_file.hpp"
 #include "temp_dir.hpp"
 #include "token_command.hpp"
 
+using namespace rcand;
 using namespace rcand::kernel;
 using rcand::sdk::Role;
 using rcand::sdk::Scope;

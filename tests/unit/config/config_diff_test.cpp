@@ -1,7 +1,8 @@
 #include <doctest/doctest.h>
 
-#include "rcand/kernel/config/config_diff.hpp"
+#include "kernel/config/config_diff.hpp"
 
+using namespace rcand;
 using namespace rcand::kernel;
 using nlohmann::json;
 

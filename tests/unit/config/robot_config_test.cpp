@@ -1,7 +1,7 @@
 // A valid file becomes the right RobotConfig: values, defaults, paths, marks.
 #include "config_test_support.hpp"
 
-#include <rcand/kernel/config/config_reference.hpp>
+#include "kernel/config/config_reference.hpp"
 
 #include <doctest/doctest.h>
 
@@ -9,7 +9,7 @@
 #include <limits>
 
 using namespace config_test;
-using rcand::kernel::closest_match;
+using rcand::closest_match;
 using rcand::kernel::RobotConfig;
 
 namespace {

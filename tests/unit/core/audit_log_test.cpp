@@ -10,8 +10,9 @@
 #include <string>
 #include <vector>
 
-#include "rcand/kernel/core/audit_log.hpp"
+#include "kernel/audit/audit_log.hpp"
 
+using namespace rcand;
 using namespace rcand::kernel;
 
 TEST_CASE("entries rotated out of the in-memory ring are counted as dropped") {

@@ -2,8 +2,9 @@
 
 #include <random>
 
-#include "rcand/kernel/core/capability_registry.hpp"
+#include "kernel/registry/capability_registry.hpp"
 
+using namespace rcand;
 using namespace rcand::kernel;
 
 namespace {
@@ -209,7 +210,7 @@ TEST_CASE("config view, mDNS TXT and DISCOVER agree over many configs") {
   }
 }
 
-TEST_CASE("the DISCOVER document and TXT record carry every notes §5 key") {
+TEST_CASE("the DISCOVER document and TXT record carry every docs/protocol.md §5 key") {
   auto config = base_config();
   config.capabilities = std::vector<std::string>{"teleop", "com.acme.gripper"};
   CapabilityRegistry registry({"rcan://acme.r1.1a2b3c4d", "rover", "r1"}, plan_capabilities(config, installed_everything()));

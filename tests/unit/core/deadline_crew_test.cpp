@@ -8,10 +8,11 @@
 #include <stdexcept>
 #include <thread>
 
-#include "rcand/kernel/core/deadline_crew.hpp"
-#include "rcand/kernel/core/estop.hpp"
-#include "rcand/kernel/core/steady_clock.hpp"
+#include "kernel/safety/deadline_crew.hpp"
+#include "kernel/safety/estop.hpp"
+#include "kernel/steady_clock.hpp"
 
+using namespace rcand;
 using namespace rcand::kernel;
 using namespace std::chrono_literals;
 

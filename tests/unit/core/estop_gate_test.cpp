@@ -3,10 +3,11 @@
 #include <atomic>
 #include <thread>
 
-#include "rcand/kernel/core/estop.hpp"
-#include "rcand/kernel/core/kernel_motion_gate.hpp"
-#include "rcand/kernel/core/steady_clock.hpp"
+#include "kernel/safety/estop.hpp"
+#include "kernel/safety/kernel_motion_gate.hpp"
+#include "kernel/steady_clock.hpp"
 
+using namespace rcand;
 using namespace rcand::kernel;
 using rcand::sdk::GateStatus;
 

@@ -9,11 +9,12 @@
 #include <thread>
 #include <vector>
 
-#include "rcand/kernel/core/deadline_crew.hpp"
-#include "rcand/kernel/core/estop.hpp"
-#include "rcand/kernel/core/kernel_motion_gate.hpp"
-#include "rcand/kernel/core/steady_clock.hpp"
+#include "kernel/safety/deadline_crew.hpp"
+#include "kernel/safety/estop.hpp"
+#include "kernel/safety/kernel_motion_gate.hpp"
+#include "kernel/steady_clock.hpp"
 
+using namespace rcand;
 using namespace rcand::kernel;
 using rcand::sdk::GateStatus;
 

@@ -1,12 +1,13 @@
-// The token buckets behind 429 (notes §6.4), on an explicit clock: no sleeping.
+// The token buckets behind 429 (docs/protocol.md §6.4), on an explicit clock: no sleeping.
 #include <doctest/doctest.h>
 
 #include <string>
 
-#include "rcand/kernel/core/json_body.hpp"
-#include "rcand/kernel/core/rate_limiter.hpp"
-#include "rcand/kernel/text/bounded_text.hpp"
+#include "kernel/api/json_body.hpp"
+#include "kernel/api/rate_limiter.hpp"
+#include "libs/base/bounded_text.hpp"
 
+using namespace rcand;
 using namespace rcand::kernel;
 
 TEST_CASE("rate limiter: a burst of per_s * burst_s, then one request per 1/per_s, each key on its own") {

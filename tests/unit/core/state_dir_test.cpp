@@ -8,7 +8,7 @@
 #include <fstream>
 #include <string>
 
-#include "rcand/kernel/core/state_dir.hpp"
+#include "kernel/safety/state_dir.hpp"
 
 using rcand::kernel::StateDir;
 

@@ -5,8 +5,9 @@
 #include <chrono>
 #include <future>
 
-#include "rcand/kernel/core/status_reader.hpp"
+#include "kernel/plugins/status_reader.hpp"
 
+using namespace rcand;
 using namespace rcand::kernel;
 using namespace std::chrono_literals;
 using nlohmann::json;

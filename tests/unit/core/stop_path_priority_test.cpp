@@ -5,7 +5,7 @@
 #include <string>
 #include <thread>
 
-#include "rcand/kernel/core/stop_path_priority.hpp"
+#include "kernel/safety/stop_path_priority.hpp"
 
 using rcand::kernel::enter_stop_path_priority;
 

@@ -2,10 +2,11 @@
 
 #include <future>
 
-#include "rcand/kernel/core/audit_log.hpp"
-#include "rcand/kernel/core/json_body.hpp"
-#include "rcand/kernel/core/worker_thread.hpp"
+#include "kernel/audit/audit_log.hpp"
+#include "kernel/api/json_body.hpp"
+#include "libs/base/worker_thread.hpp"
 
+using namespace rcand;
 using namespace rcand::kernel;
 
 TEST_CASE("audit log: newest first, outcome filled in after dispatch, bounded") {

@@ -6,11 +6,11 @@
 #include <memory>
 #include <utility>
 
-#include "rcand/kernel/http/server.hpp"
+#include "libs/http/server.hpp"
 
 namespace rcand::test {
 
-namespace http = rcand::kernel::http;
+namespace http = rcand::http;
 
 // Answers with the request as JSON, so tests can see what the server decoded.
 inline http::Response echo_response(const http::Request& request) {

@@ -1,10 +1,10 @@
 #include <doctest/doctest.h>
 #include <nlohmann/json.hpp>
 
-#include "rcand/kernel/http/request.hpp"
-#include "rcand/kernel/http/response.hpp"
+#include "libs/http/request.hpp"
+#include "libs/http/response.hpp"
 
-namespace http = rcand::kernel::http;
+namespace http = rcand::http;
 
 TEST_CASE("error_response has exactly the §4 shape") {
   auto response = http::error_response(413, "PAYLOAD_TOO_LARGE", "request body exceeds the limit");

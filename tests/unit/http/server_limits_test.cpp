@@ -5,7 +5,7 @@
 
 #include "http_test_util.hpp"
 #include "raw_socket.hpp"
-#include "rcand/kernel/http/client.hpp"
+#include "libs/http/client.hpp"
 
 using namespace rcand::test;
 using nlohmann::json;

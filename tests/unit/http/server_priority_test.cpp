@@ -11,7 +11,7 @@
 
 #include "http_test_util.hpp"
 #include "raw_socket.hpp"
-#include "rcand/kernel/http/upgrade.hpp"
+#include "libs/http/upgrade.hpp"
 
 using namespace rcand::test;
 using nlohmann::json;

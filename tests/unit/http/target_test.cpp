@@ -2,8 +2,8 @@
 
 #include "target.hpp"
 
-using rcand::kernel::http::detail::parse_target;
-using rcand::kernel::http::detail::percent_decode;
+using rcand::http::detail::parse_target;
+using rcand::http::detail::percent_decode;
 
 TEST_CASE("percent_decode decodes escapes and optionally '+'") {
   CHECK(percent_decode("a%20b%2Fc", false) == "a b/c");

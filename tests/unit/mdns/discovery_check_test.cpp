@@ -2,7 +2,7 @@
 #include <doctest/doctest.h>
 
 #include "discover_command.hpp"
-#include "rcand/kernel/core/capability_registry.hpp"
+#include "kernel/registry/capability_registry.hpp"
 
 using namespace rcand;
 using nlohmann::json;

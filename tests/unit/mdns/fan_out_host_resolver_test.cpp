@@ -8,10 +8,10 @@
 #include <mutex>
 #include <thread>
 
-#include "rcand/kernel/http/server.hpp"
-#include "rcand/kernel/swarm/fan_out.hpp"
+#include "libs/http/server.hpp"
+#include "libs/swarm/fan_out.hpp"
 
-using namespace rcand::kernel;
+using namespace rcand;
 using namespace std::chrono_literals;
 
 namespace {

@@ -1,9 +1,9 @@
 // Which swarm hosts go to mDNS.
 #include <doctest/doctest.h>
 
-#include "rcand/kernel/mdns/host_resolver.hpp"
+#include "libs/mdns/host_resolver.hpp"
 
-using rcand::kernel::mdns::is_mdns_host;
+using rcand::mdns::is_mdns_host;
 
 TEST_CASE("*.local names (any case, trailing dot) are mDNS hosts; addresses and other names are not") {
   CHECK(is_mdns_host("alex.local"));

@@ -8,11 +8,11 @@
 #include <cstdlib>
 #include <sstream>
 
-#include "rcand/kernel/mdns/host_resolver.hpp"
-#include "rcand/kernel/mdns/service_browser.hpp"
-#include "rcand/kernel/mdns/service_publisher.hpp"
+#include "libs/mdns/host_resolver.hpp"
+#include "libs/mdns/service_browser.hpp"
+#include "libs/mdns/service_publisher.hpp"
 
-using namespace rcand::kernel;
+using namespace rcand;
 using namespace std::chrono_literals;
 
 namespace {

@@ -1,4 +1,4 @@
-#include "rcand/kernel/plugin_host/config_schema.hpp"
+#include "kernel/plugins/settings_schema.hpp"
 
 #include <doctest/doctest.h>
 

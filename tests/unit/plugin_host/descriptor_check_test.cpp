@@ -1,4 +1,4 @@
-#include "rcand/kernel/plugin_host/descriptor_check.hpp"
+#include "kernel/plugins/descriptor_check.hpp"
 
 #include <doctest/doctest.h>
 

@@ -1,4 +1,4 @@
-#include "rcand/kernel/plugin_host/guarded.hpp"
+#include "kernel/plugins/guarded.hpp"
 
 #include <doctest/doctest.h>
 

@@ -1,4 +1,4 @@
-#include "rcand/kernel/plugin_host/manifest.hpp"
+#include "kernel/plugins/manifest.hpp"
 
 #include <doctest/doctest.h>
 

@@ -1,4 +1,4 @@
-#include "rcand/kernel/plugin_host/plugin_host.hpp"
+#include "kernel/plugins/plugin_host.hpp"
 
 #include <doctest/doctest.h>
 
@@ -13,7 +13,7 @@
 #include <map>
 #include <sstream>
 
-#include "rcand/kernel/plugin_host/guarded.hpp"
+#include "kernel/plugins/guarded.hpp"
 #include "stub_context.hpp"
 #include "temp_dir.hpp"
 

@@ -2,7 +2,7 @@
 
 #include <cmath>
 
-#include "rcand/kernel/r2r/auction.hpp"
+#include "services/r2r/auction.hpp"
 
 using namespace rcand::kernel::r2r;
 using nlohmann::json;

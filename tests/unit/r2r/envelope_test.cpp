@@ -2,7 +2,7 @@
 
 #include <string>
 
-#include "rcand/kernel/r2r/envelope.hpp"
+#include "services/r2r/envelope.hpp"
 
 using namespace rcand::kernel::r2r;
 using nlohmann::json;

@@ -12,12 +12,13 @@
 #include <vector>
 
 #include "loopback_network.hpp"
-#include "rcand/kernel/auth/crypto.hpp"
-#include "rcand/kernel/r2r/r2r_node.hpp"
+#include "libs/rcan/crypto.hpp"
+#include "services/r2r/r2r_node.hpp"
 #include "rcand/sdk/testing/manual_clock.hpp"
 
 namespace r2r_test {
 
+using namespace rcand;
 using namespace rcand::kernel;
 using namespace rcand::kernel::r2r;
 using nlohmann::json;

@@ -10,7 +10,7 @@
 #include <string>
 #include <vector>
 
-#include "rcand/kernel/r2r/transport.hpp"
+#include "services/r2r/transport.hpp"
 
 namespace r2r_test {
 

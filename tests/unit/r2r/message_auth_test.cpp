@@ -1,10 +1,11 @@
 #include <doctest/doctest.h>
 
-#include "rcand/kernel/auth/crypto.hpp"
-#include "rcand/kernel/r2r/base64.hpp"
-#include "rcand/kernel/r2r/message_auth.hpp"
-#include "rcand/kernel/r2r/replay_guard.hpp"
+#include "libs/rcan/crypto.hpp"
+#include "libs/rcan/base64.hpp"
+#include "services/r2r/message_auth.hpp"
+#include "services/r2r/replay_guard.hpp"
 
+using namespace rcand;
 using namespace rcand::kernel;
 using namespace rcand::kernel::r2r;
 using nlohmann::json;

@@ -7,7 +7,7 @@
 #include <rcand/sdk/testing/fake_scheduler.hpp>
 
 #include "fleet_fixture.hpp"
-#include "rcand/kernel/r2r/plugin_bridge.hpp"
+#include "services/r2r/plugin_bridge.hpp"
 
 using namespace r2r_test;
 using namespace std::chrono_literals;

@@ -9,9 +9,9 @@
 #include <vector>
 
 #include "fleet_fixture.hpp"
-#include "rcand/kernel/r2r/auction.hpp"
-#include "rcand/kernel/r2r/base64.hpp"
-#include "rcand/kernel/r2r/replay_guard.hpp"
+#include "services/r2r/auction.hpp"
+#include "libs/rcan/base64.hpp"
+#include "services/r2r/replay_guard.hpp"
 
 using namespace r2r_test;
 using namespace std::chrono_literals;

@@ -3,10 +3,11 @@
 #include <filesystem>
 #include <fstream>
 
-#include "rcand/kernel/config/robot_config.hpp"
-#include "rcand/kernel/r2r/r2r_settings.hpp"
+#include "kernel/config/robot_config.hpp"
+#include "services/r2r/r2r_settings.hpp"
 #include "temp_dir.hpp"
 
+using namespace rcand;
 using namespace rcand::kernel;
 using namespace rcand::kernel::r2r;
 using nlohmann::json;

@@ -11,7 +11,7 @@
 #include <optional>
 #include <vector>
 
-#include "rcand/kernel/r2r/transport.hpp"
+#include "services/r2r/transport.hpp"
 
 namespace rcand::test {
 

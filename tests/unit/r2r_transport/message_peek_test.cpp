@@ -3,7 +3,7 @@
 #include <string>
 #include <vector>
 
-#include "rcand/kernel/r2r_transport/message_peek.hpp"
+#include "services/r2r/transports/message_peek.hpp"
 
 using rcand::kernel::r2r::peek_message;
 

@@ -8,7 +8,7 @@
 
 #include "inbox.hpp"
 #include "mosquitto_broker.hpp"
-#include "rcand/kernel/r2r_transport/mqtt_transport.hpp"
+#include "services/r2r/transports/mqtt_transport.hpp"
 #include "wire_message.hpp"
 
 using namespace rcand::kernel::r2r;

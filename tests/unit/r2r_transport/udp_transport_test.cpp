@@ -8,7 +8,7 @@
 #include <stdexcept>
 
 #include "inbox.hpp"
-#include "rcand/kernel/r2r_transport/udp_transport.hpp"
+#include "services/r2r/transports/udp_transport.hpp"
 #include "wire_message.hpp"
 
 using namespace rcand::kernel::r2r;

@@ -17,12 +17,13 @@
 
 #include "inbox.hpp"
 #include "ws_client.hpp"
-#include "rcand/kernel/auth/crypto.hpp"
-#include "rcand/kernel/auth/jwt.hpp"
-#include "rcand/kernel/http/server.hpp"
-#include "rcand/kernel/r2r_transport/websocket_transport.hpp"
+#include "libs/rcan/crypto.hpp"
+#include "libs/rcan/jwt.hpp"
+#include "libs/http/server.hpp"
+#include "services/r2r/transports/websocket_transport.hpp"
 #include "wire_message.hpp"
 
+using namespace rcand;
 using namespace rcand::kernel;
 using namespace std::chrono_literals;
 using nlohmann::json;

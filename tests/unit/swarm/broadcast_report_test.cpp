@@ -1,9 +1,9 @@
-// The per-node entries of notes §9 from peers' answers.
+// The per-node entries of docs/protocol.md §9 from peers' answers.
 #include <doctest/doctest.h>
 
-#include "rcand/kernel/swarm/broadcast_report.hpp"
+#include "libs/swarm/broadcast_report.hpp"
 
-using namespace rcand::kernel::swarm;
+using namespace rcand::swarm;
 using nlohmann::json;
 
 namespace {

@@ -15,11 +15,11 @@
 #include <thread>
 #include <vector>
 
-#include "rcand/kernel/http/server.hpp"
-#include "rcand/kernel/swarm/fan_out.hpp"
+#include "libs/http/server.hpp"
+#include "libs/swarm/fan_out.hpp"
 #include "streaming_peer.hpp"
 
-using namespace rcand::kernel;
+using namespace rcand;
 using namespace std::chrono_literals;
 using nlohmann::json;
 using boost::asio::ip::tcp;

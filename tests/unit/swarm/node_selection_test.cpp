@@ -1,9 +1,9 @@
 // Selecting swarm nodes by name (any of) and tag (all of), with clear errors for unknown ones.
 #include <doctest/doctest.h>
 
-#include "rcand/kernel/swarm/node_selection.hpp"
+#include "libs/swarm/node_selection.hpp"
 
-using namespace rcand::kernel::swarm;
+using namespace rcand::swarm;
 
 namespace {
 

@@ -4,9 +4,9 @@
 #include <filesystem>
 #include <fstream>
 
-#include "rcand/kernel/swarm/swarm_registry.hpp"
+#include "libs/swarm/swarm_registry.hpp"
 
-using namespace rcand::kernel::swarm;
+using namespace rcand::swarm;
 
 namespace {
 

@@ -35,7 +35,7 @@ class RCAND_INTERFACE PluginContext {
   // The robot's obstacle source (a driver or capability implementing ObstacleSource, e.g. vision's depth
   // zones), or null when none is configured. Appended last and not pure, so older plugins and hosts still link.
   virtual const ObstacleSource* obstacles() const noexcept { return nullptr; }
-  // Robot-to-robot messages (notes §11) through the kernel's R2R transports, or null when this kernel has no R2R.
+  // Robot-to-robot messages (docs/protocol.md §11) through the kernel's R2R transports, or null when this kernel has no R2R.
   // Appended last and not pure, so older plugins and hosts still link (ABI 1.x).
   virtual R2rLink* r2r() noexcept { return nullptr; }
 };

@@ -30,7 +30,7 @@ struct Response {
 
   static Response ok(Json body = Json::object()) { return {200, std::move(body)}; }
 
-  // The error body every non-2xx answer carries (notes §4): {"error","code","status"} plus extras.
+  // The error body every non-2xx answer carries (docs/protocol.md §4): {"error","code","status"} plus extras.
   static Response error(int status, std::string code, std::string message, Json extra = Json::object()) {
     Json body = std::move(extra);
     body["error"] = std::move(message);

@@ -69,7 +69,7 @@ class RCAND_INTERFACE MotionGate {
   }
 };
 
-// The HTTP answer for a refused gate call (notes §4 and §6).
+// The HTTP answer for a refused gate call (docs/protocol.md §4 and §6).
 inline Response gate_refusal(GateStatus status, std::string_view actuator_id) {
   const std::string id(actuator_id);
   switch (status) {

@@ -1,4 +1,4 @@
-// Obstacle zones (§12, notes §7 GET /api/depth/obstacles) as a plugin-to-plugin interface: the vision plugin's
+// Obstacle zones (§12, docs/protocol.md §7 GET /api/depth/obstacles) as a plugin-to-plugin interface: the vision plugin's
 // depth pipeline (or a test double) implements it on a driver or capability object; the kernel finds it and hands
 // it to every plugin through PluginContext::obstacles(), so nav can check the zones before and during a job.
 #pragma once

@@ -1,4 +1,4 @@
-// Robot-to-robot messages (seed 004, notes §11) for plugins. The kernel owns every R2R transport, the
+// Robot-to-robot messages (seed 004, docs/protocol.md §11) for plugins. The kernel owns every R2R transport, the
 // authentication (tokens, Ed25519 signatures) and the validation: a plugin sends and receives through R2rLink and
 // never opens a socket. Messages a plugin receives were parsed, validated and authorized first; a bad message never
 // reaches a plugin.

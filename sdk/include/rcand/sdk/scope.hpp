@@ -1,4 +1,4 @@
-// RCAN roles and scopes (notes §2).
+// RCAN roles and scopes (docs/protocol.md §2).
 #pragma once
 
 #include <optional>
@@ -18,7 +18,7 @@ std::string_view role_name(Role role) noexcept;  // upper case, e.g. "OWNER"
 std::optional<Scope> parse_scope(std::string_view name) noexcept;
 std::string_view scope_name(Scope scope) noexcept;  // lower case, e.g. "control"
 
-// The lowest role whose default scopes include `scope` (notes §2 table).
+// The lowest role whose default scopes include `scope` (docs/protocol.md §2 table).
 Role minimum_role(Scope scope) noexcept;
 inline bool role_grants(Role role, Scope scope) noexcept {
   return static_cast<int>(role) >= static_cast<int>(minimum_role(scope));

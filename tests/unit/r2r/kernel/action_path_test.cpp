@@ -8,13 +8,14 @@
 #include <thread>
 
 #include "loopback_network.hpp"
-#include "rcand/kernel/auth/crypto.hpp"
-#include "rcand/kernel/auth/role_scopes.hpp"
-#include "rcand/kernel/core/api.hpp"
-#include "rcand/kernel/core/kernel.hpp"
-#include "rcand/kernel/r2r/r2r_node.hpp"
+#include "libs/rcan/crypto.hpp"
+#include "libs/rcan/role_scopes.hpp"
+#include "kernel/api/api.hpp"
+#include "kernel/kernel.hpp"
+#include "services/r2r/r2r_node.hpp"
 #include "rcand/sdk/testing/manual_clock.hpp"
 
+using namespace rcand;
 using namespace rcand::kernel;
 using namespace rcand::kernel::r2r;
 using nlohmann::json;

@@ -255,7 +255,7 @@ class FakeHost {
   // PluginContext::r2r() is null (a kernel without R2R) until this is called.
   void enable_r2r() noexcept { r2r_enabled_ = true; }
   // What instances sent, in order. The fake checks the type and that the payload is an object; the kernel also
-  // checks each type's payload fields (notes §11).
+  // checks each type's payload fields (docs/protocol.md §11).
   const std::vector<R2rSent>& r2r_sent() const noexcept { return r2r_sent_; }
   // Queues `message` for every subscription of its type on the subscriber's "r2r" worker, as the kernel does for a
   // validated message; run it with run_pending() or advance(). Returns how many subscriptions it was queued for.

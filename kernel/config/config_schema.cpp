@@ -1,0 +1,647 @@
+#include "kernel/config/config_schema.hpp"
+
+#include "libs/yaml/yaml_document.hpp"
+
+#include "kernel/config/config_reference.hpp"
+
+#include <rcand/sdk/scope.hpp>
+
+#include <arpa/inet.h>
+
+#include <algorithm>
+#include <climits>
+#include <cmath>
+#include <unordered_map>
+
+namespace rcand::kernel::config_detail {
+
+using nlohmann::json;
+using enum ValueType;
+using yaml::child_path;
+using yaml::item_path;
+using yaml::resolve_plain_scalar;
+
+namespace {
+
+std::string check_sha256(const json& value) {
+  const auto& text = value.get_ref<const std::string&>();
+  const std::string expected =
+      "expected the SHA-256 of the token as 64 lowercase hex characters (plain tokens are never stored; compute it "
+      "with `printf %s TOKEN | sha256sum`)";
+  if (text.size() != 64) return expected + ", found a string of " + std::to_string(text.size()) + " characters";
+  for (const char c : text) {
+    if (c >= 'A' && c <= 'F') return expected + ", found upper-case hex digits; write them in lower case";
+    if (!((c >= '0' && c <= '9') || (c >= 'a' && c <= 'f'))) return expected + ", found a character that is not a hex digit";
+  }
+  return "";
+}
+
+std::string check_role(const json& value);  // below, next to the message helpers it uses
+
+constexpr double kIntMax = INT_MAX;
+
+// Every known key, in file order. Free-form blocks are `open` mappings with no children listed.
+const std::vector<KeySpec>& build_schema() {
+  static const std::vector<KeySpec> table = {
+      {.path = "rcan_version", .type = String, .required = true, .non_empty = true,
+       .description = "RCAN version the file is written for, quoted (\"1.3\")"},
+
+      {.path = "metadata", .type = Mapping, .required = true, .description = "who the robot is"},
+      {.path = "metadata.robot_name", .type = String, .required = true, .non_empty = true,
+       .description = "robot name, unique in a fleet (mDNS instance name, R2R id)"},
+      {.path = "metadata.robot_uuid", .type = String, .required = true, .non_empty = true,
+       .required_unless = "ruri", .description = "device id; its first 8 hex digits name the robot in its RURI"},
+      {.path = "metadata.manufacturer", .type = String, .required = true, .non_empty = true,
+       .description = "manufacturer segment of the RURI"},
+      {.path = "metadata.model", .type = String, .required = true, .non_empty = true,
+       .description = "model segment of the RURI"},
+      {.path = "metadata.ruri", .type = String, .non_empty = true,
+       .description = "the robot's RURI, when not derived from manufacturer, model and robot_uuid"},
+      {.path = "metadata.description", .type = String, .description = "free text"},
+
+      {.path = "agent", .type = Mapping, .description = "the AI brain; its presence declares `chat` (§9.3)"},
+      {.path = "agent.provider", .type = String, .description = "brain provider"},
+      {.path = "agent.model", .type = String, .description = "brain model"},
+      {.path = "agent.latency_budget_ms", .type = Integer, .min = 0, .max = kIntMax,
+       .description = "loss of the controlling link stops motion within this time"},
+      {.path = "agent.min_obstacle_m", .type = Number, .min = 0,
+       .description = "nearest obstacle distance that triggers the e-stop"},
+
+      {.path = "physics", .type = Mapping, .description = "body and dead-reckoning calibration (§10.2)"},
+      {.path = "physics.type", .type = String, .description = "body type, e.g. wheeled"},
+      {.path = "physics.dof", .type = Integer, .min = 0, .max = kIntMax, .description = "degrees of freedom"},
+      {.path = "physics.wheel_circumference_m", .type = Number, .min = 0, .min_exclusive = true,
+       .description = "metres per full wheel rotation (needed for nav)"},
+      {.path = "physics.turn_time_per_deg_s", .type = Number, .min = 0, .min_exclusive = true,
+       .description = "seconds to turn one degree at speed 1.0 (needed for nav)"},
+      {.path = "physics.max_wheel_rps", .type = Number, .default_value = 1.0, .min = 0, .min_exclusive = true,
+       .description = "wheel rotations per second at speed 1.0"},
+      {.path = "physics.wheel_base_m", .type = Number, .min = 0, .min_exclusive = true,
+       .description = "distance between the wheels"},
+      {.path = "physics.kinematics", .type = Sequence, .description = "arm links; with a dynamixel driver declares `arm`"},
+
+      {.path = "drivers", .type = Sequence, .description = "hardware drivers, each served by a driver plugin"},
+      {.path = "drivers[]", .type = Mapping, .open = true,
+       .description = "one driver; keys beyond id and protocol are the plugin's settings"},
+      {.path = "drivers[].id", .type = String, .required = true, .non_empty = true, .unique = true,
+       .description = "driver id, unique in the file"},
+      {.path = "drivers[].protocol", .type = String, .required = true, .non_empty = true,
+       .description = "driver protocol a plugin provides (pca9685, dynamixel, sim, ...)"},
+      {.path = "drivers[].port", .type = Any, .description = "device port (plugin-defined)"},
+      {.path = "drivers[].address", .type = Any, .description = "bus address (plugin-defined)"},
+      {.path = "drivers[].baud_rate", .type = Integer, .min = 0, .max = kIntMax, .min_exclusive = true,
+       .description = "serial speed"},
+      {.path = "drivers[].channels", .type = Mapping, .open = true, .description = "channel map (plugin-defined)"},
+
+      {.path = "camera", .type = Mapping, .open = true, .description = "camera settings; presence declares `vision`"},
+      {.path = "network", .type = Mapping, .open = true, .description = "network settings"},
+
+      {.path = "rcan_protocol", .type = Mapping, .description = "how the robot speaks RCAN"},
+      {.path = "rcan_protocol.port", .type = Integer, .default_value = 8000, .min = 0, .max = 65535,
+       .description = "RCAN port"},
+      {.path = "rcan_protocol.capabilities", .type = Sequence,
+       .description = "declared capabilities; omit to auto-detect (§9.3), [] declares none"},
+      {.path = "rcan_protocol.capabilities[]", .type = String, .non_empty = true,
+       .description = "a §9 capability name or a reverse-domain custom one"},
+      {.path = "rcan_protocol.enable_mdns", .type = Boolean, .default_value = false,
+       .description = "advertise _rcan._tcp over mDNS"},
+      {.path = "rcan_protocol.enable_jwt", .type = Boolean, .default_value = true, .description = "accept JWTs"},
+
+      {.path = "safety", .type = Mapping, .description = "local safety bounds (§6)"},
+      {.path = "safety.estop_on_startup", .type = Boolean, .default_value = false,
+       .description = "start with the e-stop latched"},
+      {.path = "safety.watchdog_ms", .type = Integer, .default_value = 500, .min = 0, .max = kIntMax,
+       .min_exclusive = true, .description = "dead-man timeout of teleop motion"},
+      {.path = "safety.obstacle_stop_cm", .type = Number, .min = 0,
+       .description = "alias of agent.min_obstacle_m, in centimetres"},
+      {.path = "safety.max_linear_speed", .type = Number, .default_value = 1.0, .min = 0, .max = 1,
+       .description = "cap on normalised linear speed"},
+
+      {.path = "runtime", .type = Mapping, .description = "rcand's own settings"},
+      {.path = "runtime.listen", .type = Mapping, .description = "where the HTTP server listens"},
+      {.path = "runtime.listen.address", .type = String, .default_value = "127.0.0.1", .non_empty = true,
+       .description = "listen address"},
+      {.path = "runtime.listen.port", .type = Integer, .min = 0, .max = 65535,
+       .description = "listen port; rcan_protocol.port when absent"},
+      {.path = "runtime.plugin_paths", .type = Sequence,
+       .description = "folders searched for plugins (relative to this file)"},
+      {.path = "runtime.plugin_paths[]", .type = String, .non_empty = true, .description = "a plugin folder"},
+      {.path = "runtime.auth", .type = Mapping, .description = "who may talk to the robot"},
+      {.path = "runtime.auth.mode", .type = String, .default_value = "tokens", .choices = {"tokens", "open"},
+       .description = "tokens: deny by default; open: no auth, loopback only"},
+      {.path = "runtime.auth.jwt_secret_file", .type = String, .non_empty = true,
+       .description = "file holding the HS256 secret (relative to this file)"},
+      {.path = "runtime.auth.tokens", .type = Sequence, .description = "pre-shared tokens, stored as hashes"},
+      {.path = "runtime.auth.tokens[]", .type = Mapping, .description = "one pre-shared token"},
+      {.path = "runtime.auth.tokens[].principal", .type = String, .required = true, .non_empty = true,
+       .description = "who holds the token (audit name)"},
+      {.path = "runtime.auth.tokens[].role", .type = String, .required = true, .check = check_role,
+       .description = "the token's role: GUEST, USER, LEASEE, OWNER or CREATOR (any case)"},
+      {.path = "runtime.auth.tokens[].sha256", .type = String, .required = true, .unique = true, .secret = true,
+       .check = check_sha256, .description = "SHA-256 of the token, 64 lowercase hex characters"},
+      {.path = "runtime.logging", .type = Mapping, .description = "logging"},
+      {.path = "runtime.logging.level", .type = String, .default_value = "info",
+       .choices = {"trace", "debug", "info", "warn", "error"}, .description = "lowest level logged"},
+      {.path = "runtime.swarm_file", .type = String, .default_value = "/etc/rcand/swarm.yaml", .non_empty = true,
+       .description = "swarm peers file (relative to this file)"},
+      {.path = "runtime.stop_path_priority", .type = Integer, .default_value = 10, .min = 0, .max = 99,
+       .description = "SCHED_FIFO priority of the threads a stop runs on (the HTTP accept thread, the halt crew), so "
+                       "a stop never waits for the scheduler; 0 = normal scheduling. Needs LimitRTPRIO= or CAP_SYS_NICE"},
+      {.path = "runtime.max_connections", .type = Integer, .default_value = 10000, .min = 1, .max = 1000000,
+       .description = "open HTTP connections served; beyond it (or the per-address cap) a new connection gets only "
+                      "the e-stop answered, 503 SERVER_BUSY for anything else"},
+      {.path = "runtime.max_connections_per_address", .type = Integer, .default_value = 256, .min = 1, .max = 1000000,
+       .description = "open HTTP connections one client address may hold (so one host cannot fill max_connections)"},
+      {.path = "runtime.handler_timeout_ms", .type = Integer, .default_value = 10000, .min = 0, .max = kIntMax,
+       .min_exclusive = true, .description = "longest a capability handler may run"},
+      {.path = "runtime.plugin_start_timeout_ms", .type = Integer, .default_value = 10000, .min = 0, .max = kIntMax,
+       .min_exclusive = true, .description = "longest a plugin's register(), factory, start() or routes() may take at startup"},
+      {.path = "runtime.audit_file", .type = String, .non_empty = true,
+       .description = "append every audit entry to this file as JSON lines (relative to this file)"},
+      {.path = "runtime.audit_max_bytes", .type = Integer, .default_value = 67108864, .min = 4096, .max = 1e12,
+       .description = "runtime.audit_file is rotated (FILE.1, FILE.2, ...) when a line would take it past this size"},
+      {.path = "runtime.audit_keep_files", .type = Integer, .default_value = 4, .min = 1, .max = 100,
+       .description = "rotated audit files kept (FILE.1 is the newest); older ones are deleted"},
+      {.path = "runtime.state_dir", .type = String, .non_empty = true,
+       .description = "where rcand keeps its e-stop latch and running marker across restarts (relative to this "
+                      "file); default $STATE_DIRECTORY (systemd StateDirectory=), else /var/lib/rcand"},
+      {.path = "runtime.rate_limit", .type = Mapping,
+       .description = "request rate limits (429 with Retry-After); the e-stop paths are never limited"},
+      {.path = "runtime.rate_limit.per_principal_per_s", .type = Number, .default_value = 100, .min = 0,
+       .description = "requests per second each authenticated principal may make; 0 = unlimited"},
+      {.path = "runtime.rate_limit.per_address_per_s", .type = Number, .default_value = 400, .min = 0,
+       .description = "requests per second each client address may make, authenticated or not; 0 = unlimited"},
+      {.path = "runtime.rate_limit.burst_s", .type = Number, .default_value = 2, .min = 0, .min_exclusive = true,
+       .description = "a burst may use this many seconds' worth of requests at once"},
+      {.path = "runtime.capabilities", .type = Mapping, .description = "per-capability plugin settings"},
+      {.path = "runtime.capabilities.*", .type = Mapping, .open = true,
+       .description = "settings of one capability (validated by its plugin)"},
+      {.path = "runtime.r2r", .type = Mapping, .open = true, .description = "robot-to-robot settings"},
+      // R2R protocol core (docs/protocol.md §11, README "R2R"); the transports' own keys sit beside these.
+      {.path = "runtime.r2r.origin", .type = Mapping, .description = "where this robot's dead-reckoning frame starts in the fleet frame"},
+      {.path = "runtime.r2r.origin.x", .type = Number, .default_value = 0, .description = "metres"},
+      {.path = "runtime.r2r.origin.y", .type = Number, .default_value = 0, .description = "metres"},
+      {.path = "runtime.r2r.origin.heading_deg", .type = Number, .default_value = 0, .description = "degrees, counter-clockwise"},
+      {.path = "runtime.r2r.status_interval_ms", .type = Integer, .default_value = 1000, .min = 0, .max = 3600000,
+       .min_exclusive = true, .description = "how often status is sent (and on change)"},
+      {.path = "runtime.r2r.bid_window_ms", .type = Integer, .default_value = 1000, .min = 0, .max = 3600000,
+       .min_exclusive = true, .description = "how long an auction this robot opens collects bids"},
+      {.path = "runtime.r2r.cost_per_queued_task_s", .type = Number, .default_value = 30, .min = 0,
+       .description = "seconds each task already held adds to a bid"},
+      {.path = "runtime.r2r.require_signatures", .type = Boolean, .default_value = false,
+       .description = "refuse R2R messages without a valid Ed25519 signature (code 103)"},
+      {.path = "runtime.r2r.replay_window_s", .type = Number, .default_value = 30, .min = 0, .min_exclusive = true,
+       .description = "signed messages older than this are refused (code 103)"},
+      {.path = "runtime.r2r.max_peers", .type = Integer, .default_value = 1024, .min = 1, .max = 1000000,
+       .description = "peers remembered in GET /api/r2r/peers; beyond it the least recently heard is forgotten"},
+      {.path = "runtime.r2r.peer_expiry_s", .type = Number, .default_value = 120, .min = 0, .min_exclusive = true,
+       .description = "a peer heard nothing from for this long is forgotten"},
+      {.path = "runtime.r2r.max_held_tasks", .type = Integer, .default_value = 64, .min = 1, .max = 1000000,
+       .description = "tasks this robot holds at once; beyond it requests and awards are declined"},
+      {.path = "runtime.r2r.private_key_file", .type = String, .non_empty = true,
+       .description = "this robot's Ed25519 private key, PEM (relative to this file); signs every R2R message"},
+      {.path = "runtime.r2r.token_file", .type = String, .non_empty = true,
+       .description = "file holding the token this robot sends in header.auth.token (relative to this file)"},
+      {.path = "runtime.r2r.peers", .type = Sequence, .description = "peers whose signatures this robot accepts"},
+      {.path = "runtime.r2r.peers[]", .type = Mapping, .description = "one peer: name, public_key_file or public_key, role"},
+      {.path = "runtime.r2r.peers[].name", .type = String, .required = true, .non_empty = true, .unique = true,
+       .description = "the peer's robot name, also its signature key_id"},
+      {.path = "runtime.r2r.peers[].public_key_file", .type = String, .non_empty = true,
+       .description = "the peer's Ed25519 public key, PEM (relative to this file)"},
+      {.path = "runtime.r2r.peers[].public_key", .type = String, .non_empty = true,
+       .description = "the peer's Ed25519 public key: 32 bytes, base64"},
+      {.path = "runtime.r2r.peers[].role", .type = String, .default_value = "USER", .check = check_role,
+       .description = "what the peer's signed messages may do: GUEST, USER, LEASEE, OWNER or CREATOR"},
+      // R2R transports (WebSocket /ws/r2r, UDP status, MQTT); the protocol's own keys are listed with the r2r module's.
+      {.path = "runtime.r2r.enabled", .type = Boolean, .default_value = false,
+       .description = "speak R2R (seed 004): WS /ws/r2r, UDP status, MQTT when configured"},
+      {.path = "runtime.r2r.ws_dial", .type = Boolean,
+       .description = "dial swarm.yaml peers over WebSocket when a message must reach them (default: when no mqtt)"},
+      {.path = "runtime.r2r.ws_max_connections", .type = Integer, .default_value = 256, .min = 1, .max = 1000000,
+       .description = "inbound WS /ws/r2r connections; beyond it the upgrade answers 503 UNAVAILABLE"},
+      {.path = "runtime.r2r.ws_max_connections_per_principal", .type = Integer, .default_value = 8, .min = 1, .max = 1000000,
+       .description = "inbound /ws/r2r connections one principal below OWNER may hold; beyond it 429 TOO_MANY_CONNECTIONS"},
+      {.path = "runtime.r2r.ws_reserved_connections", .type = Integer, .default_value = 32, .min = 0, .max = 1000000,
+       .description = "of ws_max_connections, the last ones only OWNER and CREATOR get (503 R2R_SLOTS_RESERVED to others)"},
+      {.path = "runtime.r2r.ws_max_queued_bytes", .type = Integer, .default_value = 1048576, .min = 1024, .max = 1073741824,
+       .description = "bytes queued to one /ws/r2r connection; a client that does not read past it is closed"},
+      {.path = "runtime.r2r.udp_enabled", .type = Boolean, .default_value = true,
+       .description = "send and receive status over UDP"},
+      {.path = "runtime.r2r.udp_port", .type = Integer, .min = 0, .max = 65535,
+       .description = "UDP port for status; rcan_protocol.port when absent"},
+      {.path = "runtime.r2r.udp_bind", .type = String, .non_empty = true,
+       .description = "UDP bind address; 0.0.0.0 (the listen address when it is loopback)"},
+      {.path = "runtime.r2r.udp_broadcast", .type = Sequence,
+       .description = "where status datagrams go (e.g. [\"192.168.1.255\"]); none when absent: UDP status is not sent"},
+      {.path = "runtime.r2r.udp_broadcast[]", .type = String, .non_empty = true,
+       .description = "an IP address, optionally with :port"},
+      {.path = "runtime.r2r.mqtt", .type = Mapping, .open = true, .description = "MQTT broker for R2R (topics r2r/<name>, r2r/broadcast)"},
+      {.path = "runtime.r2r.mqtt.host", .type = String, .non_empty = true, .description = "broker host"},
+      {.path = "runtime.r2r.mqtt.port", .type = Integer, .min = 1, .max = 65535,
+       .description = "broker port (1883, or 8883 with tls)"},
+      {.path = "runtime.r2r.mqtt.tls", .type = Mapping, .description = "TLS to the broker"},
+      {.path = "runtime.r2r.mqtt.tls.ca_file", .type = String, .required = true, .non_empty = true,
+       .description = "CA certificate the broker's certificate must chain to"},
+      {.path = "runtime.r2r.mqtt.tls.cert_file", .type = String, .non_empty = true, .description = "client certificate"},
+      {.path = "runtime.r2r.mqtt.tls.key_file", .type = String, .non_empty = true, .description = "client key"},
+      {.path = "runtime.r2r.mqtt.username", .type = String, .non_empty = true,
+       .description = "broker user name (default: the robot name when a password or token is set)"},
+      {.path = "runtime.r2r.mqtt.password_file", .type = String, .non_empty = true,
+       .description = "file holding the broker password"},
+      {.path = "runtime.r2r.mqtt.token_file", .type = String, .non_empty = true,
+       .description = "file holding a token sent as the broker password"},
+      {.path = "runtime.r2r.mqtt.client_id", .type = String, .non_empty = true,
+       .description = "MQTT client id (default rcand-<robot name>)"},
+      {.path = "runtime.r2r.mqtt.keepalive_s", .type = Integer, .default_value = 30, .min = 5, .max = 65535,
+       .description = "MQTT keep-alive"},
+  };
+  return table;
+}
+
+std::string_view parent_of(std::string_view schema_path) {
+  if (schema_path.ends_with("[]")) return schema_path.substr(0, schema_path.size() - 2);
+  const auto dot = schema_path.rfind('.');
+  return dot == std::string_view::npos ? std::string_view{} : schema_path.substr(0, dot);
+}
+
+std::string_view last_segment(std::string_view schema_path) {
+  const auto dot = schema_path.rfind('.');
+  return dot == std::string_view::npos ? schema_path : schema_path.substr(dot + 1);
+}
+
+struct SchemaIndex {
+  std::unordered_map<std::string_view, const KeySpec*> by_path;
+  std::unordered_map<std::string_view, std::vector<const KeySpec*>> children;  // named children of a mapping spec
+};
+
+const SchemaIndex& schema_index() {
+  static const SchemaIndex index = [] {
+    SchemaIndex built;
+    for (const auto& spec : build_schema()) {
+      built.by_path.emplace(spec.path, &spec);
+      const auto name = last_segment(spec.path);
+      if (!spec.path.ends_with("[]") && name != "*") built.children[parent_of(spec.path)].push_back(&spec);
+    }
+    return built;
+  }();
+  return index;
+}
+
+const KeySpec kRootSpec{.path = "", .type = Mapping, .description = "the whole file"};
+
+bool iequals(std::string_view a, std::string_view b) {
+  return a.size() == b.size() && std::equal(a.begin(), a.end(), b.begin(), [](char x, char y) {
+           return std::tolower(static_cast<unsigned char>(x)) == std::tolower(static_cast<unsigned char>(y));
+         });
+}
+
+std::string dump(const json& value) { return value.dump(-1, ' ', false, json::error_handler_t::replace); }
+
+std::string type_phrase(ValueType type) {
+  switch (type) {
+    case Any: return "a value";
+    case String: return "a string";
+    case Integer: return "an integer";
+    case Number: return "a number";
+    case Boolean: return "a boolean (true or false)";
+    case Mapping: return "a mapping";
+    case Sequence: return "a sequence";
+  }
+  return "a value";
+}
+
+std::string number_text(double value) {
+  if (std::isnan(value)) return ".nan";
+  if (std::isinf(value)) return value < 0 ? "-.inf" : ".inf";
+  // Bounds like 65535 read better without json's ".0".
+  if (value == std::floor(value) && std::abs(value) < 1e15) return std::to_string(static_cast<long long>(value));
+  return dump(json(value));
+}
+
+std::string describe(const json& value, bool secret) {
+  switch (value.type()) {
+    case json::value_t::null: return "null (no value)";
+    case json::value_t::boolean: return std::string("the boolean ") + (value.get<bool>() ? "true" : "false");
+    case json::value_t::number_integer:
+    case json::value_t::number_unsigned: return "the integer " + dump(value);
+    case json::value_t::number_float: return "the number " + number_text(value.get<double>());
+    case json::value_t::string: {
+      const auto& text = value.get_ref<const std::string&>();
+      if (secret) return "a string of " + std::to_string(text.size()) + " characters";
+      constexpr std::size_t kShown = 40;
+      if (text.size() <= kShown) return "the string " + dump(value);
+      return "the string " + dump(json(text.substr(0, kShown))) + "...";
+    }
+    case json::value_t::object: return "a mapping";
+    case json::value_t::array: return "a sequence";
+    default: return "a value";
+  }
+}
+
+// Role names come from the SDK, the same parser auth uses, so the file and the runtime cannot disagree.
+std::string check_role(const json& value) {
+  const auto& text = value.get_ref<const std::string&>();
+  if (sdk::parse_role(text)) return "";
+  std::vector<std::string> names;
+  std::string list;
+  for (const auto role : {sdk::Role::Guest, sdk::Role::User, sdk::Role::Leasee, sdk::Role::Owner, sdk::Role::Creator}) {
+    names.emplace_back(sdk::role_name(role));
+    list += (list.empty() ? "" : ", ") + names.back();
+  }
+  std::string message = "must be one of " + list + " (any case), found " + describe(value, false);
+  if (const auto guess = closest_match(text, names)) message += "; did you mean '" + *guess + "'?";
+  return message;
+}
+
+bool type_matches(ValueType type, const json& value) {
+  switch (type) {
+    case Any: return true;
+    case String: return value.is_string();
+    case Integer: return value.is_number_integer();
+    case Number: return value.is_number() && std::isfinite(value.get<double>());
+    case Boolean: return value.is_boolean();
+    case Mapping: return value.is_object();
+    case Sequence: return value.is_array();
+  }
+  return false;
+}
+
+// What the operator most likely meant, appended to a type error.
+std::string type_hint(ValueType expected, const json& value) {
+  if (value.is_string()) {
+    const auto& text = value.get_ref<const std::string&>();
+    const json plain = resolve_plain_scalar(text);
+    if ((expected == Integer || expected == Number) && plain.is_number()) return "; remove the quotes to make it a number";
+    if (expected == Boolean && plain.is_boolean()) return "; remove the quotes to make it a boolean";
+    if (expected == Boolean) return "; write true or false";
+    if (expected == Sequence) return "; write [a, b] or one '- item' per line";
+  }
+  if (expected == String && (value.is_number() || value.is_boolean()))
+    return "; put it in quotes so it stays text exactly as written";
+  if (expected == Integer && value.is_number_float()) return "; write a whole number without a decimal point";
+  if (expected == Number && value.is_number_float()) return "; expected a finite number";
+  if (expected == Sequence && value.is_null()) return "; write [] for an empty list";
+  return "";
+}
+
+class Validator {
+ public:
+  Validator(const std::map<std::string, SourceMark>& marks, const std::string& file, std::vector<ConfigDiagnostic>& out)
+      : marks_(marks), file_(file), out_(out) {}
+
+  void check(const KeySpec& spec, const json& value, const std::string& key_path) {
+    if (value.is_null() && spec.type != Sequence) {
+      // `block:` with nothing under it is an empty block; an optional scalar with no value is as if absent.
+      if (spec.type == Mapping) check_mapping(spec, json::object(), key_path);
+      else if (spec.required || spec.path.ends_with("[]"))  // a list item has no "absent" to fall back on
+        error(key_path, "expected " + type_phrase(spec.type) + ", found null (no value)");
+      return;
+    }
+    if (!type_matches(spec.type, value)) {
+      error(key_path, "expected " + type_phrase(spec.type) + ", found " + describe(value, spec.secret) +
+                          type_hint(spec.type, value));
+      return;
+    }
+    check_constraints(spec, value, key_path);
+    if (spec.type == Mapping) check_mapping(spec, value, key_path);
+    if (spec.type == Sequence) {
+      const KeySpec* item = find_spec(std::string(spec.path) + "[]");
+      if (item == nullptr) return;  // free-form items
+      for (std::size_t i = 0; i < value.size(); ++i) check(*item, value[i], item_path(key_path, i));
+    }
+  }
+
+  void error(const std::string& key_path, std::string message) {
+    out_.push_back({ConfigDiagnostic::Severity::Error, mark(key_path), key_path, std::move(message)});
+  }
+  void warning(const std::string& key_path, std::string message) {
+    out_.push_back({ConfigDiagnostic::Severity::Warning, mark(key_path), key_path, std::move(message)});
+  }
+  SourceMark mark(const std::string& key_path) const { return nearest_mark(marks_, file_, key_path); }
+
+ private:
+  void check_constraints(const KeySpec& spec, const json& value, const std::string& key_path) {
+    if (value.is_string()) {
+      const auto& text = value.get_ref<const std::string&>();
+      if (spec.non_empty && text.empty()) return error(key_path, "must not be empty");
+      if (!spec.choices.empty()) check_choice(spec, text, key_path);
+    }
+    if (value.is_number() && (spec.min || spec.max)) {
+      const double number = value.get<double>();
+      const bool below = spec.min && (spec.min_exclusive ? number <= *spec.min : number < *spec.min);
+      const bool above = spec.max && number > *spec.max;
+      if (below || above) {
+        std::string bound;
+        if (spec.min && spec.max && !spec.min_exclusive)
+          bound = "between " + number_text(*spec.min) + " and " + number_text(*spec.max);
+        else if (spec.min && spec.max)
+          bound = "greater than " + number_text(*spec.min) + " and at most " + number_text(*spec.max);
+        else if (spec.min)
+          bound = (spec.min_exclusive ? "greater than " : "at least ") + number_text(*spec.min);
+        else
+          bound = "at most " + number_text(*spec.max);
+        return error(key_path, "must be " + bound + ", found " + describe(value, spec.secret));
+      }
+    }
+    if (spec.check != nullptr) {
+      if (std::string problem = spec.check(value); !problem.empty()) return error(key_path, std::move(problem));
+    }
+    if (spec.unique) check_unique(spec, value, key_path);
+  }
+
+  void check_choice(const KeySpec& spec, const std::string& text, const std::string& key_path) {
+    for (const auto choice : spec.choices)
+      if (spec.ignore_case ? iequals(choice, text) : choice == text) return;
+    std::vector<std::string> names(spec.choices.begin(), spec.choices.end());
+    std::string list;
+    for (const auto& name : names) list += (list.empty() ? "" : ", ") + name;
+    std::string message = "must be one of " + list + (spec.ignore_case ? " (any case)" : "") + ", found " +
+                          describe(json(text), spec.secret);
+    if (!spec.secret)
+      if (const auto guess = closest_match(text, names)) message += "; did you mean '" + *guess + "'?";
+    error(key_path, std::move(message));
+  }
+
+  void check_unique(const KeySpec& spec, const json& value, const std::string& key_path) {
+    auto& seen = seen_[spec.path];
+    const auto [it, inserted] = seen.emplace(dump(value), key_path);
+    if (inserted) return;
+    const std::string first = it->second + " (line " + std::to_string(mark(it->second).line) + ")";
+    if (spec.secret) return error(key_path, "the same value is already used by " + first);
+    error(key_path, "duplicate value " + dump(value) + "; already used by " + first);
+  }
+
+  void check_mapping(const KeySpec& spec, const json& value, const std::string& key_path) {
+    const std::string schema_path(spec.path);
+    for (const auto& [name, child] : value.items()) {
+      const std::string child_key = child_path(key_path, name);
+      if (const KeySpec* known = find_spec(child_path(schema_path, name))) check(*known, child, child_key);
+      else if (const KeySpec* any = find_spec(child_path(schema_path, "*"))) check(*any, child, child_key);
+      else if (!spec.open) unknown_key(schema_path, key_path, name, child_key);
+    }
+    const auto children = schema_index().children.find(spec.path);
+    if (children == schema_index().children.end()) return;
+    for (const KeySpec* child : children->second) {
+      const std::string name(last_segment(child->path));
+      if (!child->required || value.contains(name)) continue;
+      if (!child->required_unless.empty() && value.contains(std::string(child->required_unless))) continue;
+      std::string message = "required key '" + name + "' is missing";
+      if (!child->required_unless.empty())
+        message += " (give '" + name + "' or '" + std::string(child->required_unless) + "')";
+      message += "; expected " + type_phrase(child->type) + ": " + std::string(child->description);
+      // The key is not in the file, so point at the block that should hold it.
+      out_.push_back({ConfigDiagnostic::Severity::Error, mark(key_path), child_path(key_path, name), std::move(message)});
+    }
+  }
+
+  void unknown_key(const std::string& schema_path, const std::string& key_path, const std::string& name,
+                   const std::string& child_key) {
+    std::vector<std::string> allowed;
+    if (const auto it = schema_index().children.find(schema_path); it != schema_index().children.end())
+      for (const KeySpec* child : it->second) allowed.emplace_back(last_segment(child->path));
+    std::string message = "unknown key '" + name + "'";
+    if (const auto guess = closest_match(name, allowed)) {
+      message += "; did you mean '" + *guess + "'?";
+    } else if (const auto elsewhere = known_elsewhere(name)) {
+      message += "; did you mean '" + *elsewhere + "'? (it belongs in another block)";
+    } else {
+      std::string list;
+      for (const auto& key : allowed) list += (list.empty() ? "" : ", ") + key;
+      message += list.empty() ? "; this block takes no keys" : "; allowed keys here: " + list;
+    }
+    out_.push_back({ConfigDiagnostic::Severity::Warning, mark(child_key), key_path, std::move(message)});
+  }
+
+  // A key written in the wrong block ("plugin_paths" at the top instead of under runtime).
+  static std::optional<std::string> known_elsewhere(const std::string& name) {
+    for (const auto& spec : config_schema()) {
+      if (spec.path.find('[') != std::string_view::npos || spec.path.find('*') != std::string_view::npos) continue;
+      if (spec.path.find('.') != std::string_view::npos && iequals(last_segment(spec.path), name))
+        return std::string(spec.path);
+    }
+    return std::nullopt;
+  }
+
+  const std::map<std::string, SourceMark>& marks_;
+  const std::string& file_;
+  std::vector<ConfigDiagnostic>& out_;
+  std::map<std::string_view, std::map<std::string, std::string>> seen_;  // unique spec -> value -> first key path
+};
+
+const json* at(const json& doc, std::initializer_list<const char*> keys) {
+  const json* node = &doc;
+  for (const char* key : keys) {
+    if (!node->is_object()) return nullptr;
+    const auto it = node->find(key);
+    if (it == node->end()) return nullptr;
+    node = &*it;
+  }
+  return node;
+}
+
+// Rules that span several keys, checked after the table walk on values that already have the right type.
+void check_cross_field_rules(const json& doc, Validator& validator) {
+  const json* mode = at(doc, {"runtime", "auth", "mode"});
+  const json* address = at(doc, {"runtime", "listen", "address"});
+  if (mode && mode->is_string() && *mode == "open") {
+    const std::string listen = address && address->is_string() ? address->get<std::string>() : "127.0.0.1";
+    if (!is_loopback_address(listen))
+      validator.error("runtime.auth.mode",
+                      "\"open\" mode (no authentication) is allowed only on a loopback address, but "
+                      "runtime.listen.address is " + dump(json(listen)) + "; use mode \"tokens\" or listen on 127.0.0.1");
+  }
+
+  const json* metres = at(doc, {"agent", "min_obstacle_m"});
+  const json* centimetres = at(doc, {"safety", "obstacle_stop_cm"});
+  if (metres && centimetres && metres->is_number() && centimetres->is_number()) {
+    const double m = metres->get<double>(), cm = centimetres->get<double>();
+    if (std::abs(m * 100.0 - cm) > 1e-6 * std::max(1.0, std::abs(cm)))
+      validator.warning("safety.obstacle_stop_cm", "disagrees with agent.min_obstacle_m (" + number_text(m) +
+                                                       " m); agent.min_obstacle_m is used");
+  }
+}
+
+}  // namespace
+
+const std::vector<KeySpec>& config_schema() { return build_schema(); }
+
+const KeySpec* find_spec(std::string_view schema_path) {
+  const auto& index = schema_index().by_path;
+  const auto it = index.find(schema_path);
+  return it == index.end() ? nullptr : it->second;
+}
+
+const json& schema_default(std::string_view schema_path) {
+  static const json none = nullptr;
+  const KeySpec* spec = find_spec(schema_path);
+  return spec ? spec->default_value : none;
+}
+
+bool is_loopback_address(std::string_view address) {
+  if (address == "localhost") return true;
+  const std::string text(address);
+  unsigned char bytes[16] = {};
+  if (inet_pton(AF_INET, text.c_str(), bytes) == 1) return bytes[0] == 127;
+  if (inet_pton(AF_INET6, text.c_str(), bytes) == 1) {
+    static constexpr unsigned char kLoopback6[16] = {0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 1};
+    static constexpr unsigned char kMapped4[12] = {0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0xff, 0xff};
+    if (std::equal(bytes, bytes + 16, kLoopback6)) return true;
+    return std::equal(bytes, bytes + 12, kMapped4) && bytes[12] == 127;
+  }
+  return false;
+}
+
+void validate_config(const json& doc, const std::map<std::string, SourceMark>& marks, const std::string& file,
+                     std::vector<ConfigDiagnostic>& out) {
+  Validator validator(marks, file, out);
+  if (!doc.is_object()) {
+    validator.error("", "expected a mapping of blocks (rcan_version, metadata, ...) at the top level, found " +
+                            describe(doc, false));
+    return;
+  }
+  validator.check(kRootSpec, doc, "");
+  check_cross_field_rules(doc, validator);
+}
+
+}  // namespace rcand::kernel::config_detail
+
+namespace rcand::kernel {
+
+std::string config_reference() {
+  using config_detail::config_schema;
+  std::size_t width = 0;
+  for (const auto& spec : config_schema()) width = std::max(width, spec.path.size());
+  std::string out;
+  for (const auto& spec : config_schema()) {
+    std::string line(spec.path);
+    line.resize(width + 2, ' ');
+    std::string type = config_detail::type_phrase(spec.type);
+    type = type.substr(type.find(' ') + 1);  // "a number" -> "number"
+    type = type.substr(0, type.find(' '));   // "boolean (true or false)" -> "boolean"
+    type.resize(std::max<std::size_t>(type.size(), 8) + 2, ' ');
+    line += type;
+    std::string status = spec.required                     ? "required"
+                         : !spec.default_value.is_null()   ? "default " + config_detail::dump(spec.default_value)
+                                                           : "optional";
+    status.resize(std::max<std::size_t>(status.size(), 32) + 2, ' ');
+    line += status;
+    line += spec.description;
+    if (spec.min || spec.max) {
+      line += " [";
+      if (spec.min && spec.max && !spec.min_exclusive) line += config_detail::number_text(*spec.min) + "..";
+      else if (spec.min) line += (spec.min_exclusive ? "> " : ">= ") + config_detail::number_text(*spec.min);
+      if (spec.min && spec.max && spec.min_exclusive) line += ", ";
+      if (spec.max) line += (spec.min && !spec.min_exclusive ? "" : "<= ") + config_detail::number_text(*spec.max);
+      line += "]";
+    }
+    if (!spec.choices.empty()) {
+      std::string list;
+      for (const auto choice : spec.choices) list += (list.empty() ? "" : "|") + std::string(choice);
+      line += " [" + list + "]";
+    }
+    out += line + "\n";
+  }
+  return out;
+}
+
+}  // namespace rcand::kernel

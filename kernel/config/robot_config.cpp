@@ -1,0 +1,205 @@
+#include "kernel/config/robot_config.hpp"
+
+#include "kernel/config/config_schema.hpp"
+#include "libs/yaml/yaml_document.hpp"
+
+#include <rcand/sdk/scope.hpp>
+
+#include <algorithm>
+#include <cctype>
+#include <cerrno>
+#include <cstdlib>
+#include <cstring>
+#include <fstream>
+
+namespace rcand::kernel {
+namespace {
+
+using nlohmann::json;
+namespace fs = std::filesystem;
+using config_detail::schema_default;
+
+// Far larger than any hand-written config; keeps a wrong path (a disk image, /dev/zero) from exhausting memory.
+constexpr std::size_t kMaxFileBytes = 4 * 1024 * 1024;
+
+[[noreturn]] void fail_file(const std::string& file, std::string message) {
+  throw ConfigError({ConfigDiagnostic{ConfigDiagnostic::Severity::Error, SourceMark{file, 0, 0}, "", std::move(message)}});
+}
+
+// Damerau (optimal string alignment) distance, case-insensitive: a swapped pair of letters is one typo.
+const json* find(const json& doc, std::string_view dotted) {
+  const json* node = &doc;
+  while (!dotted.empty()) {
+    const auto dot = dotted.find('.');
+    if (!node->is_object()) return nullptr;
+    const auto it = node->find(std::string(dotted.substr(0, dot)));
+    if (it == node->end()) return nullptr;
+    node = &*it;
+    dotted = dot == std::string_view::npos ? std::string_view{} : dotted.substr(dot + 1);
+  }
+  return node;
+}
+
+// The value the operator wrote, else the schema table's default: the table is the one place defaults live.
+template <class T> T value_or_default(const json& doc, std::string_view path) {
+  const json* node = find(doc, path);
+  if (node != nullptr && !node->is_null()) return node->get<T>();
+  return schema_default(path).get<T>();
+}
+
+template <class T> std::optional<T> optional_value(const json& doc, std::string_view path) {
+  const json* node = find(doc, path);
+  if (node == nullptr || node->is_null()) return std::nullopt;
+  return node->get<T>();
+}
+
+fs::path resolve(const fs::path& base_dir, const std::string& text) {
+  fs::path path(text);
+  if (path.is_relative()) path = base_dir / path;
+  return path.lexically_normal();
+}
+
+json object_or_empty(const json* node) { return node != nullptr && node->is_object() ? *node : json::object(); }
+
+// Runs only on a document that passed validation, so every type below is known to be right.
+RobotConfig extract(yaml::YamlDocument yaml, const fs::path& source_file, const fs::path& base_dir) {
+  RobotConfig c;
+  c.source_file = source_file;
+  c.doc = std::move(yaml.doc);
+  c.marks = std::move(yaml.marks);
+  const json& doc = c.doc;
+
+  c.rcan_version = value_or_default<std::string>(doc, "rcan_version");
+  c.robot_name = value_or_default<std::string>(doc, "metadata.robot_name");
+  c.robot_uuid = optional_value<std::string>(doc, "metadata.robot_uuid").value_or("");
+  c.manufacturer = value_or_default<std::string>(doc, "metadata.manufacturer");
+  c.model = value_or_default<std::string>(doc, "metadata.model");
+  c.ruri = optional_value<std::string>(doc, "metadata.ruri");
+
+  c.has_agent = doc.contains("agent");
+  c.has_camera = doc.contains("camera");
+  c.min_obstacle_m = optional_value<double>(doc, "agent.min_obstacle_m");
+  if (!c.min_obstacle_m)
+    if (const auto cm = optional_value<double>(doc, "safety.obstacle_stop_cm")) c.min_obstacle_m = *cm / 100.0;
+
+  c.wheel_circumference_m = optional_value<double>(doc, "physics.wheel_circumference_m");
+  c.turn_time_per_deg_s = optional_value<double>(doc, "physics.turn_time_per_deg_s");
+  c.max_wheel_rps = value_or_default<double>(doc, "physics.max_wheel_rps");
+  const json* kinematics = find(doc, "physics.kinematics");
+  c.has_kinematics = kinematics != nullptr && kinematics->is_array() && !kinematics->empty();
+
+  if (const json* drivers = find(doc, "drivers"); drivers != nullptr && drivers->is_array())
+    for (const auto& entry : *drivers)
+      c.drivers.push_back(DriverEntry{entry.at("id").get<std::string>(), entry.at("protocol").get<std::string>(), entry});
+
+  c.rcan_port = static_cast<std::uint16_t>(value_or_default<std::int64_t>(doc, "rcan_protocol.port"));
+  c.capabilities = optional_value<std::vector<std::string>>(doc, "rcan_protocol.capabilities");
+  c.enable_mdns = value_or_default<bool>(doc, "rcan_protocol.enable_mdns");
+  c.enable_jwt = value_or_default<bool>(doc, "rcan_protocol.enable_jwt");
+
+  c.estop_on_startup = value_or_default<bool>(doc, "safety.estop_on_startup");
+  c.watchdog_ms = static_cast<int>(value_or_default<std::int64_t>(doc, "safety.watchdog_ms"));
+  c.max_linear_speed = value_or_default<double>(doc, "safety.max_linear_speed");
+
+  RuntimeConfig& r = c.runtime;
+  r.listen_address = value_or_default<std::string>(doc, "runtime.listen.address");
+  if (const auto port = optional_value<std::int64_t>(doc, "runtime.listen.port"))
+    r.listen_port = static_cast<std::uint16_t>(*port);
+  if (const json* paths = find(doc, "runtime.plugin_paths"); paths != nullptr && paths->is_array())
+    for (const auto& path : *paths) r.plugin_paths.push_back(resolve(base_dir, path.get<std::string>()));
+  r.auth.mode = value_or_default<std::string>(doc, "runtime.auth.mode");
+  if (const auto secret_file = optional_value<std::string>(doc, "runtime.auth.jwt_secret_file"))
+    r.auth.jwt_secret_file = resolve(base_dir, *secret_file);
+  if (const json* tokens = find(doc, "runtime.auth.tokens"); tokens != nullptr && tokens->is_array()) {
+    for (const auto& token : *tokens) {
+      const auto role = sdk::parse_role(token.at("role").get<std::string>()).value();  // validated by the schema
+      r.auth.tokens.push_back(TokenEntry{token.at("principal").get<std::string>(), std::string(sdk::role_name(role)),
+                                         token.at("sha256").get<std::string>()});
+    }
+  }
+  r.log_level = value_or_default<std::string>(doc, "runtime.logging.level");
+  r.swarm_file = resolve(base_dir, value_or_default<std::string>(doc, "runtime.swarm_file"));
+  r.handler_timeout_ms = static_cast<int>(value_or_default<std::int64_t>(doc, "runtime.handler_timeout_ms"));
+  r.stop_path_priority = static_cast<int>(value_or_default<std::int64_t>(doc, "runtime.stop_path_priority"));
+  r.max_connections = static_cast<std::size_t>(value_or_default<std::int64_t>(doc, "runtime.max_connections"));
+  r.max_connections_per_address = static_cast<std::size_t>(value_or_default<std::int64_t>(doc, "runtime.max_connections_per_address"));
+  r.plugin_start_timeout_ms = static_cast<int>(value_or_default<std::int64_t>(doc, "runtime.plugin_start_timeout_ms"));
+  if (const json* audit_file = find(doc, "runtime.audit_file"); audit_file != nullptr && audit_file->is_string())
+    r.audit_file = resolve(base_dir, audit_file->get<std::string>());
+  r.audit_max_bytes = static_cast<std::uint64_t>(value_or_default<std::int64_t>(doc, "runtime.audit_max_bytes"));
+  r.audit_keep_files = static_cast<int>(value_or_default<std::int64_t>(doc, "runtime.audit_keep_files"));
+  if (const auto state_dir = optional_value<std::string>(doc, "runtime.state_dir")) {
+    r.state_dir = resolve(base_dir, *state_dir);
+  } else if (const char* systemd = std::getenv("STATE_DIRECTORY"); systemd != nullptr && *systemd != '\0') {
+    const std::string first(systemd, std::strcspn(systemd, ":"));  // systemd lists several, colon-separated
+    if (!first.empty()) r.state_dir = first;
+  }
+  r.rate_limit_principal_per_s = value_or_default<double>(doc, "runtime.rate_limit.per_principal_per_s");
+  r.rate_limit_address_per_s = value_or_default<double>(doc, "runtime.rate_limit.per_address_per_s");
+  r.rate_limit_burst_s = value_or_default<double>(doc, "runtime.rate_limit.burst_s");
+  r.capabilities = json::object();
+  if (const json* caps = find(doc, "runtime.capabilities"); caps != nullptr && caps->is_object())
+    for (const auto& [name, settings] : caps->items()) r.capabilities[name] = object_or_empty(&settings);
+  r.r2r = object_or_empty(find(doc, "runtime.r2r"));
+  return c;
+}
+
+}  // namespace
+
+SourceMark RobotConfig::mark_of(std::string_view key_path) const {
+  return yaml::nearest_mark(marks, source_file.string(), std::string(key_path));
+}
+
+LoadedConfig parse_robot_config(std::string_view yaml, const std::string& display_name, const fs::path& base_dir) {
+  std::vector<ConfigDiagnostic> diagnostics;
+  yaml::YamlDocument document = yaml::yaml_to_json(yaml, display_name, diagnostics);
+  if (document.ok) config_detail::validate_config(document.doc, document.marks, display_name, diagnostics);
+  std::stable_sort(diagnostics.begin(), diagnostics.end(), [](const ConfigDiagnostic& a, const ConfigDiagnostic& b) {
+    return std::pair(a.mark.line, a.mark.column) < std::pair(b.mark.line, b.mark.column);
+  });
+  const bool has_error = std::any_of(diagnostics.begin(), diagnostics.end(), [](const ConfigDiagnostic& d) {
+    return d.severity == ConfigDiagnostic::Severity::Error;
+  });
+  if (has_error || !document.ok) throw ConfigError(std::move(diagnostics));
+
+  std::error_code ec;
+  fs::path base = fs::absolute(base_dir, ec);
+  if (ec) base = base_dir;
+  LoadedConfig loaded;
+  try {
+    loaded.config = extract(std::move(document), display_name, base);
+  } catch (const std::exception& e) {
+    // Validation should make this unreachable; if the table and the extraction ever disagree, fail cleanly.
+    fail_file(display_name, std::string("internal error while reading the validated config: ") + e.what());
+  }
+  loaded.warnings = std::move(diagnostics);
+  return loaded;
+}
+
+LoadedConfig load_robot_config(const fs::path& file) {
+  const std::string display = file.string();
+  std::error_code ec;
+  const auto status = fs::status(file, ec);
+  if (status.type() == fs::file_type::not_found) fail_file(display, "cannot read the config file: no such file");
+  if (ec) fail_file(display, "cannot read the config file: " + ec.message());
+  if (fs::is_directory(status)) fail_file(display, "cannot read the config file: it is a directory");
+
+  std::ifstream in(file, std::ios::binary);
+  if (!in) fail_file(display, std::string("cannot read the config file: ") + std::strerror(errno));
+  std::string text;
+  char buffer[64 * 1024];
+  while (in.read(buffer, sizeof buffer) || in.gcount() > 0) {
+    text.append(buffer, static_cast<std::size_t>(in.gcount()));
+    if (text.size() > kMaxFileBytes)
+      fail_file(display, "the config file is larger than " + std::to_string(kMaxFileBytes / (1024 * 1024)) + " MiB");
+  }
+  if (in.bad()) fail_file(display, "cannot read the config file: read error");
+
+  const fs::path absolute = fs::absolute(file, ec);
+  const fs::path source = ec ? file : absolute.lexically_normal();
+  LoadedConfig loaded = parse_robot_config(text, display, source.parent_path());
+  loaded.config.source_file = source;
+  return loaded;
+}
+
+}  // namespace rcand::kernel

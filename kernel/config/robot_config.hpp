@@ -1,0 +1,104 @@
+// The robot's `.rcan.yaml` file (docs/protocol.md §10), loaded, validated against one schema table and turned into typed settings.
+#pragma once
+
+#include <nlohmann/json.hpp>
+
+#include <cstdint>
+#include <filesystem>
+#include <map>
+#include <optional>
+#include <stdexcept>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "libs/base/closest_match.hpp"
+#include "libs/yaml/diagnostic.hpp"
+
+namespace rcand::kernel {
+
+using yaml::ConfigDiagnostic;
+using yaml::ConfigError;
+using yaml::SourceMark;
+
+struct TokenEntry {
+  std::string principal;
+  std::string role;        // canonical upper-case role name ("OWNER"), whatever case the file used
+  std::string sha256_hex;  // 64 lowercase hex chars: the SHA-256 of the token (plain tokens are never stored)
+};
+
+struct AuthConfig {
+  std::string mode = "tokens";                           // "tokens" | "open"
+  std::optional<std::filesystem::path> jwt_secret_file;  // absolute after loading
+  std::vector<TokenEntry> tokens;
+};
+
+struct RuntimeConfig {
+  std::string listen_address = "127.0.0.1";
+  std::optional<std::uint16_t> listen_port;
+  std::vector<std::filesystem::path> plugin_paths;  // absolute after loading
+  AuthConfig auth;
+  std::string log_level = "info";
+  std::filesystem::path swarm_file = "/etc/rcand/swarm.yaml";  // absolute after loading (relative ones resolve like plugin_paths)
+  int handler_timeout_ms = 10000;
+  // HTTP connection limits: beyond them only the e-stop is served (503 SERVER_BUSY for the rest).
+  std::size_t max_connections = 10000;
+  std::size_t max_connections_per_address = 256;
+  int stop_path_priority = 10;  // SCHED_FIFO priority of the threads a stop runs on; 0 = leave them as they are
+  int plugin_start_timeout_ms = 10000;  // a plugin's factory/start()/routes() that takes longer fails its instance
+  std::optional<std::filesystem::path> audit_file;  // absolute after loading; every audit entry appended as a JSON line
+  std::uint64_t audit_max_bytes = 64ull << 20;        // audit_file rotates past this size
+  int audit_keep_files = 4;                           // rotated audit files kept
+  // The e-stop latch record and the running marker (absolute after loading): runtime.state_dir, else
+  // $STATE_DIRECTORY (its first entry), else /var/lib/rcand.
+  std::filesystem::path state_dir = "/var/lib/rcand";
+  // Request rate limits (docs/protocol.md §6.4); 0 = unlimited. The e-stop paths are never limited.
+  double rate_limit_principal_per_s = 100;
+  double rate_limit_address_per_s = 400;
+  double rate_limit_burst_s = 2;
+  nlohmann::json capabilities = nlohmann::json::object();  // name -> settings (a mapping; `name:` with no value gives {})
+  nlohmann::json r2r = nlohmann::json::object();
+};
+
+struct DriverEntry {
+  std::string id;
+  std::string protocol;
+  nlohmann::json settings;  // the whole entry, as written (validated later against the plugin's manifest)
+};
+
+struct RobotConfig {
+  std::filesystem::path source_file;
+  nlohmann::json doc;                       // the whole document as JSON, defaults NOT filled in (what the operator wrote)
+  std::map<std::string, SourceMark> marks;  // key path -> where it was written ("" is the document itself)
+  std::string rcan_version;
+  std::string robot_name, robot_uuid, manufacturer, model;
+  std::optional<std::string> ruri;
+  bool has_agent = false, has_camera = false;
+  std::optional<double> min_obstacle_m;  // agent.min_obstacle_m, or safety.obstacle_stop_cm / 100
+  std::optional<double> wheel_circumference_m, turn_time_per_deg_s;
+  double max_wheel_rps = 1.0;
+  bool has_kinematics = false;
+  std::vector<DriverEntry> drivers;
+  std::uint16_t rcan_port = 8000;
+  std::optional<std::vector<std::string>> capabilities;  // nullopt when the key is absent (auto-detect)
+  bool enable_mdns = false, enable_jwt = true;
+  bool estop_on_startup = false;
+  int watchdog_ms = 500;
+  double max_linear_speed = 1.0;
+  RuntimeConfig runtime;
+  std::uint16_t listen_port() const { return runtime.listen_port.value_or(rcan_port); }
+  // Where `key_path` was written, or the nearest written ancestor's mark.
+  SourceMark mark_of(std::string_view key_path) const;
+};
+
+struct LoadedConfig {
+  RobotConfig config;
+  std::vector<ConfigDiagnostic> warnings;
+};
+
+// Throws ConfigError carrying every error found (a missing/unreadable file is one error with line 0).
+LoadedConfig load_robot_config(const std::filesystem::path& file);
+// Same, from text; `display_name` is used in marks, `base_dir` resolves relative paths.
+LoadedConfig parse_robot_config(std::string_view yaml, const std::string& display_name, const std::filesystem::path& base_dir);
+
+}  // namespace rcand::kernel

@@ -1,0 +1,70 @@
+// rcand assembled: config → plugins → capability registry → safety → HTTP. Embeddable (tests, benchmarks);
+// the daemon's main is a thin wrapper around it.
+#pragma once
+
+#include <filesystem>
+#include <memory>
+#include <optional>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "kernel/config/robot_config.hpp"
+#include "kernel/registry/capability_registry.hpp"
+#include "kernel/plugins/plugin_host.hpp"
+
+namespace rcand::kernel {
+
+inline constexpr std::string_view kRcandVersion = "0.1.0";
+
+// A startup refusal that is not a config-file error (unsafe auth mode, unreadable secret, port in use).
+class StartupError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+struct KernelOptions {
+  std::optional<std::vector<std::filesystem::path>> plugin_paths;  // replaces runtime.plugin_paths
+  std::optional<std::uint16_t> port;                               // replaces the configured port
+};
+
+// Admin-installed plugins first (they are found first, so they win), then the packaged ones.
+std::vector<std::filesystem::path> default_plugin_paths();
+
+class Api;
+
+class Kernel {
+ public:
+  // Loads plugins and plans capabilities. Throws ConfigError (with file:line:column) or StartupError.
+  Kernel(RobotConfig config, KernelOptions options = {});
+  ~Kernel();  // shutdown()
+  Kernel(const Kernel&) = delete;
+  Kernel& operator=(const Kernel&) = delete;
+
+  // Binds and serves; returns the bound port.
+  std::uint16_t start();
+  // The e-stop path runs first (motors halt), then HTTP stops, then plugins shut down. Idempotent.
+  void shutdown() noexcept;
+
+  // Config reload (SIGHUP): re-reads `file`. Invalid (a config error with file:line:column, an unreadable JWT secret
+  // or swarm file): logged, nothing changes. Valid: applies what can change while serving - runtime.auth (tokens, JWT
+  // secret), runtime.logging.level, runtime.swarm_file and the swarm file's peers - and names every other changed
+  // key as needing a restart. Logged and recorded in the audit log either way. Main thread; never throws.
+  struct ReloadReport {
+    bool ok = false;
+    std::vector<std::string> errors;         // what made it invalid
+    std::vector<std::string> applied;        // changed keys now in force
+    std::vector<std::string> needs_restart;  // changed keys that take effect at the next start
+  };
+  ReloadReport reload(const std::filesystem::path& file) noexcept;
+
+  const PluginHost& plugins() const noexcept;
+  const CapabilityRegistry& registry() const noexcept;
+  Api& api() noexcept;
+
+ private:
+  struct State;
+  std::unique_ptr<State> state_;
+};
+
+}  // namespace rcand::kernel

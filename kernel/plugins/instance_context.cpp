@@ -1,0 +1,67 @@
+#include "kernel/plugins/instance_context.hpp"
+
+namespace rcand::kernel {
+
+void InstanceEstop::request_estop(const std::string& reason) noexcept {
+  const std::string source = "plugin " + plugin_id_ + " (" + instance_id_ + ")";
+  std::uint64_t seq = 0;
+  if (services_.audit != nullptr) {
+    try {
+      seq = services_.audit->record({0, "plugin:" + plugin_id_, services_.ruri, "", "estop requested by " + source,
+                                     services_.clock.wall_ms(), "pending", reason});
+    } catch (...) {  // the audit entry is bookkeeping: the stop happens regardless
+    }
+  }
+  services_.estop.latch(reason, source);
+  if (seq != 0) {
+    try {
+      services_.audit->finish(seq, "ok", reason);
+    } catch (...) {
+    }
+  }
+}
+
+InstanceContext::InstanceContext(std::string plugin_id, std::string instance_id, KernelServices& services,
+                                 nlohmann::json settings, InstanceHealth& health)
+    : plugin_id_(std::move(plugin_id)),
+      instance_id_(std::move(instance_id)),
+      services_(services),
+      logger_(plugin_id_),
+      settings_(std::move(settings)),
+      health_(health) {}
+
+InstanceContext::~InstanceContext() { join_workers(); }
+
+sdk::Worker& InstanceContext::worker(std::string_view name) {
+  if (name.empty() || name.find_first_of(" /\t\n") != std::string_view::npos)
+    throw std::invalid_argument("worker name must be a non-empty word");
+  const std::string full = instance_id_ + "." + std::string(name);
+  std::lock_guard lock(workers_mutex_);
+  for (auto& worker : workers_)
+    if (worker->name() == full) return *worker;
+  // An exception escaping a worker task is plugin code failing: the instance goes out of service.
+  return *workers_.emplace_back(std::make_unique<WorkerThread>(full, [this, full](const std::string& why) {
+    health_.mark_failed("worker " + full + ": " + why);
+  }));
+}
+
+sdk::R2rLink* InstanceContext::r2r() noexcept {
+  if (services_.r2r == nullptr) return nullptr;
+  std::lock_guard lock(r2r_mutex_);
+  if (!r2r_link_) {
+    try {
+      r2r_link_ = services_.r2r->make_link(worker("r2r"), plugin_id_ + " (" + instance_id_ + ")");
+    } catch (const std::exception& e) {
+      logger("kernel.r2r")->error("no R2R link for {} ({}): {}", plugin_id_, instance_id_, e.what());
+      return nullptr;
+    }
+  }
+  return r2r_link_.get();
+}
+
+void InstanceContext::join_workers() {
+  std::lock_guard lock(workers_mutex_);
+  for (auto& worker : workers_) worker->join();
+}
+
+}  // namespace rcand::kernel

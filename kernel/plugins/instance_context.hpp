@@ -1,0 +1,89 @@
+// The sdk::PluginContext the kernel hands each plugin instance. Owns the instance's named workers.
+#pragma once
+
+#include <atomic>
+#include <deque>
+#include <memory>
+#include <mutex>
+#include <string>
+
+#include "kernel/audit/audit_log.hpp"
+#include "kernel/safety/estop.hpp"
+#include "kernel/safety/instance_health.hpp"
+#include "kernel/safety/kernel_motion_gate.hpp"
+#include "libs/base/logging.hpp"
+#include "libs/base/worker_thread.hpp"
+#include "services/r2r/plugin_bridge.hpp"
+#include "rcand/sdk/context.hpp"
+#include "rcand/sdk/obstacle_source.hpp"
+
+namespace rcand::kernel {
+
+// Kernel services every context shares; they outlive all instances.
+struct KernelServices {
+  const sdk::Clock& clock;
+  Estop& estop;
+  KernelMotionGate& gate;
+  const sdk::ConfigView& robot_config;
+  AuditLog* audit = nullptr;  // plugin-requested e-stops are audited (docs/protocol.md §6.3); null in tests without one
+  std::string ruri;           // the robot's RURI, for those audit entries
+  // The first driver or capability implementing sdk::ObstacleSource; set by the plugin runtime at startup.
+  std::atomic<const sdk::ObstacleSource*> obstacles{nullptr};
+  // Plugins' R2R links (docs/protocol.md §11) when runtime.r2r.enabled, set before any plugin starts; null: no R2R here.
+  r2r::PluginBridge* r2r = nullptr;
+};
+
+// The e-stop as a plugin instance sees it: request_estop() writes an audit entry naming the plugin (before the
+// latch, like POST /api/stop), then latches exactly as POST /api/stop does.
+class InstanceEstop final : public sdk::EstopView {
+ public:
+  InstanceEstop(KernelServices& services, const std::string& plugin_id, const std::string& instance_id)
+      : services_(services), plugin_id_(plugin_id), instance_id_(instance_id) {}
+  bool latched() const noexcept override { return services_.estop.latched(); }
+  bool sleep_unless_latched(std::chrono::microseconds duration) const override {
+    return services_.estop.sleep_unless_latched(duration);
+  }
+  void request_estop(const std::string& reason) noexcept override;
+
+ private:
+  KernelServices& services_;
+  const std::string& plugin_id_;
+  const std::string& instance_id_;
+};
+
+class InstanceContext final : public sdk::PluginContext {
+ public:
+  InstanceContext(std::string plugin_id, std::string instance_id, KernelServices& services, nlohmann::json settings,
+                  InstanceHealth& health);
+  ~InstanceContext() override;  // joins workers
+
+  std::string_view plugin_id() const noexcept override { return plugin_id_; }
+  std::string_view instance_id() const noexcept override { return instance_id_; }
+  sdk::Logger& log() noexcept override { return logger_; }
+  const sdk::Clock& clock() const noexcept override { return services_.clock; }
+  sdk::EstopView& estop() noexcept override { return estop_; }
+  sdk::MotionGate& motion() noexcept override { return services_.gate; }
+  const sdk::ConfigView& config() const noexcept override { return settings_; }
+  const sdk::ConfigView& robot_config() const noexcept override { return services_.robot_config; }
+  sdk::Worker& worker(std::string_view name) override;
+  const sdk::ObstacleSource* obstacles() const noexcept override { return services_.obstacles.load(); }
+  // Created on first use; its callbacks run on this instance's worker "r2r".
+  sdk::R2rLink* r2r() noexcept override;
+
+  // Joins every worker this instance created (their queued tasks finish first). Idempotent.
+  void join_workers();
+
+ private:
+  std::string plugin_id_, instance_id_;
+  KernelServices& services_;
+  PluginLogger logger_;
+  InstanceEstop estop_{services_, plugin_id_, instance_id_};
+  sdk::ConfigView settings_;
+  InstanceHealth& health_;
+  std::mutex workers_mutex_;  // guards workers_ creation only
+  std::deque<std::unique_ptr<WorkerThread>> workers_;
+  std::mutex r2r_mutex_;
+  std::unique_ptr<sdk::R2rLink> r2r_link_;  // after workers_: destroyed (unsubscribed) first
+};
+
+}  // namespace rcand::kernel

@@ -1,0 +1,152 @@
+#include "kernel/plugins/manifest.hpp"
+
+#include <fstream>
+#include <set>
+#include <sstream>
+#include <utility>
+
+#include "kernel/plugins/settings_schema.hpp"
+
+namespace rcand::kernel {
+namespace {
+
+using nlohmann::json;
+
+// Every error names the file and the field: "<file>: <field>: <what>".
+class Fields {
+ public:
+  explicit Fields(const std::filesystem::path& file) : file_(file.string()) {}
+
+  [[noreturn]] void fail(const std::string& field, const std::string& what) const {
+    throw ManifestError(file_ + ": " + field + ": " + what);
+  }
+
+  const json& require(const json& object, const std::string& key, const std::string& field) const {
+    const auto it = object.find(key);
+    if (it == object.end()) fail(field, "required field is missing");
+    return *it;
+  }
+
+  std::string string(const json& value, const std::string& field, bool allow_empty = false) const {
+    if (!value.is_string()) fail(field, std::string("expected string, found ") + value.type_name());
+    std::string text = value.get<std::string>();
+    if (!allow_empty && text.empty()) fail(field, "must not be empty");
+    return text;
+  }
+
+  int non_negative_int(const json& value, const std::string& field) const {
+    if (!value.is_number_integer()) fail(field, std::string("expected integer, found ") + value.type_name());
+    const auto number = value.get<long long>();
+    if (number < 0 || number > 65535) fail(field, "expected an integer in [0, 65535], found " + value.dump());
+    return static_cast<int>(number);
+  }
+
+  bool boolean(const json& value, const std::string& field) const {
+    if (!value.is_boolean()) fail(field, std::string("expected boolean, found ") + value.type_name());
+    return value.get<bool>();
+  }
+
+ private:
+  std::string file_;
+};
+
+// A reverse-domain id or a capability/driver name: no spaces, slashes or other URL-hostile characters.
+bool is_identifier(const std::string& text) {
+  for (const char c : text) {
+    const bool ok = (c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') || (c >= '0' && c <= '9') || c == '.' ||
+                    c == '_' || c == '-';
+    if (!ok) return false;
+  }
+  return !text.empty();
+}
+
+}  // namespace
+
+PluginManifest parse_manifest(const json& doc, const std::filesystem::path& file) {
+  const Fields f(file);
+  if (!doc.is_object()) f.fail("(document)", std::string("expected a JSON object, found ") + doc.type_name());
+
+  PluginManifest m;
+  std::error_code ec;
+  m.file = std::filesystem::absolute(file, ec).lexically_normal();
+  if (ec) m.file = file;
+
+  m.id = f.string(f.require(doc, "id", "id"), "id");
+  if (!is_identifier(m.id)) f.fail("id", "'" + m.id + "' is not a reverse-domain id (letters, digits, '.', '_', '-')");
+  m.version = f.string(f.require(doc, "version", "version"), "version");
+
+  const std::string library = f.string(f.require(doc, "library", "library"), "library");
+  const std::filesystem::path library_path(library);
+  if (library_path.is_absolute())
+    f.fail("library", "expected a path relative to the manifest's folder, found '" + library + "'");
+  m.library = (m.file.parent_path() / library_path).lexically_normal();
+
+  const json& abi = f.require(doc, "abi", "abi");
+  if (!abi.is_object()) f.fail("abi", std::string("expected object {\"major\", \"minor\"}, found ") + abi.type_name());
+  m.abi_major = f.non_negative_int(f.require(abi, "major", "abi.major"), "abi.major");
+  m.abi_minor = f.non_negative_int(f.require(abi, "minor", "abi.minor"), "abi.minor");
+
+  if (const auto it = doc.find("description"); it != doc.end()) m.description = f.string(*it, "description", true);
+
+  const json& provides = f.require(doc, "provides", "provides");
+  if (!provides.is_array()) f.fail("provides", std::string("expected array, found ") + provides.type_name());
+  if (provides.empty()) f.fail("provides", "must list at least one capability or driver");
+  std::set<std::pair<std::string, std::string>> seen;
+  for (std::size_t i = 0; i < provides.size(); ++i) {
+    const std::string field = "provides[" + std::to_string(i) + "]";
+    const json& entry = provides[i];
+    if (!entry.is_object()) f.fail(field, std::string("expected object, found ") + entry.type_name());
+    ProvidedItem item;
+    item.kind = f.string(f.require(entry, "kind", field + ".kind"), field + ".kind");
+    if (item.kind != "capability" && item.kind != "driver")
+      f.fail(field + ".kind", "expected \"capability\" or \"driver\", found \"" + item.kind + "\"");
+    item.name = f.string(f.require(entry, "name", field + ".name"), field + ".name");
+    if (!is_identifier(item.name)) f.fail(field + ".name", "'" + item.name + "' is not a valid name (letters, digits, '.', '_', '-')");
+    if (const auto it = entry.find("actuates"); it != entry.end()) item.actuates = f.boolean(*it, field + ".actuates");
+    if (const auto it = entry.find("interface"); it != entry.end()) {
+      if (item.kind != "driver") f.fail(field + ".interface", "only drivers implement an actuator interface");
+      item.interface = f.string(*it, field + ".interface");
+      if (!item.actuates) f.fail(field + ".interface", "only actuating drivers (\"actuates\": true) implement an interface");
+    } else if (item.kind == "driver" && item.actuates) {
+      f.fail(field + ".interface", "required for an actuating driver (for example \"differential_drive\")");
+    }
+    if (!seen.emplace(item.kind, item.name).second) f.fail(field + ".name", item.kind + " '" + item.name + "' is listed twice");
+    m.provides.push_back(std::move(item));
+  }
+
+  if (const auto it = doc.find("requires"); it != doc.end()) {
+    if (!it->is_array()) f.fail("requires", std::string("expected array of interface names, found ") + it->type_name());
+    for (std::size_t i = 0; i < it->size(); ++i)
+      m.requires_.push_back(f.string((*it)[i], "requires[" + std::to_string(i) + "]"));
+  }
+
+  if (const auto it = doc.find("config"); it != doc.end()) {
+    try {
+      check_config_schema(*it, "config.");
+    } catch (const ConfigSchemaError& e) {
+      throw ManifestError(file.string() + ": " + e.what());
+    }
+    m.config_schema = *it;
+  }
+  return m;
+}
+
+PluginManifest load_manifest(const std::filesystem::path& file) {
+  std::ifstream in(file, std::ios::binary);
+  if (!in) throw ManifestError(file.string() + ": (file): cannot be read");
+  std::ostringstream text;
+  text << in.rdbuf();
+  json doc;
+  try {
+    doc = json::parse(text.str());
+  } catch (const json::parse_error& e) {
+    // e.what() carries the byte offset and what was unexpected; strip the library's "[json.exception...]".
+    std::string what = e.what();
+    if (const auto pos = what.find("] "); what.rfind("[json.exception", 0) == 0 && pos != std::string::npos)
+      what = what.substr(pos + 2);
+    throw ManifestError(file.string() + ": (document): invalid JSON: " + what);
+  }
+  return parse_manifest(doc, file);
+}
+
+}  // namespace rcand::kernel

@@ -1,0 +1,66 @@
+// Finds plugins by their manifests, opens exactly the ones the robot needs, checks them against their
+// manifests and records every outcome. Main thread only; nothing here is thread-safe.
+#pragma once
+
+#include <nlohmann/json.hpp>
+
+#include <chrono>
+#include <filesystem>
+#include <memory>
+#include <set>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "kernel/plugins/plugin_record.hpp"
+
+namespace rcand::kernel {
+
+class PluginHost {
+ public:
+  PluginHost() = default;
+  PluginHost(const PluginHost&) = delete;
+  PluginHost& operator=(const PluginHost&) = delete;
+
+  // Reads every *.json manifest in each directory, in path order then file-name order. Missing dirs are
+  // skipped (logged). A second manifest with an id already seen is recorded `duplicate-id` (hint names the
+  // first one's file). Invalid manifests are recorded `invalid-manifest`. Never throws for a plugin's fault.
+  // Calling it again adds manifests not scanned yet.
+  void scan(const std::vector<std::filesystem::path>& plugin_paths);
+
+  // Installed plugins (valid manifests, not duplicates) whose manifest provides capability `name` / driver
+  // `protocol`, in scan order.
+  std::vector<const PluginRecord*> providers_of_capability(std::string_view name) const;
+  std::vector<const PluginRecord*> providers_of_driver(std::string_view protocol) const;
+
+  // Opens exactly the plugins that provide something needed (the first provider in scan order for each
+  // name; other providers of the same name stay installed-not-enabled with a reason naming the chosen one).
+  // Never throws for a plugin's fault: each opened plugin ends Loaded or in a failure state with reason and
+  // hint. Plugins already opened by an earlier call are left as they are.
+  void load_needed(const std::set<std::string>& capabilities, const std::set<std::string>& driver_protocols);
+
+  // How long a plugin's register() may take (runtime.plugin_start_timeout_ms): one that overruns is recorded
+  // registration-failed and left running on its own thread. Applies to plugins opened after the call.
+  void set_register_timeout(std::chrono::milliseconds timeout) noexcept { register_timeout_ = timeout; }
+
+  const std::vector<std::unique_ptr<PluginRecord>>& records() const noexcept { return records_; }
+  // The first record with this id (a duplicate-id record never comes first).
+  PluginRecord* find(std::string_view id) noexcept;
+  bool any_failed() const noexcept;
+
+  // Aligned columns: ID, VERSION, STATE, PROVIDES, REASON / HINT. One line per plugin, header first.
+  std::string format_table() const;
+  // [{"id","version","state","reason","hint","provides":[{"kind","name","actuates","interface"}],"manifest",
+  //   "build_info"}]
+  // `with_paths` false (a caller who may not read the configuration): no manifest path or build info, and every
+  // absolute path in a reason or hint shortened to its file name.
+  nlohmann::json to_json(bool with_paths = true) const;
+
+ private:
+  void open(PluginRecord& record);
+
+  std::vector<std::unique_ptr<PluginRecord>> records_;
+  std::chrono::milliseconds register_timeout_{10000};
+};
+
+}  // namespace rcand::kernel

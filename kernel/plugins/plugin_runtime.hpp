@@ -1,0 +1,98 @@
+// Turns loaded plugins into running instances: one driver instance per `drivers[]` entry, one capability
+// instance per declared capability, each with its own context, health and (for capabilities) handler worker.
+//
+// Destruction order matters: capability handler workers are joined first (no request runs any more), then
+// capability objects and their contexts (their workers join), then driver objects; plugin libraries are never
+// unloaded, so code outlives every object it made.
+#pragma once
+
+#include <deque>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "kernel/config/robot_config.hpp"
+#include "kernel/safety/actuator_table.hpp"
+#include "kernel/safety/deadline_crew.hpp"
+#include "kernel/plugins/instance_context.hpp"
+#include "kernel/plugins/status_reader.hpp"
+#include "kernel/plugins/plugin_host.hpp"
+
+namespace rcand::kernel {
+
+inline constexpr std::size_t kNoStatus = static_cast<std::size_t>(-1);
+
+struct DriverInstance {
+  std::string id, protocol, plugin_id;
+  std::string who;  // "plugin <id> driver <id>", for the trampoline's log lines
+  bool actuates = false;
+  InstanceHealth health;
+  std::unique_ptr<InstanceContext> context;
+  std::unique_ptr<sdk::Driver> object;  // null when it could not be created
+  std::size_t status_index = kNoStatus;  // its source in the status reader
+};
+
+struct CapabilityInstance {
+  std::string name, plugin_id;
+  std::string who;  // "plugin <id> capability <name>", for the trampoline's log lines
+  bool actuates = false;
+  InstanceHealth health;
+  std::unique_ptr<InstanceContext> context;
+  std::unique_ptr<sdk::Capability> object;     // null when it could not be created
+  std::vector<sdk::Route> routes;
+  std::unique_ptr<WorkerThread> handler_worker;  // "cap.<name>": handlers run here, one at a time
+  std::size_t status_index = kNoStatus;          // its source in the status reader
+};
+
+class PluginRuntime {
+ public:
+  PluginRuntime(PluginHost& host, KernelServices& services, ActuatorTable& actuators);
+  ~PluginRuntime();
+
+  // Main thread, at startup. Plugin settings that fail the manifest's config schema throw ConfigError (with the
+  // config file's line and column); plugin code that throws marks only that instance failed.
+  void start_drivers(const RobotConfig& config);
+  void start_capabilities(const std::vector<std::string>& names, const RobotConfig& config);
+
+  CapabilityInstance* capability(std::string_view name) noexcept;
+  const std::deque<DriverInstance>& drivers() const noexcept { return drivers_; }
+  const std::deque<CapabilityInstance>& capabilities() const noexcept { return capabilities_; }
+
+  // Any thread: an instance's status(), through the status reader (a hang fails the instance instead of holding
+  // the caller). nullopt without an object, after a throw, or once it hung.
+  std::optional<nlohmann::json> status_of(const DriverInstance& instance) { return status_at(instance.status_index); }
+  std::optional<nlohmann::json> status_of(const CapabilityInstance& instance) { return status_at(instance.status_index); }
+  // Every started, healthy capability's status(), read in parallel; one entry per capabilities() element.
+  std::vector<std::optional<nlohmann::json>> capability_statuses();
+
+  // The stop path, after the halt: every capability's on_estop(), in parallel on the estop crew, waited for up to
+  // kEstopNotifyDeadline; one that hangs or throws is logged (a throw marks the capability failed).
+  void notify_estop() noexcept;
+  static constexpr std::chrono::milliseconds kEstopNotifyDeadline{50};
+  // Main thread, once: capabilities shut down (in parallel) and their workers joined, then drivers likewise. A
+  // shutdown() that throws is logged; one still running after kShutdownDeadline is logged and left running (its
+  // objects are never destroyed), so a stuck plugin cannot keep rcand from exiting.
+  void shutdown() noexcept;
+  static constexpr std::chrono::milliseconds kShutdownDeadline{2000};
+
+ private:
+  std::optional<nlohmann::json> status_at(std::size_t status_index);
+  // The first interface the plugin's manifest `requires` that no started actuator implements.
+  std::optional<std::string> missing_requirement(const PluginRecord& plugin) const;
+
+  PluginHost& host_;
+  KernelServices& services_;
+  ActuatorTable& actuators_;
+  std::deque<DriverInstance> drivers_;
+  std::deque<CapabilityInstance> capabilities_;
+  bool shut_down_ = false;
+  // A capability's on_estop() (or any status()) still running at shutdown: objects are leaked rather than
+  // destroyed under it.
+  bool abandon_capabilities_ = false;
+  bool abandon_drivers_ = false;
+  std::unique_ptr<DeadlineCrew> estop_crew_;  // declared after the instances: stopped before they are destroyed
+  std::unique_ptr<StatusReader> status_reader_;  // likewise
+};
+
+}  // namespace rcand::kernel

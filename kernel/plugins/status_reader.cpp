@@ -1,0 +1,80 @@
+#include "kernel/plugins/status_reader.hpp"
+
+#include "libs/base/logging.hpp"
+#include "kernel/plugins/guarded.hpp"
+
+namespace rcand::kernel {
+namespace {
+
+std::vector<DeadlineCrew::Job> jobs_for(const std::vector<StatusReader::Source>& sources,
+                                        const std::vector<std::shared_ptr<StatusReader::Slot>>& slots) {
+  std::vector<DeadlineCrew::Job> jobs;
+  for (std::size_t i = 0; i < sources.size(); ++i)
+    jobs.push_back({sources[i].who, [who = sources[i].who, status = sources[i].status, slot = slots[i]] {
+                      std::string failure;
+                      auto value = guarded_result(who, "status", failure, status);
+                      std::lock_guard lock(slot->mutex);
+                      slot->latest = std::move(value);
+                      slot->in_flight.store(false);
+                    }});
+  return jobs;
+}
+
+std::vector<std::shared_ptr<StatusReader::Slot>> make_slots(std::size_t count) {
+  std::vector<std::shared_ptr<StatusReader::Slot>> slots;
+  for (std::size_t i = 0; i < count; ++i) slots.push_back(std::make_shared<StatusReader::Slot>());
+  return slots;
+}
+
+}  // namespace
+
+StatusReader::StatusReader(std::vector<Source> sources)
+    : sources_(std::move(sources)), slots_(make_slots(sources_.size())), crew_("status", jobs_for(sources_, slots_)) {}
+
+std::vector<std::optional<nlohmann::json>> StatusReader::read(std::span<const std::size_t> indices) {
+  std::vector<std::optional<nlohmann::json>> values(indices.size());
+  std::vector<std::size_t> asked;  // positions in `indices` this call starts and waits for
+  std::vector<std::size_t> asked_sources;
+  for (std::size_t i = 0; i < indices.size(); ++i) {
+    const std::size_t index = indices[i];
+    if (index >= slots_.size() || slots_[index]->hung.load()) continue;
+    auto& slot = *slots_[index];
+    if (slot.in_flight.exchange(true)) {  // another reader waits for this call: its last value, at once
+      std::lock_guard lock(slot.mutex);
+      values[i] = slot.latest;
+      continue;
+    }
+    asked.push_back(i);
+    asked_sources.push_back(index);
+  }
+  const auto outcomes = crew_.run_some(asked_sources, std::chrono::steady_clock::now() + kStatusDeadline);
+
+  for (std::size_t a = 0; a < asked.size(); ++a) {
+    const std::size_t index = asked_sources[a];
+    const auto state = a < outcomes.size() ? outcomes[a].state : DeadlineCrew::State::Pending;
+    auto& slot = *slots_[index];
+    if (state == DeadlineCrew::State::Done) {
+      std::lock_guard lock(slot.mutex);
+      values[asked[a]] = slot.latest;
+      continue;
+    }
+    if (slot.hung.exchange(true)) continue;  // another reader already reported it
+    const auto& source = sources_[index];
+    const std::string why = state == DeadlineCrew::State::Failed
+                                ? "status() ended the thread: " + outcomes[a].error
+                                : "status() did not return within " + std::to_string(kStatusDeadline.count()) +
+                                      " ms (it must not block)";
+    logger("kernel.plugins")->error("{}: {}", source.who, why);
+    if (source.health != nullptr) source.health->mark_failed(why);
+  }
+  return values;
+}
+
+std::optional<nlohmann::json> StatusReader::read(std::size_t index) {
+  const std::size_t indices[] = {index};
+  return std::move(read(indices).front());
+}
+
+bool StatusReader::quiesce(std::chrono::milliseconds grace) noexcept { return crew_.quiesce(grace); }
+
+}  // namespace rcand::kernel

@@ -1,0 +1,201 @@
+#include "kernel/registry/capability_registry.hpp"
+
+#include <algorithm>
+#include <array>
+#include <set>
+
+namespace rcand::kernel {
+namespace {
+
+using sdk::Scope;
+
+constexpr std::array<StandardCapability, 6> kStandard{{
+    {"status", Scope::Status, "GET /api/status", "", "rcand"},
+    {"nav", Scope::Control, "POST /api/nav/waypoint", "org.rcand.nav", "rcand-plugins-core"},
+    {"teleop", Scope::Control, "POST /api/action", "org.rcand.teleop", "rcand-plugins-core"},
+    {"vision", Scope::Status, "GET /api/stream/mjpeg", "org.rcand.vision", "rcand-plugins-vision"},
+    {"chat", Scope::Control, "POST /api/command", "org.rcand.chat", "rcand-plugins-core"},
+    {"arm", Scope::Control, "POST /api/action", "org.rcand.arm", "rcand-plugins-hw"},
+}};
+
+std::vector<std::string> standard_names() {
+  std::vector<std::string> names;
+  for (const auto& cap : kStandard) names.emplace_back(cap.name);
+  return names;
+}
+
+[[noreturn]] void fail(const RobotConfig& config, const std::string& path, std::string message) {
+  ConfigDiagnostic diagnostic;
+  diagnostic.severity = ConfigDiagnostic::Severity::Error;
+  diagnostic.mark = config.mark_of(path);
+  diagnostic.key_path = path;
+  diagnostic.message = std::move(message);
+  throw ConfigError({std::move(diagnostic)});
+}
+
+std::string join(const std::vector<std::string>& items, std::string_view separator) {
+  std::string out;
+  for (const auto& item : items) {
+    if (!out.empty()) out += separator;
+    out += item;
+  }
+  return out;
+}
+
+void add_unique(std::vector<std::string>& names, std::string name) {
+  if (std::find(names.begin(), names.end(), name) == names.end()) names.push_back(std::move(name));
+}
+
+// §9.3, plus: any driver implementing differential_drive implies teleop (and nav when physics allows).
+std::vector<std::string> auto_detect(const RobotConfig& config, const ProviderLookup& lookup, std::vector<std::string>& notes) {
+  std::vector<std::string> found{"status"};
+  bool drive = false, arm = false;
+  for (const auto& driver : config.drivers) {
+    const bool table_drive = driver.protocol == "pca9685" || driver.protocol == "dynamixel";
+    const auto interface = lookup.driver_interface ? lookup.driver_interface(driver.protocol) : std::nullopt;
+    if (table_drive || interface == "differential_drive") drive = true;
+    if (driver.protocol == "dynamixel" && config.has_kinematics) arm = true;
+  }
+  if (drive) {
+    if (has_nav_physics(config)) add_unique(found, "nav");
+    else notes.emplace_back("nav not declared: physics.wheel_circumference_m and physics.turn_time_per_deg_s are required (§10.2)");
+    add_unique(found, "teleop");
+  }
+  if (config.has_camera) add_unique(found, "vision");
+  if (config.has_agent) add_unique(found, "chat");
+  if (arm) add_unique(found, "arm");
+  return found;
+}
+
+}  // namespace
+
+std::span<const StandardCapability> standard_capabilities() noexcept { return kStandard; }
+
+const StandardCapability* find_standard_capability(std::string_view name) noexcept {
+  for (const auto& cap : kStandard)
+    if (cap.name == name) return &cap;
+  return nullptr;
+}
+
+bool is_reverse_domain_name(std::string_view name) noexcept {
+  int labels = 0;
+  std::size_t start = 0;
+  while (start <= name.size()) {
+    const auto dot = name.find('.', start);
+    const auto label = name.substr(start, dot == std::string_view::npos ? std::string_view::npos : dot - start);
+    if (label.empty() || label.front() < 'a' || label.front() > 'z') return false;
+    for (char c : label)
+      if (!((c >= 'a' && c <= 'z') || (c >= '0' && c <= '9') || c == '_' || c == '-')) return false;
+    ++labels;
+    if (dot == std::string_view::npos) break;
+    start = dot + 1;
+  }
+  return labels >= 3;
+}
+
+bool has_nav_physics(const RobotConfig& config) noexcept {
+  return config.wheel_circumference_m.has_value() && config.turn_time_per_deg_s.has_value();
+}
+
+CapabilityPlan plan_capabilities(const RobotConfig& config, const ProviderLookup& lookup) {
+  CapabilityPlan plan;
+  auto providers = [&](std::string_view name) {
+    return lookup.providers ? lookup.providers(name) : std::vector<std::string>{};
+  };
+
+  if (!config.capabilities) {
+    plan.auto_detected = true;
+    for (auto& name : auto_detect(config, lookup, plan.notes)) {
+      if (name != "status" && providers(name).empty()) {
+        const auto* standard = find_standard_capability(name);
+        plan.notes.push_back("auto-detected '" + name + "' dropped: no installed plugin provides it (install " +
+                             std::string(standard->plugin) + " from " + std::string(standard->package) + ")");
+        continue;
+      }
+      plan.names.push_back(std::move(name));
+    }
+    plan.notes.push_back("capabilities auto-detected (§9.3): " + join(plan.names, ", "));
+    return plan;
+  }
+
+  plan.names.emplace_back("status");  // the kernel always serves status (§9.3 "always"; §15.4 needs it)
+  const auto& listed = *config.capabilities;
+  if (std::find(listed.begin(), listed.end(), "status") == listed.end())
+    plan.notes.emplace_back("'status' is always served and was added to rcan_protocol.capabilities");
+  for (std::size_t i = 0; i < listed.size(); ++i) {
+    const std::string& name = listed[i];
+    const std::string path = "rcan_protocol.capabilities[" + std::to_string(i) + "]";
+    const auto* standard = find_standard_capability(name);
+    if (standard == nullptr && !is_reverse_domain_name(name)) {
+      std::string message = "'" + name + "' is neither a standard capability (" + join(standard_names(), ", ") +
+                            ") nor a reverse-domain custom name like com.acme.gripper (§9.4)";
+      if (auto close = closest_match(name, standard_names())) message += "; did you mean '" + *close + "'?";
+      fail(config, path, message);
+    }
+    if (name == "nav" && !has_nav_physics(config))
+      fail(config, path,
+           "'nav' needs physics.wheel_circumference_m and physics.turn_time_per_deg_s (§10.2); add them or remove nav");
+    if (name != "status") {
+      auto found = providers(name);
+      if (found.empty()) {
+        std::string message = "'" + name + "' is listed but no installed plugin provides it";
+        if (standard != nullptr)
+          message += "; the plugin that could is " + std::string(standard->plugin) + " (package " +
+                     std::string(standard->package) + ")";
+        else
+          message += "; install the vendor plugin that provides it into a plugin path";
+        fail(config, path, message);
+      }
+    }
+    if (std::find(plan.names.begin(), plan.names.end(), name) != plan.names.end()) {
+      if (name != "status") plan.notes.push_back("'" + name + "' is listed twice; declared once");
+      continue;
+    }
+    plan.names.push_back(name);
+  }
+  return plan;
+}
+
+CapabilityRegistry::CapabilityRegistry(RobotIdentity identity, CapabilityPlan plan)
+    : identity_(std::move(identity)), plan_(std::move(plan)) {}
+
+bool CapabilityRegistry::declared(std::string_view name) const noexcept {
+  return std::find(plan_.names.begin(), plan_.names.end(), name) != plan_.names.end();
+}
+
+sdk::Scope CapabilityRegistry::minimum_scope(std::string_view name) noexcept {
+  if (const auto* standard = find_standard_capability(name)) return standard->scope;
+  return Scope::Control;
+}
+
+Advertisement CapabilityRegistry::advertise(std::string_view status, std::uint16_t port) const {
+  Advertisement ad;
+  ad.capabilities = plan_.names;
+  ad.config_view = {{"rcan_protocol", {{"capabilities", ad.capabilities}}}};
+
+  std::vector<std::string> roles;
+  for (auto role : {sdk::Role::Creator, sdk::Role::Owner, sdk::Role::Leasee, sdk::Role::User, sdk::Role::Guest})
+    roles.emplace_back(sdk::role_name(role));
+  ad.txt = {{"ruri", identity_.ruri},
+            {"model", identity_.model},
+            {"caps", join(ad.capabilities, ",")},
+            {"roles", join(roles, ",")},
+            // The lowest role that may command this robot, so a client knows what credential it needs.
+            {"role", std::string(sdk::role_name(sdk::minimum_role(Scope::Control)))},
+            {"version", std::string(kRcanVersion)},
+            {"name", identity_.name},
+            {"status", std::string(status)}};
+
+  ad.discover = {{"ruri", identity_.ruri},
+                 {"name", identity_.name},
+                 {"model", identity_.model},
+                 {"version", kRcanVersion},
+                 {"status", status},
+                 {"port", port},
+                 {"capabilities", ad.capabilities},
+                 {"service_type", kServiceType},
+                 {"txt_record", ad.txt}};
+  return ad;
+}
+
+}  // namespace rcand::kernel

@@ -1,0 +1,86 @@
+// The capability registry (§9): which capabilities this robot declares, what scope each needs, and the one
+// function from which the config view, the mDNS TXT record and the DISCOVER document are all derived (§9.5).
+#pragma once
+
+#include <nlohmann/json.hpp>
+
+#include <functional>
+#include <map>
+#include <optional>
+#include <span>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "kernel/config/robot_config.hpp"
+#include "rcand/sdk/scope.hpp"
+
+namespace rcand::kernel {
+
+inline constexpr std::string_view kRcanVersion = "1.3.0";
+inline constexpr std::string_view kServiceType = "_rcan._tcp";
+
+struct StandardCapability {
+  std::string_view name;
+  sdk::Scope scope;
+  std::string_view endpoint;  // its standard endpoint (§9.2)
+  std::string_view plugin;    // the first-party plugin that provides it
+  std::string_view package;   // the Debian package that ships that plugin
+};
+std::span<const StandardCapability> standard_capabilities() noexcept;
+const StandardCapability* find_standard_capability(std::string_view name) noexcept;
+// §9.4: lowercase labels of [a-z0-9_-], at least three of them, each starting with a letter ("com.acme.gripper").
+bool is_reverse_domain_name(std::string_view name) noexcept;
+// §10.2: wheel_circumference_m and turn_time_per_deg_s are both present.
+bool has_nav_physics(const RobotConfig& config) noexcept;
+
+// What the registry needs to know about installed plugins while planning.
+struct ProviderLookup {
+  // The actuator interface a driver protocol provides ("differential_drive"), if an installed plugin provides it.
+  std::function<std::optional<std::string>(std::string_view protocol)> driver_interface;
+  // Installed plugins that provide a capability, as "id (state)" for messages; empty when none.
+  std::function<std::vector<std::string>(std::string_view capability)> providers;
+};
+
+struct CapabilityPlan {
+  std::vector<std::string> names;  // what this robot declares, "status" first
+  bool auto_detected = false;
+  std::vector<std::string> notes;  // what was decided and why (logged at startup)
+};
+
+// Explicit list: every name must be standard or reverse-domain and have an installed provider ("status" is the
+// kernel's own), and nav needs the §10.2 physics fields; violations throw ConfigError with file:line:column.
+// Absent list: §9.3 auto-detection, extended so any driver implementing differential_drive implies teleop (and nav
+// with physics); auto-detected capabilities without an installed provider are dropped with a note.
+CapabilityPlan plan_capabilities(const RobotConfig& config, const ProviderLookup& lookup);
+
+struct RobotIdentity {
+  std::string ruri, name, model;
+};
+
+struct Advertisement {
+  std::vector<std::string> capabilities;        // the one list
+  nlohmann::json config_view;                   // {"rcan_protocol":{"capabilities":[...]}}
+  std::map<std::string, std::string> txt;       // mDNS TXT keys (docs/protocol.md §5)
+  nlohmann::json discover;                      // GET /api/discovery (docs/protocol.md §5 ruling)
+};
+
+class CapabilityRegistry {
+ public:
+  CapabilityRegistry(RobotIdentity identity, CapabilityPlan plan);
+
+  bool declared(std::string_view name) const noexcept;
+  const std::vector<std::string>& names() const noexcept { return plan_.names; }
+  const RobotIdentity& identity() const noexcept { return identity_; }
+  // The scope a capability's routes need at least: its §9.2 scope, or Control for custom ones (§9.4).
+  static sdk::Scope minimum_scope(std::string_view name) noexcept;
+
+  // THE one function: every advertisement of the capability list comes from here.
+  Advertisement advertise(std::string_view status, std::uint16_t port) const;
+
+ private:
+  RobotIdentity identity_;
+  CapabilityPlan plan_;
+};
+
+}  // namespace rcand::kernel

@@ -1,0 +1,50 @@
+// The listening socket, on the accept loop (slots[0], a thread of its own). Without ServerOptions::priority it hands
+// each connection to a worker loop round-robin and closes those beyond the limits. With it, new connections stay on
+// the accept loop while they send priority requests (see Session), and those beyond the limits join the busy lane.
+#pragma once
+
+#include <boost/asio/ip/tcp.hpp>
+#include <boost/asio/steady_timer.hpp>
+
+#include <cstddef>
+#include <cstdint>
+#include <deque>
+#include <memory>
+#include <string_view>
+
+#include "libs/http/server_core.hpp"
+#include "libs/http/session.hpp"
+
+namespace rcand::http::detail {
+
+class Listener {
+ public:
+  // Binds and listens at once (caller's thread). Throws std::runtime_error "cannot listen on <shown>: <reason>".
+  Listener(ServerCore& core, const boost::asio::ip::tcp::endpoint& endpoint, std::string_view shown);
+  std::uint16_t port() const;
+  // Queues the first accept; the loop then runs on slot 0's thread.
+  void start();
+  // Slot 0's thread only.
+  void close() noexcept;
+
+ private:
+  void accept();
+  void on_accept(boost::system::error_code ec, IoSlot& slot, Stream::socket_type socket);
+  // A connection beyond the limits: into the busy lane (evicting its oldest when full), or closed without priority.
+  void admit_busy(Stream::socket_type socket, std::string address);
+
+  ServerCore& core_;
+  boost::asio::ip::tcp::acceptor acceptor_;
+  boost::asio::steady_timer backoff_;  // after accept errors such as EMFILE, so a full fd table does not spin us
+  // Evicts the oldest busy-lane waiter from `address` that has sent nothing; false when there is none.
+  bool evict_silent_waiter(const std::string& address);
+  std::string busiest_lane_address() const;
+
+  struct BusyWaiter {
+    std::weak_ptr<Session> session;
+    std::string address;
+  };
+  std::deque<BusyWaiter> busy_lane_;  // oldest first; the accept loop's only
+};
+
+}  // namespace rcand::http::detail

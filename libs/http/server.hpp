@@ -1,0 +1,54 @@
+// The asynchronous HTTP/1.x server: a small pool of event loops (one per I/O thread), keep-alive, one request in
+// flight per connection, strict limits. Handlers may answer later from any thread; nothing on the request path
+// takes a lock shared between connections.
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <memory>
+#include <mutex>
+#include <thread>
+#include <vector>
+
+#include "libs/http/handler.hpp"
+#include "libs/http/server_options.hpp"
+
+namespace rcand::http {
+
+namespace detail {
+struct ServerCore;
+class Listener;
+}  // namespace detail
+
+class Server {
+ public:
+  // Throws std::invalid_argument naming the option at fault (io_threads, max_connections, timeouts) or for an
+  // empty handler.
+  Server(ServerOptions options, Handler handler);
+  ~Server();  // stop()
+  Server(const Server&) = delete;
+  Server& operator=(const Server&) = delete;
+
+  // Binds, listens and starts the I/O threads; returns the bound port. Throws std::runtime_error
+  // "cannot listen on 127.0.0.1:8000: Address already in use" (or a bad address), or when already started.
+  std::uint16_t start();
+  // Stops accepting, closes every connection, joins the I/O threads. Idempotent and thread-safe. Called from an I/O
+  // thread (it should not be) it cannot join that thread and detaches it instead.
+  void stop();
+  // Connections currently open (accepted and not yet closed).
+  std::size_t connection_count() const noexcept;
+
+ private:
+  void stop_locked() noexcept;
+
+  // Declaration order is destruction order in reverse: the listener (an acceptor on the core's first event loop)
+  // goes before the core, which may outlive the Server while a Respond still holds it.
+  std::shared_ptr<detail::ServerCore> core_;
+  std::unique_ptr<detail::Listener> listener_;
+  std::vector<std::thread> threads_;
+  std::mutex lifecycle_;  // start() against stop(); never taken on the request path
+  bool started_ = false;
+  bool stopped_ = false;
+};
+
+}  // namespace rcand::http

@@ -1,0 +1,92 @@
+// One HTTP connection: reads a request, hands it to the Handler, writes the answer, repeats while kept alive.
+// Every member function runs on the owning slot's thread; only Responder crosses threads, by dispatching there.
+//
+// Placement: on the accept loop (ServerOptions::priority set) a new connection's requests are read there while they
+// are priority requests, and handled there too; the first other request moves the connection (its socket, buffered
+// bytes and that request) to a worker loop for good. A busy-lane connection answers one priority request, or 503.
+//
+// WebSocket seam: an upgrade request is offered to ServerOptions::upgrade in dispatch_request(); when the hook takes
+// it, the stream, the raw request and the buffered bytes move out (http/upgrade.hpp) and this object simply ends.
+#pragma once
+
+#include <boost/asio/ip/tcp.hpp>
+#include <boost/beast/core/basic_stream.hpp>
+#include <boost/beast/core/flat_buffer.hpp>
+#include <boost/beast/http/parser.hpp>
+#include <boost/beast/http/string_body.hpp>
+
+#include <cstddef>
+#include <memory>
+#include <optional>
+#include <string>
+#include <string_view>
+
+#include "libs/http/connection_ticket.hpp"
+#include "libs/http/request.hpp"
+#include "libs/http/response.hpp"
+#include "libs/http/server_core.hpp"
+
+namespace rcand::http::detail {
+
+// The concrete executor (not any_io_executor) avoids type erasure on every operation.
+using Stream = boost::beast::basic_stream<boost::asio::ip::tcp, boost::asio::io_context::executor_type>;
+
+class Session : public std::enable_shared_from_this<Session> {
+ public:
+  enum class Placement { Worker, AcceptLoop, BusyLane };
+  // Holds `ticket` (its place in the limits) for its whole life, or hands it on when it moves to a worker.
+  Session(ServerCore& core, IoSlot& slot, Stream::socket_type socket, std::unique_ptr<ConnectionTicket> ticket,
+          Placement placement);
+  Session(const Session&) = delete;
+  Session& operator=(const Session&) = delete;
+
+  void start();
+  void close() noexcept;
+  // Bytes of the client's wait to be read (buffered here or in the socket): it has sent its request, or part of it.
+  bool has_pending_input() noexcept;
+  // Answers the request in flight; ignored when closed or when nothing is in flight.
+  void send(Response response);
+  boost::asio::io_context::executor_type executor() const noexcept { return slot_.ioc.get_executor(); }
+  ServerCore& core() const noexcept { return core_; }
+
+ private:
+  void wait_for_request();
+  void new_parser();
+  void parse_buffered();
+  void read_header();
+  void on_header(boost::beast::error_code ec);
+  void read_body();
+  void on_read_error(boost::beast::error_code ec);
+  void dispatch_request();
+  void handle(Request request);
+  // From the accept loop to a worker loop, for good: there it handles `request`.
+  void move_to_worker(Request request);
+  void answer_busy();
+  // A WebSocket upgrade offered to ServerOptions::upgrade; false when the hook leaves it to the Handler.
+  bool try_upgrade(Request& request);
+  void send_error_and_close(int status, std::string_view code, std::string_view message);
+  void write(Response response, bool close_after);
+  void on_write(boost::beast::error_code ec, bool close_after);
+  void linger_close();
+  void drain();
+
+  ServerCore& core_;
+  IoSlot& slot_;
+  std::unique_ptr<ConnectionTicket> ticket_;
+  Placement placement_;
+  Stream stream_;
+  boost::beast::flat_buffer buffer_;
+  std::optional<boost::beast::http::request_parser<boost::beast::http::string_body>> parser_;
+  boost::beast::http::request<boost::beast::http::string_body> message_;  // the request being handled (parser's)
+  boost::beast::http::response<boost::beast::http::string_body> response_;  // alive while being written
+  std::string remote_;
+  std::size_t drained_ = 0;
+  unsigned version_ = 11;
+  bool keep_alive_ = false;
+  bool head_ = false;
+  bool awaiting_response_ = false;
+  bool fresh_ = true;  // no request read yet: the first one gets header_timeout from accept
+  bool closed_ = false;
+};
+
+}  // namespace rcand::http::detail

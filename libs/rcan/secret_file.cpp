@@ -1,0 +1,21 @@
+#include "libs/rcan/secret_file.hpp"
+
+#include <fstream>
+#include <iterator>
+
+namespace rcand {
+
+SecretFile read_secret_file(const std::filesystem::path& path) {
+  std::error_code ec;
+  if (std::filesystem::is_directory(path, ec)) return {std::nullopt, "secret file '" + path.string() + "' is a directory"};
+  std::ifstream in(path, std::ios::binary);
+  if (!in) return {std::nullopt, "cannot read secret file '" + path.string() + "'"};
+  std::string secret{std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
+  if (in.bad()) return {std::nullopt, "cannot read secret file '" + path.string() + "'"};
+  // Editors and `echo` add a newline nobody means as part of the key.
+  while (!secret.empty() && (secret.back() == '\n' || secret.back() == '\r')) secret.pop_back();
+  if (secret.empty()) return {std::nullopt, "secret file '" + path.string() + "' is empty"};
+  return {std::move(secret), {}};
+}
+
+}  // namespace rcand

@@ -1,0 +1,373 @@
+#include "libs/swarm/fan_out.hpp"
+
+#include <netdb.h>
+#include <sys/socket.h>
+
+#include <boost/asio/connect.hpp>
+#include <boost/asio/executor_work_guard.hpp>
+#include <boost/asio/io_context.hpp>
+#include <boost/asio/ip/tcp.hpp>
+#include <boost/asio/post.hpp>
+#include <boost/asio/steady_timer.hpp>
+#include <boost/beast/core/error.hpp>
+#include <boost/beast/core/flat_buffer.hpp>
+#include <boost/beast/core/tcp_stream.hpp>
+#include <boost/beast/http/parser.hpp>
+#include <boost/beast/http/read.hpp>
+#include <boost/beast/http/string_body.hpp>
+#include <boost/beast/http/write.hpp>
+
+#include <future>
+#include <map>
+#include <mutex>
+#include <thread>
+
+namespace rcand::swarm {
+
+PeerRequest peer_request(const SwarmNode& node, std::string method, std::string target, std::string body) {
+  PeerRequest request;
+  request.name = node.name;
+  request.host = node.host;
+  request.fallback_ip = node.ip;
+  request.port = node.port;
+  request.method = std::move(method);
+  request.target = std::move(target);
+  request.body = std::move(body);
+  request.headers = {{"Authorization", "Bearer " + node.token}};
+  return request;
+}
+
+namespace net = boost::asio;
+namespace beast = boost::beast;
+namespace bhttp = boost::beast::http;
+using net::ip::tcp;
+using Clock = std::chrono::steady_clock;
+
+// A kept-alive connection to a peer, idle since `since`. Reused for the next request to the same address: a swarm
+// broadcasts to the same peers again and again, and a connection that is already open costs the peer no accept.
+struct IdleConnection {
+  std::unique_ptr<beast::tcp_stream> stream;
+  std::chrono::steady_clock::time_point since;
+};
+
+// Owned by the FanOut (and kept alive by helper threads still about to post). Pending handlers in `io` hold the
+// PeerOps and the PeerOps only point at the loop: no cycle, so destroying the loop after stop() frees them all.
+struct FanOut::Loop : std::enable_shared_from_this<FanOut::Loop> {
+  net::io_context io{1};
+  std::shared_ptr<HostResolver> resolver;  // may be null: getaddrinfo for every host
+  std::map<std::string, std::vector<IdleConnection>> idle;  // by "ip:port"; touched only on the loop thread
+  net::executor_work_guard<net::io_context::executor_type> work{io.get_executor()};
+  std::thread thread;
+  std::mutex mutex;  // guards `alive` against helper threads posting after stop()
+  bool alive = true;
+
+  // Posts `fn` unless the loop was stopped (then it is dropped).
+  template <class Fn>
+  void post(Fn&& fn) {
+    std::lock_guard lock(mutex);
+    if (alive) net::post(io, std::forward<Fn>(fn));
+  }
+};
+
+namespace {
+
+// Well inside rcand's 60 s idle timeout, so a reused connection is rarely one the peer is closing.
+constexpr std::chrono::seconds kMaxIdle{20};
+constexpr std::size_t kMaxIdlePerPeer = 4;
+
+// A failure on a reused connection before any byte of the answer: the peer had closed it while idle.
+bool is_stale(const beast::error_code& ec) {
+  return ec == bhttp::error::end_of_stream || ec == net::error::eof || ec == net::error::connection_reset ||
+         ec == net::error::broken_pipe || ec == net::error::not_connected;
+}
+
+beast::string_view bsv(std::string_view s) noexcept { return {s.data(), s.size()}; }
+
+std::string endpoint_text(const tcp::endpoint& endpoint) {
+  const auto address = endpoint.address();
+  return (address.is_v6() ? "[" + address.to_string() + "]" : address.to_string()) + ":" + std::to_string(endpoint.port());
+}
+
+// All results of one run; touched only on the fan-out thread. The run's own deadline timer closes it even when an
+// op is late (its socket's expiry waits behind other work on this thread): `done` runs at most once, and a result that
+// arrives after that is dropped.
+struct Batch {
+  explicit Batch(net::io_context& io) : deadline(io) {}
+  std::vector<PeerResult> results;
+  std::vector<bool> finished;
+  std::size_t remaining = 0;
+  FanOut::Done done;
+  net::steady_timer deadline;
+
+  // Records one peer's result; the last one (or the deadline) answers.
+  void complete(std::size_t index, PeerResult result) {
+    if (!done || finished[index]) return;
+    finished[index] = true;
+    results[index] = std::move(result);
+    if (--remaining == 0) close();
+  }
+  // Every peer still pending failed with `why`; answers now.
+  void expire(const std::vector<std::string>& names, double elapsed_ms, const std::string& why) {
+    for (std::size_t i = 0; i < finished.size() && done; ++i) {
+      if (finished[i]) continue;
+      PeerResult late;
+      late.name = names[i];
+      late.error = why;
+      late.latency_ms = elapsed_ms;
+      complete(i, std::move(late));
+    }
+  }
+  void close() {
+    deadline.cancel();
+    auto answer = std::move(done);
+    done = nullptr;
+    if (answer) answer(std::move(results));
+  }
+};
+
+class PeerOp : public std::enable_shared_from_this<PeerOp> {
+ public:
+  PeerOp(FanOut::Loop& loop, std::shared_ptr<Batch> batch, std::size_t index, PeerRequest request,
+         Clock::time_point start, std::chrono::milliseconds timeout)
+      : loop_(&loop), batch_(std::move(batch)), index_(index), request_(std::move(request)), start_(start),
+        timeout_(timeout), deadline_(start + timeout), timer_(loop_->io) {}
+
+  void start() {
+    boost::system::error_code ec;
+    const auto literal = net::ip::make_address(request_.host, ec);
+    if (!ec) return connect({tcp::endpoint(literal, request_.port)});
+    resolve();
+  }
+
+ private:
+  // getaddrinfo on a helper thread; the timer bounds the wait so the fallback ip still fits in the deadline.
+  void resolve() {
+    const auto budget = request_.fallback_ip ? timeout_ / 2 : timeout_;
+    timer_.expires_after(budget);
+    timer_.async_wait([self = shared_from_this()](const boost::system::error_code& ec) {
+      if (!ec) self->resolved({}, "timed out");
+    });
+    if (loop_->resolver && loop_->resolver->handles(request_.host)) return resolve_with(*loop_->resolver);
+    // The helper holds the op weakly: the op lives and dies on the loop thread only.
+    std::thread([loop = loop_->shared_from_this(), weak = weak_from_this(), host = request_.host, port = request_.port]() {
+      addrinfo hints{};
+      hints.ai_family = AF_UNSPEC;
+      hints.ai_socktype = SOCK_STREAM;
+      addrinfo* found = nullptr;
+      const int rc = ::getaddrinfo(host.c_str(), nullptr, &hints, &found);
+      std::vector<tcp::endpoint> endpoints;
+      for (auto* it = found; rc == 0 && it != nullptr; it = it->ai_next) {
+        if (it->ai_family == AF_INET)
+          endpoints.emplace_back(net::ip::address_v4(ntohl(reinterpret_cast<sockaddr_in*>(it->ai_addr)->sin_addr.s_addr)), port);
+        else if (it->ai_family == AF_INET6) {
+          net::ip::address_v6::bytes_type bytes;
+          std::memcpy(bytes.data(), reinterpret_cast<sockaddr_in6*>(it->ai_addr)->sin6_addr.s6_addr, bytes.size());
+          endpoints.emplace_back(net::ip::address_v6(bytes), port);
+        }
+      }
+      if (found) ::freeaddrinfo(found);
+      std::string why = rc == 0 ? "no addresses" : ::gai_strerror(rc);
+      loop->post([weak, endpoints = std::move(endpoints), why = std::move(why)]() mutable {
+        if (auto self = weak.lock()) self->resolved(std::move(endpoints), std::move(why));
+      });
+    }).detach();
+  }
+
+  // The resolver answers on any thread (or at once, from its cache): always continue on the loop thread.
+  void resolve_with(HostResolver& resolver) {
+    resolver.resolve(request_.host, [loop = loop_->weak_from_this(), weak = weak_from_this(), port = request_.port](
+                                        std::vector<std::string> addresses, std::string why) {
+      std::vector<tcp::endpoint> endpoints;
+      for (const auto& text : addresses) {
+        boost::system::error_code ec;
+        const auto address = net::ip::make_address(text, ec);
+        if (!ec) endpoints.emplace_back(address, port);
+      }
+      // Weakly: the resolver is the loop's, and a callback it still holds must not keep the loop alive.
+      if (auto live = loop.lock())
+        live->post([weak, endpoints = std::move(endpoints), why = std::move(why)]() mutable {
+          if (auto self = weak.lock()) self->resolved(std::move(endpoints), std::move(why));
+        });
+    });
+  }
+
+  void resolved(std::vector<tcp::endpoint> endpoints, std::string why) {
+    if (resolution_done_) return;
+    resolution_done_ = true;
+    timer_.cancel();
+    if (!endpoints.empty()) return connect(std::move(endpoints));
+    if (request_.fallback_ip) {
+      boost::system::error_code ec;
+      const auto ip = net::ip::make_address(*request_.fallback_ip, ec);
+      if (!ec) return connect({tcp::endpoint(ip, request_.port)});
+    }
+    finish("cannot resolve host '" + request_.host + "': " + why + (request_.fallback_ip ? "" : " (and no ip fallback)"));
+  }
+
+  void connect(std::vector<tcp::endpoint> endpoints) {
+    result_.address = endpoint_text(endpoints.front());
+    endpoints_ = std::move(endpoints);
+    if (auto found = loop_->idle.find(result_.address); found != loop_->idle.end()) {
+      auto& pool = found->second;
+      while (!pool.empty() && !stream_) {
+        IdleConnection idle = std::move(pool.back());
+        pool.pop_back();
+        if (Clock::now() - idle.since < kMaxIdle) stream_ = std::move(idle.stream);
+      }
+      if (stream_) {
+        reused_ = true;
+        stream_->expires_at(deadline_);
+        return send();
+      }
+    }
+    fresh_connect();
+  }
+
+  void fresh_connect() {
+    reused_ = false;
+    stream_ = std::make_unique<beast::tcp_stream>(loop_->io);
+    stream_->expires_at(deadline_);
+    stream_->async_connect(endpoints_, [self = shared_from_this()](const beast::error_code& ec, const tcp::endpoint& endpoint) {
+      if (ec) return self->fail("cannot connect to " + self->result_.address, ec);
+      self->result_.address = endpoint_text(endpoint);
+      self->send();
+    });
+  }
+
+  void send() {
+    bhttp::verb verb = bhttp::string_to_verb(bsv(request_.method));
+    message_.method(verb == bhttp::verb::unknown ? bhttp::verb::get : verb);
+    message_.target(bsv(request_.target));
+    message_.version(11);
+    message_.set(bhttp::field::host, bsv(request_.host));
+    message_.set(bhttp::field::user_agent, "rcand-swarm");
+    for (const auto& [name, value] : request_.headers) message_.set(bsv(name), bsv(value));
+    if (!request_.body.empty() && message_.find(bhttp::field::content_type) == message_.end())
+      message_.set(bhttp::field::content_type, "application/json");
+    message_.body() = request_.body;
+    message_.prepare_payload();
+    bhttp::async_write(*stream_, message_, [self = shared_from_this()](const beast::error_code& ec, std::size_t) {
+      if (ec && self->reused_ && is_stale(ec)) return self->fresh_connect();
+      if (ec) return self->fail(self->request_.method + " " + self->request_.target + " on " + self->result_.address, ec);
+      self->receive();
+    });
+  }
+
+  // The header first, on its own: Beast 1.74's eager parse (what async_read sets) loses the body_limit error of a
+  // Content-Length over the limit and reads the whole body anyway; read_header reports it.
+  void receive() {
+    parser_.emplace();
+    parser_->body_limit(request_.body_limit);
+    bhttp::async_read_header(*stream_, buffer_, *parser_, [self = shared_from_this()](const beast::error_code& ec, std::size_t) {
+      if (ec && self->reused_ && is_stale(ec) && !self->parser_->got_some()) {
+        self->buffer_.clear();
+        return self->fresh_connect();  // the peer had closed the idle connection: once more on a new one
+      }
+      if (ec) return self->fail(self->request_.method + " " + self->request_.target + " on " + self->result_.address, ec);
+      self->receive_body();
+    });
+  }
+
+  void receive_body() {
+    bhttp::async_read(*stream_, buffer_, *parser_, [self = shared_from_this()](const beast::error_code& ec, std::size_t) {
+      if (ec) return self->fail(self->request_.method + " " + self->request_.target + " on " + self->result_.address, ec);
+      auto& response = self->parser_->get();
+      self->result_.reachable = true;
+      self->result_.status = static_cast<int>(response.result_int());
+      self->result_.body = std::move(response.body());
+      if (response.keep_alive()) self->keep_idle();
+      self->finish({});
+    });
+  }
+
+  // Back to the pool for the next broadcast (the answer was complete and the peer keeps the connection).
+  void keep_idle() {
+    auto& pool = loop_->idle[result_.address];
+    if (pool.size() >= kMaxIdlePerPeer || buffer_.size() != 0) return;
+    stream_->expires_never();
+    pool.push_back({std::move(stream_), Clock::now()});
+  }
+
+  void fail(const std::string& what, const beast::error_code& ec) {
+    if (ec == beast::error::timeout) finish(what + ": timed out after " + std::to_string(timeout_.count()) + " ms");
+    else finish(what + ": " + ec.message());
+  }
+
+  void finish(std::string error) {
+    if (finished_) return;
+    finished_ = true;
+    result_.name = request_.name;
+    result_.error = std::move(error);
+    result_.latency_ms = std::chrono::duration<double, std::milli>(Clock::now() - start_).count();
+    batch_->complete(index_, std::move(result_));
+  }
+
+  FanOut::Loop* loop_;  // outlives this op: see FanOut::Loop
+  std::shared_ptr<Batch> batch_;
+  std::size_t index_;
+  PeerRequest request_;
+  Clock::time_point start_;
+  std::chrono::milliseconds timeout_;
+  Clock::time_point deadline_;
+  std::vector<tcp::endpoint> endpoints_;
+  std::unique_ptr<beast::tcp_stream> stream_;
+  net::steady_timer timer_;
+  beast::flat_buffer buffer_;
+  bhttp::request<bhttp::string_body> message_;
+  std::optional<bhttp::response_parser<bhttp::string_body>> parser_;  // fresh for each attempt
+  PeerResult result_;
+  bool resolution_done_ = false;
+  bool reused_ = false;
+  bool finished_ = false;
+};
+
+}  // namespace
+
+FanOut::FanOut(std::shared_ptr<HostResolver> resolver) : loop_(std::make_shared<Loop>()) {
+  loop_->resolver = std::move(resolver);
+  loop_->thread = std::thread([loop = loop_.get()] { loop->io.run(); });
+}
+
+FanOut::~FanOut() { stop(); }
+
+void FanOut::stop() noexcept {
+  if (!loop_) return;
+  {
+    std::lock_guard lock(loop_->mutex);
+    loop_->alive = false;
+  }
+  loop_->work.reset();
+  loop_->io.stop();
+  if (loop_->thread.joinable()) loop_->thread.join();
+}
+
+void FanOut::run(std::vector<PeerRequest> requests, std::chrono::milliseconds timeout, Done done) {
+  const auto start = Clock::now();
+  loop_->post([loop = loop_.get(), requests = std::move(requests), timeout, done = std::move(done), start]() mutable {
+    auto batch = std::make_shared<Batch>(loop->io);
+    batch->results.resize(requests.size());
+    batch->finished.assign(requests.size(), false);
+    batch->remaining = requests.size();
+    batch->done = std::move(done);
+    if (requests.empty()) return batch->close();
+    auto names = std::make_shared<std::vector<std::string>>();
+    for (const auto& request : requests) names->push_back(request.name);
+    batch->deadline.expires_at(start + timeout);
+    batch->deadline.async_wait([batch, names, start, timeout](const boost::system::error_code& ec) {
+      if (ec) return;
+      const double elapsed = std::chrono::duration<double, std::milli>(Clock::now() - start).count();
+      batch->expire(*names, elapsed, "timed out after " + std::to_string(timeout.count()) + " ms");
+    });
+    for (std::size_t i = 0; i < requests.size(); ++i)
+      std::make_shared<PeerOp>(*loop, batch, i, std::move(requests[i]), start, timeout)->start();
+  });
+}
+
+std::vector<PeerResult> FanOut::run_and_wait(std::vector<PeerRequest> requests, std::chrono::milliseconds timeout) {
+  auto promise = std::make_shared<std::promise<std::vector<PeerResult>>>();
+  auto future = promise->get_future();
+  run(std::move(requests), timeout, [promise](std::vector<PeerResult> results) { promise->set_value(std::move(results)); });
+  return future.get();
+}
+
+}  // namespace rcand::swarm

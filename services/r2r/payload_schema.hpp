@@ -1,0 +1,21 @@
+// Per-type payload validation (docs/protocol.md §11 payload rulings). Types are checked strictly; unknown fields ignored.
+#pragma once
+
+#include <nlohmann/json.hpp>
+
+#include <optional>
+#include <string>
+
+#include "services/r2r/envelope.hpp"
+
+namespace rcand::kernel::r2r {
+
+struct PayloadFault {
+  std::string field;  // JSON pointer relative to the message ("/payload/task_id")
+  std::string message;
+};
+
+// nullopt when `payload` (already known to be an object) is acceptable for `type`.
+std::optional<PayloadFault> check_payload(MessageType type, const nlohmann::json& payload);
+
+}  // namespace rcand::kernel::r2r

@@ -1,0 +1,159 @@
+#include "services/r2r/plugin_bridge.hpp"
+
+#include <spdlog/spdlog.h>
+
+#include <memory>
+#include <stdexcept>
+
+namespace rcand::kernel::r2r {
+
+constexpr MessageType kAllTypes[] = {MessageType::Status,  MessageType::TaskRequest, MessageType::TaskResponse,
+                                     MessageType::Command, MessageType::Negotiation, MessageType::Error};
+
+class PluginBridge::Link final : public sdk::R2rLink {
+ public:
+  Link(PluginBridge& bridge, sdk::Worker& worker, std::string owner)
+      : bridge_(bridge), worker_(worker), owner_(std::move(owner)) {}
+  ~Link() override { bridge_.forget(this); }
+
+  sdk::R2rSendResult send(std::string_view type, const sdk::Json& payload, const std::optional<std::string>& target) override {
+    return bridge_.send(type, payload, target);
+  }
+  std::uint64_t subscribe(std::string_view type, Callback callback) override {
+    return bridge_.subscribe(this, type, std::move(callback), worker_);
+  }
+  void unsubscribe(std::uint64_t id) noexcept override { bridge_.unsubscribe(id); }
+  void set_cost_function(sdk::R2rCostFunction cost) override { bridge_.set_cost(this, std::move(cost)); }
+  const std::string& owner() const noexcept { return owner_; }
+
+ private:
+  PluginBridge& bridge_;
+  sdk::Worker& worker_;
+  std::string owner_;
+};
+
+PluginBridge::~PluginBridge() { detach(); }
+
+void PluginBridge::attach(R2rNode& node) {
+  detach();
+  std::vector<std::uint64_t> ids;
+  for (MessageType type : kAllTypes) ids.push_back(node.subscribe(type, [this](const ReceivedMessage& m) { deliver(m); }));
+  std::lock_guard lock(mutex_);
+  node_ = &node;
+  node_subscriptions_ = std::move(ids);
+  if (cost_) node_->set_cost_function(wrapped_cost());
+}
+
+void PluginBridge::detach() noexcept {
+  R2rNode* node = nullptr;
+  std::vector<std::uint64_t> ids;
+  {
+    std::lock_guard lock(mutex_);
+    node = std::exchange(node_, nullptr);
+    ids = std::move(node_subscriptions_);
+    node_subscriptions_.clear();
+  }
+  if (node == nullptr) return;
+  for (std::uint64_t id : ids) node->unsubscribe(id);
+}
+
+std::unique_ptr<sdk::R2rLink> PluginBridge::make_link(sdk::Worker& worker, std::string owner) {
+  return std::make_unique<Link>(*this, worker, std::move(owner));
+}
+
+void PluginBridge::deliver(const ReceivedMessage& m) {
+  // Built once, shared by every subscriber's queued task.
+  auto message = std::make_shared<const sdk::R2rMessage>(sdk::R2rMessage{std::string(type_name(m.envelope.type)),
+                                                                         m.envelope.source_id, m.envelope.target_id,
+                                                                         m.envelope.timestamp, m.envelope.payload,
+                                                                         m.principal, m.transport});
+  std::lock_guard lock(mutex_);
+  for (const auto& [id, entry] : subscriptions_) {
+    const Subscription& sub = entry.second;
+    if (sub.type != m.envelope.type) continue;
+    sub.worker->post([callback = sub.callback, live = sub.live, message] {
+      if (*live) callback(*message);  // an exception is the worker's: logged, and the plugin marked failed
+    });
+  }
+}
+
+sdk::R2rSendResult PluginBridge::send(std::string_view type, const sdk::Json& payload, const std::optional<std::string>& target) {
+  const auto parsed = parse_message_type(type);
+  if (!parsed) return {false, "unknown R2R message type '" + std::string(type) + "'", "/type"};
+  R2rNode* node = nullptr;
+  {
+    std::lock_guard lock(mutex_);
+    node = node_;
+  }
+  // Sent without the lock: a transport may deliver synchronously back into deliver(). The node outlives every
+  // plugin worker (the kernel joins them before destroying it), so the pointer stays good for this call.
+  if (node == nullptr) return {false, "R2R is not running on this robot", ""};
+  auto sent = node->send(*parsed, payload, target);
+  if (auto* error = std::get_if<R2rError>(&sent)) return {false, error->message, error->field};
+  return {true, "", ""};
+}
+
+std::uint64_t PluginBridge::subscribe(const Link* owner, std::string_view type, sdk::R2rLink::Callback callback,
+                                      sdk::Worker& worker) {
+  const auto parsed = parse_message_type(type);
+  if (!parsed) throw std::invalid_argument("unknown R2R message type '" + std::string(type) + "'");
+  if (!callback) throw std::invalid_argument("R2R subscribe needs a callback");
+  std::lock_guard lock(mutex_);
+  const std::uint64_t id = next_id_++;
+  subscriptions_.emplace(id, std::make_pair(owner, Subscription{*parsed, &worker, std::move(callback), std::make_shared<bool>(true)}));
+  return id;
+}
+
+void PluginBridge::unsubscribe(std::uint64_t id) noexcept {
+  std::lock_guard lock(mutex_);
+  if (const auto it = subscriptions_.find(id); it != subscriptions_.end()) {
+    *it->second.second.live = false;
+    subscriptions_.erase(it);
+  }
+}
+
+CostFunction PluginBridge::wrapped_cost() const {
+  return [cost = cost_](const CostInput& input) -> std::optional<double> {
+    sdk::Json task{{"task_id", input.task.task_id},
+                   {"description", input.task.description},
+                   {"required_capabilities", input.task.required_capabilities}};
+    if (input.task.deadline) task["deadline"] = *input.task.deadline;
+    if (input.task.location) task["location"] = {{"x", input.task.location->x}, {"y", input.task.location->y}};
+    std::optional<sdk::R2rPose> pose;
+    if (input.position) pose = sdk::R2rPose{input.position->x, input.position->y, input.position->heading_deg};
+    try {
+      return cost(task, pose, input.queue_length);
+    } catch (const std::exception& e) {
+      spdlog::warn("r2r: a plugin's cost function threw ({}); not bidding", e.what());
+    } catch (...) {
+      spdlog::warn("r2r: a plugin's cost function threw; not bidding");
+    }
+    return std::nullopt;
+  };
+}
+
+void PluginBridge::set_cost(const Link* owner, sdk::R2rCostFunction cost) {
+  std::lock_guard lock(mutex_);
+  cost_owner_ = cost ? owner : nullptr;
+  cost_ = std::move(cost);
+  if (node_ != nullptr) node_->set_cost_function(cost_ ? wrapped_cost() : CostFunction{});
+}
+
+void PluginBridge::forget(const Link* owner) noexcept {
+  std::lock_guard lock(mutex_);
+  for (auto it = subscriptions_.begin(); it != subscriptions_.end();) {
+    if (it->second.first == owner) {
+      *it->second.second.live = false;
+      it = subscriptions_.erase(it);
+    } else {
+      ++it;
+    }
+  }
+  if (cost_owner_ == owner) {  // the instance is going away: its cost function must not be called again
+    cost_owner_ = nullptr;
+    cost_ = nullptr;
+    if (node_ != nullptr) node_->set_cost_function({});
+  }
+}
+
+}  // namespace rcand::kernel::r2r

@@ -1,0 +1,615 @@
+#include "services/r2r/r2r_node.hpp"
+
+#include <spdlog/spdlog.h>
+
+#include <algorithm>
+#include <cmath>
+
+#include "libs/rcan/ruri.hpp"
+#include "services/r2r/payload_schema.hpp"
+#include "services/r2r/replay_guard.hpp"
+#include "libs/base/bounded_text.hpp"
+
+namespace rcand::kernel::r2r {
+using nlohmann::json;
+
+// Named, not anonymous: R2rNode::Impl (external linkage) keeps Routes in its peer table.
+namespace node_detail {
+
+// A way back to one sender (the connection its message came on), and whether that transport may carry the token.
+struct Route {
+  std::function<void(std::string)> send;
+  bool may_carry_secrets = false;
+  explicit operator bool() const noexcept { return static_cast<bool>(send); }
+};
+
+// One message to put on the wire once the node's lock is released, in two spellings: `bytes` with the bearer token
+// (when this robot has one) for the transports that may carry it, `open_bytes` without it for every other.
+struct Wire {
+  std::string bytes;
+  std::string open_bytes;
+  std::optional<std::string> target;
+  Route reply;  // preferred route for a direct answer (same connection), may be empty
+};
+
+}  // namespace node_detail
+
+using node_detail::Route;
+using node_detail::Wire;
+
+namespace {
+
+// A change in status is sent at once, but never more often than this (a moving robot changes every tick).
+constexpr std::int64_t kMinStatusGapUs = 200'000;
+
+// What the peer table keeps of a peer's status: the ruled fields only, each bounded, so one peer costs at most a few
+// KiB whatever it sends (issue 13 #14).
+constexpr std::size_t kStatusTextBytes = 64;
+constexpr std::size_t kStatusCapabilities = 64;
+json r2r_bounded_peer_status(const json& p) {
+  json out = json::object();
+  for (const char* key : {"battery", "task_progress", "tasks_held"})
+    if (const auto it = p.find(key); it != p.end() && (it->is_number() || it->is_null())) out[key] = *it;
+  if (const auto it = p.find("estopped"); it != p.end() && it->is_boolean()) out["estopped"] = *it;
+  if (const auto it = p.find("state"); it != p.end() && it->is_string())
+    out["state"] = bounded_text(it->get_ref<const std::string&>(), kStatusTextBytes);
+  if (const auto it = p.find("position"); it != p.end()) {
+    if (it->is_object()) {
+      json position = json::object();
+      for (const char* key : {"x", "y", "heading_deg"})
+        if (const auto v = it->find(key); v != it->end() && v->is_number()) position[key] = *v;
+      out["position"] = std::move(position);
+    } else if (it->is_null()) {
+      out["position"] = nullptr;
+    }
+  }
+  if (const auto it = p.find("capabilities"); it != p.end() && it->is_array()) {
+    json caps = json::array();
+    for (const auto& cap : *it) {
+      if (caps.size() >= kStatusCapabilities) break;
+      if (cap.is_string()) caps.push_back(bounded_text(cap.get_ref<const std::string&>(), kStatusTextBytes));
+    }
+    out["capabilities"] = std::move(caps);
+  }
+  return out;
+}
+
+std::optional<FleetPoint> point_of(const json& payload, const char* key) {
+  const auto it = payload.find(key);
+  if (it == payload.end() || !it->is_object()) return std::nullopt;
+  return FleetPoint{(*it)["x"].get<double>(), (*it)["y"].get<double>()};
+}
+
+TaskSpec task_from(const json& p) {
+  TaskSpec task;
+  task.task_id = p["task_id"].get<std::string>();
+  task.description = p.value("description", "");
+  if (p.contains("deadline")) task.deadline = p["deadline"].get<double>();
+  if (p.contains("required_capabilities")) task.required_capabilities = p["required_capabilities"].get<std::vector<std::string>>();
+  task.location = point_of(p, "location");
+  return task;
+}
+
+}  // namespace
+
+struct R2rNode::Impl {
+  explicit Impl(R2rNodeDeps&& d)
+      : deps(std::move(d)), auth(deps.authenticator, deps.settings.auth),
+        log(deps.log ? deps.log : spdlog::default_logger()) {
+    default_cost = nav_time_cost({deps.physics, 0.5, deps.settings.seconds_per_task});
+    cost = deps.cost_function ? deps.cost_function : default_cost;
+    if (const RuriParse parsed = parse_ruri(deps.identity.ruri); parsed.ruri) own_ruri = parsed.ruri;
+    started_s = now_s();
+  }
+
+  R2rNodeDeps deps;
+  MessageAuthenticator auth;
+  std::shared_ptr<spdlog::logger> log;
+  std::optional<Ruri> own_ruri;
+  // Wall time this node started: a signed message timestamped earlier is refused, so nothing signed before a restart
+  // (when the replay memory was lost) can be replayed after it.
+  double started_s = 0.0;
+
+  mutable std::mutex mutex;  // everything below
+  ReplayGuard replays{deps.settings.auth.replay_window_s + deps.settings.auth.future_skew_s};
+  Auctioneer auctioneer{deps.settings.auctioneer};
+  Bidder bidder{deps.settings.bidder};
+  CostFunction cost, default_cost;
+  std::map<std::uint64_t, std::pair<MessageType, Subscriber>> subscribers;
+  std::uint64_t next_subscriber = 1;
+  struct Peer {
+    std::int64_t last_seen_ms = 0;
+    std::string transport;
+    json status;  // null until a status arrives (the ruled fields only, bounded)
+    Route reply;
+  };
+  std::map<std::string, Peer> peers;
+  json last_status;  // what was last broadcast
+  std::int64_t last_status_us = 0;
+  bool status_sent = false;
+  NodeCounters counters;
+  std::uint64_t task_counter = 0;
+  std::mutex transports_mutex;  // guards transports and started (never held with `mutex`)
+  std::vector<Transport*> transports;
+  bool started = false;
+
+  double now_s() const { return static_cast<double>(deps.clock.wall_ms()) / 1000.0; }
+
+  bool is_self(const std::string& id) const {
+    if (id == deps.identity.name || id == deps.identity.ruri) return true;
+    if (!own_ruri || id.rfind("rcan://", 0) != 0) return false;
+    const RuriParse parsed = parse_ruri(id);
+    return parsed.ruri && ruri_matches(*parsed.ruri, *own_ruri);
+  }
+
+  // The signed (and, with `with_token`, tokened) bytes of a message from this robot.
+  std::string build(MessageType type, json payload, const std::optional<std::string>& target, double timestamp,
+                    bool with_token) const {
+    json header{{"version", std::string(kProtocolVersion)}, {"timestamp", timestamp}, {"source_id", deps.identity.name}};
+    if (target) header["target_id"] = *target;
+    json message{{"header", std::move(header)}, {"type", std::string(type_name(type))}, {"payload", std::move(payload)}};
+    if (with_token && deps.settings.outbound_token) add_token(message, *deps.settings.outbound_token);
+    if (deps.settings.private_key) sign_message(message, deps.identity.name, *deps.settings.private_key);
+    return message.dump(-1, ' ', false, json::error_handler_t::replace);
+  }
+
+  Wire wire(const Outgoing& out, Route reply = {}) const {
+    const double timestamp = now_s();
+    std::string open = build(out.type, out.payload, out.target, timestamp, false);
+    std::string full = deps.settings.outbound_token ? build(out.type, out.payload, out.target, timestamp, true) : open;
+    return {std::move(full), std::move(open), out.target, std::move(reply)};
+  }
+
+  // Sends outside `mutex`. A direct answer goes back on the connection it came from when it can; otherwise every
+  // transport is tried (broadcasts go to all of them), then the peer's last known route. Each transport gets the
+  // spelling it may carry. Returns the names of the transports (or "reply"/"route") that took each message.
+  std::vector<std::vector<std::string>> transmit(std::vector<Wire> batch) {
+    std::vector<std::vector<std::string>> taken(batch.size());
+    for (std::size_t i = 0; i < batch.size(); ++i) {
+      Wire& w = batch[i];
+      std::vector<std::string>& by = taken[i];
+      if (w.reply) {
+        w.reply.send(w.reply.may_carry_secrets ? w.bytes : w.open_bytes);
+        by.emplace_back("reply");
+      } else {
+        std::vector<Transport*> targets;
+        {
+          std::lock_guard lock(transports_mutex);
+          if (started) targets = transports;
+        }
+        for (Transport* transport : targets) {
+          if (transport->send_own(w.bytes, w.open_bytes, w.target)) {
+            by.emplace_back(transport->name());
+            if (w.target) break;
+          }
+        }
+        if (by.empty() && w.target) {
+          Route route;
+          {
+            std::lock_guard lock(mutex);
+            if (const auto peer = peers.find(*w.target); peer != peers.end()) route = peer->second.reply;
+          }
+          if (route) {
+            route.send(route.may_carry_secrets ? w.bytes : w.open_bytes);
+            by.emplace_back("route");
+          }
+        }
+      }
+      std::lock_guard lock(mutex);
+      ++(!by.empty() ? counters.sent : counters.send_failed);
+    }
+    return taken;
+  }
+
+  // The peer table entry for `source`, made room for (the least recently heard goes when the table is full). Under
+  // `mutex`.
+  Peer& peer_entry_locked(const std::string& source) {
+    if (const auto it = peers.find(source); it != peers.end()) return it->second;
+    while (!peers.empty() && peers.size() >= std::max<std::size_t>(deps.settings.max_peers, 1)) {
+      const auto oldest = std::min_element(peers.begin(), peers.end(), [](const auto& a, const auto& b) {
+        return a.second.last_seen_ms < b.second.last_seen_ms;
+      });
+      peers.erase(oldest);
+    }
+    return peers[source];
+  }
+
+  void prune_peers_locked(std::int64_t now_ms) {
+    const auto expiry_ms = static_cast<std::int64_t>(deps.settings.peer_expiry_s * 1000.0);
+    std::erase_if(peers, [&](const auto& entry) { return now_ms - entry.second.last_seen_ms > expiry_ms; });
+  }
+
+  // An `error` answering a message from `source` (never to an `error`, never to ourselves).
+  // `source` is nullopt when the message was too broken to say who sent it (then only `reply` can carry the answer).
+  Wire error_reply(ErrorCode code, std::string message, const std::optional<json>& ref,
+                   const std::optional<std::string>& source, const Route& reply,
+                   std::optional<json> extra = std::nullopt) const {
+    json payload = make_error_payload(code, std::move(message), ref);
+    if (extra) payload.update(*extra);
+    return wire({MessageType::Error, std::move(payload), source}, reply);
+  }
+
+  json status_payload_locked(const LocalStatus& local) const {
+    json position;
+    if (local.pose) {
+      const FleetPose fleet = to_fleet_frame(*local.pose, deps.settings.origin);
+      position = {{"x", fleet.x}, {"y", fleet.y}, {"heading_deg", fleet.heading_deg}};
+    }
+    return {{"battery", local.battery ? json(*local.battery) : json()},
+            {"position", position},
+            {"task_progress", local.task_progress ? json(*local.task_progress) : json()},
+            {"state", local.state},
+            {"estopped", local.estopped},
+            {"capabilities", deps.identity.capabilities},
+            {"tasks_held", bidder.queue_length()}};  // rcand extension: the bidder's queue
+  }
+
+  LocalStatus local_status() const { return deps.status_source ? deps.status_source() : LocalStatus{}; }
+
+  std::optional<FleetPose> fleet_position(const LocalStatus& local) const {
+    if (!local.pose) return std::nullopt;
+    return to_fleet_frame(*local.pose, deps.settings.origin);
+  }
+};
+
+R2rNode::R2rNode(R2rNodeDeps deps) : identity_(deps.identity), impl_(std::make_shared<Impl>(std::move(deps))) {
+  for (Transport* transport : impl_->deps.transports) add_transport(transport);
+}
+
+R2rNode::~R2rNode() { stop(); }
+
+void R2rNode::add_transport(Transport* transport) {
+  if (transport == nullptr) return;
+  std::lock_guard lock(impl_->transports_mutex);
+  if (std::find(impl_->transports.begin(), impl_->transports.end(), transport) == impl_->transports.end())
+    impl_->transports.push_back(transport);
+}
+
+void R2rNode::start() {
+  std::vector<Transport*> transports;
+  {
+    std::lock_guard lock(impl_->transports_mutex);
+    transports = impl_->transports;
+    impl_->started = true;
+  }
+  // stop() (also run by the destructor) stops every transport, so no delivery outlives the node.
+  for (Transport* transport : transports) transport->start([this](InboundMessage message) { receive(std::move(message)); });
+}
+
+void R2rNode::stop() noexcept {
+  std::vector<Transport*> transports;
+  {
+    std::lock_guard lock(impl_->transports_mutex);
+    if (!impl_->started) return;
+    impl_->started = false;
+    transports = impl_->transports;
+  }
+  for (Transport* transport : transports) transport->stop();
+}
+
+void R2rNode::receive(InboundMessage message) {
+  Impl& s = *impl_;
+  const Route reply{message.reply, transport_may_carry_secrets(message.transport) && message.trusted_with_secrets};
+  std::vector<Wire> out;
+  {
+    std::lock_guard lock(s.mutex);
+    ++s.counters.received;
+  }
+  auto reject = [&](Wire wire) {
+    {
+      std::lock_guard lock(s.mutex);
+      ++s.counters.rejected;
+    }
+    s.transmit({std::move(wire)});
+  };
+
+  auto parsed = parse_envelope(message.bytes);
+  if (auto* bad = std::get_if<R2rError>(&parsed)) {
+    s.log->info("r2r: refused a message from {} via {}: {}{}{}", message.peer, message.transport, bad->message,
+                bad->field.empty() ? "" : " at ", bad->field);
+    const bool answerable = bad->type != "error" && !(bad->source_id && s.is_self(*bad->source_id)) &&
+                            (bad->source_id || reply);
+    if (!answerable) {
+      std::lock_guard lock(s.mutex);
+      ++s.counters.rejected;
+      return;
+    }
+    json extra = json::object();
+    if (!bad->field.empty()) extra["field"] = bad->field;  // rcand extension: where the fault is
+    reject(s.error_reply(bad->code, bad->message, bad->ref, bad->source_id, reply, extra));
+    return;
+  }
+  Envelope envelope = std::move(std::get<Envelope>(parsed));
+  if (s.is_self(envelope.source_id)) return;  // our own broadcast, echoed back by a transport
+  const std::string& source = envelope.source_id;
+  const bool is_error = envelope.type == MessageType::Error;
+  json clean_ref = envelope.header_extra;  // the `ref` of any answer: the header, minus credentials
+  clean_ref.erase("auth");
+  clean_ref.erase("signature");
+
+  const double now = s.now_s();
+  auto who = s.auth.authorize(envelope, envelope.received, message.principal, required_scope(envelope.type), now);
+  if (auto* failure = std::get_if<AuthFailure>(&who)) {
+    s.log->info("r2r: unauthorized {} from '{}' via {}: {}", type_name(envelope.type), source, message.transport,
+                failure->message);
+    if (is_error) {
+      std::lock_guard lock(s.mutex);
+      ++s.counters.rejected;
+      return;
+    }
+    reject(s.error_reply(ErrorCode::Unauthorized, failure->message, clean_ref, source, reply));
+    return;
+  }
+  const Principal principal = std::move(std::get<Principal>(who));
+  if (principal.via == "signature") {
+    // Signed before this robot started: its replay memory cannot know whether it was handled before a restart, so it
+    // is refused (103) - nothing signed before a restart is replayable after it.
+    if (envelope.timestamp < s.started_s) {
+      const std::string why = "signed message timestamped before this robot started (" + json(s.started_s).dump() +
+                              "): refused as a possible replay";
+      s.log->info("r2r: refused a signed {} from '{}' via {}: {}", type_name(envelope.type), source, message.transport, why);
+      if (is_error) {
+        std::lock_guard lock(s.mutex);
+        ++s.counters.rejected;
+        return;
+      }
+      reject(s.error_reply(ErrorCode::Unauthorized, why, clean_ref, source, reply));
+      return;
+    }
+    // A copy of a signed message already handled: a replay, or the same broadcast over another transport. Keyed on
+    // the canonical signed message, so no other spelling of it counts as new. Dropped without an answer (the
+    // original was answered).
+    const std::string key = replay_key(envelope.received);
+    std::lock_guard lock(s.mutex);
+    if (!s.replays.first_time(key, now)) {
+      ++s.counters.rejected;
+      s.log->debug("r2r: dropped a repeated signed {} from '{}'", type_name(envelope.type), source);
+      return;
+    }
+  }
+
+  if (envelope.target_id && !s.is_self(*envelope.target_id)) {
+    if (is_error) {
+      std::lock_guard lock(s.mutex);
+      ++s.counters.rejected;
+      return;
+    }
+    reject(s.error_reply(ErrorCode::UnknownTarget, "unknown target robot '" + *envelope.target_id + "': this is '" +
+                                                       s.deps.identity.name + "' and it does not forward",
+                         clean_ref, source, reply));
+    return;
+  }
+
+  // Facts gathered outside the lock (the status source may look at plugins).
+  std::optional<FleetPose> position;
+  if (envelope.type == MessageType::TaskRequest) position = s.fleet_position(s.local_status());
+
+  std::vector<Subscriber> to_notify;
+  bool run_command = false;
+  {
+    std::lock_guard lock(s.mutex);
+    ++s.counters.accepted;
+    Impl::Peer& peer = s.peer_entry_locked(source);
+    peer.last_seen_ms = s.deps.clock.wall_ms();
+    peer.transport = message.transport;
+    if (reply) peer.reply = reply;
+    const json& p = envelope.payload;
+    const Bidder::Context context{s.deps.identity.capabilities, s.cost, position, now};
+
+    switch (envelope.type) {
+      case MessageType::Status: peer.status = r2r_bounded_peer_status(p); break;
+      case MessageType::TaskRequest: {
+        const TaskSpec task = task_from(p);
+        if (p.contains("bid_deadline")) {
+          if (auto bid = s.bidder.on_task_request(source, task, p["bid_deadline"].get<double>(), context))
+            out.push_back(s.wire(*bid, reply));
+        } else {
+          out.push_back(s.wire(s.bidder.on_direct_request(source, task, clean_ref, context), reply));
+        }
+        break;
+      }
+      case MessageType::Negotiation: {
+        const std::string task_id = p["task_id"].get<std::string>();
+        const std::string action = p["action"].get<std::string>();
+        if (action == "bid") {
+          Bid bid{source, p["cost"].get<double>(), p.value("capabilities", std::vector<std::string>{}), now};
+          s.auctioneer.on_bid(task_id, std::move(bid));
+        } else if (action == "award") {
+          out.push_back(s.wire(s.bidder.on_award(source, task_id, clean_ref, now), reply));
+        } else {
+          s.bidder.on_withdraw(source, task_id);
+        }
+        break;
+      }
+      case MessageType::TaskResponse: {
+        std::optional<double> estimate;
+        if (p.contains("estimated_time") && p["estimated_time"].is_number()) estimate = p["estimated_time"].get<double>();
+        for (const Outgoing& next :
+             s.auctioneer.on_task_response(source, p["task_id"].get<std::string>(), p["accepted"].get<bool>(), estimate, now))
+          out.push_back(s.wire(next));
+        break;
+      }
+      case MessageType::Error: {
+        const int code = p["code"].get<int>();
+        if (const auto task = p.find("task_id"); task != p.end() && task->is_string()) {
+          if (code == static_cast<int>(ErrorCode::TaskAssigned))
+            for (const Outgoing& next : s.auctioneer.on_error(source, task->get<std::string>(), now)) out.push_back(s.wire(next));
+          if (code == static_cast<int>(ErrorCode::NetworkTimeout)) s.bidder.on_withdraw(source, task->get<std::string>());
+        }
+        s.log->info("r2r: error {} ({}) from '{}': {}", code, error_code_name(code), source, p["message"].get<std::string>());
+        break;
+      }
+      case MessageType::Command: run_command = true; break;
+    }
+    for (const auto& [id, entry] : s.subscribers)
+      if (entry.first == envelope.type) to_notify.push_back(entry.second);
+  }
+  s.transmit(std::move(out));
+
+  if (run_command) {
+    if (!s.deps.command_executor) {
+      reject(s.error_reply(ErrorCode::Unauthorized, "this robot does not accept R2R commands", clean_ref, source, reply));
+      return;
+    }
+    std::weak_ptr<Impl> weak = impl_;
+    s.deps.command_executor(principal, envelope.payload,
+                            [weak, clean_ref, source, reply](int status, json body) {
+                              const auto self = weak.lock();
+                              if (!self || (status >= 200 && status < 300)) return;
+                              const std::string why = body.is_object() && body.contains("error") && body["error"].is_string()
+                                                          ? body["error"].get<std::string>()
+                                                          : "command failed";
+                              const ErrorCode code = status == 423                   ? ErrorCode::EstopActive
+                                                     : status == 401 || status == 403 ? ErrorCode::Unauthorized
+                                                                                      : ErrorCode::InvalidFormat;
+                              json extra{{"http_status", status}};  // rcand extension: the HTTP-equivalent answer
+                              if (body.is_object() && body.contains("code")) extra["http_code"] = body["code"];
+                              self->transmit({self->error_reply(code, why, clean_ref, source, reply, extra)});
+                            });
+  }
+
+  if (!to_notify.empty()) {
+    const ReceivedMessage received{std::move(envelope), principal.name, message.transport};
+    for (const Subscriber& callback : to_notify) {
+      try {
+        callback(received);
+      } catch (const std::exception& e) {
+        s.log->warn("r2r: a subscriber threw: {}", e.what());
+      } catch (...) {
+        s.log->warn("r2r: a subscriber threw");
+      }
+    }
+  }
+}
+
+void R2rNode::tick() {
+  Impl& s = *impl_;
+  const LocalStatus local = s.local_status();
+  const std::int64_t now_us = s.deps.clock.now_us();
+  std::vector<Wire> out;
+  {
+    std::lock_guard lock(s.mutex);
+    json status = s.status_payload_locked(local);
+    const std::int64_t since = now_us - s.last_status_us;
+    const bool due = !s.status_sent || since >= std::chrono::microseconds(s.deps.settings.status_interval).count();
+    const bool changed = s.status_sent && status != s.last_status && since >= kMinStatusGapUs;
+    if (due || changed) {
+      out.push_back(s.wire({MessageType::Status, status, std::nullopt}));
+      s.last_status = std::move(status);
+      s.last_status_us = now_us;
+      s.status_sent = true;
+    }
+    const double now = s.now_s();
+    for (const Outgoing& next : s.auctioneer.tick(now)) out.push_back(s.wire(next));
+    s.bidder.prune(now);
+    s.prune_peers_locked(s.deps.clock.wall_ms());
+  }
+  s.transmit(std::move(out));
+}
+
+std::variant<std::string, R2rError> R2rNode::send(MessageType type, json payload, const std::optional<std::string>& target) {
+  auto outcome = send_message(type, std::move(payload), target);
+  if (auto* error = std::get_if<R2rError>(&outcome)) return std::move(*error);
+  return std::move(std::get<SendOutcome>(outcome).bytes);
+}
+
+std::variant<SendOutcome, R2rError> R2rNode::send_message(MessageType type, json payload,
+                                                          const std::optional<std::string>& target) {
+  auto invalid = [](std::string field, std::string message) {
+    R2rError error;
+    error.field = std::move(field);
+    error.message = std::move(message);
+    return error;
+  };
+  if (!payload.is_object()) return invalid("/payload", "payload must be an object");
+  if (auto fault = check_payload(type, payload)) return invalid(fault->field, fault->message);
+  if (target && target->empty()) return invalid("/header/target_id", "target_id must not be empty");
+  Wire w = impl_->wire({type, std::move(payload), target});
+  const std::size_t size = std::max(w.bytes.size(), w.open_bytes.size());
+  if (size > kMaxMessageBytes)
+    return invalid("", "message is " + std::to_string(size) + " bytes, more than the " +
+                           std::to_string(kMaxMessageBytes) + " allowed");
+  SendOutcome outcome;
+  outcome.bytes = w.open_bytes;
+  outcome.queued_on = std::move(impl_->transmit({std::move(w)}).front());
+  return outcome;
+}
+
+std::variant<std::string, R2rError> R2rNode::open_auction(TaskSpec task) {
+  Impl& s = *impl_;
+  std::vector<Wire> out;
+  {
+    std::lock_guard lock(s.mutex);
+    if (task.task_id.empty())
+      task.task_id = s.deps.identity.name + "-" + std::to_string(s.deps.clock.wall_ms()) + "-" + std::to_string(++s.task_counter);
+    const double window = static_cast<double>(s.deps.settings.bid_window.count()) / 1000.0;
+    for (const Outgoing& next : s.auctioneer.open(task, window, s.now_s())) {
+      if (auto fault = check_payload(next.type, next.payload)) {
+        R2rError error;
+        error.field = fault->field;
+        error.message = fault->message;
+        return error;
+      }
+      out.push_back(s.wire(next));
+    }
+  }
+  s.transmit(std::move(out));
+  return task.task_id;
+}
+
+std::optional<json> R2rNode::auction_result(const std::string& task_id) const {
+  std::lock_guard lock(impl_->mutex);
+  return impl_->auctioneer.result(task_id);
+}
+
+json R2rNode::held_tasks() const {
+  std::lock_guard lock(impl_->mutex);
+  json tasks = json::array();
+  for (const auto& [task_id, held] : impl_->bidder.held())
+    tasks.push_back({{"task_id", task_id}, {"requester", held.requester}, {"estimated_time", held.estimated_time},
+                     {"accepted_s", held.accepted_s}});
+  return tasks;
+}
+
+bool R2rNode::complete_task(const std::string& task_id) {
+  std::lock_guard lock(impl_->mutex);
+  return impl_->bidder.release(task_id);
+}
+
+std::uint64_t R2rNode::subscribe(MessageType type, Subscriber callback) {
+  std::lock_guard lock(impl_->mutex);
+  const std::uint64_t id = impl_->next_subscriber++;
+  impl_->subscribers.emplace(id, std::make_pair(type, std::move(callback)));
+  return id;
+}
+
+void R2rNode::unsubscribe(std::uint64_t id) {
+  std::lock_guard lock(impl_->mutex);
+  impl_->subscribers.erase(id);
+}
+
+void R2rNode::set_cost_function(CostFunction cost) {
+  std::lock_guard lock(impl_->mutex);
+  impl_->cost = cost ? std::move(cost) : impl_->default_cost;
+}
+
+json R2rNode::peers() const {
+  std::lock_guard lock(impl_->mutex);
+  json list = json::array();
+  for (const auto& [name, peer] : impl_->peers)
+    list.push_back({{"name", name}, {"last_seen_ms", peer.last_seen_ms}, {"transport", peer.transport}, {"status", peer.status}});
+  return {{"peers", std::move(list)}};
+}
+
+json R2rNode::status_payload() const {
+  const LocalStatus local = impl_->local_status();
+  std::lock_guard lock(impl_->mutex);
+  return impl_->status_payload_locked(local);
+}
+
+NodeCounters R2rNode::counters() const {
+  std::lock_guard lock(impl_->mutex);
+  return impl_->counters;
+}
+
+}  // namespace rcand::kernel::r2r

@@ -1,0 +1,305 @@
+#include "services/r2r/r2r_service.hpp"
+
+#include <boost/asio/ip/address.hpp>
+
+#include <algorithm>
+#include <condition_variable>
+#include <mutex>
+#include <stdexcept>
+#include <thread>
+
+#include "kernel/api/api.hpp"
+#include "kernel/kernel.hpp"
+#include "libs/base/logging.hpp"
+#include "libs/rcan/loopback.hpp"
+#include "services/r2r/r2r_settings.hpp"
+#include "services/r2r/transports/mqtt_transport.hpp"
+#include "services/r2r/transports/udp_transport.hpp"
+#include "services/r2r/transports/websocket_transport.hpp"
+
+namespace rcand::kernel {
+namespace {
+
+using nlohmann::json;
+using SteadyTime = std::chrono::steady_clock::time_point;
+
+// The node's clock work runs this often; status intervals and bid deadlines are far coarser.
+constexpr std::chrono::milliseconds kTickPeriod{20};
+// The status source reads every plugin's status; a tick does not need it fresher than this.
+constexpr std::int64_t kStatusCacheUs = 100'000;
+
+http::Response json_answer(int status, const json& body) {
+  http::Response response;
+  response.status = status;
+  response.body = body.dump(-1, ' ', false, json::error_handler_t::replace);
+  return response;
+}
+
+}  // namespace
+
+struct R2rService::Impl {
+  explicit Impl(R2rServiceDeps d) : deps(std::move(d)) {}
+
+  R2rServiceDeps deps;
+  std::shared_ptr<spdlog::logger> log = logger("kernel.r2r");
+  std::unique_ptr<r2r::WebSocketTransport> ws;
+  std::unique_ptr<r2r::MqttTransport> mqtt;
+  std::unique_ptr<r2r::UdpTransport> udp;
+  bool udp_enabled = true;
+  std::optional<std::uint16_t> udp_port;
+  std::string udp_bind;
+  std::vector<r2r::UdpDestination> udp_destinations;
+  std::unique_ptr<r2r::R2rNode> node;
+
+  std::mutex status_mutex;
+  r2r::LocalStatus cached_status;
+  std::int64_t cached_at_us = 0;
+  bool cached = false;
+
+  std::mutex mutex;  // below
+  std::condition_variable wake;
+  bool started = false, stopping = false;
+  struct Waiter {
+    std::string task_id;
+    SteadyTime started, deadline;
+    http::Respond respond;
+  };
+  std::vector<Waiter> waiters;
+  std::thread clock_thread;
+
+  // What `status` reports: the Api's state, the e-stop latch and nav's dead-reckoned pose. A robot without nav stays
+  // where its runtime.r2r.origin puts it.
+  r2r::LocalStatus local_status() {
+    const std::int64_t now = deps.clock.now_us();
+    std::lock_guard lock(status_mutex);
+    // The latch is never stale: a latch or a clear is reported at once, and `state` follows it (a cache taken while
+    // latched says "estop" - it is refetched on a clear rather than patched).
+    const bool latched = deps.estop.latched();
+    if (cached && now - cached_at_us < kStatusCacheUs && cached_status.estopped == latched) return cached_status;
+    r2r::LocalStatus status;
+    const json doc = deps.api.status_document();
+    const auto state = doc.find("state");
+    status.state = state != doc.end() && state->is_string() ? state->get<std::string>() : "idle";
+    status.estopped = latched;
+    if (latched) status.state = "estop";
+    else if (status.state == "estop") status.state = "idle";  // the document was read just before the clear
+    const auto pose = doc.find("pose");
+    if (pose != doc.end() && pose->is_object() && (*pose)["x_m"].is_number() && (*pose)["y_m"].is_number()) {
+      const double heading = (*pose)["heading_deg"].is_number() ? (*pose)["heading_deg"].get<double>() : 0.0;
+      status.pose = r2r::FleetPose{(*pose)["x_m"].get<double>(), (*pose)["y_m"].get<double>(), heading};
+    } else if (std::find(deps.capabilities.begin(), deps.capabilities.end(), "nav") == deps.capabilities.end()) {
+      status.pose = r2r::FleetPose{};
+    }
+    cached_status = status;
+    cached_at_us = now;
+    cached = true;
+    return status;
+  }
+
+  void run_clock() {
+    std::unique_lock lock(mutex);
+    while (!stopping) {
+      lock.unlock();
+      try {
+        node->tick();
+        answer_decided();
+      } catch (const std::exception& e) {
+        log->error("r2r clock: {}", e.what());
+      }
+      lock.lock();
+      wake.wait_for(lock, kTickPeriod, [this] { return stopping; });
+    }
+  }
+
+  void answer_decided() {
+    std::vector<std::pair<Waiter, json>> ready;
+    {
+      std::lock_guard lock(mutex);
+      const auto now = std::chrono::steady_clock::now();
+      for (auto it = waiters.begin(); it != waiters.end();) {
+        auto result = node->auction_result(it->task_id).value_or(json::object());
+        const std::string state = result.value("state", "");
+        const bool decided = state == "assigned" || state == "no_bids";
+        if (!decided && now < it->deadline) {
+          ++it;
+          continue;
+        }
+        result["decided"] = decided;
+        result["elapsed_ms"] = std::chrono::duration<double, std::milli>(now - it->started).count();
+        ready.emplace_back(std::move(*it), std::move(result));
+        it = waiters.erase(it);
+      }
+    }
+    for (auto& [waiter, result] : ready) waiter.respond(json_answer(200, result));
+  }
+};
+
+std::unique_ptr<R2rService> R2rService::from_config(R2rServiceDeps deps) {
+  const RobotConfig& cfg = deps.config;
+  const json& r2r_block = cfg.runtime.r2r;
+  if (!r2r_block.is_object() || !r2r_block.contains("enabled") || r2r_block["enabled"] != true) return nullptr;
+  auto impl = std::make_unique<Impl>(std::move(deps));
+  Impl& s = *impl;
+  const std::filesystem::path base_dir = cfg.source_file.empty() ? std::filesystem::current_path() : cfg.source_file.parent_path();
+  r2r::R2rSettings settings;
+  try {
+    settings = r2r::load_r2r_settings(r2r_block, base_dir);
+  } catch (const std::invalid_argument& e) {
+    throw StartupError(e.what());
+  }
+
+  const bool has_mqtt = r2r_block.contains("mqtt") && r2r_block["mqtt"].is_object();
+  const bool ws_dial = r2r_block.contains("ws_dial") ? r2r_block["ws_dial"] == true : !has_mqtt;
+  r2r::WebSocketOptions ws_options;
+  ws_options.self_name = cfg.robot_name;
+  if (ws_dial) ws_options.dial_peers = s.deps.swarm.nodes;
+  ws_options.log = s.log;
+  r2r::apply_websocket_config(r2r_block, ws_options);  // slot caps, reserved slots, send queue (issue 13 #12, #15)
+  s.ws = std::make_unique<r2r::WebSocketTransport>(ws_options, s.deps.authenticator);
+
+  if (has_mqtt) {
+    try {
+      auto mqtt_options = r2r::mqtt_options_from_config(r2r_block["mqtt"], cfg.robot_name, base_dir);
+      mqtt_options.log = s.log;
+      s.mqtt = std::make_unique<r2r::MqttTransport>(std::move(mqtt_options));
+    } catch (const std::invalid_argument& e) {
+      throw StartupError(e.what());
+    }
+  }
+
+  s.udp_enabled = r2r_block.value("udp_enabled", true);
+  if (r2r_block.contains("udp_port")) s.udp_port = r2r_block["udp_port"].get<std::uint16_t>();
+  // A socket bound to one unicast address never sees broadcasts: any address, unless the robot is loopback-only.
+  s.udp_bind = r2r_block.value("udp_bind", is_loopback_address(cfg.runtime.listen_address) ? cfg.runtime.listen_address : "0.0.0.0");
+  // No implicit destination (issue 13 #10): status datagrams go only where the operator says (udp_broadcast).
+  const json destinations = r2r_block.contains("udp_broadcast") ? r2r_block["udp_broadcast"] : json::array();
+  for (std::size_t i = 0; i < destinations.size(); ++i) {
+    try {
+      s.udp_destinations.push_back(r2r::parse_udp_destination(destinations[i].get<std::string>(),
+                                                              "runtime.r2r.udp_broadcast[" + std::to_string(i) + "]"));
+    } catch (const std::invalid_argument& e) {
+      throw StartupError(e.what());
+    }
+  }
+
+  r2r::R2rNodeDeps node_deps{
+      .identity = {cfg.robot_name, s.deps.ruri, s.deps.capabilities},
+      .clock = s.deps.clock,
+      .authenticator = s.deps.authenticator,
+      .settings = std::move(settings),
+      .status_source = [impl = &s] { return impl->local_status(); },
+      .command_executor =
+          [api = &s.deps.api](const Principal& principal, json body, r2r::CommandDone done) {
+            api->execute_action(principal, std::move(body), std::move(done));
+          },
+      .cost_function = {},
+      .physics = {cfg.wheel_circumference_m.value_or(0.0), cfg.turn_time_per_deg_s.value_or(0.0), cfg.max_wheel_rps},
+      .transports = {s.ws.get()},
+      .log = s.log,
+  };
+  if (s.mqtt) node_deps.transports.push_back(s.mqtt.get());
+  // UDP and MQTT never carry the bearer token (header.auth.token goes only over WebSocket): without a signing key,
+  // what this robot sends over them is unauthenticated and peers that require credentials refuse it.
+  if (node_deps.settings.outbound_token && !node_deps.settings.private_key && (s.mqtt || s.udp_enabled))
+    s.log->warn("r2r: runtime.r2r.token_file is sent over WebSocket only, never over {}; set runtime.r2r.private_key_file "
+                "so peers can authenticate those messages (signed)",
+                s.mqtt && s.udp_enabled ? "UDP or MQTT" : s.mqtt ? "MQTT" : "UDP");
+  if (s.udp_enabled && s.udp_destinations.empty())
+    s.log->warn("r2r: runtime.r2r.udp_broadcast is not set: status is not sent over UDP (received only); name the "
+                "destinations, e.g. udp_broadcast: [\"192.168.1.255\"]");
+  s.node = std::make_unique<r2r::R2rNode>(std::move(node_deps));
+  return std::unique_ptr<R2rService>(new R2rService(std::move(impl)));
+}
+
+R2rService::R2rService(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
+
+R2rService::~R2rService() { stop(); }
+
+http::UpgradeHandler R2rService::upgrade_handler() { return impl_->ws->upgrade_handler(); }
+
+void R2rService::start(std::uint16_t http_port) {
+  Impl& s = *impl_;
+  const auto& cfg = s.deps.config;
+  if (s.udp_enabled) {
+    r2r::UdpOptions options;
+    options.bind_address = s.udp_bind;
+    options.port = s.udp_port.value_or(cfg.rcan_port);
+    options.destinations = s.udp_destinations;
+    options.log = s.log;
+    s.udp = std::make_unique<r2r::UdpTransport>(std::move(options));
+    s.node->add_transport(s.udp.get());
+  }
+  try {
+    s.node->start();
+  } catch (const std::exception& e) {
+    s.node->stop();
+    throw StartupError(e.what());
+  }
+  {
+    std::lock_guard lock(s.mutex);
+    s.started = true;
+  }
+  s.clock_thread = std::thread([&s] { s.run_clock(); });
+  s.log->info("r2r: {} speaks R2R on ws://{}:{}{}{}{}", cfg.robot_name, cfg.runtime.listen_address, http_port,
+              r2r::kWebSocketPath, s.udp ? ", udp " + std::to_string(s.udp->bound_port()) : std::string(),
+              s.mqtt ? ", mqtt" : "");
+}
+
+void R2rService::stop() noexcept {
+  Impl& s = *impl_;
+  std::vector<Impl::Waiter> abandoned;
+  {
+    std::lock_guard lock(s.mutex);
+    if (s.stopping) return;
+    s.stopping = true;
+    abandoned.swap(s.waiters);
+  }
+  s.wake.notify_all();
+  if (s.clock_thread.joinable()) s.clock_thread.join();
+  s.node->stop();
+  for (auto& waiter : abandoned) {
+    try {
+      waiter.respond(http::error_response(503, "UNAVAILABLE", "rcand is shutting down"));
+    } catch (...) {
+    }
+  }
+}
+
+r2r::R2rNode& R2rService::node() noexcept { return *impl_->node; }
+
+json R2rService::peers() const {
+  const Impl& s = *impl_;
+  json doc = s.node->peers();
+  doc["name"] = s.deps.config.robot_name;
+  json transports = {{"ws", s.ws->connections()}};
+  if (s.mqtt) transports["mqtt"] = {{"connected", s.mqtt->connected()}};
+  if (s.udp) {
+    json destinations = json::array();
+    for (const auto& destination : s.udp_destinations)
+      destinations.push_back(!destination.port                                 ? destination.host
+                             : destination.host.find(':') != std::string::npos ? "[" + destination.host + "]:" + std::to_string(destination.port)
+                                                                               : destination.host + ":" + std::to_string(destination.port));
+    transports["udp"] = {{"port", s.udp->bound_port()}, {"destinations", std::move(destinations)}};
+  }
+  doc["transports"] = std::move(transports);
+  const auto counters = s.node->counters();
+  doc["counters"] = {{"received", counters.received}, {"accepted", counters.accepted}, {"rejected", counters.rejected},
+                     {"sent", counters.sent},         {"send_failed", counters.send_failed}};
+  doc["held_tasks"] = s.node->held_tasks();
+  return doc;
+}
+
+void R2rService::answer_when_decided(const std::string& task_id, std::chrono::milliseconds timeout, http::Respond respond) {
+  Impl& s = *impl_;
+  {
+    std::lock_guard lock(s.mutex);
+    if (!s.stopping) {
+      const auto now = std::chrono::steady_clock::now();
+      s.waiters.push_back({task_id, now, now + timeout, std::move(respond)});
+      return;
+    }
+  }
+  respond(http::error_response(503, "UNAVAILABLE", "rcand is shutting down"));
+}
+
+}  // namespace rcand::kernel

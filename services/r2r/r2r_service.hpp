@@ -1,0 +1,66 @@
+// R2R (seed 004, docs/protocol.md §11) assembled for the kernel: the transports runtime.r2r asks for (WebSocket on the HTTP
+// port, UDP status, MQTT), part 1's R2rNode fed with the robot's status and the Api's action path, and the thread
+// that drives the node's clock work (status every interval, auction deadlines). Off unless runtime.r2r.enabled.
+#pragma once
+
+#include <nlohmann/json.hpp>
+
+#include <chrono>
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "kernel/auth/authenticator.hpp"
+#include "kernel/config/robot_config.hpp"
+#include "kernel/safety/estop.hpp"
+#include "libs/http/handler.hpp"
+#include "libs/http/server_options.hpp"
+#include "services/r2r/r2r_node.hpp"
+#include "libs/swarm/swarm_registry.hpp"
+#include "rcand/sdk/clock.hpp"
+
+namespace rcand::kernel {
+
+class Api;
+
+struct R2rServiceDeps {
+  const RobotConfig& config;
+  const Authenticator& authenticator;
+  Api& api;
+  const Estop& estop;
+  const sdk::Clock& clock;
+  const swarm::SwarmRegistry& swarm;
+  std::string ruri;
+  std::vector<std::string> capabilities;
+};
+
+class R2rService {
+ public:
+  // nullptr unless runtime.r2r.enabled is true. Throws StartupError naming the runtime.r2r key at fault.
+  static std::unique_ptr<R2rService> from_config(R2rServiceDeps deps);
+  ~R2rService();  // stop()
+
+  // The HTTP server's upgrade hook (WS /ws/r2r). Call before the server starts.
+  http::UpgradeHandler upgrade_handler();
+  // After the HTTP server has bound `http_port`: binds UDP, connects MQTT, starts the node and its clock thread.
+  // Throws StartupError naming the setting at fault.
+  void start(std::uint16_t http_port);
+  // First in shutdown (after the e-stop latch): no R2R message is handled or sent after it returns. Idempotent.
+  void stop() noexcept;
+
+  r2r::R2rNode& node() noexcept;
+  // {"name","peers":[...],"transports":{...},"counters":{...}}: GET /api/r2r/peers.
+  nlohmann::json peers() const;
+  // Answers `respond` with the auction's result once it is decided (assigned or no_bids) or `timeout` passed. Never
+  // blocks: checked on the service's clock thread.
+  void answer_when_decided(const std::string& task_id, std::chrono::milliseconds timeout, http::Respond respond);
+
+  struct Impl;
+
+ private:
+  explicit R2rService(std::unique_ptr<Impl> impl);
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace rcand::kernel
