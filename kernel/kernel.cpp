@@ -9,24 +9,25 @@
 #include "kernel/auth/authenticator.hpp"
 #include "libs/rcan/ruri.hpp"
 #include "libs/rcan/secret_file.hpp"
-#include "kernel/config/config_diff.hpp"
+#include "libs/yaml/config_diff.hpp"
 #include "kernel/safety/actuator_table.hpp"
 #include "kernel/api/api.hpp"
+#include "kernel/api/capability_routes.hpp"
+#include "kernel/api/kernel_routes.hpp"
+#include "kernel/status/status_board.hpp"
+#include "kernel/service.hpp"
 #include "kernel/audit/audit_log.hpp"
 #include "kernel/safety/estop.hpp"
-#include "kernel/plugins/keep_forever.hpp"
+#include "libs/base/keep_forever.hpp"
 #include "kernel/safety/kernel_motion_gate.hpp"
 #include "libs/base/logging.hpp"
 #include "libs/rcan/loopback.hpp"
 #include "kernel/plugins/plugin_runtime.hpp"
-#include "services/r2r/r2r_service.hpp"
 #include "kernel/safety/state_dir.hpp"
-#include "kernel/safety/stop_path_priority.hpp"
+#include "libs/base/stop_path_priority.hpp"
 #include "kernel/steady_clock.hpp"
 #include "libs/http/server.hpp"
-#include "libs/mdns/host_resolver.hpp"
 #include "libs/mdns/service_publisher.hpp"
-#include "libs/swarm/fan_out.hpp"
 #include "libs/swarm/swarm_registry.hpp"
 #include "libs/base/bounded_text.hpp"
 
@@ -84,6 +85,8 @@ struct Kernel::State {
   RobotConfig config;
   std::string address;
   std::uint16_t port = 0;
+  std::atomic<std::uint16_t> bound_port{0};
+  std::int64_t started_us = 0;
   SteadyClock clock;
   sdk::ConfigView robot_config_view;
   ActuatorTable actuators;
@@ -92,27 +95,126 @@ struct Kernel::State {
   KernelServices services{clock, estop, gate, robot_config_view, &audit, {}, {}};  // audit: address only
   AuditLog audit;
   PluginHost host;
-  r2r::PluginBridge r2r_bridge;  // plugins' R2R links: declared before the plugin runtime, so it outlives them
   std::unique_ptr<Authenticator> auth;
   std::unique_ptr<CapabilityRegistry> registry;
+  swarm::SwarmRegistry swarm;
+  std::vector<std::unique_ptr<swarm::SwarmRegistry>> retired_swarms;  // reloaded ones; never freed while serving
+  std::atomic<const swarm::SwarmRegistry*> swarm_now{&swarm};
+  std::unique_ptr<Api> api;
+  std::unique_ptr<ServiceHost> service_host;
+  // Optional services: declared before the plugin runtime, so what they lend plugins (R2R links) outlives them.
+  std::vector<std::unique_ptr<Service>> optional_services;
   std::unique_ptr<PluginRuntime> runtime;
   std::unique_ptr<DeadlineCrew> halt_crew;  // one thread per actuator: the stop path's parallel halt() calls
   std::unique_ptr<WorkerThread> timers;
-  std::unique_ptr<ApiContext> api_context;
-  std::unique_ptr<Api> api;
-  std::unique_ptr<R2rService> r2r;  // uses the Api: declared after it, destroyed before it
+  std::unique_ptr<KernelRouteDeps> kernel_routes;
+  std::unique_ptr<CapabilityRouteDeps> capability_routes;
+  std::unique_ptr<StatusBoard> status_board;  // GET /api/status, discovery, mDNS TXT and R2R status read it
   std::unique_ptr<http::Server> server;
-  swarm::SwarmRegistry swarm;
-  std::vector<std::unique_ptr<swarm::SwarmRegistry>> retired_swarms;  // reloaded ones; never freed while serving
-  std::shared_ptr<mdns::AvahiHostResolver> mdns_resolver;  // swarm "*.local" hosts; shared with the fan-out
-  std::unique_ptr<swarm::FanOut> fan_out;  // declared after the Api's context: stopped and destroyed before it
-  std::unique_ptr<mdns::ServicePublisher> mdns_publisher;  // reads the Api: declared after it, destroyed before it
+  std::unique_ptr<mdns::ServicePublisher> mdns_publisher;  // reads the status: destroyed before it
   bool shut_down = false;
   // runtime.state_dir, opened by start() (a kernel that never serves, --check-config say, leaves it alone). Last:
   // destroyed first, its writer reads the e-stop.
   std::unique_ptr<StateDir> state_dir;
   std::atomic<StateDir*> state_dir_live{nullptr};  // the e-stop listeners' view: set once the latch is restored
+
+  void load_plugins(const KernelOptions& options);
+  void load_swarm();
+  void create_services(const KernelOptions& options);
+  void start_plugins();
+  void add_routes();
+  void restore_latch();
 };
+
+// Manifests only: nothing is opened until we know what the config needs.
+void Kernel::State::load_plugins(const KernelOptions& options) {
+  auto log = logger("kernel");
+  auto plugin_paths = options.plugin_paths.value_or(config.runtime.plugin_paths);
+  host.scan(plugin_paths.empty() ? default_plugin_paths() : plugin_paths);
+  ProviderLookup lookup;
+  lookup.driver_interface = [this](std::string_view protocol) -> std::optional<std::string> {
+    for (const auto* plugin : host.providers_of_driver(protocol))
+      for (const auto& item : plugin->manifest->provides)
+        if (item.kind == "driver" && item.name == protocol && !item.interface.empty()) return item.interface;
+    return std::nullopt;
+  };
+  lookup.providers = [this](std::string_view capability) {
+    std::vector<std::string> found;
+    for (const auto* plugin : host.providers_of_capability(capability)) found.push_back(plugin->id);
+    return found;
+  };
+  CapabilityPlan plan = plan_capabilities(config, lookup);
+  for (const auto& note : plan.notes) log->info("{}", note);
+
+  std::set<std::string> capabilities(plan.names.begin(), plan.names.end());
+  capabilities.erase(std::string(kStatusCapability));
+  std::set<std::string> protocols;
+  for (const auto& driver : config.drivers) protocols.insert(driver.protocol);
+  host.set_register_timeout(std::chrono::milliseconds(config.runtime.plugin_start_timeout_ms));
+  host.load_needed(capabilities, protocols);
+  for (const auto& record : host.records())
+    if (is_failure(record->state))
+      log->error("plugin {} ({}): {} — {}{}", record->id, record->manifest_file.string(), to_string(record->state),
+                 record->reason, record->hint.empty() ? "" : " (hint: " + record->hint + ")");
+  registry = std::make_unique<CapabilityRegistry>(RobotIdentity{services.ruri, config.robot_name, config.model}, std::move(plan));
+}
+
+// §15: the swarm peers. No file means no peers (broadcasts reach this robot only); a malformed one stops startup.
+void Kernel::State::load_swarm() {
+  auto log = logger("kernel");
+  if (std::error_code ec; !std::filesystem::exists(config.runtime.swarm_file, ec)) {
+    log->info("swarm: no swarm file at {}; broadcasts reach this robot only", config.runtime.swarm_file.string());
+    return;
+  }
+  try {
+    swarm = swarm::load_swarm_file(config.runtime.swarm_file);
+  } catch (const swarm::SwarmError& e) {
+    throw StartupError(std::string("runtime.swarm_file: ") + e.what());
+  }
+  for (const auto& warning : swarm.warnings) log->warn("{}", warning);
+  log->info("swarm: {} peer(s) from {}", swarm.nodes.size(), config.runtime.swarm_file.string());
+}
+
+void Kernel::State::create_services(const KernelOptions& options) {
+  service_host.reset(new ServiceHost{config, *auth, estop, audit, clock, *registry, *api,
+                                     std::chrono::milliseconds(config.runtime.handler_timeout_ms), swarm,
+                                     [this] { return swarm_now.load(); }, [this] { return status_board->document(); },
+                                     bound_port, [this](R2rLinkFactory* links) { services.r2r = links; }});
+  for (const auto& make : options.services)
+    if (auto service = make(*service_host)) optional_services.push_back(std::move(service));
+}
+
+void Kernel::State::start_plugins() {
+  runtime->start_drivers(config);
+  std::vector<DeadlineCrew::Job> halts;
+  for (const auto& slot : actuators.slots())
+    if (slot.driver != nullptr) halts.push_back({slot.id, [driver = slot.driver] { driver->halt(); }});
+  halt_crew = std::make_unique<DeadlineCrew>("estop.halt", std::move(halts), [priority = config.runtime.stop_path_priority] {
+    enter_stop_path_priority(priority);
+  });
+  estop.use_halt_crew(halt_crew.get());
+  runtime->start_capabilities(registry->names(), config);
+  estop.on_latched([runtime = runtime.get()] { runtime->notify_estop(); });
+  // The latch record in runtime.state_dir follows every latch and clear (written off the stop path).
+  estop.on_latched([this] {
+    if (auto* state = state_dir_live.load()) state->latch_changed();
+  });
+  estop.on_cleared([this] {
+    if (auto* state = state_dir_live.load()) state->latch_changed();
+  });
+  if (config.estop_on_startup) estop.latch("safety.estop_on_startup", "config");
+}
+
+// The route table: the kernel's rows, the capabilities' rows, then each service's (which may wrap the others).
+void Kernel::State::add_routes() {
+  kernel_routes.reset(new KernelRouteDeps{clock, estop, audit, host, *runtime, std::string(kRcandVersion), started_us, *status_board,
+                                          [this] { return registry->advertise(status_board->robot_state(), bound_port.load()).discover; }});
+  add_kernel_routes(api->router(), *kernel_routes);
+  capability_routes.reset(new CapabilityRouteDeps{*registry, *runtime, audit, estop, *timers,
+                                                  std::chrono::milliseconds(config.runtime.handler_timeout_ms)});
+  add_capability_routes(api->router(), *capability_routes);
+  for (auto& service : optional_services) service->add_routes(api->router());
+}
 
 Kernel::Kernel(RobotConfig config, KernelOptions options) : state_(std::make_unique<State>()) {
   auto& s = *state_;
@@ -120,15 +222,16 @@ Kernel::Kernel(RobotConfig config, KernelOptions options) : state_(std::make_uni
   const auto& cfg = s.config;
   s.address = cfg.runtime.listen_address;
   s.port = options.port.value_or(cfg.listen_port());
-  auto log = logger("kernel");
+  s.started_us = s.clock.now_us();
 
   // Plugins see the robot config without rcand's own auth settings.
   nlohmann::json visible = cfg.doc;
   if (visible.contains("runtime") && visible["runtime"].is_object()) visible["runtime"].erase("auth");
   s.robot_config_view = sdk::ConfigView(std::move(visible));
 
-  const std::string ruri = robot_ruri(cfg.ruri, cfg.manufacturer, cfg.model, cfg.robot_uuid);
-  s.auth = std::make_unique<Authenticator>(auth_settings(cfg, ruri, s.address));
+  s.services.ruri = robot_ruri(cfg.ruri, cfg.manufacturer, cfg.model, cfg.robot_uuid);
+  s.auth = std::make_unique<Authenticator>(auth_settings(cfg, s.services.ruri, s.address));
+  s.audit.identify(s.services.ruri, s.clock);
   if (cfg.runtime.audit_file) {
     try {
       s.audit.persist_to(*cfg.runtime.audit_file, cfg.runtime.audit_max_bytes, cfg.runtime.audit_keep_files);
@@ -136,92 +239,19 @@ Kernel::Kernel(RobotConfig config, KernelOptions options) : state_(std::make_uni
       throw StartupError(e.what());
     }
   }
-  s.services.ruri = ruri;
-
-  // Manifests only: nothing is opened until we know what the config needs.
-  auto plugin_paths = options.plugin_paths.value_or(cfg.runtime.plugin_paths);
-  s.host.scan(plugin_paths.empty() ? default_plugin_paths() : plugin_paths);
-  ProviderLookup lookup;
-  lookup.driver_interface = [&s](std::string_view protocol) -> std::optional<std::string> {
-    for (const auto* plugin : s.host.providers_of_driver(protocol))
-      for (const auto& item : plugin->manifest->provides)
-        if (item.kind == "driver" && item.name == protocol && !item.interface.empty()) return item.interface;
-    return std::nullopt;
-  };
-  lookup.providers = [&s](std::string_view capability) {
-    std::vector<std::string> found;
-    for (const auto* plugin : s.host.providers_of_capability(capability)) found.push_back(plugin->id);
-    return found;
-  };
-  CapabilityPlan plan = plan_capabilities(cfg, lookup);
-  for (const auto& note : plan.notes) log->info("{}", note);
-
-  std::set<std::string> capabilities(plan.names.begin(), plan.names.end());
-  capabilities.erase("status");
-  std::set<std::string> protocols;
-  for (const auto& driver : cfg.drivers) protocols.insert(driver.protocol);
-  s.host.set_register_timeout(std::chrono::milliseconds(cfg.runtime.plugin_start_timeout_ms));
-  s.host.load_needed(capabilities, protocols);
-  for (const auto& record : s.host.records())
-    if (is_failure(record->state))
-      log->error("plugin {} ({}): {} — {}{}", record->id, record->manifest_file.string(), to_string(record->state),
-                 record->reason, record->hint.empty() ? "" : " (hint: " + record->hint + ")");
-
-  s.registry = std::make_unique<CapabilityRegistry>(RobotIdentity{ruri, cfg.robot_name, cfg.model}, std::move(plan));
+  s.load_plugins(options);
   s.runtime = std::make_unique<PluginRuntime>(s.host, s.services, s.actuators);
-  if (cfg.runtime.r2r.is_object() && cfg.runtime.r2r.value("enabled", false)) s.services.r2r = &s.r2r_bridge;
-  s.runtime->start_drivers(cfg);
-  std::vector<DeadlineCrew::Job> halts;
-  for (const auto& slot : s.actuators.slots())
-    if (slot.driver != nullptr) halts.push_back({slot.id, [driver = slot.driver] { driver->halt(); }});
-  s.halt_crew = std::make_unique<DeadlineCrew>("estop.halt", std::move(halts), [priority = cfg.runtime.stop_path_priority] {
-    enter_stop_path_priority(priority);
-  });
-  s.estop.use_halt_crew(s.halt_crew.get());
-  s.runtime->start_capabilities(s.registry->names(), cfg);
-  s.estop.on_latched([runtime = s.runtime.get()] { runtime->notify_estop(); });
-  // The latch record in runtime.state_dir follows every latch and clear (written off the stop path).
-  s.estop.on_latched([&s] {
-    if (auto* state = s.state_dir_live.load()) state->latch_changed();
-  });
-  s.estop.on_cleared([&s] {
-    if (auto* state = s.state_dir_live.load()) state->latch_changed();
-  });
-  if (cfg.estop_on_startup) s.estop.latch("safety.estop_on_startup", "config");
-
+  s.api = std::make_unique<Api>(cfg.runtime, *s.auth, s.audit, s.estop, s.clock);
+  s.load_swarm();
+  s.create_services(options);  // before the plugins: R2R offers them links
+  s.start_plugins();
   s.timers = std::make_unique<WorkerThread>("kernel.timers", nullptr);
-  s.api_context.reset(new ApiContext{cfg, *s.auth, *s.registry, s.host, *s.runtime, s.estop, s.audit, s.clock, *s.timers,
-                                     std::chrono::milliseconds(cfg.runtime.handler_timeout_ms), std::string(kRcandVersion),
-                                     s.clock.now_us()});
-  // §15: the swarm peers. No file means no peers (broadcasts reach this robot only); a malformed one stops startup.
-  if (std::error_code ec; std::filesystem::exists(cfg.runtime.swarm_file, ec)) {
-    try {
-      s.swarm = swarm::load_swarm_file(cfg.runtime.swarm_file);
-    } catch (const swarm::SwarmError& e) {
-      throw StartupError(std::string("runtime.swarm_file: ") + e.what());
-    }
-    for (const auto& warning : s.swarm.warnings) log->warn("{}", warning);
-    log->info("swarm: {} peer(s) from {}", s.swarm.nodes.size(), cfg.runtime.swarm_file.string());
-  } else {
-    log->info("swarm: no swarm file at {}; broadcasts reach this robot only", cfg.runtime.swarm_file.string());
-  }
-  // docs/protocol.md §9: "mDNS host first, the static ip when resolution fails": *.local peers resolve through avahi-daemon.
-  std::vector<std::string> mdns_hosts;
-  for (const auto& node : s.swarm.nodes)
-    if (mdns::is_mdns_host(node.host)) mdns_hosts.push_back(node.host);
-  if (!mdns_hosts.empty()) {
-    s.mdns_resolver = std::make_shared<mdns::AvahiHostResolver>(logger("kernel.mdns"));
-    s.mdns_resolver->start();
-    s.mdns_resolver->prefetch(mdns_hosts);  // the first broadcast stop then finds them in the cache
-  }
-  s.fan_out = std::make_unique<swarm::FanOut>(s.mdns_resolver);
-  s.api_context->swarm = &s.swarm;
-  s.api_context->fan_out = s.fan_out.get();
-  s.api = std::make_unique<Api>(*s.api_context);
-  // docs/protocol.md §11: R2R, when runtime.r2r.enabled (its peers are swarm.yaml's as loaded now).
-  s.r2r = R2rService::from_config({cfg, *s.auth, *s.api, s.estop, s.clock, s.swarm, ruri, s.registry->names()});
-  s.api_context->r2r = s.r2r.get();
-  if (s.r2r) s.r2r_bridge.attach(s.r2r->node());  // plugin subscriptions made while starting now receive
+  // The status snapshot plugins publish into; GET /api/status never calls plugin code.
+  s.status_board = std::make_unique<StatusBoard>(
+      *s.runtime, s.services, StatusBoard::fixed_fields(s.registry->identity(), s.registry->names(), s.host, kRcandVersion),
+      s.started_us);
+  s.status_board->start();
+  s.add_routes();
   if (cfg.enable_mdns) {
     s.mdns_publisher = std::make_unique<mdns::ServicePublisher>(logger("kernel.mdns"));
     // TXT "status" follows an e-stop at once, not at the next once-a-second check (never blocks the stop path).
@@ -231,42 +261,42 @@ Kernel::Kernel(RobotConfig config, KernelOptions options) : state_(std::make_uni
 
 Kernel::~Kernel() { shutdown(); }
 
+// runtime.state_dir (one rcand per state dir): the e-stop starts latched when the last run ended without a clean
+// shutdown or while latched, with the reason in GET /api/estop and the audit log. Before anything is served.
+void Kernel::State::restore_latch() {
+  try {
+    state_dir = std::make_unique<StateDir>(config.runtime.state_dir);
+  } catch (const std::runtime_error& e) {
+    throw StartupError(e.what());
+  }
+  const auto& previous = state_dir->previous();
+  const bool was_latched = previous.latch && previous.latch->latched;
+  std::string why;
+  if (previous.unclean_exit) {
+    why = "the previous run of rcand ended without a clean shutdown (killed, crashed or lost power; " + previous.marker + ")";
+    if (was_latched) why += "; it was latched then: " + previous.latch->reason + " (by " + previous.latch->source + ")";
+  } else if (was_latched) {
+    why = "latched when rcand last stopped: " + previous.latch->reason + " (by " + previous.latch->source + ")";
+  }
+  if (!why.empty()) {
+    why = bounded_text(why, 600);
+    if (estop.latched()) estop.restate(why + "; safety.estop_on_startup is set as well", "startup");
+    else estop.latch(why, "startup");
+    const auto seq = audit.begin("rcand", "startup-" + std::to_string(clock.wall_ms()), "e-stop latched at startup");
+    audit.finish(seq, "ok", why);
+    logger("kernel.estop")->warn("starting latched: {}", why);
+  }
+  state_dir->start_writer([this] {
+    const auto now = estop.snapshot();
+    return StateDir::LatchRecord{now.estopped, now.reason, now.source, now.since_ms};
+  });
+  state_dir_live.store(state_dir.get());
+  state_dir->latch_changed();  // the record says what this run starts with
+}
+
 std::uint16_t Kernel::start() {
   auto& s = *state_;
-  // runtime.state_dir (one rcand per state dir): the e-stop starts latched when the last run ended without a clean
-  // shutdown or while latched, with the reason in GET /api/estop and the audit log. Before anything is served.
-  if (!s.state_dir) {
-    try {
-      s.state_dir = std::make_unique<StateDir>(s.config.runtime.state_dir);
-    } catch (const std::runtime_error& e) {
-      throw StartupError(e.what());
-    }
-    const auto& previous = s.state_dir->previous();
-    const bool was_latched = previous.latch && previous.latch->latched;
-    std::string why;
-    if (previous.unclean_exit) {
-      why = "the previous run of rcand ended without a clean shutdown (killed, crashed or lost power; " + previous.marker + ")";
-      if (was_latched) why += "; it was latched then: " + previous.latch->reason + " (by " + previous.latch->source + ")";
-    } else if (was_latched) {
-      why = "latched when rcand last stopped: " + previous.latch->reason + " (by " + previous.latch->source + ")";
-    }
-    if (!why.empty()) {
-      why = bounded_text(why, 600);
-      if (s.estop.latched()) s.estop.restate(why + "; safety.estop_on_startup is set as well", "startup");
-      else s.estop.latch(why, "startup");
-      const auto now = s.clock.wall_ms();
-      const auto seq = s.audit.record({0, "rcand", s.services.ruri, "startup-" + std::to_string(now), "e-stop latched at startup",
-                                       now, "pending", {}});
-      s.audit.finish(seq, "ok", why);
-      logger("kernel.estop")->warn("starting latched: {}", why);
-    }
-    s.state_dir->start_writer([&s] {
-      const auto now = s.estop.snapshot();
-      return StateDir::LatchRecord{now.estopped, now.reason, now.source, now.since_ms};
-    });
-    s.state_dir_live.store(s.state_dir.get());
-    s.state_dir->latch_changed();  // the record says what this run starts with
-  }
+  if (!s.state_dir) s.restore_latch();
   http::ServerOptions options;
   options.address = s.address;
   options.port = s.port;
@@ -280,7 +310,8 @@ std::uint16_t Kernel::start() {
   options.priority = [](const http::Request& request) {
     return (request.method == "POST" && request.path == "/api/stop") || (request.method == "GET" && request.path == "/api/estop");
   };
-  if (s.r2r) options.upgrade = s.r2r->upgrade_handler();  // WS /ws/r2r on the robot's own port
+  for (auto& service : s.optional_services)  // WS /ws/r2r on the robot's own port
+    if (auto upgrade = service->upgrade()) options.upgrade = std::move(upgrade);
   s.server = std::make_unique<http::Server>(options, [api = s.api.get()](http::Request&& request, http::Respond respond) {
     api->handle(std::move(request), std::move(respond));
   });
@@ -289,14 +320,14 @@ std::uint16_t Kernel::start() {
   } catch (const std::exception& e) {
     throw StartupError(e.what());
   }
-  s.api_context->port = s.port;
-  if (s.r2r) s.r2r->start(s.port);  // throws StartupError naming the runtime.r2r setting at fault
+  s.bound_port = s.port;
+  for (auto& service : s.optional_services) service->start(s.port);  // throws StartupError naming the setting
   if (s.mdns_publisher) {
     // docs/protocol.md §5: instance metadata.robot_name, the port bound, the TXT record of the one registry function (§9.5).
     s.mdns_publisher->start({.name = s.config.robot_name,
                              .type = std::string(kServiceType),
                              .port = s.port,
-                             .txt = [&s] { return s.registry->advertise(s.api->robot_state(), s.port).txt; }});
+                             .txt = [&s] { return s.registry->advertise(s.status_board->robot_state(), s.port).txt; }});
   }
   logger("kernel")->info("{} ({}) serving RCAN {} on http://{}:{} with capabilities [{}]", s.config.robot_name,
                          s.registry->identity().ruri, kRcanVersion, s.address, s.port,
@@ -311,12 +342,11 @@ void Kernel::shutdown() noexcept {
   try {
     const auto before = s.estop.snapshot();          // what the state dir keeps: the latch as it was, not this one
     s.estop.latch("rcand shutting down", "kernel");  // motors stop first, whatever else happens
-    if (s.r2r) s.r2r->stop();  // then no R2R message is handled or sent
-    s.r2r_bridge.detach();      // plugins' links no longer reach the node
+    // Then the services, in reverse: no R2R message is handled or sent, no broadcast goes out.
+    for (auto it = s.optional_services.rbegin(); it != s.optional_services.rend(); ++it) (*it)->stop();
     if (s.mdns_publisher) s.mdns_publisher->stop();  // withdrawn (goodbye sent) while HTTP still answers
     if (s.server) s.server->stop();
-    if (s.fan_out) s.fan_out->stop();  // broadcasts in flight are abandoned; their clients are gone
-    if (s.mdns_resolver) s.mdns_resolver->stop();
+    if (s.status_board) s.status_board->stop();  // before the plugins go: it polls them
     // A halt() still running (slow or hung driver) must not have its driver destroyed under it: leak the plugin
     // objects instead (the process is ending).
     const bool halts_quiet = !s.halt_crew || s.halt_crew->quiesce(std::chrono::seconds(2));
@@ -358,7 +388,7 @@ Kernel::ReloadReport Kernel::reload(const std::filesystem::path& file) noexcept 
     }
     s.auth->replace(std::move(auth));
     new_log_level = next.runtime.log_level;  // applied after this reload's own log line
-    s.api_context->swarm = swarm.get();
+    s.swarm_now = swarm.get();
     s.retired_swarms.push_back(std::move(swarm));  // requests in flight may still read the ones before
     for (const auto& warning : loaded.warnings) log->warn("{}", warning.format());
     for (auto& key : changed_keys(s.config.doc, next.doc)) {
@@ -381,8 +411,7 @@ Kernel::ReloadReport Kernel::reload(const std::filesystem::path& file) noexcept 
         report.ok ? "applied: " + join(report.applied) + "; needs a restart: " + join(report.needs_restart)
                   : "invalid, still running on the previous config: " + join(report.errors);
     // docs/protocol.md §6.3: a config change is audited like a command (before the log line that announces it).
-    const auto seq = s.audit.record({0, "SIGHUP", s.services.ruri, "reload-" + std::to_string(s.clock.wall_ms()),
-                                     "config reload", s.clock.wall_ms(), "pending", {}});
+    const auto seq = s.audit.begin("SIGHUP", "reload-" + std::to_string(s.clock.wall_ms()), "config reload");
     s.audit.finish(seq, report.ok ? "ok" : "error", detail.substr(0, 2000));
     if (!report.ok) {
       for (const auto& error : report.errors) log->error("{}", error);

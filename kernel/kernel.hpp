@@ -3,6 +3,7 @@
 #pragma once
 
 #include <filesystem>
+#include <functional>
 #include <memory>
 #include <optional>
 #include <stdexcept>
@@ -23,9 +24,14 @@ class StartupError : public std::runtime_error {
   using std::runtime_error::runtime_error;
 };
 
+class Service;      // kernel/service.hpp
+struct ServiceHost;
+
 struct KernelOptions {
   std::optional<std::vector<std::filesystem::path>> plugin_paths;  // replaces runtime.plugin_paths
   std::optional<std::uint16_t> port;                               // replaces the configured port
+  // The optional services to run (kernel/service.hpp), in start order; rcand's main passes linked_services().
+  std::vector<std::function<std::unique_ptr<Service>(ServiceHost&)>> services;
 };
 
 // Admin-installed plugins first (they are found first, so they win), then the packaged ones.

@@ -14,6 +14,7 @@
 
 #include "kernel/config/robot_config.hpp"
 #include "kernel/kernel.hpp"
+#include "kernel/service.hpp"
 #include "libs/base/logging.hpp"
 #include "rcand/sdk/abi.h"
 
@@ -56,6 +57,7 @@ void print_warnings(const LoadedConfig& loaded) {
 
 KernelOptions kernel_options(const Options& options) {
   KernelOptions result;
+  result.services = linked_services();  // the optional services linked into rcand (services/)
   if (!options.plugin_paths.empty()) result.plugin_paths = options.plugin_paths;
   result.port = options.port;
   return result;
@@ -92,11 +94,8 @@ void raise_open_files_limit() {
   if (setrlimit(RLIMIT_NOFILE, &files) != 0) logger("kernel")->warn("cannot raise the open-files limit");
 }
 
-}  // namespace
-
-int main(int argc, char** argv) {
-  Options options;
-  std::vector<std::string> args(argv + 1, argv + argc);
+// The command line; an exit code when it is already decided (--help, --version, a usage error).
+std::optional<int> parse_arguments(const std::vector<std::string>& args, Options& options) {
   for (std::size_t i = 0; i < args.size(); ++i) {
     const std::string& arg = args[i];
     auto value = [&]() -> std::optional<std::string> {
@@ -135,6 +134,33 @@ int main(int argc, char** argv) {
     }
   }
 
+  return std::nullopt;
+}
+
+int serve(const Options& options, LoadedConfig loaded, sigset_t& signals) {
+  const std::string address = loaded.config.runtime.listen_address;
+  Kernel kernel(std::move(loaded.config), kernel_options(options));
+  const auto port = kernel.start();
+  std::cout << "rcand: listening on http://" << address << ":" << port << std::endl;
+  int signal = 0;
+  while (sigwait(&signals, &signal) == 0 && signal == SIGHUP) kernel.reload(options.config);
+  rcand::logger("kernel")->info("signal {}: shutting down", signal);
+  // The motors halt first and within the stop deadline; a plugin stuck in its shutdown hook must not keep the
+  // process alive after that (systemd would wait for TimeoutStopSec, then SIGKILL).
+  std::thread([] {
+    std::this_thread::sleep_for(kShutdownGrace);
+    rcand::logger("kernel")->error("shutdown still blocked by plugin code after {} s; exiting now", kShutdownGrace.count());
+    std::_Exit(1);
+  }).detach();
+  kernel.shutdown();
+  return 0;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  Options options;
+  if (auto done = parse_arguments(std::vector<std::string>(argv + 1, argv + argc), options)) return *done;
   configure_logging("info");
   if (options.check_plugins) return check_plugins(options);
 
@@ -152,31 +178,13 @@ int main(int argc, char** argv) {
     LoadedConfig loaded = load_robot_config(options.config);
     print_warnings(loaded);
     configure_logging(loaded.config.runtime.log_level);
-    if (options.check_config) {
-      // Everything short of serving: plugins are scanned and capabilities checked against them.
-      Kernel kernel(std::move(loaded.config), kernel_options(options));
-      std::cout << options.config << ": OK (capabilities: ";
-      const auto& names = kernel.registry().names();
-      for (std::size_t i = 0; i < names.size(); ++i) std::cout << (i ? ", " : "") << names[i];
-      std::cout << ")\n";
-      return 0;
-    }
-    const std::string address = loaded.config.runtime.listen_address;
+    if (!options.check_config) return serve(options, std::move(loaded), signals);
+    // Everything short of serving: plugins are scanned and capabilities checked against them.
     Kernel kernel(std::move(loaded.config), kernel_options(options));
-    const auto port = kernel.start();
-    std::cout << "rcand: listening on http://" << address << ":" << port << std::endl;
-    int signal = 0;
-    while (sigwait(&signals, &signal) == 0 && signal == SIGHUP) kernel.reload(options.config);
-    rcand::logger("kernel")->info("signal {}: shutting down", signal);
-    // The motors halt first and within the stop deadline; a plugin stuck in its shutdown hook must not keep the
-    // process alive after that (systemd would wait for TimeoutStopSec, then SIGKILL).
-    std::thread([] {
-      std::this_thread::sleep_for(kShutdownGrace);
-      rcand::logger("kernel")->error("shutdown still blocked by plugin code after {} s; exiting now",
-                                             kShutdownGrace.count());
-      std::_Exit(1);
-    }).detach();
-    kernel.shutdown();
+    std::cout << options.config << ": OK (capabilities: ";
+    const auto& names = kernel.registry().names();
+    for (std::size_t i = 0; i < names.size(); ++i) std::cout << (i ? ", " : "") << names[i];
+    std::cout << ")\n";
     return 0;
   } catch (const ConfigError& e) {
     for (const auto& diagnostic : e.diagnostics()) std::cerr << diagnostic.format() << "\n";

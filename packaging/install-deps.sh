@@ -12,6 +12,10 @@ packages=(
   libmosquitto-dev mosquitto mosquitto-clients  # R2R over MQTT; a real broker in the R2R tests
   curl                                      # README examples
 )
+# --checks: also what the test suite's code checks need (tests/check_kernel_shape.py, tests/check_style.sh).
+if [ "${1:-}" = "--checks" ]; then
+  packages+=(python3 git universal-ctags clang-format-14 clang-tidy-14)
+fi
 missing=()
 for p in "${packages[@]}"; do dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "ok installed" || missing+=("$p"); done
 [ ${#missing[@]} -eq 0 ] && exit 0

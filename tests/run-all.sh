@@ -7,13 +7,26 @@ cd "$(dirname "$0")/.."
 # Each stage's start, with the seconds elapsed so far: CI's log shows where the time goes.
 stage() { echo "== run-all: $1 (at ${SECONDS} s)"; }
 stage "dependencies"
-packaging/install-deps.sh
+packaging/install-deps.sh --checks
+# The kernel stays a microkernel: size, function length, layering, capability names (tests/check_kernel_shape.py).
+stage "kernel shape"
+python3 tests/check_kernel_shape_test.py
+python3 tests/check_kernel_shape.py
 # Unity builds (CMake merges each target's sources, 8 at a time): Beast, Asio, JSON and doctest are parsed and
 # instantiated once per batch instead of once per file, which takes the clean normal build from ~12 to ~7 minutes
 # on 2 cores. Developers' own builds stay per-file (fast incremental rebuilds); this keeps the code unity-clean.
 stage "normal build"
 cmake -S . -B build -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo -DCMAKE_UNITY_BUILD=ON > /dev/null
 cmake --build build
+# Style on the last commit's changed lines (clang-format) and files (clang-tidy). clang-tidy reads the per-file
+# compile commands of a configure-only, non-unity tree (the unity build's merge the sources).
+stage "style of the last commit"
+if git rev-parse -q --verify HEAD~1 > /dev/null; then
+  cmake -S . -B build-lint -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo > /dev/null
+  tests/check_style.sh HEAD~1 build-lint
+else
+  echo "no parent commit: skipped"
+fi
 stage "normal build: tests"
 ctest --test-dir build --output-on-failure --timeout 600
 # The soak's 20-second smoke run (bench/soak, normal build only): any error fails the suite.

@@ -72,6 +72,18 @@ bool AuditLog::log_line_allowed(const std::string& principal) noexcept {
   }
 }
 
+void AuditLog::identify(std::string robot_ruri, const sdk::Clock& clock) {
+  robot_ruri_ = std::move(robot_ruri);
+  clock_ = &clock;
+}
+
+std::uint64_t AuditLog::begin(const std::string& principal, const std::string& message_id, std::string event) {
+  const std::int64_t now_ms = clock_ != nullptr ? clock_->wall_ms()
+                                                : std::chrono::duration_cast<std::chrono::milliseconds>(
+                                                      std::chrono::system_clock::now().time_since_epoch()).count();
+  return record({0, principal, robot_ruri_, message_id, std::move(event), now_ms, "pending", {}});
+}
+
 std::uint64_t AuditLog::record(AuditEntry entry) {
   // Every field may carry what a client sent (a message id, an action type, a path): bounded before it is kept.
   entry.principal = bounded_text(entry.principal, kFieldLimit);

@@ -22,6 +22,7 @@
 #include <string>
 
 #include "libs/base/logging.hpp"
+#include "rcand/sdk/clock.hpp"
 
 namespace rcand::kernel {
 
@@ -48,6 +49,11 @@ class AuditLog {
   AuditLog& operator=(const AuditLog&) = delete;
   // Records the entry (every text field bounded), appends its pending line to the file, and returns its sequence number.
   std::uint64_t record(AuditEntry entry);
+  // Startup: whose log this is (every entry's ruri) and the clock of its timestamps.
+  void identify(std::string robot_ruri, const sdk::Clock& clock);
+  // The one audit call of request paths: records "pending" for `principal` now and returns the seq that finish()
+  // completes. Before dispatch, always (docs/protocol.md §6.3).
+  std::uint64_t begin(const std::string& principal, const std::string& message_id, std::string event);
   void finish(std::uint64_t seq, std::string outcome, std::string detail = {});
   // {"entries":[...]} newest first, at most `limit`.
   nlohmann::json to_json(std::size_t limit) const;
@@ -75,6 +81,8 @@ class AuditLog {
   void append_line(std::uint64_t seq, const nlohmann::json& line) noexcept;
   int rotate_locked() noexcept;  // returns the old descriptor, to be fsync'd and closed outside the lock
   bool log_line_allowed(const std::string& principal) noexcept;
+  std::string robot_ruri_;
+  const sdk::Clock* clock_ = nullptr;
   mutable std::mutex mutex_;  // held for a copy or an assignment only; never around I/O or plugin calls
   std::deque<AuditEntry> entries_;
   std::uint64_t next_seq_ = 1;

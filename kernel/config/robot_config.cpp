@@ -62,46 +62,9 @@ fs::path resolve(const fs::path& base_dir, const std::string& text) {
 json object_or_empty(const json* node) { return node != nullptr && node->is_object() ? *node : json::object(); }
 
 // Runs only on a document that passed validation, so every type below is known to be right.
-RobotConfig extract(yaml::YamlDocument yaml, const fs::path& source_file, const fs::path& base_dir) {
-  RobotConfig c;
-  c.source_file = source_file;
-  c.doc = std::move(yaml.doc);
-  c.marks = std::move(yaml.marks);
-  const json& doc = c.doc;
-
-  c.rcan_version = value_or_default<std::string>(doc, "rcan_version");
-  c.robot_name = value_or_default<std::string>(doc, "metadata.robot_name");
-  c.robot_uuid = optional_value<std::string>(doc, "metadata.robot_uuid").value_or("");
-  c.manufacturer = value_or_default<std::string>(doc, "metadata.manufacturer");
-  c.model = value_or_default<std::string>(doc, "metadata.model");
-  c.ruri = optional_value<std::string>(doc, "metadata.ruri");
-
-  c.has_agent = doc.contains("agent");
-  c.has_camera = doc.contains("camera");
-  c.min_obstacle_m = optional_value<double>(doc, "agent.min_obstacle_m");
-  if (!c.min_obstacle_m)
-    if (const auto cm = optional_value<double>(doc, "safety.obstacle_stop_cm")) c.min_obstacle_m = *cm / 100.0;
-
-  c.wheel_circumference_m = optional_value<double>(doc, "physics.wheel_circumference_m");
-  c.turn_time_per_deg_s = optional_value<double>(doc, "physics.turn_time_per_deg_s");
-  c.max_wheel_rps = value_or_default<double>(doc, "physics.max_wheel_rps");
-  const json* kinematics = find(doc, "physics.kinematics");
-  c.has_kinematics = kinematics != nullptr && kinematics->is_array() && !kinematics->empty();
-
-  if (const json* drivers = find(doc, "drivers"); drivers != nullptr && drivers->is_array())
-    for (const auto& entry : *drivers)
-      c.drivers.push_back(DriverEntry{entry.at("id").get<std::string>(), entry.at("protocol").get<std::string>(), entry});
-
-  c.rcan_port = static_cast<std::uint16_t>(value_or_default<std::int64_t>(doc, "rcan_protocol.port"));
-  c.capabilities = optional_value<std::vector<std::string>>(doc, "rcan_protocol.capabilities");
-  c.enable_mdns = value_or_default<bool>(doc, "rcan_protocol.enable_mdns");
-  c.enable_jwt = value_or_default<bool>(doc, "rcan_protocol.enable_jwt");
-
-  c.estop_on_startup = value_or_default<bool>(doc, "safety.estop_on_startup");
-  c.watchdog_ms = static_cast<int>(value_or_default<std::int64_t>(doc, "safety.watchdog_ms"));
-  c.max_linear_speed = value_or_default<double>(doc, "safety.max_linear_speed");
-
-  RuntimeConfig& r = c.runtime;
+// The runtime: block: rcand's own settings (listen address, auth, limits, files), paths resolved against the file.
+RuntimeConfig extract_runtime(const json& doc, const fs::path& base_dir) {
+  RuntimeConfig r;
   r.listen_address = value_or_default<std::string>(doc, "runtime.listen.address");
   if (const auto port = optional_value<std::int64_t>(doc, "runtime.listen.port"))
     r.listen_port = static_cast<std::uint16_t>(*port);
@@ -141,6 +104,49 @@ RobotConfig extract(yaml::YamlDocument yaml, const fs::path& source_file, const 
   if (const json* caps = find(doc, "runtime.capabilities"); caps != nullptr && caps->is_object())
     for (const auto& [name, settings] : caps->items()) r.capabilities[name] = object_or_empty(&settings);
   r.r2r = object_or_empty(find(doc, "runtime.r2r"));
+  return r;
+}
+
+RobotConfig extract(yaml::YamlDocument yaml, const fs::path& source_file, const fs::path& base_dir) {
+  RobotConfig c;
+  c.source_file = source_file;
+  c.doc = std::move(yaml.doc);
+  c.marks = std::move(yaml.marks);
+  const json& doc = c.doc;
+
+  c.rcan_version = value_or_default<std::string>(doc, "rcan_version");
+  c.robot_name = value_or_default<std::string>(doc, "metadata.robot_name");
+  c.robot_uuid = optional_value<std::string>(doc, "metadata.robot_uuid").value_or("");
+  c.manufacturer = value_or_default<std::string>(doc, "metadata.manufacturer");
+  c.model = value_or_default<std::string>(doc, "metadata.model");
+  c.ruri = optional_value<std::string>(doc, "metadata.ruri");
+
+  c.has_agent = doc.contains("agent");
+  c.has_camera = doc.contains("camera");
+  c.min_obstacle_m = optional_value<double>(doc, "agent.min_obstacle_m");
+  if (!c.min_obstacle_m)
+    if (const auto cm = optional_value<double>(doc, "safety.obstacle_stop_cm")) c.min_obstacle_m = *cm / 100.0;
+
+  c.wheel_circumference_m = optional_value<double>(doc, "physics.wheel_circumference_m");
+  c.turn_time_per_deg_s = optional_value<double>(doc, "physics.turn_time_per_deg_s");
+  c.max_wheel_rps = value_or_default<double>(doc, "physics.max_wheel_rps");
+  const json* kinematics = find(doc, "physics.kinematics");
+  c.has_kinematics = kinematics != nullptr && kinematics->is_array() && !kinematics->empty();
+
+  if (const json* drivers = find(doc, "drivers"); drivers != nullptr && drivers->is_array())
+    for (const auto& entry : *drivers)
+      c.drivers.push_back(DriverEntry{entry.at("id").get<std::string>(), entry.at("protocol").get<std::string>(), entry});
+
+  c.rcan_port = static_cast<std::uint16_t>(value_or_default<std::int64_t>(doc, "rcan_protocol.port"));
+  c.capabilities = optional_value<std::vector<std::string>>(doc, "rcan_protocol.capabilities");
+  c.enable_mdns = value_or_default<bool>(doc, "rcan_protocol.enable_mdns");
+  c.enable_jwt = value_or_default<bool>(doc, "rcan_protocol.enable_jwt");
+
+  c.estop_on_startup = value_or_default<bool>(doc, "safety.estop_on_startup");
+  c.watchdog_ms = static_cast<int>(value_or_default<std::int64_t>(doc, "safety.watchdog_ms"));
+  c.max_linear_speed = value_or_default<double>(doc, "safety.max_linear_speed");
+
+  c.runtime = extract_runtime(doc, base_dir);
   return c;
 }
 

@@ -1,6 +1,21 @@
 #include "kernel/plugins/instance_context.hpp"
 
+#include <thread>
+
 namespace rcand::kernel {
+
+// inside_ is raised before sink_ is read and lowered after the sink returned (all seq_cst): once detach() stored
+// null, a publish either reads null or is counted, so when the count is zero afterwards none is inside the sink.
+void StatusSinkSlot::publish(const InstanceContext& from, const nlohmann::json& status) noexcept {
+  inside_.fetch_add(1);
+  if (StatusSink* sink = sink_.load()) sink->publish(from, status);
+  inside_.fetch_sub(1);
+}
+
+void StatusSinkSlot::detach() noexcept {
+  sink_.store(nullptr);
+  while (inside_.load() != 0) std::this_thread::yield();
+}
 
 void InstanceEstop::request_estop(const std::string& reason) noexcept {
   const std::string source = "plugin " + plugin_id_ + " (" + instance_id_ + ")";

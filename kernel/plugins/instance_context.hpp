@@ -13,11 +13,38 @@
 #include "kernel/safety/kernel_motion_gate.hpp"
 #include "libs/base/logging.hpp"
 #include "libs/base/worker_thread.hpp"
-#include "services/r2r/plugin_bridge.hpp"
+#include "kernel/plugins/r2r_link_factory.hpp"
 #include "rcand/sdk/context.hpp"
 #include "rcand/sdk/obstacle_source.hpp"
 
 namespace rcand::kernel {
+
+class InstanceContext;
+
+// Where PluginContext::publish_status() lands: the status board (kernel/status/status_board.hpp).
+class StatusSink {
+ public:
+  // Any plugin thread; must not block beyond a brief lock, never throws.
+  virtual void publish(const InstanceContext& from, const nlohmann::json& status) noexcept = 0;
+
+ protected:
+  ~StatusSink() = default;
+};
+
+// The one sink publishes go to, attached after the plugins started (publishes before that are dropped: the sink
+// polls everything once when it starts). detach() waits out publishes still inside the sink, so the sink can then
+// be destroyed while plugin threads keep running and publishing.
+class StatusSinkSlot {
+ public:
+  void attach(StatusSink* sink) noexcept { sink_.store(sink); }
+  // Returns once no publish is inside the detached sink (they take microseconds). Never from inside a publish.
+  void detach() noexcept;
+  void publish(const InstanceContext& from, const nlohmann::json& status) noexcept;
+
+ private:
+  std::atomic<StatusSink*> sink_{nullptr};
+  std::atomic<std::uint32_t> inside_{0};  // publishes between their load of sink_ and their return from it
+};
 
 // Kernel services every context shares; they outlive all instances.
 struct KernelServices {
@@ -30,7 +57,10 @@ struct KernelServices {
   // The first driver or capability implementing sdk::ObstacleSource; set by the plugin runtime at startup.
   std::atomic<const sdk::ObstacleSource*> obstacles{nullptr};
   // Plugins' R2R links (docs/protocol.md §11) when runtime.r2r.enabled, set before any plugin starts; null: no R2R here.
-  r2r::PluginBridge* r2r = nullptr;
+  R2rLinkFactory* r2r = nullptr;
+  // PluginContext::publish_status() goes here (the status board attaches itself when it starts). The braces let an
+  // aggregate initialization leave it out without -Wmissing-field-initializers.
+  StatusSinkSlot status_sink{};
 };
 
 // The e-stop as a plugin instance sees it: request_estop() writes an audit entry naming the plugin (before the
@@ -69,6 +99,8 @@ class InstanceContext final : public sdk::PluginContext {
   const sdk::ObstacleSource* obstacles() const noexcept override { return services_.obstacles.load(); }
   // Created on first use; its callbacks run on this instance's worker "r2r".
   sdk::R2rLink* r2r() noexcept override;
+  // To KernelServices::status_sink: a copy and a brief lock there, nothing else on the plugin's thread.
+  void publish_status(const nlohmann::json& status) noexcept override { services_.status_sink.publish(*this, status); }
 
   // Joins every worker this instance created (their queued tasks finish first). Idempotent.
   void join_workers();

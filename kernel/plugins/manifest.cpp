@@ -60,6 +60,26 @@ bool is_identifier(const std::string& text) {
   return !text.empty();
 }
 
+// One "provides" entry: a capability, or a driver (an actuating one names the interface it implements).
+ProvidedItem parse_provided(const Fields& f, const json& entry, const std::string& field) {
+  if (!entry.is_object()) f.fail(field, std::string("expected object, found ") + entry.type_name());
+  ProvidedItem item;
+  item.kind = f.string(f.require(entry, "kind", field + ".kind"), field + ".kind");
+  if (item.kind != "capability" && item.kind != "driver")
+    f.fail(field + ".kind", "expected \"capability\" or \"driver\", found \"" + item.kind + "\"");
+  item.name = f.string(f.require(entry, "name", field + ".name"), field + ".name");
+  if (!is_identifier(item.name)) f.fail(field + ".name", "'" + item.name + "' is not a valid name (letters, digits, '.', '_', '-')");
+  if (const auto it = entry.find("actuates"); it != entry.end()) item.actuates = f.boolean(*it, field + ".actuates");
+  if (const auto it = entry.find("interface"); it != entry.end()) {
+    if (item.kind != "driver") f.fail(field + ".interface", "only drivers implement an actuator interface");
+    item.interface = f.string(*it, field + ".interface");
+    if (!item.actuates) f.fail(field + ".interface", "only actuating drivers (\"actuates\": true) implement an interface");
+  } else if (item.kind == "driver" && item.actuates) {
+    f.fail(field + ".interface", "required for an actuating driver (for example \"differential_drive\")");
+  }
+  return item;
+}
+
 }  // namespace
 
 PluginManifest parse_manifest(const json& doc, const std::filesystem::path& file) {
@@ -94,22 +114,7 @@ PluginManifest parse_manifest(const json& doc, const std::filesystem::path& file
   std::set<std::pair<std::string, std::string>> seen;
   for (std::size_t i = 0; i < provides.size(); ++i) {
     const std::string field = "provides[" + std::to_string(i) + "]";
-    const json& entry = provides[i];
-    if (!entry.is_object()) f.fail(field, std::string("expected object, found ") + entry.type_name());
-    ProvidedItem item;
-    item.kind = f.string(f.require(entry, "kind", field + ".kind"), field + ".kind");
-    if (item.kind != "capability" && item.kind != "driver")
-      f.fail(field + ".kind", "expected \"capability\" or \"driver\", found \"" + item.kind + "\"");
-    item.name = f.string(f.require(entry, "name", field + ".name"), field + ".name");
-    if (!is_identifier(item.name)) f.fail(field + ".name", "'" + item.name + "' is not a valid name (letters, digits, '.', '_', '-')");
-    if (const auto it = entry.find("actuates"); it != entry.end()) item.actuates = f.boolean(*it, field + ".actuates");
-    if (const auto it = entry.find("interface"); it != entry.end()) {
-      if (item.kind != "driver") f.fail(field + ".interface", "only drivers implement an actuator interface");
-      item.interface = f.string(*it, field + ".interface");
-      if (!item.actuates) f.fail(field + ".interface", "only actuating drivers (\"actuates\": true) implement an interface");
-    } else if (item.kind == "driver" && item.actuates) {
-      f.fail(field + ".interface", "required for an actuating driver (for example \"differential_drive\")");
-    }
+    ProvidedItem item = parse_provided(f, provides[i], field);
     if (!seen.emplace(item.kind, item.name).second) f.fail(field + ".name", item.kind + " '" + item.name + "' is listed twice");
     m.provides.push_back(std::move(item));
   }

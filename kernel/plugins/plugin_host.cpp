@@ -178,22 +178,32 @@ void PluginHost::load_needed(const std::set<std::string>& capabilities, const st
   }
 }
 
+// The loader is a straight line of refusals, each one a state, a reason and a hint: open the library, read its
+// descriptor, run its register(), accept what it registered.
 void PluginHost::open(PluginRecord& record) {
-  const PluginManifest& manifest = *record.manifest;
-  const std::string who = record.id;
-  const std::string lib = manifest.library.string();
+  if (!open_library(record)) return;
+  const rcand_plugin_descriptor* descriptor = read_descriptor(record);
+  if (descriptor == nullptr) return;
+  auto registrar = run_register(record, *descriptor);
+  if (registrar == nullptr || !accept(record, *registrar)) return;
+  plugins_logger()->info("loaded plugin {} {} ({})", record.id, record.version, record.manifest->library.string());
+}
 
+bool PluginHost::open_library(PluginRecord& record) {
+  const PluginManifest& manifest = *record.manifest;
+  const std::string lib = manifest.library.string();
   if (manifest.abi_major != RCAND_ABI_MAJOR)
     return set_state(record, PluginState::IncompatibleAbi,
                      "manifest declares ABI " + std::to_string(manifest.abi_major) + ", kernel speaks " +
                          std::to_string(RCAND_ABI_MAJOR) + " (library not opened)",
-                     rebuild_hint());
+                     rebuild_hint()),
+           false;
   std::error_code ec;
   if (!fs::exists(manifest.library, ec))
     return set_state(record, PluginState::FailedToOpen, "library " + lib + " not found",
                      "install " + manifest.library.filename().string() + " next to " +
-                         manifest.file.filename().string() + ", or fix its \"library\" field");
-
+                         manifest.file.filename().string() + ", or fix its \"library\" field"),
+           false;
   auto library = std::make_shared<boost::dll::shared_library>();
   try {
     // RTLD_NOW: a missing symbol fails here, never mid-motion. RTLD_LOCAL: plugins cannot see each
@@ -204,45 +214,55 @@ void PluginHost::open(PluginRecord& record) {
     library->load(manifest.library, ec, mode);
     if (ec || !library->is_loaded())
       return set_state(record, PluginState::FailedToOpen, "cannot open " + lib + ": " + loader_message(ec),
-                       "run `ldd -r " + lib + "`");
+                       "run `ldd -r " + lib + "`"),
+             false;
   } catch (const std::exception& e) {
-    return set_state(record, PluginState::FailedToOpen, "cannot open " + lib + ": " + e.what(), "run `ldd -r " + lib + "`");
+    return set_state(record, PluginState::FailedToOpen, "cannot open " + lib + ": " + e.what(), "run `ldd -r " + lib + "`"), false;
   }
   record.library = library;  // from here on the handle stays, whatever the outcome
+  return true;
+}
 
-  if (!library->has(RCAND_ENTRY_SYMBOL)) {
+const rcand_plugin_descriptor* PluginHost::read_descriptor(PluginRecord& record) {
+  auto& library = *std::static_pointer_cast<boost::dll::shared_library>(record.library);
+  const std::string lib = record.manifest->library.string();
+  if (!library.has(RCAND_ENTRY_SYMBOL)) {
     for (int major = 1; major <= 9; ++major) {
       if (major == RCAND_ABI_MAJOR) continue;
-      if (library->has("rcand_plugin_entry_v" + std::to_string(major)))
+      if (library.has("rcand_plugin_entry_v" + std::to_string(major)))
         return set_state(record, PluginState::IncompatibleAbi,
                          "built for ABI " + std::to_string(major) + ", kernel speaks " + std::to_string(RCAND_ABI_MAJOR),
-                         rebuild_hint());
+                         rebuild_hint()),
+               nullptr;
     }
     return set_state(record, PluginState::FailedToOpen, std::string("no entry symbol ") + RCAND_ENTRY_SYMBOL + " in " + lib,
-                     "build it with RCAND_PLUGIN");
+                     "build it with RCAND_PLUGIN"),
+           nullptr;
   }
-
-  const auto entry = library->get<const rcand_plugin_descriptor*()>(RCAND_ENTRY_SYMBOL);
+  const auto entry = library.template get<const rcand_plugin_descriptor*()>(RCAND_ENTRY_SYMBOL);
   std::string failure;
-  const auto descriptor = guarded_result(who, "entry point", failure, [&] { return entry(); });
+  const auto descriptor = guarded_result(record.id, "entry point", failure, [&] { return entry(); });
   if (!descriptor)
     return set_state(record, PluginState::RegistrationFailed, "entry point threw: " + failure,
-                     "the entry point must only return its static descriptor: build it with RCAND_PLUGIN");
-  if (auto verdict = check_descriptor(*descriptor, manifest))
-    return set_state(record, verdict->state, std::move(verdict->reason), std::move(verdict->hint));
-  const rcand_plugin_descriptor& d = **descriptor;
-  if (d.build_info != nullptr) record.build_info = d.build_info;
+                     "the entry point must only return its static descriptor: build it with RCAND_PLUGIN"),
+           nullptr;
+  if (auto verdict = check_descriptor(*descriptor, *record.manifest))
+    return set_state(record, verdict->state, std::move(verdict->reason), std::move(verdict->hint)), nullptr;
+  if ((*descriptor)->build_info != nullptr) record.build_info = (*descriptor)->build_info;
+  return *descriptor;
+}
 
-  // register() on a thread of its own, bounded: a plugin stuck in it fails alone instead of keeping the robot from
-  // ever starting. The registrar and the failure text are shared with that thread, which may outlive this call.
+// register() on a thread of its own, bounded: a plugin stuck in it fails alone instead of keeping the robot from ever
+// starting. The registrar and the failure text are shared with that thread, which may outlive this call.
+std::shared_ptr<detail::RecordingRegistrar> PluginHost::run_register(PluginRecord& record, const rcand_plugin_descriptor& d) {
   struct Registration {
-    detail::RecordingRegistrar registrar;
+    std::shared_ptr<detail::RecordingRegistrar> registrar = std::make_shared<detail::RecordingRegistrar>();
     std::string failure;
     bool returned = false;
   };
   auto registration = std::make_shared<Registration>();
-  const bool finished = bounded_call("plugin.register", register_timeout_, [registration, who, register_plugin = d.register_plugin] {
-    sdk::Registrar& base = registration->registrar;
+  const bool finished = bounded_call("plugin.register", register_timeout_, [registration, who = record.id, register_plugin = d.register_plugin] {
+    sdk::Registrar& base = *registration->registrar;
     registration->returned = guarded_call(who, "register", registration->failure,
                                           [&] { register_plugin(reinterpret_cast<rcand_registrar*>(&base)); });
   });
@@ -250,24 +270,30 @@ void PluginHost::open(PluginRecord& record) {
     return set_state(record, PluginState::RegistrationFailed,
                      "register() did not return within " + std::to_string(register_timeout_.count()) +
                          " ms (runtime.plugin_start_timeout_ms)",
-                     "see the plugin's log: its register function must only register factories");
+                     "see the plugin's log: its register function must only register factories"),
+           nullptr;
   if (!registration->returned)
     return set_state(record, PluginState::RegistrationFailed, "register threw: " + registration->failure,
-                     "see the plugin's log and fix its register function");
-  auto& registrar = registration->registrar;
-  if (!registrar.errors.empty())
-    return set_state(record, PluginState::RegistrationFailed, join(registrar.errors, "; "),
-                     "fix the plugin's register function");
+                     "see the plugin's log and fix its register function"),
+           nullptr;
+  if (!registration->registrar->errors.empty())
+    return set_state(record, PluginState::RegistrationFailed, join(registration->registrar->errors, "; "),
+                     "fix the plugin's register function"),
+           nullptr;
+  return registration->registrar;
+}
 
+// What it registered must be exactly what its manifest provides, and nothing another loaded plugin registered.
+bool PluginHost::accept(PluginRecord& record, detail::RecordingRegistrar& registrar) {
+  const PluginManifest& manifest = *record.manifest;
   std::vector<ProvidedItem> registered;
   for (const auto& c : registrar.capabilities) registered.push_back({"capability", c.info.name, c.info.actuates, ""});
-  for (const auto& dr : registrar.drivers)
-    registered.push_back({"driver", dr.info.protocol, dr.info.actuates, dr.info.interface});
+  for (const auto& dr : registrar.drivers) registered.push_back({"driver", dr.info.protocol, dr.info.actuates, dr.info.interface});
   if (const auto differences = provides_differences(manifest.provides, registered); !differences.empty())
     return set_state(record, PluginState::ManifestMismatch, join(differences, "; "),
                      "make " + manifest.file.filename().string() +
-                         " \"provides\" list exactly what the plugin registers, or rebuild the plugin");
-
+                         " \"provides\" list exactly what the plugin registers, or rebuild the plugin"),
+           false;
   for (const auto& other : records_) {
     if (other.get() == &record || other->state != PluginState::Loaded) continue;
     for (const auto& item : registered) {
@@ -279,14 +305,14 @@ void PluginHost::open(PluginRecord& record) {
       if (taken)
         return set_state(record, PluginState::RegistrationFailed,
                          item.kind + " '" + item.name + "' is already registered by plugin " + other->id,
-                         "remove or disable one of the two plugins");
+                         "remove or disable one of the two plugins"),
+               false;
     }
   }
-
   record.capabilities = std::move(registrar.capabilities);
   record.drivers = std::move(registrar.drivers);
   set_state(record, PluginState::Loaded, "", "");
-  plugins_logger()->info("loaded plugin {} {} ({})", record.id, record.version, lib);
+  return true;
 }
 
 PluginRecord* PluginHost::find(std::string_view id) noexcept {

@@ -13,8 +13,13 @@
 #include <vector>
 
 #include "kernel/plugins/plugin_record.hpp"
+#include "rcand/sdk/abi.h"
 
 namespace rcand::kernel {
+
+namespace detail {
+class RecordingRegistrar;  // kernel/plugins/recording_registrar.hpp
+}
 
 class PluginHost {
  public:
@@ -58,6 +63,11 @@ class PluginHost {
 
  private:
   void open(PluginRecord& record);
+  // The loader's steps; each one that refuses sets the record's state and returns false (or null).
+  bool open_library(PluginRecord& record);
+  const rcand_plugin_descriptor* read_descriptor(PluginRecord& record);
+  std::shared_ptr<detail::RecordingRegistrar> run_register(PluginRecord& record, const rcand_plugin_descriptor& d);
+  bool accept(PluginRecord& record, detail::RecordingRegistrar& registrar);
 
   std::vector<std::unique_ptr<PluginRecord>> records_;
   std::chrono::milliseconds register_timeout_{10000};

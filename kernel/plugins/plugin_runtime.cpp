@@ -1,9 +1,10 @@
 #include "kernel/plugins/plugin_runtime.hpp"
+#include "kernel/registry/standard_capabilities.hpp"
 
 #include <mutex>
 #include <set>
 
-#include "kernel/plugins/keep_forever.hpp"
+#include "libs/base/keep_forever.hpp"
 #include "kernel/plugins/bounded_call.hpp"
 #include "kernel/plugins/settings_schema.hpp"
 #include "kernel/plugins/guarded.hpp"
@@ -188,7 +189,7 @@ void PluginRuntime::start_drivers(const RobotConfig& config) {
 void PluginRuntime::start_capabilities(const std::vector<std::string>& names, const RobotConfig& config) {
   auto log = logger("kernel.plugins");
   for (const auto& name : names) {
-    if (name == "status") continue;  // the kernel's own
+    if (name == kStatusCapability) continue;  // the kernel's own
     auto [registered, plugin] =
         find_loaded(host_, host_.providers_of_capability(name), &PluginRecord::capabilities, name);
     auto& instance = capabilities_.emplace_back();
@@ -232,20 +233,7 @@ void PluginRuntime::start_capabilities(const std::vector<std::string>& names, co
     log->info("capability {} ({}) {}, {} routes", name, plugin->id,
               instance.health.failed() ? "failed: " + instance.health.reason() : "started", instance.routes.size());
   }
-  std::vector<DeadlineCrew::Job> jobs;
-  for (auto& instance : capabilities_)
-    if (instance.object) jobs.push_back({instance.name, [object = instance.object.get()] { object->on_estop(); }});
-  estop_crew_ = std::make_unique<DeadlineCrew>("estop.notify", std::move(jobs));
-
-  std::vector<StatusReader::Source> sources;
-  auto add_source = [&sources](auto& instance) {
-    if (!instance.object) return;
-    instance.status_index = sources.size();
-    sources.push_back({instance.who, [object = instance.object.get()] { return object->status(); }, &instance.health});
-  };
-  for (auto& instance : drivers_) add_source(instance);
-  for (auto& instance : capabilities_) add_source(instance);
-  status_reader_ = std::make_unique<StatusReader>(std::move(sources));
+  start_crews();
 }
 
 std::optional<nlohmann::json> PluginRuntime::status_at(std::size_t index) {
@@ -346,6 +334,25 @@ void PluginRuntime::shutdown() noexcept {
     if (instance.handler_worker) instance.handler_worker->join();
   if (shut_down_all(capabilities_, kShutdownDeadline)) abandon_capabilities_ = true;
   if (shut_down_all(drivers_, kShutdownDeadline)) abandon_drivers_ = true;
+}
+
+// The threads every started instance gets from the kernel: an on_estop() caller each (the stop path's notify crew)
+// and a status() reader each.
+void PluginRuntime::start_crews() {
+  std::vector<DeadlineCrew::Job> jobs;
+  for (auto& instance : capabilities_)
+    if (instance.object) jobs.push_back({instance.name, [object = instance.object.get()] { object->on_estop(); }});
+  estop_crew_ = std::make_unique<DeadlineCrew>("estop.notify", std::move(jobs));
+
+  std::vector<StatusReader::Source> sources;
+  auto add_source = [&sources](auto& instance) {
+    if (!instance.object) return;
+    instance.status_index = sources.size();
+    sources.push_back({instance.who, [object = instance.object.get()] { return object->status(); }, &instance.health});
+  };
+  for (auto& instance : drivers_) add_source(instance);
+  for (auto& instance : capabilities_) add_source(instance);
+  status_reader_ = std::make_unique<StatusReader>(std::move(sources));
 }
 
 }  // namespace rcand::kernel

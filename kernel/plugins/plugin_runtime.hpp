@@ -78,6 +78,7 @@ class PluginRuntime {
 
  private:
   std::optional<nlohmann::json> status_at(std::size_t status_index);
+  void start_crews();
   // The first interface the plugin's manifest `requires` that no started actuator implements.
   std::optional<std::string> missing_requirement(const PluginRecord& plugin) const;
 

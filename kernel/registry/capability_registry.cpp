@@ -9,18 +9,9 @@ namespace {
 
 using sdk::Scope;
 
-constexpr std::array<StandardCapability, 6> kStandard{{
-    {"status", Scope::Status, "GET /api/status", "", "rcand"},
-    {"nav", Scope::Control, "POST /api/nav/waypoint", "org.rcand.nav", "rcand-plugins-core"},
-    {"teleop", Scope::Control, "POST /api/action", "org.rcand.teleop", "rcand-plugins-core"},
-    {"vision", Scope::Status, "GET /api/stream/mjpeg", "org.rcand.vision", "rcand-plugins-vision"},
-    {"chat", Scope::Control, "POST /api/command", "org.rcand.chat", "rcand-plugins-core"},
-    {"arm", Scope::Control, "POST /api/action", "org.rcand.arm", "rcand-plugins-hw"},
-}};
-
 std::vector<std::string> standard_names() {
   std::vector<std::string> names;
-  for (const auto& cap : kStandard) names.emplace_back(cap.name);
+  for (const auto& cap : standard_capabilities()) names.emplace_back(cap.name);
   return names;
 }
 
@@ -57,25 +48,17 @@ std::vector<std::string> auto_detect(const RobotConfig& config, const ProviderLo
     if (driver.protocol == "dynamixel" && config.has_kinematics) arm = true;
   }
   if (drive) {
-    if (has_nav_physics(config)) add_unique(found, "nav");
+    if (has_nav_physics(config)) add_unique(found, std::string(kNavCapability));
     else notes.emplace_back("nav not declared: physics.wheel_circumference_m and physics.turn_time_per_deg_s are required (§10.2)");
-    add_unique(found, "teleop");
+    add_unique(found, std::string(kTeleopCapability));
   }
-  if (config.has_camera) add_unique(found, "vision");
-  if (config.has_agent) add_unique(found, "chat");
-  if (arm) add_unique(found, "arm");
+  if (config.has_camera) add_unique(found, std::string(kVisionCapability));
+  if (config.has_agent) add_unique(found, std::string(kChatCapability));
+  if (arm) add_unique(found, std::string(kArmCapability));
   return found;
 }
 
 }  // namespace
-
-std::span<const StandardCapability> standard_capabilities() noexcept { return kStandard; }
-
-const StandardCapability* find_standard_capability(std::string_view name) noexcept {
-  for (const auto& cap : kStandard)
-    if (cap.name == name) return &cap;
-  return nullptr;
-}
 
 bool is_reverse_domain_name(std::string_view name) noexcept {
   int labels = 0;
@@ -107,9 +90,9 @@ CapabilityPlan plan_capabilities(const RobotConfig& config, const ProviderLookup
     plan.auto_detected = true;
     for (auto& name : auto_detect(config, lookup, plan.notes)) {
       if (name != "status" && providers(name).empty()) {
-        const auto* standard = find_standard_capability(name);
+        const auto provider = first_party_provider(name);
         plan.notes.push_back("auto-detected '" + name + "' dropped: no installed plugin provides it (install " +
-                             std::string(standard->plugin) + " from " + std::string(standard->package) + ")");
+                             std::string(provider.plugin) + " from " + std::string(provider.package) + ")");
         continue;
       }
       plan.names.push_back(std::move(name));
@@ -132,7 +115,7 @@ CapabilityPlan plan_capabilities(const RobotConfig& config, const ProviderLookup
       if (auto close = closest_match(name, standard_names())) message += "; did you mean '" + *close + "'?";
       fail(config, path, message);
     }
-    if (name == "nav" && !has_nav_physics(config))
+    if (name == kNavCapability && !has_nav_physics(config))
       fail(config, path,
            "'nav' needs physics.wheel_circumference_m and physics.turn_time_per_deg_s (§10.2); add them or remove nav");
     if (name != "status") {
@@ -140,8 +123,8 @@ CapabilityPlan plan_capabilities(const RobotConfig& config, const ProviderLookup
       if (found.empty()) {
         std::string message = "'" + name + "' is listed but no installed plugin provides it";
         if (standard != nullptr)
-          message += "; the plugin that could is " + std::string(standard->plugin) + " (package " +
-                     std::string(standard->package) + ")";
+          message += "; the plugin that could is " + std::string(first_party_provider(name).plugin) + " (package " +
+                     std::string(first_party_provider(name).package) + ")";
         else
           message += "; install the vendor plugin that provides it into a plugin path";
         fail(config, path, message);

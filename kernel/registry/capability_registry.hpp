@@ -13,6 +13,7 @@
 #include <vector>
 
 #include "kernel/config/robot_config.hpp"
+#include "kernel/registry/standard_capabilities.hpp"
 #include "rcand/sdk/scope.hpp"
 
 namespace rcand::kernel {
@@ -20,15 +21,6 @@ namespace rcand::kernel {
 inline constexpr std::string_view kRcanVersion = "1.3.0";
 inline constexpr std::string_view kServiceType = "_rcan._tcp";
 
-struct StandardCapability {
-  std::string_view name;
-  sdk::Scope scope;
-  std::string_view endpoint;  // its standard endpoint (§9.2)
-  std::string_view plugin;    // the first-party plugin that provides it
-  std::string_view package;   // the Debian package that ships that plugin
-};
-std::span<const StandardCapability> standard_capabilities() noexcept;
-const StandardCapability* find_standard_capability(std::string_view name) noexcept;
 // §9.4: lowercase labels of [a-z0-9_-], at least three of them, each starting with a letter ("com.acme.gripper").
 bool is_reverse_domain_name(std::string_view name) noexcept;
 // §10.2: wheel_circumference_m and turn_time_per_deg_s are both present.

@@ -13,7 +13,7 @@
 #include <deque>
 #include <thread>
 
-#include "kernel/safety/terminate_trap.hpp"
+#include "libs/base/terminate_trap.hpp"
 
 namespace rcand::kernel {
 namespace {

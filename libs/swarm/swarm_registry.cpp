@@ -12,7 +12,7 @@
 
 #include <boost/asio/ip/address.hpp>
 
-#include "kernel/config/robot_config.hpp"
+#include "libs/base/closest_match.hpp"
 
 namespace rcand::swarm {
 namespace {

@@ -56,12 +56,22 @@ std::optional<std::string> GripperCapability::resolve_actuator() const {
   return ctx_.motion().first_actuator(Gripper::kInterface);
 }
 
-void GripperCapability::remember(const Gripper& gripper) {
+bool GripperCapability::remember(const Gripper& gripper) {
   const double opening = gripper.opening();
   const bool holding = gripper.holding();
   std::lock_guard lock(mutex_);
+  const bool changed = opening_ != opening || holding_ != holding;
   opening_ = opening;
   holding_ = holding;
+  return changed;
+}
+
+// Handlers run one at a time on the capability's worker, so publishes land in the order of the changes.
+void GripperCapability::publish() noexcept {
+  try {
+    ctx_.publish_status(status());
+  } catch (...) {  // no memory for the status: the kernel asks status() itself a second later
+  }
 }
 
 Json GripperCapability::describe(const std::string& actuator) const {
@@ -73,8 +83,10 @@ Response GripperCapability::state(const rcand::sdk::Request&) {
   const auto actuator = resolve_actuator();
   if (!actuator) return Response::error(503, "UNAVAILABLE", "no com.acme.gripper actuator is configured");
   // Reading goes through the gate too (we never hold a driver); inspect() is never refused by the e-stop.
-  const GateStatus gate = ctx_.motion().inspect_as<Gripper>(*actuator, [&](const Gripper& g) { remember(g); });
+  bool changed = false;
+  const GateStatus gate = ctx_.motion().inspect_as<Gripper>(*actuator, [&](const Gripper& g) { changed = remember(g); });
   if (gate != GateStatus::Ok) return rcand::sdk::gate_refusal(gate, *actuator);
+  if (changed) publish();
   return Response::ok(describe(*actuator));
 }
 
@@ -102,10 +114,12 @@ Response GripperCapability::grip(const rcand::sdk::Request& request) {
 
   const auto actuator = resolve_actuator();
   if (!actuator) return Response::error(503, "UNAVAILABLE", "no com.acme.gripper actuator is configured");
+  bool changed = false;
   const GateStatus gate = ctx_.motion().actuate_as<Gripper>(*actuator, [&](Gripper& g) {
     g.set_opening(target);
-    remember(g);
+    changed = remember(g);
   });
+  if (changed) publish();  // also when the gate then refused: the opening did change
   if (gate != GateStatus::Ok) return rcand::sdk::gate_refusal(gate, *actuator);
   Json answer = describe(*actuator);
   answer["ok"] = true;

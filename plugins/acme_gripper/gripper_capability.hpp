@@ -22,7 +22,10 @@ class GripperCapability final : public rcand::sdk::Capability {
   rcand::sdk::Response grip(const rcand::sdk::Request& request);
   std::optional<std::string> resolve_actuator() const;  // setting `driver`, else the first com.acme.gripper
   rcand::sdk::Json describe(const std::string& actuator) const;
-  void remember(const Gripper& gripper);  // caches what status() serves without touching the gate
+  // Caches what status() serves without touching the gate; true when that changed.
+  bool remember(const Gripper& gripper);
+  // Hands the kernel status() as it is now (PluginContext::publish_status), after each change.
+  void publish() noexcept;
 
   rcand::sdk::PluginContext& ctx_;
   const std::optional<std::string> configured_driver_;

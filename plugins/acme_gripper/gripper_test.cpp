@@ -125,3 +125,22 @@ TEST_CASE("routes need scope control; unknown subpaths are 404; no gripper is 50
   CHECK(bare.call("GET", "/api/cap/com.acme.gripper/state").status == 503);
   CHECK(bare.call("POST", "/api/cap/com.acme.gripper/grip", {{"state", "open"}}).body["code"] == "UNAVAILABLE");
 }
+
+TEST_CASE("the capability publishes its status after each change, and only then") {
+  Fixture f;
+  auto& gripper = f.host.capability<acme::gripper::GripperCapability>("com.acme.gripper");
+  CHECK_FALSE(f.host.last_published_status("com.acme.gripper"));
+  REQUIRE(f.state().status == 200);  // first read of the gripper: the cached state changes from unknown to open
+  CHECK(*f.host.last_published_status("com.acme.gripper") == json{{"opening", 1.0}, {"holding", false}});
+  REQUIRE(f.state().status == 200);  // nothing changed: nothing published
+  CHECK(f.host.published_statuses("com.acme.gripper").size() == 1);
+
+  REQUIRE(f.grip({{"state", "close"}}).status == 200);
+  CHECK(*f.host.last_published_status("com.acme.gripper") == gripper.status());
+  CHECK(gripper.status() == json{{"opening", 0.0}, {"holding", false}});
+  REQUIRE(f.grip({{"state", "close"}}).status == 200);  // already closed
+  CHECK(f.host.published_statuses("com.acme.gripper").size() == 2);
+  REQUIRE(f.grip({{"opening", 0.5}}).status == 200);
+  CHECK(f.host.published_statuses("com.acme.gripper").size() == 3);
+  CHECK((*f.host.last_published_status("com.acme.gripper"))["opening"] == 0.5);
+}

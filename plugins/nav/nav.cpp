@@ -131,6 +131,7 @@ Response Nav::waypoint(const sdk::Request& request) {
     job_->started_us = job_->phase_started_us = started;
     job_->phase_open = true;
   }
+  publish();  // before the job runs: its own publishes (the last one at its end) come after this one
   try {
     worker_.post([this, estop_events] { run_job(estop_events); });
   } catch (const std::exception& e) {  // the job cannot run: stop what the handler started
@@ -275,6 +276,7 @@ void Nav::run_job(std::uint64_t estop_events) noexcept {
         abort(refused->reason, refused->message + " before the drive");
         return;
       }
+      publish();
       phase_start = now;
       turning = false;
     }
@@ -301,6 +303,7 @@ Nav::End Nav::wait_until(std::int64_t deadline_us, std::uint64_t estop_events) {
         return End::Obstacle;
       }
     }
+    if (now - last_publish_us_.load() >= std::chrono::microseconds(kPublishPeriod).count()) publish();  // the pose moves
     const std::int64_t slice = std::max<std::int64_t>(1, std::min(deadline_us - now, last_check + period_us - now));
     sleeper_(std::chrono::microseconds(slice), woken);
   }
@@ -376,8 +379,17 @@ void Nav::finish(bool ok, const std::string& reason, const std::string& message)
     id = job_->id;
   }
   ended_cv_.notify_all();
+  publish();
   if (ok) ctx_.log().info("job ", id, " done: ", message);
   else ctx_.log().warn("job ", id, " aborted (", reason, "): ", message);
+}
+
+void Nav::publish() noexcept {
+  last_publish_us_ = ctx_.clock().now_us();
+  try {
+    ctx_.publish_status(status());
+  } catch (...) {  // no memory for the status: the kernel asks status() itself a second later
+  }
 }
 
 // ---- status (I/O thread) ----------------------------------------------------------------------------------------

@@ -30,6 +30,7 @@ class Nav final : public sdk::Capability {
  public:
   static constexpr std::chrono::milliseconds kObstaclePeriod{50};  // 20 Hz while a job runs (§10.5 asks >= 10 Hz)
   static constexpr std::chrono::milliseconds kCancelWait{1000};    // cancel waits this long for the job to end
+  static constexpr std::chrono::milliseconds kPublishPeriod{100};  // the moving pose is published at most 10 Hz
 
   // Reads the physics block (throws sdk::ConfigError naming the key), `driver`, `max_job_ms` and the obstacle
   // threshold (agent.min_obstacle_m, else safety.obstacle_stop_cm). `sleeper` null: the condition-variable one.
@@ -76,6 +77,9 @@ class Nav final : public sdk::Capability {
   // Adds a phase's progress to the committed pose (requires mutex_).
   void commit_phase(std::int64_t until_us);
   void finish(bool ok, const std::string& reason, const std::string& message);
+  // Hands the kernel status() as it is now (PluginContext::publish_status): after every change of the job, and from
+  // the job's waits while it moves. Never with mutex_ held.
+  void publish() noexcept;
   std::optional<std::string> resolve_driver() const;
   std::string new_job_id();
 
@@ -106,6 +110,7 @@ class Nav final : public sdk::Capability {
   // The last obstacle check: set by the handler's check before the job, then by the job's waits (one job at a time,
   // and the handler hands over to the job worker through post(), so no two threads use it at once).
   std::int64_t last_obstacle_check_us_ = 0;
+  std::atomic<std::int64_t> last_publish_us_{0};
 };
 
 }  // namespace rcand::plugins::nav

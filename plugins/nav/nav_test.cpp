@@ -189,6 +189,32 @@ TEST_CASE("a waypoint turns, then drives, then stops, each for exactly the compu
   CHECK(after["pose"]["heading_deg"].get<double>() == doctest::Approx(0.0));
 }
 
+TEST_CASE("the job publishes its status: at the start, at the turn, about 10 times a second while moving, at the end") {
+  Fixture f;
+  CHECK_FALSE(f.host.last_published_status("nav"));      // idle: nothing changed, the kernel asks status() instead
+  REQUIRE(f.waypoint(wp(0.21, 90, 0.5)).status == 200);  // turn 1.44 s, drive 2 s, all inside the call
+  const auto published = f.host.published_statuses("nav");
+  REQUIRE(published.size() >= 3);
+  CHECK(published.front()["running"] == true);
+  CHECK(published.front()["state"] == "turning");
+  CHECK(published.front()["elapsed_ms"] == 0);
+  CHECK(published.back() == f.status());  // the last one is what status() says now: done, with the final pose
+  CHECK(published.back()["state"] == "done");
+  bool saw_driving = false;
+  std::int64_t previous_ms = -1;
+  for (std::size_t i = 1; i + 1 < published.size(); ++i) {
+    const json& s = published[i];
+    CHECK(s["running"] == true);
+    saw_driving = saw_driving || s["state"] == "driving";
+    CHECK(s["elapsed_ms"].get<std::int64_t>() > previous_ms);
+    previous_ms = s["elapsed_ms"].get<std::int64_t>();
+  }
+  CHECK(saw_driving);
+  // Rate-limited: 3.44 s of motion gives about 34 periodic publishes, plus the start, the turn and the end.
+  CHECK(published.size() >= 30);
+  CHECK(published.size() <= 40);
+}
+
 TEST_CASE("idle status: every field present, nulls where no job ran") {
   Fixture f;
   const json s = f.status();

@@ -1,6 +1,6 @@
 // The fake host itself: descriptor checks, routing with scope and e-stop checks, the motion gate's race rule,
 // the deterministic workers and clock. sim_drive is the real driver behind the gate; a small probe plugin,
-// declared here, provides routes of every kind.
+// declared here as the nav capability, provides routes of every kind.
 #include <doctest/doctest.h>
 
 #include <rcand/sdk/plugin.hpp>
@@ -9,6 +9,7 @@
 
 #include <chrono>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include "sim_drive.hpp"
@@ -44,6 +45,10 @@ const rcand_plugin_descriptor* abi_minor_newer() {
   static const auto d = tweaked([](rcand_plugin_descriptor& x) { x.abi_minor = RCAND_ABI_MINOR + 1; });
   return &d;
 }
+const rcand_plugin_descriptor* abi_minor_previous() {  // built against ABI 1.0, before publish_status
+  static const auto d = tweaked([](rcand_plugin_descriptor& x) { x.abi_minor = RCAND_ABI_MINOR - 1; });
+  return &d;
+}
 const rcand_plugin_descriptor* too_large() {
   static const auto d = tweaked([](rcand_plugin_descriptor& x) { x.struct_size += 8; });
   return &d;
@@ -75,9 +80,9 @@ class Probe final : public Capability {
   explicit Probe(PluginContext& ctx) : ctx_(ctx) {}
   std::vector<Route> routes() override {
     return {
-        {"GET", "/api/probe", Scope::Status, false, "", [](const Request&) { return Response::ok({{"probe", true}}); }},
-        {"POST", "/api/probe/config", Scope::Config, false, "", [](const Request&) { return Response::ok(); }},
-        {"POST", "/api/action", Scope::Control, true, "probe_move",
+        {"GET", "/api/nav/probe", Scope::Status, false, "", [](const Request&) { return Response::ok({{"probe", true}}); }},
+        {"POST", "/api/nav/probe/config", Scope::Config, false, "", [](const Request&) { return Response::ok(); }},
+        {"POST", "/api/nav/probe/move", Scope::Control, true, "",
          [this](const Request& req) {
            ++probe.motion_calls;
            if (probe.throw_next) throw std::runtime_error("probe exploded");
@@ -104,7 +109,7 @@ class Custom final : public Capability {
 };
 
 void register_probe(Registrar& r) {
-  r.add_capability({"probe", true}, [](PluginContext& ctx) { return std::make_unique<Probe>(ctx); });
+  r.add_capability({"nav", true}, [](PluginContext& ctx) { return std::make_unique<Probe>(ctx); });
   r.add_capability({"org.test.custom", false}, [](PluginContext&) { return std::make_unique<Custom>(); });
 }
 const rcand_plugin_descriptor* probe_entry() {
@@ -122,11 +127,11 @@ struct Fixture {
     host.load(RCAND_ENTRY_FUNCTION);
     host.load(probe_entry);
     host.add_driver("base", "sim_diff_drive");
-    host.add_capability("probe");
+    host.add_capability("nav");
     host.add_capability("org.test.custom");
   }
   SimDrive& sim() { return host.driver<SimDrive>("base"); }
-  Response move(Role role = Role::Owner) { return host.call("POST", "/api/action", {{"type", "probe_move"}}, role); }
+  Response move(Role role = Role::Owner) { return host.call("POST", "/api/nav/probe/move", nlohmann::json::object(), role); }
 };
 
 }  // namespace
@@ -175,9 +180,9 @@ TEST_CASE("routes: scope check gives 403 INSUFFICIENT_PRIVILEGES before the hand
   CHECK(f.move(Role::User).status == 200);
   CHECK(probe.motion_calls == 1);
 
-  CHECK(f.host.call("GET", "/api/probe", {}, Role::Guest).status == 200);
-  CHECK(f.host.call("POST", "/api/probe/config", {}, Role::Leasee).status == 403);
-  CHECK(f.host.call("POST", "/api/probe/config", {}, Role::Owner).status == 200);
+  CHECK(f.host.call("GET", "/api/nav/probe", {}, Role::Guest).status == 200);
+  CHECK(f.host.call("POST", "/api/nav/probe/config", {}, Role::Leasee).status == 403);
+  CHECK(f.host.call("POST", "/api/nav/probe/config", {}, Role::Owner).status == 200);
 
   // A custom capability's Status route is raised to Control (§9.4).
   CHECK(f.host.call("GET", "/api/cap/org.test.custom/ping", {}, Role::Guest).status == 403);
@@ -193,8 +198,9 @@ TEST_CASE("routes: unknown things answer 404, a bad action body 400") {
   CHECK(f.host.call("GET", "/api/cap/com.nobody.thing/x").body["code"] == "CAPABILITY_NOT_FOUND");
   CHECK(f.host.call("GET", "/api/cap/org.test.custom/nope").body["code"] == "NOT_FOUND");
   const auto unknown_type = f.host.call("POST", "/api/action", {{"type", "dance"}});
-  CHECK(unknown_type.status == 404);
-  CHECK(unknown_type.body["allowed"] == nlohmann::json::array({"probe_move"}));
+  CHECK(unknown_type.status == 400);  // as the kernel answers it (rcand/sdk/contract/requests.hpp)
+  CHECK(unknown_type.body["field"] == "type");
+  CHECK(unknown_type.body["allowed"] == nlohmann::json::array());  // no capability serving /api/action is declared
   const auto no_type = f.host.call("POST", "/api/action", {{"linear", 1}});
   CHECK(no_type.status == 400);
   CHECK(no_type.body["field"] == "type");
@@ -213,7 +219,7 @@ TEST_CASE("a motion route while latched: 423 ESTOP_ACTIVE, handler not called, d
   CHECK(f.sim().timeline().size() == before);
   CHECK(f.sim().commands() == 0);
   // Non-motion routes still answer; after clearing, motion works again.
-  CHECK(f.host.call("GET", "/api/probe", {}, Role::Guest).status == 200);
+  CHECK(f.host.call("GET", "/api/nav/probe", {}, Role::Guest).status == 200);
   f.host.clear_estop();
   CHECK(f.move().status == 200);
   CHECK(f.sim().left() == 0.5);
@@ -276,7 +282,7 @@ TEST_CASE("a driver that throws is marked failed; the gate answers ActuatorFaile
 TEST_CASE("a plugin's request_estop latches, halts every actuator and calls on_estop") {
   Fixture f;
   REQUIRE(f.move().status == 200);
-  f.host.context("probe").estop().request_estop("bumper");
+  f.host.context("nav").estop().request_estop("bumper");
   CHECK(f.host.estopped());
   CHECK(f.sim().left() == 0.0);
   CHECK(probe.estops == 1);
@@ -292,7 +298,7 @@ TEST_CASE("a handler that throws answers 500 and the capability is then unavaila
   CHECK(r.status == 500);
   CHECK(r.body["code"] == "INTERNAL");
   CHECK(std::string(r.body["error"]).find("exploded") == std::string::npos);  // messages stay in the log
-  CHECK(f.host.capability_failed("probe"));
+  CHECK(f.host.capability_failed("nav"));
   CHECK(f.move().status == 503);
 }
 
@@ -340,6 +346,35 @@ TEST_CASE("workers: tasks and timers run in order, at their due time, only when 
   CHECK(host.now_us() == 1250);
 }
 
+TEST_CASE("a plugin built for the previous ABI minor still loads") {
+  FakeHost host;
+  CHECK_NOTHROW(host.load(abi_minor_previous));
+  CHECK_NOTHROW(host.add_driver("base", "sim_diff_drive"));
+}
+
+TEST_CASE("publish_status: the host records what each instance published, in order, from any thread") {
+  FakeHost host;
+  host.add_driver_instance<RecordingDrive>("wheels", host.clock());
+  auto& ctx = host.context("wheels");
+  CHECK_FALSE(host.last_published_status("wheels"));
+  CHECK(host.published_statuses("wheels").empty());
+  ctx.publish_status({{"moving", true}});
+  std::thread([&ctx] { ctx.publish_status({{"moving", false}, {"from", "another thread"}}); }).join();
+  const Json first{{"moving", true}}, second{{"moving", false}, {"from", "another thread"}};
+  CHECK(host.published_statuses("wheels") == std::vector<Json>{first, second});
+  CHECK(host.last_published_status("wheels") == second);
+  CHECK_FALSE(host.last_published_status("nobody"));
+
+  // The sim drive publishes through its context, from its status worker, when it starts moving.
+  host.load(RCAND_ENTRY_FUNCTION);
+  host.add_driver("base", "sim_diff_drive");
+  REQUIRE(host.motion().actuate_as<DifferentialDrive>("base", [](DifferentialDrive& d) { d.set_wheel_speeds(0.5, 0.5); }) ==
+          GateStatus::Ok);
+  host.run_pending();
+  REQUIRE(host.last_published_status("base"));
+  CHECK((*host.last_published_status("base"))["moving"] == true);
+}
+
 TEST_CASE("workers: simulate_cancel_race makes cancel lose; a throwing task is recorded") {
   FakeHost host;
   host.add_driver_instance<RecordingDrive>("wheels", host.clock());
@@ -380,11 +415,11 @@ TEST_CASE("sleep_unless_latched advances the manual clock and stops early at a s
 }
 
 TEST_CASE("capability settings come from runtime.capabilities.<name> unless given") {
-  FakeHost host({{"runtime", {{"capabilities", {{"probe", {{"answer", 42}}}}}}}});
+  FakeHost host({{"runtime", {{"capabilities", {{"nav", {{"answer", 42}}}}}}}});
   host.load(probe_entry);
-  host.add_capability("probe");
-  CHECK(host.context("probe").config().get<int>("answer") == 42);
-  CHECK(host.context("probe").robot_config().get<int>("runtime.capabilities.probe.answer") == 42);
-  CHECK(host.context("probe").plugin_id() == "org.test.probe");
-  CHECK(host.context("probe").instance_id() == "probe");
+  host.add_capability("nav");
+  CHECK(host.context("nav").config().get<int>("answer") == 42);
+  CHECK(host.context("nav").robot_config().get<int>("runtime.capabilities.nav.answer") == 42);
+  CHECK(host.context("nav").plugin_id() == "org.test.probe");
+  CHECK(host.context("nav").instance_id() == "nav");
 }

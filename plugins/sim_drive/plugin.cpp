@@ -10,7 +10,7 @@ void register_sim_drive(rcand::sdk::Registrar& registrar) {
   using rcand::plugins::sim_drive::SimDriveSettings;
   registrar.add_driver({"sim_diff_drive", true, std::string(rcand::sdk::DifferentialDrive::kInterface)},
                        [](rcand::sdk::PluginContext& ctx) -> std::unique_ptr<rcand::sdk::Driver> {
-                         auto drive = std::make_unique<SimDrive>(ctx.clock(), SimDriveSettings::from(ctx));
+                         auto drive = std::make_unique<SimDrive>(ctx.clock(), SimDriveSettings::from(ctx), &ctx);
                          const auto& s = drive->settings();
                          ctx.log().info("sim drive '", ctx.instance_id(), "': ", s.max_wheel_rps, " rps, ",
                                         s.wheel_circumference_m, " m circumference, ", s.wheel_base_m, " m base");

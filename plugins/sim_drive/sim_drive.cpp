@@ -50,17 +50,64 @@ double SimDrive::Pose::heading_deg() const {
   return deg == 0.0 ? 0.0 : deg;  // no "-0" in status
 }
 
-SimDrive::SimDrive(const sdk::Clock& clock, SimDriveSettings settings)
-    : clock_(clock), settings_(settings), pose_us_(clock.now_us()), zero_since_us_(pose_us_) {}
+SimDrive::SimDrive(const sdk::Clock& clock, SimDriveSettings settings, sdk::PluginContext* publish_to)
+    : clock_(clock),
+      settings_(settings),
+      pose_us_(clock.now_us()),
+      zero_since_us_(pose_us_),
+      publish_to_(publish_to),
+      status_worker_(publish_to != nullptr ? &publish_to->worker("status") : nullptr) {}
 
 void SimDrive::set_wheel_speeds(double left, double right) {
-  std::lock_guard lock(mutex_);
-  ++attempts_;
-  if (settings_.fail_after_commands > 0 && attempts_ >= static_cast<std::uint64_t>(settings_.fail_after_commands))
-    throw std::runtime_error("sim_diff_drive: injected failure on command " + std::to_string(attempts_) +
-                             " (fail_after_commands=" + std::to_string(settings_.fail_after_commands) + ")");
-  ++commands_;
-  apply(clamp_unit(left), clamp_unit(right), "command");
+  {
+    std::lock_guard lock(mutex_);
+    ++attempts_;
+    if (settings_.fail_after_commands > 0 && attempts_ >= static_cast<std::uint64_t>(settings_.fail_after_commands))
+      throw std::runtime_error("sim_diff_drive: injected failure on command " + std::to_string(attempts_) +
+                               " (fail_after_commands=" + std::to_string(settings_.fail_after_commands) + ")");
+    ++commands_;
+    apply(clamp_unit(left), clamp_unit(right), "command");
+  }
+  start_publishing();
+}
+
+void SimDrive::start_publishing() noexcept {
+  if (status_worker_ == nullptr || publishing_.exchange(true)) return;
+  try {
+    status_worker_->post([this] { publish_tick(); });
+  } catch (...) {  // no memory for the task: the kernel asks status() itself within a second or two
+    publishing_ = false;
+  }
+}
+
+void SimDrive::publish_tick() noexcept {
+  nlohmann::json now;
+  std::uint64_t published = 0;
+  bool moving = false;
+  try {
+    std::lock_guard lock(mutex_);
+    now = status_locked();
+    published = changes_;
+    moving = left_ != 0.0 || right_ != 0.0;
+  } catch (...) {
+    publishing_ = false;
+    return;
+  }
+  publish_to_->publish_status(now);
+  auto more = [this, published, moving] {
+    std::lock_guard lock(mutex_);
+    return moving || changes_ != published;
+  };
+  if (more()) {
+    try {
+      status_worker_->schedule(kPublishPeriod, [this] { publish_tick(); });
+      return;
+    } catch (...) {
+    }
+  }
+  publishing_ = false;
+  // A command between more() and the store above found publishing_ still set and left it to this tick.
+  if (more()) start_publishing();
 }
 
 void SimDrive::halt() noexcept {
@@ -86,6 +133,7 @@ void SimDrive::apply(double left, double right, const char* cause) {
   }
   timeline_.push_back({now, left, right, cause});
   while (timeline_.size() > kTimelineCapacity) timeline_.pop_front();
+  ++changes_;
 }
 
 SimDrive::Pose SimDrive::pose_at(std::int64_t now_us) const {
@@ -111,6 +159,10 @@ SimDrive::Pose SimDrive::pose_at(std::int64_t now_us) const {
 
 nlohmann::json SimDrive::status() const {
   std::lock_guard lock(mutex_);
+  return status_locked();
+}
+
+nlohmann::json SimDrive::status_locked() const {
   const std::int64_t now = clock_.now_us();
   const Pose pose = pose_at(now);
   const bool moving = left_ != 0.0 || right_ != 0.0;

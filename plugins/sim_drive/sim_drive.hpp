@@ -4,6 +4,8 @@
 
 #include <rcand/sdk/plugin.hpp>
 
+#include <atomic>
+#include <chrono>
 #include <cstddef>
 #include <cstdint>
 #include <deque>
@@ -29,6 +31,7 @@ class SimDrive final : public sdk::DifferentialDrive {
  public:
   static constexpr std::size_t kTimelineCapacity = 4096;  // newest events kept
   static constexpr std::size_t kStatusEvents = 256;       // events shown by status()
+  static constexpr std::chrono::milliseconds kPublishPeriod{100};  // while the wheels turn the pose moves: 10 Hz
 
   struct Event {
     std::int64_t t_us;
@@ -43,7 +46,11 @@ class SimDrive final : public sdk::DifferentialDrive {
     double heading_deg() const;
   };
 
-  SimDrive(const sdk::Clock& clock, SimDriveSettings settings);
+  // With `publish_to` (the plugin passes its context), the status is published (PluginContext::publish_status)
+  // from the context's worker "status": at the first command after a stop, then every kPublishPeriod while the
+  // wheels turn or something changed, ending with the stopped state. halt() adds nothing to the stop path: the
+  // publishing already running (the wheels were turning) picks the halt up.
+  SimDrive(const sdk::Clock& clock, SimDriveSettings settings, sdk::PluginContext* publish_to = nullptr);
 
   // Handler or worker thread, through the motion gate. Clamps to [-1, 1]. Throws from the Nth command on
   // when fail_after_commands is set, recording nothing.
@@ -66,6 +73,12 @@ class SimDrive final : public sdk::DifferentialDrive {
   Pose pose_at(std::int64_t now_us) const;
   // Requires mutex_. Integrates up to now, applies the speeds and records the event.
   void apply(double left, double right, const char* cause);
+  // Requires mutex_.
+  nlohmann::json status_locked() const;
+  // Any thread: starts the publishing on the status worker unless it runs already.
+  void start_publishing() noexcept;
+  // The status worker: publishes, then schedules itself again while there is more to publish.
+  void publish_tick() noexcept;
 
   const sdk::Clock& clock_;
   const SimDriveSettings settings_;
@@ -79,6 +92,11 @@ class SimDrive final : public sdk::DifferentialDrive {
   std::uint64_t halts_ = 0;
   std::uint64_t attempts_ = 0;  // set_wheel_speeds calls, failed ones included (for fail_after_commands)
   std::deque<Event> timeline_;
+  std::uint64_t changes_ = 0;  // bumped by every apply(), so the publisher sees what it has not published yet
+
+  sdk::PluginContext* const publish_to_;
+  sdk::Worker* const status_worker_;     // publish_to_'s "status" worker; null without one
+  std::atomic<bool> publishing_{false};  // a publish_tick is queued or scheduled
 };
 
 }  // namespace rcand::plugins::sim_drive

@@ -246,3 +246,37 @@ TEST_CASE("bad settings are refused naming the key") {
                          doctest::Contains("wheel_bas_m: unknown key"), HostError);
   }
 }
+
+TEST_CASE("the status is published from the status worker: at the first command, 10 Hz while moving, then the stop") {
+  FakeHost host;
+  host.load(RCAND_ENTRY_FUNCTION, manifest());
+  host.add_driver("base", "sim_diff_drive");
+  auto& sim = host.driver<SimDrive>("base");
+  CHECK_FALSE(host.last_published_status("base"));
+
+  REQUIRE(drive(host, 0.5, 0.5) == GateStatus::Ok);
+  CHECK_FALSE(host.last_published_status("base"));  // not on the caller's thread: the worker publishes
+  host.run_pending();
+  REQUIRE(host.last_published_status("base"));
+  CHECK(*host.last_published_status("base") == sim.status());
+  CHECK((*host.last_published_status("base"))["moving"] == true);
+
+  host.advance(350ms);  // the pose moves: one publish per 100 ms
+  CHECK(host.published_statuses("base").size() == 4);
+  CHECK((*host.last_published_status("base"))["now_us"] == 300'000);
+  REQUIRE(drive(host, 0.2, 0.2) == GateStatus::Ok);  // already publishing: no extra one
+  host.run_pending();
+  CHECK(host.published_statuses("base").size() == 4);
+
+  host.motion().halt("base");  // nothing on the stop path: the next tick publishes the stop, and is the last
+  host.advance(1s);
+  const auto published = host.published_statuses("base");
+  CHECK(published.size() == 5);
+  CHECK(published.back()["moving"] == false);
+  CHECK(published.back()["halts"] == 1);
+  CHECK(host.pending_tasks() == 0);
+
+  REQUIRE(drive(host, -0.3, 0.3) == GateStatus::Ok);  // moving again: publishing starts again at once
+  host.run_pending();
+  CHECK(host.published_statuses("base").size() == 6);
+}

@@ -124,8 +124,11 @@ Response Teleop::move(const sdk::Request& request) {
   const sdk::GateStatus gate = ctx_.motion().actuate_as<sdk::DifferentialDrive>(
       *driver, [&](sdk::DifferentialDrive& drive) { drive.set_wheel_speeds(wheels.left, wheels.right); });
   if (gate != sdk::GateStatus::Ok) {
-    std::lock_guard state(state_mutex_);
-    moving_ = false;
+    {
+      std::lock_guard state(state_mutex_);
+      moving_ = false;
+    }
+    publish();
     return sdk::gate_refusal(gate, *driver);
   }
   // The e-stop landed while the command ran: the gate halted the wheels again, so this move did not happen.
@@ -145,6 +148,7 @@ Response Teleop::move(const sdk::Request& request) {
     last_command_us_ = ctx_.clock().now_us();
     last_driver_ = *driver;
   }
+  publish();
   return Response::ok({{"ok", true},
                        {"type", "move"},
                        {"linear", linear},
@@ -167,19 +171,33 @@ void Teleop::expire(std::uint64_t generation, const std::string& driver) noexcep
   std::lock_guard motion(motion_mutex_);
   if (generation_ != generation) return;  // a newer move, a stop or the e-stop owns the wheels now
   ctx_.motion().halt(driver);
-  std::lock_guard state(state_mutex_);
-  if (generation_ == generation) {
-    timer_.reset();
-    moving_ = false;
+  {
+    std::lock_guard state(state_mutex_);
+    if (generation_ == generation) {
+      timer_.reset();
+      moving_ = false;
+    }
   }
+  publish();
 }
 
 void Teleop::disarm() noexcept {
   ++generation_;
-  std::lock_guard state(state_mutex_);
-  if (timer_) worker_.cancel(*timer_);
-  timer_.reset();
-  moving_ = false;
+  {
+    std::lock_guard state(state_mutex_);
+    if (timer_) worker_.cancel(*timer_);
+    timer_.reset();
+    moving_ = false;
+  }
+  publish();
+}
+
+void Teleop::publish() noexcept {
+  try {
+    std::lock_guard order(publish_mutex_);
+    ctx_.publish_status(status());
+  } catch (...) {  // no memory for the status: the kernel asks status() itself a second later
+  }
 }
 
 void Teleop::on_estop() noexcept { disarm(); }

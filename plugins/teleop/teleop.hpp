@@ -43,6 +43,9 @@ class Teleop final : public sdk::Capability {
   void disarm() noexcept;
   // Runs on the "motion" worker when a move's duration or dead-man window ends.
   void expire(std::uint64_t generation, const std::string& driver) noexcept;
+  // Hands the kernel status() as it is now (PluginContext::publish_status), after every change of moving_. Never
+  // with state_mutex_ held.
+  void publish() noexcept;
 
   sdk::PluginContext& ctx_;
   sdk::Worker& worker_;
@@ -55,6 +58,10 @@ class Teleop final : public sdk::Capability {
   std::mutex motion_mutex_;
   // Bumped by every move, stop and e-stop; a timer only acts if its generation is still current.
   std::atomic<std::uint64_t> generation_{0};
+
+  // Publishes from the handler, the motion worker and the e-stop path read and hand over status() one at a time,
+  // so an older reading never lands after a newer one.
+  std::mutex publish_mutex_;
 
   mutable std::mutex state_mutex_;  // the fields below; never held while calling into the gate
   std::optional<sdk::TimerId> timer_;

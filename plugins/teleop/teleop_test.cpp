@@ -323,3 +323,28 @@ TEST_CASE("a bad watchdog_ms is refused naming the key") {
   CHECK_THROWS_WITH_AS(schema_host.add_capability("teleop", {{"watchdog_ms", "soon"}}), doctest::Contains("watchdog_ms"),
                        HostError);
 }
+
+TEST_CASE("teleop publishes its status after every change: move, the dead-man's stop, stop, the e-stop") {
+  Fixture f;
+  auto& teleop = f.host.capability<rcand::plugins::teleop::Teleop>("teleop");
+  auto moving = [&] { return f.host.last_published_status("teleop").value_or(json())["moving"]; };
+  CHECK_FALSE(f.host.last_published_status("teleop"));
+
+  REQUIRE(f.post(move_for(0.5, 0.0, 100)).status == 200);
+  CHECK(moving() == true);
+  CHECK(*f.host.last_published_status("teleop") == teleop.status());
+  f.host.advance(100ms);  // the duration ends: the timer halts and publishes
+  CHECK(moving() == false);
+  CHECK(*f.host.last_published_status("teleop") == teleop.status());
+
+  REQUIRE(f.post(move(0.5, 0.0)).status == 200);
+  CHECK(moving() == true);
+  REQUIRE(f.post({{"type", "stop"}}).status == 200);
+  CHECK(moving() == false);
+
+  REQUIRE(f.post(move(0.5, 0.0)).status == 200);
+  const auto before = f.host.published_statuses("teleop").size();
+  f.host.latch_estop("test");
+  CHECK(f.host.published_statuses("teleop").size() == before + 1);
+  CHECK(moving() == false);
+}

@@ -4,8 +4,8 @@
 
 #include <cmath>
 
-#include "kernel/api/api.hpp"
-#include "kernel/api/json_body.hpp"
+#include "kernel/api/answers.hpp"
+#include "libs/base/json_body.hpp"
 #include "services/r2r/r2r_service.hpp"
 
 namespace rcand::kernel {
@@ -17,17 +17,10 @@ constexpr std::string_view kAuctionPrefix = "/api/r2r/auction/";
 constexpr std::chrono::milliseconds kDefaultAuctionWait{30'000};
 constexpr std::chrono::milliseconds kMaxAuctionWait{120'000};
 
-http::Response answer(int status, const json& body) {
-  http::Response response;
-  response.status = status;
-  response.body = body.dump(-1, ' ', false, json::error_handler_t::replace);
-  return response;
-}
+http::Response answer(int status, const json& body) { return json_response(status, body); }
 
 http::Response failure(int status, std::string code, std::string message, std::string field = {}) {
-  json body{{"error", std::move(message)}, {"code", std::move(code)}, {"status", status}};
-  if (!field.empty()) body["field"] = std::move(field);
-  return answer(status, body);
+  return error_response(status, code, std::move(message), field.empty() ? json::object() : json{{"field", std::move(field)}});
 }
 
 // The task of POST /api/r2r/auction; an error names the field.
@@ -65,28 +58,10 @@ std::variant<r2r::TaskSpec, http::Response> read_task(const json& body) {
   return task;
 }
 
-}  // namespace
-
-std::optional<sdk::Scope> r2r_route_scope(std::string_view method, std::string_view path) {
-  if (method == "GET" && path == "/api/r2r/peers") return sdk::Scope::Status;
-  if (method == "POST" && path == "/api/r2r/send") return sdk::Scope::Control;
-  if (method == "POST" && path == "/api/r2r/auction") return sdk::Scope::Control;
-  if (method == "GET" && path.starts_with(kAuctionPrefix) && path.size() > kAuctionPrefix.size()) return sdk::Scope::Status;
-  return std::nullopt;
-}
-
-void handle_r2r_route(ApiContext& ctx, const http::Request& request, const std::string& principal,
-                      const std::string& message_id, http::Respond respond) {
-  const auto scope = r2r_route_scope(request.method, request.path);
-  if (!scope) {
-    const bool known = request.path == "/api/r2r/peers" || request.path == "/api/r2r/send" ||
-                       request.path == "/api/r2r/auction" || request.path.starts_with(kAuctionPrefix);
-    respond(known ? failure(405, "METHOD_NOT_ALLOWED", request.method + " is not allowed on " + request.path)
-                  : failure(404, "NOT_FOUND", "no endpoint " + request.path));
-    return;
-  }
-  R2rService* service = ctx.r2r;
+void handle(R2rService* service, AuditLog& audit, Call& call, const Reply& respond) {
+  const http::Request& request = call.request;
   if (service == nullptr) {
+    if (call.audit_seq != 0) audit.finish(call.audit_seq, "blocked", "R2R disabled");
     respond(failure(404, "R2R_DISABLED", "R2R is not enabled on this robot (runtime.r2r.enabled)"));
     return;
   }
@@ -101,17 +76,13 @@ void handle_r2r_route(ApiContext& ctx, const http::Request& request, const std::
     return;
   }
 
-  JsonBody body = parse_json_body(request.body);
-  if (!body.error.empty()) {
-    respond(failure(400, "BAD_REQUEST", body.error, "body"));
-    return;
-  }
-  const std::string event = "POST " + request.path;
-  const auto seq = ctx.audit.record({0, principal, ctx.registry.identity().ruri, message_id, event, ctx.clock.wall_ms(), "pending", {}});
+  const std::uint64_t seq = call.audit_seq;  // POST rows are audited by the middleware
   auto refuse = [&](http::Response response, const std::string& why) {
-    ctx.audit.finish(seq, "blocked", why);
+    audit.finish(seq, "blocked", why);
     respond(std::move(response));
   };
+  JsonBody body = parse_json_body(request.body);
+  if (!body.error.empty()) return refuse(failure(400, "BAD_REQUEST", body.error, "body"), "bad body");
 
   if (request.path == "/api/r2r/send") {
     const json& b = body.value;
@@ -136,13 +107,14 @@ void handle_r2r_route(ApiContext& ctx, const http::Request& request, const std::
     // Queued, not sent: the transports take the message for delivery and nothing confirms it arrived (UDP, MQTT QoS 0,
     // a WebSocket write queue). No transport taking it (an unknown, unreachable target) is queued: false.
     const bool queued = !outcome.queued_on.empty();
-    ctx.audit.finish(seq, queued ? "ok" : "failed",
+    audit.finish(seq, queued ? "ok" : "failed",
                      std::string(target ? "to " + *target : "broadcast") + (queued ? "" : ": no transport could take it"));
     json message = json::parse(outcome.bytes, nullptr, false);
     if (message.is_object() && message.contains("header")) message["header"].erase("auth");  // never echo the token
     respond(answer(200, {{"queued", queued}, {"transports", outcome.queued_on}, {"message", message}}));
     return;
   }
+
 
   // POST /api/r2r/auction
   auto task = read_task(body.value);
@@ -163,12 +135,22 @@ void handle_r2r_route(ApiContext& ctx, const http::Request& request, const std::
   if (auto* error = std::get_if<r2r::R2rError>(&opened))
     return refuse(failure(400, "BAD_REQUEST", error->message, error->field.empty() ? "body" : error->field), "invalid task");
   const std::string task_id = std::get<std::string>(opened);
-  ctx.audit.finish(seq, "ok", "auction " + task_id);
+  audit.finish(seq, "ok", "auction " + task_id);
   if (!wait) {
     respond(answer(202, {{"task_id", task_id}, {"state", "bidding"}}));
     return;
   }
   service->answer_when_decided(task_id, timeout, std::move(respond));
+}
+
+}  // namespace
+
+void add_r2r_routes(Router& router, R2rService* service, AuditLog& audit) {
+  auto serve = [service, &audit](Call& call, Reply reply) { handle(service, audit, call, reply); };
+  router.add({"GET", "/api/r2r/peers", sdk::Scope::Status}, serve);
+  router.add({"POST", "/api/r2r/send", sdk::Scope::Control, true}, serve);
+  router.add({"POST", "/api/r2r/auction", sdk::Scope::Control, true}, serve);
+  router.add({"GET", std::string(kAuctionPrefix) + "*", sdk::Scope::Status}, serve);
 }
 
 }  // namespace rcand::kernel

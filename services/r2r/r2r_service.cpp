@@ -8,7 +8,6 @@
 #include <stdexcept>
 #include <thread>
 
-#include "kernel/api/api.hpp"
 #include "kernel/kernel.hpp"
 #include "libs/base/logging.hpp"
 #include "libs/rcan/loopback.hpp"
@@ -77,7 +76,7 @@ struct R2rService::Impl {
     const bool latched = deps.estop.latched();
     if (cached && now - cached_at_us < kStatusCacheUs && cached_status.estopped == latched) return cached_status;
     r2r::LocalStatus status;
-    const json doc = deps.api.status_document();
+    const json doc = deps.status_document();
     const auto state = doc.find("state");
     status.state = state != doc.end() && state->is_string() ? state->get<std::string>() : "idle";
     status.estopped = latched;
@@ -189,8 +188,8 @@ std::unique_ptr<R2rService> R2rService::from_config(R2rServiceDeps deps) {
       .settings = std::move(settings),
       .status_source = [impl = &s] { return impl->local_status(); },
       .command_executor =
-          [api = &s.deps.api](const Principal& principal, json body, r2r::CommandDone done) {
-            api->execute_action(principal, std::move(body), std::move(done));
+          [execute = s.deps.execute_action](const Principal& principal, json body, r2r::CommandDone done) {
+            execute(principal, std::move(body), std::move(done));
           },
       .cost_function = {},
       .physics = {cfg.wheel_circumference_m.value_or(0.0), cfg.turn_time_per_deg_s.value_or(0.0), cfg.max_wheel_rps},

@@ -6,6 +6,7 @@
 #include <nlohmann/json.hpp>
 
 #include <chrono>
+#include <functional>
 #include <cstdint>
 #include <memory>
 #include <string>
@@ -22,12 +23,12 @@
 
 namespace rcand::kernel {
 
-class Api;
-
 struct R2rServiceDeps {
   const RobotConfig& config;
   const Authenticator& authenticator;
-  Api& api;
+  // POST /api/action as `principal`, through the kernel's middleware (Api::execute_action).
+  std::function<void(const Principal&, nlohmann::json, std::function<void(int, nlohmann::json)>)> execute_action;
+  std::function<nlohmann::json()> status_document;  // GET /api/status as a document
   const Estop& estop;
   const sdk::Clock& clock;
   const swarm::SwarmRegistry& swarm;

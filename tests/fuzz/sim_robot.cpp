@@ -15,6 +15,7 @@
 #include "kernel/config/robot_config.hpp"
 #include "kernel/api/api.hpp"
 #include "kernel/kernel.hpp"
+#include "kernel/service.hpp"
 #include "libs/base/logging.hpp"
 
 namespace rcand::fuzz {
@@ -73,7 +74,9 @@ struct Robot {
     write_file(dir / "swarm.yaml", kSwarmYaml);
     write_file(dir / "robot.rcan.yaml", robot_yaml());
     auto loaded = kernel::load_robot_config(dir / "robot.rcan.yaml");
-    instance = std::make_unique<kernel::Kernel>(std::move(loaded.config));
+    kernel::KernelOptions options;
+    options.services = kernel::linked_services();  // swarm broadcasts and R2R, as in rcand
+    instance = std::make_unique<kernel::Kernel>(std::move(loaded.config), std::move(options));
     fs::remove_all(dir);
   }
 };

@@ -1,9 +1,8 @@
 #include <doctest/doctest.h>
 
-#include "kernel/config/config_diff.hpp"
+#include "libs/yaml/config_diff.hpp"
 
 using namespace rcand;
-using namespace rcand::kernel;
 using nlohmann::json;
 
 TEST_CASE("changed_keys names the leaf paths that differ; lists count as one value") {

@@ -3,12 +3,11 @@
 
 #include <string>
 
-#include "kernel/api/json_body.hpp"
-#include "kernel/api/rate_limiter.hpp"
+#include "libs/base/json_body.hpp"
+#include "libs/base/rate_limiter.hpp"
 #include "libs/base/bounded_text.hpp"
 
 using namespace rcand;
-using namespace rcand::kernel;
 
 TEST_CASE("rate limiter: a burst of per_s * burst_s, then one request per 1/per_s, each key on its own") {
   RateLimiter limiter({10, 2});  // 10/s, bursts of 20

@@ -5,9 +5,9 @@
 #include <string>
 #include <thread>
 
-#include "kernel/safety/stop_path_priority.hpp"
+#include "libs/base/stop_path_priority.hpp"
 
-using rcand::kernel::enter_stop_path_priority;
+using rcand::enter_stop_path_priority;
 
 namespace {
 

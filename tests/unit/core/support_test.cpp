@@ -3,7 +3,7 @@
 #include <future>
 
 #include "kernel/audit/audit_log.hpp"
-#include "kernel/api/json_body.hpp"
+#include "libs/base/json_body.hpp"
 #include "libs/base/worker_thread.hpp"
 
 using namespace rcand;

@@ -1,6 +1,7 @@
 #include "kernel/plugins/plugin_host.hpp"
 
 #include <doctest/doctest.h>
+#include <rcand/sdk/abi.h>
 
 #include <spawn.h>
 #include <sys/wait.h>
@@ -98,11 +99,10 @@ TEST_CASE("every fixture plugin ends in its exact state with a reason and a hint
       {"throws_in_handler.json", {PluginState::Loaded, "", ""}},
       {"driver.json", {PluginState::Loaded, "", ""}},
       {"abi_major.json", {PluginState::IncompatibleAbi, "built for ABI 2, kernel speaks 1", "rebuild against rcand-sdk 1.x"}},
-      {"newer_minor.json", {PluginState::IncompatibleAbi, "built for ABI 1.1, kernel speaks 1.0", "upgrade rcand"}},
+      {"newer_minor.json", {PluginState::IncompatibleAbi, "built for ABI 1.2, kernel speaks 1.1", "upgrade rcand"}},
       {"no_entry.json", {PluginState::FailedToOpen, "no entry symbol rcand_plugin_entry_v1", "build it with RCAND_PLUGIN"}},
       {"mismatch.json",
-       {PluginState::ManifestMismatch, "registered capability 'org.rcand.test.mismatch_extra' not in manifest",
-        "\"provides\""}},
+       {PluginState::ManifestMismatch, "registered capability 'org.rcand.test.mismatch_extra' not in manifest", "\"provides\""}},
       {"good_duplicate.json",
        {PluginState::DuplicateId, "id 'org.rcand.test.good' is already used by " + lib_dir + "/good.json",
         lib_dir + "/good.json"}},
@@ -110,8 +110,8 @@ TEST_CASE("every fixture plugin ends in its exact state with a reason and a hint
        {PluginState::InstalledNotEnabled, "capability 'org.rcand.test.good' is provided by org.rcand.test.good",
         "remove one of the providers"}},
       {"good_name_clash.json",
-       {PluginState::RegistrationFailed,
-        "capability 'org.rcand.test.good' is already registered by plugin org.rcand.test.good", "disable one"}},
+       {PluginState::RegistrationFailed, "capability 'org.rcand.test.good' is already registered by plugin org.rcand.test.good",
+        "disable one"}},
       {"throws_in_register.json",
        {PluginState::RegistrationFailed, "register threw: register exploded on purpose", "register function"}},
       {"undefined_symbol.json",
@@ -120,8 +120,8 @@ TEST_CASE("every fixture plugin ends in its exact state with a reason and a hint
       {"version_mismatch.json",
        {PluginState::ManifestMismatch, "descriptor version '2.0.0' differs from manifest version '1.0.0'",
         "RCAND_PLUGIN(id, version, ...)"}},
-      {"bad_manifest.json", {PluginState::InvalidManifest, lib_dir + "/bad_manifest.json: (document): invalid JSON",
-                             "manifest.schema.json"}},
+      {"bad_manifest.json",
+       {PluginState::InvalidManifest, lib_dir + "/bad_manifest.json: (document): invalid JSON", "manifest.schema.json"}},
   };
 
   REQUIRE(host.records().size() == expected.size());
@@ -215,6 +215,19 @@ TEST_CASE("a register() that never returns is given up on after the register tim
   CHECK(hung.reason == "register() did not return within 200 ms (runtime.plugin_start_timeout_ms)");
   CHECK(hung.capabilities.empty());
   CHECK(by_manifest(host, "good.json").state == PluginState::Loaded);
+}
+
+TEST_CASE("a plugin built for the previous ABI minor (1.0, before publish_status) loads and serves") {
+  static_assert(RCAND_ABI_MINOR >= 1, "the fixture's minor 0 must be older than the kernel's");
+  PluginHost host;
+  host.scan({kFixtures / "older_minor"});
+  host.load_needed({"org.rcand.test.older_minor"}, {});
+  const auto& older = by_manifest(host, "older_minor.json");
+  CHECK(to_string(older.state) == to_string(PluginState::Loaded));
+  CHECK(older.reason.empty());
+  auto capability = make_capability(older, "org.rcand.test.older_minor");
+  CHECK(call_route(*capability, "/ping").body == json{{"ok", true}});
+  CHECK(capability->status() == json::object());  // it never publishes: the status board asks status() instead
 }
 
 TEST_CASE("providers are found from manifests alone") {

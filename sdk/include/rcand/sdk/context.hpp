@@ -7,6 +7,7 @@
 #include "rcand/sdk/clock.hpp"
 #include "rcand/sdk/config_view.hpp"
 #include "rcand/sdk/estop_view.hpp"
+#include "rcand/sdk/http.hpp"
 #include "rcand/sdk/logger.hpp"
 #include "rcand/sdk/motion_gate.hpp"
 #include "rcand/sdk/obstacle_source.hpp"
@@ -38,6 +39,14 @@ class RCAND_INTERFACE PluginContext {
   // Robot-to-robot messages (docs/protocol.md §11) through the kernel's R2R transports, or null when this kernel has no R2R.
   // Appended last and not pure, so older plugins and hosts still link (ABI 1.x).
   virtual R2rLink* r2r() noexcept { return nullptr; }
+  // ABI 1.1: hands the kernel this instance's status - the value status() would return now - so GET /api/status
+  // serves it from a snapshot instead of calling status() per request. Publish on change: after each state change,
+  // and something that changes continuously (a pose while driving) at most about 10 times a second. The kernel keeps
+  // the latest value and coalesces its rebuilds, so publishing more often only costs copies. An instance that has
+  // not published for a second is asked through status() instead; one that neither publishes nor answers is shown
+  // stale. Any thread, never blocks beyond a copy and a brief lock. Appended last and not pure: older plugins still
+  // load; a plugin built with it declares minor 1, which a 1.0 kernel (whose contexts lack it) refuses to load.
+  virtual void publish_status(const Json& status) noexcept { (void)status; }
 };
 
 }  // namespace rcand::sdk

@@ -6,6 +6,7 @@
 //   host.add_capability("teleop");                          // factory, start(), routes()
 //   auto r = host.call("POST", "/api/action", {{"type", "move"}, {"linear", 0.5}, {"angular", 0.0}});
 //   host.advance(std::chrono::milliseconds(500));           // timers due by then run, in order
+//   host.last_published_status("teleop");                   // what the instance last gave publish_status()
 //
 // Same semantics as the kernel, deterministically: one thread (the test's), a manual clock, workers that never
 // start threads (tasks and due timers run on run_pending() / advance()), a motion gate that refuses while the
@@ -22,6 +23,7 @@
 #include <cstdint>
 #include <map>
 #include <memory>
+#include <mutex>
 #include <optional>
 #include <set>
 #include <stdexcept>
@@ -33,6 +35,7 @@
 #include "rcand/sdk/abi.h"
 #include "rcand/sdk/capability.hpp"
 #include "rcand/sdk/context.hpp"
+#include "rcand/sdk/contract/requests.hpp"
 #include "rcand/sdk/driver.hpp"
 #include "rcand/sdk/registrar.hpp"
 #include "rcand/sdk/testing/fake_scheduler.hpp"
@@ -273,6 +276,23 @@ class FakeHost {
   // Later sends fail with `error` ("R2R is not running on this robot"); an empty string makes them succeed again.
   void fail_r2r_sends(std::string error) { r2r_send_error_ = std::move(error); }
 
+  // ---- published statuses (PluginContext::publish_status) -----------------------------------------------------
+
+  // What an instance (a driver id or capability name) published, oldest first. The kernel keeps only the latest and
+  // serves it in GET /api/status; compare it with status() to check the plugin publishes what it reports.
+  std::vector<nlohmann::json> published_statuses(std::string_view instance_id) const {
+    std::lock_guard lock(published_mutex_);
+    const auto it = published_.find(instance_id);
+    return it == published_.end() ? std::vector<nlohmann::json>{} : it->second;
+  }
+  // The latest of those, or nullopt when the instance never published.
+  std::optional<nlohmann::json> last_published_status(std::string_view instance_id) const {
+    std::lock_guard lock(published_mutex_);
+    const auto it = published_.find(instance_id);
+    if (it == published_.end() || it->second.empty()) return std::nullopt;
+    return it->second.back();
+  }
+
   template <class T> T& driver(std::string_view id) {
     DriverSlot* slot = find_driver(id);
     if (!slot) throw HostError("no driver '" + std::string(id) + "'");
@@ -474,6 +494,14 @@ class FakeHost {
       if (!host_.r2r_enabled_) return nullptr;
       if (!r2r_) r2r_ = std::make_unique<R2rFake>(host_, instance_id_);
       return r2r_.get();
+    }
+    // Any thread, as in the kernel: recorded under a lock; an allocation failure loses the record, never throws.
+    void publish_status(const Json& status) noexcept override {
+      try {
+        std::lock_guard lock(host_.published_mutex_);
+        host_.published_[instance_id_].push_back(status);
+      } catch (...) {
+      }
     }
 
    private:
@@ -690,54 +718,61 @@ class FakeHost {
     request.role = role;
     request.message_id = "fake-" + std::to_string(++message_counter_);
 
+    // The kernel's rules, from the same contract (rcand/sdk/contract/requests.hpp).
+    namespace contract = rcand::sdk::contract;
     CapabilitySlot* slot = nullptr;
     const Route* route = nullptr;
-    Scope scope = Scope::Control;
-    static constexpr std::string_view kCap = "/api/cap/";
-    if (request.path.rfind(kCap, 0) == 0) {
-      const std::string_view rest = std::string_view(request.path).substr(kCap.size());
+    bool custom = false;
+    std::string capability;
+    std::vector<std::string> methods;  // the methods the path has, for a 405
+    if (request.path.rfind(contract::kCustomPrefix, 0) == 0) {
+      const std::string_view rest = std::string_view(request.path).substr(contract::kCustomPrefix.size());
       const auto slash = rest.find('/');
-      const std::string name(rest.substr(0, slash));
+      capability = std::string(rest.substr(0, slash));
       request.subpath = slash == std::string_view::npos ? "" : std::string(rest.substr(slash));
-      slot = find_capability(name);
-      if (!slot || !slot->custom)
-        return Response::error(404, "CAPABILITY_NOT_FOUND", "this robot does not declare capability '" + name + "'");
-      for (const auto& r : slot->routes)
-        if (r.method == method && r.path == request.subpath) route = &r;
-      if (!route) return Response::error(404, "NOT_FOUND", "no route " + method + " " + request.path);
-      // §9.4: custom capabilities need at least control.
-      scope = minimum_role(route->scope) < minimum_role(Scope::Control) ? Scope::Control : route->scope;
-    } else if (method == "POST" && request.path == "/api/action") {
+      custom = true;
+    } else if (request.path == contract::kActionPath) {
+      std::vector<std::string> declared_types;
+      for (const auto& cap : contract::standard_capabilities())
+        if (find_capability(cap.name) != nullptr)
+          for (auto type : cap.action_types) declared_types.emplace_back(type);
       if (!request.body.is_object() || !request.body.contains("type") || !request.body["type"].is_string())
-        return Response::bad_request("type", "body must be a JSON object with a string \"type\"");
+        return contract::missing_action_type(declared_types);
       const std::string type = request.body["type"].get<std::string>();
-      std::tie(slot, route) = find_action(type);
-      if (!route) {
-        nlohmann::json allowed = nlohmann::json::array();
-        for (const auto& s : capabilities_)
-          for (const auto& r : s->routes)
-            if (!s->custom && r.path == "/api/action") allowed.push_back(r.action_type);
-        return Response::error(404, "CAPABILITY_NOT_FOUND", "no capability serves action type '" + type + "'",
-                               {{"field", "type"}, {"allowed", allowed}});
-      }
-      scope = route->scope;
+      const auto* standard = contract::capability_of_action(type);
+      if (standard == nullptr) return contract::unknown_action_type(type, declared_types);
+      capability = std::string(standard->name);
     } else {
-      for (const auto& s : capabilities_)
-        if (!s->custom)
-          for (const auto& r : s->routes)
-            if (r.method == method && r.path == request.path) slot = s.get(), route = &r;
-      if (!route) return Response::error(404, "NOT_FOUND", "no route " + method + " " + request.path);
-      scope = route->scope;
+      for (const auto& cap : contract::standard_capabilities())
+        for (auto mount : cap.mounts)
+          if (mount.ends_with('*') ? request.path.rfind(mount.substr(0, mount.size() - 1), 0) == 0 : request.path == mount)
+            capability = std::string(cap.name);
+      if (capability.empty()) return Response::error(404, "NOT_FOUND", "no endpoint " + request.path);
     }
-
-    if (!role_grants(role, scope))
-      return Response::error(403, "INSUFFICIENT_PRIVILEGES",
-                             "role " + std::string(role_name(role)) + " lacks scope " + std::string(scope_name(scope)));
-    if (route->motion && estop_.latched())
-      return Response::error(423, "ESTOP_ACTIVE", "e-stop is latched; clear it with POST /api/estop/clear");
-    if (slot->failed) return Response::error(503, "UNAVAILABLE", "capability '" + slot->name + "' has failed");
+    slot = find_capability(capability);
+    if (slot == nullptr || slot->custom != custom) {
+      std::vector<std::string> declared;
+      for (const auto& s : capabilities_) declared.push_back(s->name);
+      return contract::not_declared(capability, declared);
+    }
+    for (const auto& r : slot->routes) {
+      const bool matches = request.path == contract::kActionPath
+                               ? r.path == contract::kActionPath && r.action_type == request.body["type"].get<std::string>()
+                               : r.action_type.empty() && contract::served_path(slot->name, r.path) == request.path;
+      if (!matches) continue;
+      methods.push_back(r.method);
+      if (r.method == method) route = &r;
+    }
+    if (!route) {
+      if (!methods.empty() && request.path != contract::kActionPath) return contract::method_not_allowed(method, request.path, methods);
+      return contract::no_endpoint(slot->name, request.path);
+    }
+    const Scope scope = contract::route_scope(route->scope, method, custom);
+    if (!role_grants(role, scope)) return contract::insufficient_scope("role " + std::string(role_name(role)), scope);
+    if (route->motion && estop_.latched()) return contract::estop_active();
+    if (slot->failed) return contract::out_of_service(slot->name, "a handler threw");
     try {
-      return route->handler(request);
+      return contract::normalized(route->handler(request));
     } catch (const std::exception& e) {
       slot->failed = true;
       kernel_log_.error("capability '", slot->name, "' handler threw and is marked failed: ", e.what());
@@ -745,7 +780,7 @@ class FakeHost {
       slot->failed = true;
       kernel_log_.error("capability '", slot->name, "' handler threw and is marked failed");
     }
-    return Response::error(500, "INTERNAL", "capability '" + slot->name + "' failed while handling the request");
+    return contract::handler_threw(slot->name);
   }
 
   // ---- lookups ---------------------------------------------------------------------------------------------
@@ -791,6 +826,8 @@ class FakeHost {
   std::vector<R2rSent> r2r_sent_;
   std::map<std::uint64_t, R2rSubscription> r2r_subscriptions_;
   std::uint64_t r2r_next_id_ = 0;
+  mutable std::mutex published_mutex_;  // publish_status() may come from any thread
+  std::map<std::string, std::vector<nlohmann::json>, std::less<>> published_;
   R2rCostFunction r2r_cost_;
   std::string r2r_send_error_;
   ManualClock clock_;

@@ -1,4 +1,4 @@
-#include "kernel/safety/terminate_trap.hpp"
+#include "libs/base/terminate_trap.hpp"
 
 #include <chrono>
 #include <cstdlib>
@@ -7,7 +7,7 @@
 #include <string>
 #include <thread>
 
-namespace rcand::kernel {
+namespace rcand {
 namespace {
 
 thread_local TerminateTrap::Report* armed_report = nullptr;
@@ -44,4 +44,4 @@ TerminateTrap::TerminateTrap(Report report) : report_(std::move(report)) {
 
 TerminateTrap::~TerminateTrap() { armed_report = nullptr; }
 
-}  // namespace rcand::kernel
+}  // namespace rcand

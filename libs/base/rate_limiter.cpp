@@ -1,9 +1,9 @@
-#include "kernel/api/rate_limiter.hpp"
+#include "libs/base/rate_limiter.hpp"
 
 #include <algorithm>
 #include <cmath>
 
-namespace rcand::kernel {
+namespace rcand {
 
 RateLimiter::RateLimiter(RateLimit limit, std::size_t max_keys)
     : limit_(limit), capacity_(std::max(1.0, limit.per_s * limit.burst_s)), max_keys_(std::max<std::size_t>(max_keys, 1)) {}
@@ -47,4 +47,4 @@ void RateLimiter::make_room(std::int64_t now_us) {
   buckets_.erase(oldest);
 }
 
-}  // namespace rcand::kernel
+}  // namespace rcand

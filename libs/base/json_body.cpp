@@ -1,6 +1,6 @@
-#include "kernel/api/json_body.hpp"
+#include "libs/base/json_body.hpp"
 
-namespace rcand::kernel {
+namespace rcand {
 namespace {
 struct TooDeep {};
 }  // namespace
@@ -24,4 +24,4 @@ JsonBody parse_json_body(std::string_view text) {
   return result;
 }
 
-}  // namespace rcand::kernel
+}  // namespace rcand

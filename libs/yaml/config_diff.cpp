@@ -1,8 +1,8 @@
-#include "kernel/config/config_diff.hpp"
+#include "libs/yaml/config_diff.hpp"
 
 #include <algorithm>
 
-namespace rcand::kernel {
+namespace rcand {
 namespace {
 
 void collect(const nlohmann::json& before, const nlohmann::json& after, const std::string& path, std::vector<std::string>& out) {
@@ -32,4 +32,4 @@ bool key_is_under(const std::string& path, const std::string& prefix) {
   return path == prefix || (path.size() > prefix.size() && path.compare(0, prefix.size(), prefix) == 0 && path[prefix.size()] == '.');
 }
 
-}  // namespace rcand::kernel
+}  // namespace rcand

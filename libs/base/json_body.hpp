@@ -8,7 +8,7 @@
 #include <string>
 #include <string_view>
 
-namespace rcand::kernel {
+namespace rcand {
 
 inline constexpr int kMaxJsonDepth = 64;
 
@@ -19,4 +19,4 @@ struct JsonBody {
 
 JsonBody parse_json_body(std::string_view text);
 
-}  // namespace rcand::kernel
+}  // namespace rcand

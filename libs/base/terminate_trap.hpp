@@ -8,7 +8,7 @@
 #include <functional>
 #include <string_view>
 
-namespace rcand::kernel {
+namespace rcand {
 
 class TerminateTrap {
  public:
@@ -25,4 +25,4 @@ class TerminateTrap {
   Report report_;
 };
 
-}  // namespace rcand::kernel
+}  // namespace rcand

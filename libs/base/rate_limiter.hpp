@@ -12,7 +12,7 @@
 #include <string_view>
 #include <unordered_map>
 
-namespace rcand::kernel {
+namespace rcand {
 
 struct RateLimit {
   double per_s = 0;      // 0 = unlimited
@@ -43,4 +43,4 @@ class RateLimiter {
   void make_room(std::int64_t now_us);
 };
 
-}  // namespace rcand::kernel
+}  // namespace rcand

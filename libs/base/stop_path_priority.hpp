@@ -6,10 +6,10 @@
 
 #include <string>
 
-namespace rcand::kernel {
+namespace rcand {
 
 // Calling thread. 0 leaves it as it is. Returns "" when done, else why not (not permitted: the unit needs
 // LimitRTPRIO= or CAP_SYS_NICE); the first failure in the process is also logged as a warning naming the fix.
 std::string enter_stop_path_priority(int priority) noexcept;
 
-}  // namespace rcand::kernel
+}  // namespace rcand

@@ -6,7 +6,7 @@
 #include <string>
 #include <vector>
 
-namespace rcand::kernel {
+namespace rcand {
 
 // Dot-separated paths ("runtime.logging.level"), sorted. Mappings are compared key by key; anything else (a list such
 // as drivers or runtime.auth.tokens, a scalar) is one value. A key present on one side only counts as changed.
@@ -15,4 +15,4 @@ std::vector<std::string> changed_keys(const nlohmann::json& before, const nlohma
 // True when `path` is `prefix` or lies below it ("runtime.auth.tokens" is under "runtime.auth").
 bool key_is_under(const std::string& path, const std::string& prefix);
 
-}  // namespace rcand::kernel
+}  // namespace rcand

@@ -1,4 +1,4 @@
-#include "kernel/safety/stop_path_priority.hpp"
+#include "libs/base/stop_path_priority.hpp"
 
 #include <pthread.h>
 #include <sched.h>
@@ -8,7 +8,7 @@
 
 #include "libs/base/logging.hpp"
 
-namespace rcand::kernel {
+namespace rcand {
 
 std::string enter_stop_path_priority(int priority) noexcept {
   if (priority <= 0) return {};
@@ -28,4 +28,4 @@ std::string enter_stop_path_priority(int priority) noexcept {
   }
 }
 
-}  // namespace rcand::kernel
+}  // namespace rcand

@@ -7,7 +7,7 @@
 #include <mutex>
 #include <vector>
 
-namespace rcand::kernel {
+namespace rcand {
 
 namespace detail {
 inline std::mutex& kept_forever_mutex() {
@@ -31,4 +31,4 @@ template <class T> void keep_forever(std::unique_ptr<T>& object) noexcept {
   (void)object.release();
 }
 
-}  // namespace rcand::kernel
+}  // namespace rcand

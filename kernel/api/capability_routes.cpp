@@ -1,0 +1,214 @@
+#include "kernel/api/capability_routes.hpp"
+
+#include <atomic>
+#include <memory>
+
+#include "kernel/api/answers.hpp"
+#include "libs/base/json_body.hpp"
+#include "kernel/plugins/guarded.hpp"
+#include "libs/base/bounded_text.hpp"
+
+namespace rcand::kernel {
+namespace {
+
+using nlohmann::json;
+using sdk::Scope;
+
+namespace contract = sdk::contract;
+using contract::kCustomPrefix;
+
+bool is_read(std::string_view method) { return method == "GET" || method == "HEAD"; }
+
+// The contract's answers (the fake host gives the same ones) as HTTP responses.
+http::Response answer(const sdk::Response& response) { return json_response(response.status, response.body); }
+
+class CapabilityRoutes {
+ public:
+  explicit CapabilityRoutes(const CapabilityRouteDeps& deps) : d_(deps) {}
+
+  // Answers with `response`, finishing the call's audit entry (if any) as `outcome`.
+  void refuse(Call& call, const Reply& reply, http::Response response, std::string_view outcome, const std::string& why) const {
+    if (call.audit_seq != 0) d_.audit.finish(call.audit_seq, std::string(outcome), why);
+    reply(std::move(response));
+  }
+
+  // The instance serving `name`, or answers 404/503 and returns null.
+  CapabilityInstance* available(const std::string& name, Call& call, const Reply& reply) const {
+    if (!d_.registry.declared(name)) {  // §9.1: an undeclared capability reaches no plugin
+      refuse(call, reply, answer(contract::not_declared(bounded_text(name), d_.registry.names())), "blocked", "capability not declared");
+      return nullptr;
+    }
+    CapabilityInstance* instance = d_.runtime.capability(name);
+    if (instance == nullptr || instance->health.failed() || !instance->object) {
+      const std::string why = instance ? instance->health.reason() : "not running";
+      refuse(call, reply, answer(contract::out_of_service(name, why)), "error", why);
+      return nullptr;
+    }
+    return instance;
+  }
+
+  // A routed request: the body parsed, then the handler on the capability's worker.
+  void serve(const std::string& name, const sdk::Route& route, Call& call, const Reply& reply) const {
+    CapabilityInstance* instance = available(name, call, reply);
+    if (instance == nullptr) return;
+    JsonBody body = parse_json_body(call.request.body);
+    if (!body.error.empty()) return refuse(call, reply, error_response(400, "BAD_REQUEST", body.error, {{"field", "body"}}), "blocked", "bad body");
+    dispatch(*instance, route, call, std::move(body.value), reply);
+  }
+
+  // What a mount answers when no row of a running capability matched: not declared, out of service, or no route.
+  void unrouted(std::string name, Call& call, const Reply& reply) const {
+    const std::string& path = call.request.path;
+    const bool custom = path.starts_with(kCustomPrefix);
+    std::string subpath;
+    if (custom) {
+      const std::string rest = path.substr(kCustomPrefix.size());
+      name = rest.substr(0, rest.find('/'));
+      subpath = rest.substr(name.size());
+      if (find_standard_capability(name) != nullptr)  // standard ones have their own endpoints
+        return refuse(call, reply, error_response(404, "NOT_FOUND", "'" + bounded_text(name) + "' is a standard capability; use its standard endpoint"),
+                      "blocked", "standard capability under /api/cap");
+    }
+    CapabilityInstance* instance = available(name, call, reply);
+    if (instance == nullptr) return;
+    std::vector<std::string> methods;
+    for (const auto& route : instance->routes)
+      if (route.action_type.empty() && route.path == (custom ? subpath : path)) methods.push_back(route.method);
+    if (!methods.empty())
+      return refuse(call, reply, answer(contract::method_not_allowed(bounded_text(call.request.method), bounded_text(path), methods)),
+                    "blocked", "method not allowed");
+    refuse(call, reply, answer(contract::no_endpoint(name, bounded_text(path))), "blocked", "no such route");
+  }
+
+  // POST /api/action: the capability is chosen by the body's "type" (the standard table's action types).
+  void action(Call& call, const Reply& reply) const {
+    JsonBody body = parse_json_body(call.request.body);
+    if (!body.error.empty()) return reply(error_response(400, "BAD_REQUEST", body.error, {{"field", "body"}}));
+    std::vector<std::string> declared_types;
+    for (const auto& cap : standard_capabilities())
+      if (d_.registry.declared(cap.name))
+        for (auto type : cap.action_types) declared_types.emplace_back(type);
+    if (!body.value.is_object() || !body.value.contains("type") || !body.value["type"].is_string())
+      return reply(answer(contract::missing_action_type(declared_types)));
+    const std::string type = body.value["type"].get<std::string>();
+    const StandardCapability* standard = capability_of_action(type);
+    if (standard == nullptr)
+      return reply(answer(contract::unknown_action_type(bounded_text(type), declared_types)));
+    call.audit_seq = d_.audit.begin(call.principal, call.message_id, "POST /api/action " + type);
+    CapabilityInstance* instance = available(std::string(standard->name), call, reply);
+    if (instance == nullptr) return;
+    const sdk::Route* route = nullptr;
+    for (const auto& candidate : instance->routes)
+      if (candidate.path == contract::kActionPath && candidate.action_type == type && candidate.method == "POST") route = &candidate;
+    if (route == nullptr)
+      return refuse(call, reply, answer(contract::no_endpoint(instance->name, std::string(contract::kActionPath))), "blocked",
+                    "no such route");
+    const Scope scope = contract::route_scope(route->scope, "POST", false);
+    if (!call.has_scope(scope))
+      return refuse(call, reply, answer(contract::insufficient_scope("principal '" + call.principal + "'", scope)), "blocked",
+                    "insufficient privileges");
+    if (route->motion && d_.estop.latched()) return refuse(call, reply, answer(contract::estop_active()), "blocked", "e-stop active");
+    dispatch(*instance, *route, call, std::move(body.value), reply);
+  }
+
+  void dispatch(CapabilityInstance& instance, const sdk::Route& route, Call& call, json body, const Reply& reply) const;
+
+ private:
+  const CapabilityRouteDeps& d_;
+};
+
+void CapabilityRoutes::dispatch(CapabilityInstance& instance, const sdk::Route& route, Call& call, json body, const Reply& reply) const {
+  auto request = std::make_shared<sdk::Request>();
+  request->method = call.request.method;
+  request->path = call.request.path;
+  if (call.request.path.starts_with(kCustomPrefix)) {
+    const auto after = call.request.path.find('/', kCustomPrefix.size());
+    request->subpath = after == std::string::npos ? "" : call.request.path.substr(after);
+  }
+  request->query = call.request.query;
+  request->body = std::move(body);
+  request->principal = call.principal;
+  request->role = call.role;
+  request->message_id = call.message_id;
+
+  // Whichever comes first — the handler's answer or the timeout — answers; the other does nothing.
+  struct Pending {
+    std::atomic<bool> answered{false};
+    sdk::TimerId timer = 0;
+  };
+  auto pending = std::make_shared<Pending>();
+  auto finish = [audit = &d_.audit, seq = call.audit_seq, pending, reply](http::Response response, std::string outcome, std::string detail) {
+    if (pending->answered.exchange(true)) return;
+    if (seq != 0) audit->finish(seq, std::move(outcome), std::move(detail));
+    reply(std::move(response));
+  };
+  CapabilityInstance* target = &instance;
+  pending->timer = d_.timers.schedule(d_.handler_timeout, [finish, target, timeout = d_.handler_timeout] {
+    const std::string why = "handler did not answer within " + std::to_string(timeout.count()) + " ms";
+    target->health.mark_failed(why);
+    logger("kernel.api")->error("capability {}: {}; marked failed", target->name, why);
+    finish(error_response(503, "UNAVAILABLE", "capability '" + target->name + "' " + why), "error", why);
+  });
+  instance.handler_worker->post([timers = &d_.timers, finish, target, handler = route.handler, request, pending] {
+    if (pending->answered.load()) return;  // timed out while queued
+    std::string failure;
+    auto result = guarded_result(target->who, "request handler", failure, [&] { return handler(*request); });
+    timers->cancel(pending->timer);
+    if (!result) {
+      target->health.mark_failed("request handler threw: " + failure);
+      finish(answer(contract::handler_threw(target->name)), "error", failure);
+      return;
+    }
+    const std::string outcome = result->status < 300 ? "ok" : result->status == 423 ? "blocked" : "error";
+    std::string detail;
+    if (result->status >= 300 && result->body.is_object() && result->body.contains("code") && result->body["code"].is_string())
+      detail = result->body["code"].get<std::string>();
+    finish(answer(contract::normalized(*result)), outcome, detail);
+  });
+}
+
+// Rows for the routes a running capability registered; a route outside its capability's mounts is never served.
+void add_instance_routes(Router& router, const std::shared_ptr<const CapabilityRoutes>& routes, const CapabilityInstance& instance) {
+  const StandardCapability* standard = find_standard_capability(instance.name);
+  for (const auto& route : instance.routes) {
+    if (!route.action_type.empty()) continue;  // served through POST /api/action
+    const std::string path = contract::served_path(instance.name, route.path);
+    const bool mounted = !standard || std::any_of(standard->mounts.begin(), standard->mounts.end(), [&](std::string_view mount) {
+      return mount.ends_with('*') ? path.starts_with(mount.substr(0, mount.size() - 1)) : path == mount;
+    });
+    if (!mounted) {
+      logger("kernel.api")->warn("capability {}: route {} {} is outside its endpoints; not served", instance.name, route.method, path);
+      continue;
+    }
+    const Scope scope = contract::route_scope(route.scope, route.method, standard == nullptr);
+    try {
+      router.add({route.method, path, scope, !is_read(route.method), route.motion},
+                 [routes, name = instance.name, &route](Call& call, Reply reply) { routes->serve(name, route, call, reply); });
+    } catch (const std::logic_error&) {
+      logger("kernel.api")->warn("capability {}: route {} {} registered twice; the first one is served", instance.name, route.method, path);
+    }
+  }
+}
+
+}  // namespace
+
+void add_capability_routes(Router& router, const CapabilityRouteDeps& deps) {
+  auto routes = std::make_shared<const CapabilityRoutes>(deps);
+  for (const auto& instance : deps.runtime.capabilities())
+    if (instance.object && !instance.health.failed()) add_instance_routes(router, routes, instance);
+  // Fallbacks: reads need status, anything else control; the capability decides the rest once it is known.
+  auto fallback = [&](const std::string& mount, std::string name) {
+    for (auto [method, scope] : {std::pair{"GET", Scope::Status}, std::pair{"*", Scope::Control}}) {
+      if (router.match(method, mount).route != nullptr && !mount.ends_with('*')) continue;  // the capability serves it
+      router.add({method, mount, scope, scope == Scope::Control},
+                 [routes, name](Call& call, Reply reply) { routes->unrouted(name, call, reply); });
+    }
+  };
+  for (const auto& cap : standard_capabilities())
+    for (auto mount : cap.mounts) fallback(std::string(mount), std::string(cap.name));
+  router.add({"GET", std::string(kCustomPrefix) + "*", Scope::Control}, [routes](Call& call, Reply reply) { routes->unrouted("", call, reply); });
+  router.add({"*", std::string(kCustomPrefix) + "*", Scope::Control, true}, [routes](Call& call, Reply reply) { routes->unrouted("", call, reply); });
+  router.add({"POST", std::string(contract::kActionPath), Scope::Control}, [routes](Call& call, Reply reply) { routes->action(call, reply); });
+}
+
+}  // namespace rcand::kernel

@@ -1,0 +1,31 @@
+// The capabilities' endpoints (RCAN §9, docs/protocol.md §7): at startup, one row per route a running capability
+// registered (standard ones at their mounts from the standard table, custom ones under /api/cap/<name>), one
+// POST /api/action row that picks the capability by the body's "type", and one fallback row per mount that answers
+// for a capability that is not declared (404 CAPABILITY_NOT_FOUND), out of service (503) or has no such route.
+// Handlers run on the capability's own worker, answered within runtime.handler_timeout_ms.
+#pragma once
+
+#include <chrono>
+
+#include "kernel/api/router.hpp"
+#include "kernel/audit/audit_log.hpp"
+#include "kernel/plugins/plugin_runtime.hpp"
+#include "kernel/registry/capability_registry.hpp"
+#include "kernel/safety/estop.hpp"
+#include "libs/base/worker_thread.hpp"
+
+namespace rcand::kernel {
+
+struct CapabilityRouteDeps {
+  const CapabilityRegistry& registry;
+  PluginRuntime& runtime;
+  AuditLog& audit;
+  const Estop& estop;
+  WorkerThread& timers;  // handler timeouts
+  std::chrono::milliseconds handler_timeout;
+};
+
+// Startup, after the capabilities started. The dependencies outlive the router's use of them.
+void add_capability_routes(Router& router, const CapabilityRouteDeps& deps);
+
+}  // namespace rcand::kernel

@@ -1,0 +1,125 @@
+#include "kernel/api/kernel_routes.hpp"
+
+#include <charconv>
+
+#include "kernel/api/answers.hpp"
+#include "libs/base/json_body.hpp"
+#include "libs/base/bounded_text.hpp"
+
+namespace rcand::kernel {
+namespace {
+
+using nlohmann::json;
+using sdk::Scope;
+
+constexpr std::size_t kMaxAuditLimit = 10000;
+
+// POST /api/stop: latch first (every actuator halted in parallel), report after. The stop never fails on its body:
+// a malformed body still stops the robot.
+void stop(const KernelRouteDeps& d, Call& call, const Reply& reply) {
+  // On the kernel's steady clock (the sim drive's timeline clock), so a test can compare it with the halt events.
+  const std::int64_t received_us = d.clock.now_us();
+  std::string reason = "POST /api/stop";
+  if (auto body = parse_json_body(call.request.body);
+      body.error.empty() && body.value.is_object() && body.value.contains("reason") && body.value["reason"].is_string())
+    reason = bounded_text(body.value["reason"].get<std::string>());  // never cut inside a UTF-8 character
+  const auto report = d.estop.latch(reason, call.principal);
+  json drivers = json::array();
+  bool all_halted = true;
+  for (const auto& halt : report.drivers) {
+    json entry{{"id", halt.id}, {"halted", halt.halted}, {"latency_us", halt.latency_us}, {"state", halt.state}};
+    if (!halt.error.empty()) entry["error"] = halt.error;  // the slow or failing driver, named
+    drivers.push_back(std::move(entry));
+    all_halted = all_halted && halt.halted;
+  }
+  d.audit.finish(call.audit_seq, "ok");
+  reply(json_response(200, {{"status", "stopped"},
+                            {"estopped", true},
+                            {"motors_stopped", all_halted},
+                            {"drivers", drivers},
+                            {"latency_us", report.latency_us},
+                            {"received_us", received_us}}));
+}
+
+void estop_state(const KernelRouteDeps& d, const Reply& reply) {
+  const auto state = d.estop.snapshot();
+  reply(json_response(200, {{"estopped", state.estopped},
+                            {"since_ms", state.estopped ? json(state.since_ms) : json()},
+                            {"reason", state.estopped ? json(state.reason) : json()},
+                            {"source", state.estopped ? json(state.source) : json()}}));
+}
+
+void estop_clear(const KernelRouteDeps& d, Call& call, const Reply& reply) {
+  const bool was = d.estop.clear();
+  d.audit.finish(call.audit_seq, "ok", was ? "" : "was not latched");
+  reply(json_response(200, {{"status", "cleared"}, {"was_latched", was}}));
+}
+
+void health(const KernelRouteDeps& d, const Reply& reply) {
+  reply(json_response(200, {{"status", "ok"}, {"uptime_s", (d.clock.now_us() - d.started_us) / 1'000'000}, {"version", d.version}}));
+}
+
+// The snapshot as published, serialized once per change: no plugin code, no thread hop. when_current() answers at
+// once unless a publish or a failure is not in the snapshot yet (then at the next rebuild, within 20 ms).
+void status(const KernelRouteDeps& d, const Reply& reply) {
+  d.status.when_current([reply](std::shared_ptr<const std::string> body) {
+    http::Response response;
+    response.body = *body;
+    reply(std::move(response));
+  });
+}
+
+void audit_entries(const KernelRouteDeps& d, Call& call, const Reply& reply) {
+  std::size_t limit = 100;
+  if (auto it = call.request.query.find("limit"); it != call.request.query.end()) {
+    // The whole value, digits only: "-5" (which stoul would wrap around) and "5abc" are refused, not guessed at.
+    const std::string& text = it->second;
+    std::size_t parsed = 0;
+    const auto [end, ec] = std::from_chars(text.data(), text.data() + text.size(), parsed);
+    if (ec != std::errc{} || end != text.data() + text.size() || parsed == 0 || parsed > kMaxAuditLimit) {
+      reply(error_response(400, "BAD_REQUEST", "limit must be an integer in [1, " + std::to_string(kMaxAuditLimit) + "]",
+                           {{"field", "limit"}}));
+      return;
+    }
+    limit = parsed;
+  }
+  reply(json_response(200, d.audit.to_json(limit)));
+}
+
+void plugins(const KernelRouteDeps& d, Call& call, const Reply& reply) {
+  reply(json_response(200, {{"plugins", d.host.to_json(sdk::role_grants(call.role, Scope::Config))}}));
+}
+
+void driver(const KernelRouteDeps& d, Call& call, const Reply& reply) {
+  const std::string id = call.request.path.substr(std::string_view("/api/drivers/").size());
+  for (const auto& instance : d.runtime.drivers()) {
+    if (instance.id != id) continue;
+    auto status = d.runtime.status_of(instance);  // first: a status() that hangs fails the driver
+    json doc{{"id", instance.id}, {"protocol", instance.protocol}, {"plugin", instance.plugin_id},
+             {"state", instance.health.failed() ? "failed" : "ok"}};
+    if (instance.health.failed()) doc["reason"] = instance.health.reason();
+    if (status) doc["status"] = std::move(*status);
+    reply(json_response(200, doc));
+    return;
+  }
+  reply(error_response(404, "NOT_FOUND", "no driver '" + bounded_text(id) + "'"));
+}
+
+}  // namespace
+
+void add_kernel_routes(Router& router, const KernelRouteDeps& deps) {
+  const KernelRouteDeps* d = &deps;
+  // method, path, scope, audited, motion, rate-limited
+  router.add({"GET", "/health", Scope::None}, [d](Call&, Reply reply) { health(*d, reply); });
+  router.add({"GET", "/api/status", Scope::Status}, [d](Call&, Reply reply) { status(*d, reply); });
+  router.add({"GET", "/api/discovery", Scope::None}, [d](Call&, Reply reply) { reply(json_response(200, d->discovery())); });
+  router.add({"POST", "/api/stop", Scope::Status, true, false, false}, [d](Call& call, Reply reply) { stop(*d, call, reply); });
+  router.add({"GET", "/api/estop", Scope::Status, false, false, false}, [d](Call&, Reply reply) { estop_state(*d, reply); });
+  router.add({"POST", "/api/estop/clear", Scope::Config, true, false, false},
+             [d](Call& call, Reply reply) { estop_clear(*d, call, reply); });
+  router.add({"GET", "/api/audit", Scope::Config}, [d](Call& call, Reply reply) { audit_entries(*d, call, reply); });
+  router.add({"GET", "/api/plugins", Scope::Status}, [d](Call& call, Reply reply) { plugins(*d, call, reply); });
+  router.add({"GET", "/api/drivers/*", Scope::Status}, [d](Call& call, Reply reply) { driver(*d, call, reply); });
+}
+
+}  // namespace rcand::kernel

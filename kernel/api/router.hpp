@@ -1,0 +1,82 @@
+// The route table: every HTTP endpoint rcand serves is one row (method, path, scope, audited, motion) and one named
+// handler. Rows are added at startup only (kernel routes, each declared capability's routes, each service's routes)
+// and never change while serving, so matching takes no lock. The middleware that runs before every handler
+// (message id, rate limits, authentication, the audit entry, the e-stop pre-check) lives in Api, once.
+#pragma once
+
+#include <algorithm>
+#include <cstdint>
+#include <functional>
+#include <optional>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include <rcand/sdk/scope.hpp>
+
+#include "libs/http/handler.hpp"
+
+namespace rcand::kernel {
+
+// One request as the middleware hands it to a handler: authenticated, rate-limited, and (for an audited row)
+// recorded in the audit log as pending under `audit_seq`.
+struct Call {
+  http::Request request;
+  std::string principal = "anonymous";
+  sdk::Role role = sdk::Role::Guest;
+  std::string message_id;
+  std::vector<sdk::Scope> scopes;  // what the principal's credential grants
+  std::uint64_t audit_seq = 0;     // 0: this row is not audited by the middleware
+
+  bool has_scope(sdk::Scope scope) const {
+    return scope == sdk::Scope::None || std::find(scopes.begin(), scopes.end(), scope) != scopes.end();
+  }
+};
+
+// Answers the request (the middleware adds X-Message-Id); call exactly once, from any thread.
+using Reply = std::function<void(http::Response)>;
+using RouteHandler = std::function<void(Call&, Reply)>;
+
+struct RouteSpec {
+  std::string method;  // "GET", "POST", or "*" for any method
+  // An exact path ("/api/estop"), or a prefix ending in '*' ("/api/drivers/*"): exact rows win, then the
+  // longest prefix.
+  std::string path;
+  sdk::Scope scope = sdk::Scope::Status;
+  bool audited = false;       // the middleware records "METHOD path" (pending) before the handler; the handler
+                              // finishes it (Call::audit_seq) with its outcome
+  bool motion = false;        // 423 ESTOP_ACTIVE while latched, before the handler
+  bool rate_limited = true;   // false only for the e-stop paths (docs/protocol.md §6.4)
+};
+
+using Decorator = std::function<void(Call&, Reply, const RouteHandler& next)>;
+
+struct Route {
+  RouteSpec spec;
+  RouteHandler handler;
+  Decorator decorator;  // empty: none
+};
+
+class Router {
+ public:
+  // Startup only. A second row with the same method and path is a programming error (std::logic_error).
+  void add(RouteSpec spec, RouteHandler handler);
+  // Startup only: `decorator` runs for `method` requests the row at `path` serves, after authentication and
+  // before the audit entry and the e-stop pre-check; `next` runs those and the row's handler. A service extends an
+  // endpoint this way (the swarm broadcast wraps POST /api/stop: its own audit entry, then the local stop through
+  // `next`, then the fan-out). The row must exist.
+  void wrap(std::string_view method, std::string_view path, Decorator decorator);
+
+  struct Match {
+    const Route* route = nullptr;       // null: no row for this method
+    std::vector<std::string> allowed;   // the methods the path has, when route is null (empty: 404)
+  };
+  // Any thread, lock-free (the table is immutable while serving).
+  Match match(std::string_view method, std::string_view path) const;
+  const std::vector<Route>& routes() const noexcept { return routes_; }
+
+ private:
+  std::vector<Route> routes_;
+};
+
+}  // namespace rcand::kernel

@@ -1,0 +1,70 @@
+// Optional in-tree services (services/): R2R, the swarm broadcast. Each one adds its routes and its WebSocket
+// upgrade to the kernel's tables and is started and stopped in list order (stopped in reverse, right after the
+// e-stop latch at shutdown). The kernel never includes a service: the binary that links them hands their factories
+// to the Kernel (KernelOptions::services; rcand's main passes linked_services()).
+#pragma once
+
+#include <atomic>
+#include <chrono>
+#include <cstdint>
+#include <functional>
+#include <memory>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "kernel/api/api.hpp"
+#include "kernel/api/router.hpp"
+#include "kernel/audit/audit_log.hpp"
+#include "kernel/auth/authenticator.hpp"
+#include "kernel/config/robot_config.hpp"
+#include "kernel/registry/capability_registry.hpp"
+#include "kernel/safety/estop.hpp"
+#include "kernel/plugins/r2r_link_factory.hpp"
+#include "libs/http/server_options.hpp"
+#include "libs/swarm/swarm_registry.hpp"
+
+namespace rcand::kernel {
+
+// What the kernel lends a service. Everything outlives the service.
+struct ServiceHost {
+  const RobotConfig& config;
+  const Authenticator& auth;
+  Estop& estop;
+  AuditLog& audit;
+  const sdk::Clock& clock;
+  const CapabilityRegistry& registry;
+  Api& api;  // execute_action(): a command through the same middleware as HTTP
+  std::chrono::milliseconds handler_timeout;
+  // The swarm peers (§15) as loaded at startup, and as now (a SIGHUP reload swaps them; never freed while serving).
+  const swarm::SwarmRegistry& swarm_at_start;
+  std::function<const swarm::SwarmRegistry*()> swarm_now;
+  std::function<nlohmann::json()> status_document;  // GET /api/status as a document, from the status snapshot
+  const std::atomic<std::uint16_t>& port;           // the bound HTTP port (0 until start)
+  // Set by a service before the plugins start, so their contexts can hand out R2R links.
+  std::function<void(R2rLinkFactory*)> offer_r2r_links;
+};
+
+class Service {
+ public:
+  virtual ~Service() = default;
+  virtual std::string_view name() const noexcept = 0;
+  // Startup, after the plugins started: this service's rows (or wraps of kernel rows).
+  virtual void add_routes(Router&) {}
+  // The HTTP server's WebSocket upgrade hook this service serves (one per server for now), or empty.
+  virtual http::UpgradeHandler upgrade() { return {}; }
+  // After the HTTP server bound its port. Throws StartupError naming the setting at fault.
+  virtual void start(std::uint16_t /*http_port*/) {}
+  // Shutdown, after the e-stop latch: nothing of this service runs or sends afterwards. Idempotent.
+  virtual void stop() noexcept {}
+};
+
+// nullptr: the service is not enabled by this config. Throws StartupError naming the key at fault.
+using ServiceFactory = std::function<std::unique_ptr<Service>(ServiceHost&)>;
+
+// Defined by the binary that links the services (services/linked_services.cpp), not by the kernel.
+std::vector<ServiceFactory> linked_services();
+
+}  // namespace rcand::kernel

@@ -1,0 +1,399 @@
+#include "kernel/status/status_board.hpp"
+
+#include <algorithm>
+#include <atomic>
+#include <future>
+#include <iterator>
+#include <limits>
+#include <mutex>
+
+#include "kernel/registry/standard_capabilities.hpp"
+#include "libs/base/logging.hpp"
+#include "libs/base/worker_thread.hpp"
+
+namespace rcand::kernel {
+namespace {
+
+using nlohmann::json;
+using Clock = std::chrono::steady_clock;
+
+bool is_true(const json& object, const char* key) {
+  if (!object.is_object()) return false;
+  const auto found = object.find(key);
+  return found != object.end() && found->is_boolean() && found->get<bool>();
+}
+
+// What the nav capability adds to the document: "nav_running" and the dead-reckoned "pose" at the top level, from
+// its status. (To be routed through the standard capability table.)
+void add_nav_facts(const std::string& capability, const json& status, json& doc, bool& nav_running) {
+  if (capability != kNavCapability || !status.is_object()) return;
+  nav_running = is_true(status, "running");
+  if (status.contains("pose")) doc["pose"] = status["pose"];
+}
+
+std::string dump(const json& doc) {
+  // Invalid UTF-8 from a plugin is replaced, never a reason to fail the document.
+  return doc.dump(-1, ' ', false, json::error_handler_t::replace);
+}
+
+std::int64_t steady_us() {
+  return std::chrono::duration_cast<std::chrono::microseconds>(Clock::now().time_since_epoch()).count();
+}
+
+}  // namespace
+
+class StatusBoard::Impl final : public StatusSink, public std::enable_shared_from_this<StatusBoard::Impl> {
+ public:
+  struct Snapshot {
+    std::string body[2];  // [latched]: the e-stop fields differ
+    json doc;             // not latched
+    bool nav_running = false;
+    std::uint64_t changes = 0;  // changes_ when the round that built it began
+    std::size_t failed = 0;     // instances marked failed when it was built
+  };
+
+  Impl(std::vector<Source> sources, KernelServices& services, json fixed, std::int64_t started_us)
+      : services_(services), fixed_(std::move(fixed)), started_us_(started_us), created_us_(services.clock.now_us()) {
+    for (auto& source : sources) {
+      auto entry = std::make_unique<Entry>();
+      entry->source = std::move(source);
+      entry->tokens_us = created_us_;
+      entries_.push_back(std::move(entry));
+    }
+    current_.store(build(0));
+  }
+
+  // After construction (the listeners hold a weak reference). Startup only, as Estop requires.
+  void listen_to_estop() {
+    std::weak_ptr<Impl> weak = weak_from_this();
+    // On the stop path, after the halt: only a post (both variants are built already, so body() is right at once).
+    auto changed = [weak] {
+      if (auto self = weak.lock()) self->request_round();
+    };
+    services_.estop.on_latched(changed);
+    services_.estop.on_cleared(changed);
+  }
+
+  void start() {
+    if (started_.exchange(true)) return;
+    running_.store(true);
+    services_.status_sink.attach(this);
+    refresh();
+    schedule_tick();
+  }
+
+  void stop() noexcept {
+    if (!running_.exchange(false)) return;
+    services_.status_sink.detach();
+    worker_.join();  // a round in progress finishes; queued ones return at once (running_ is false)
+    answer_waiters(std::numeric_limits<std::uint64_t>::max());
+  }
+
+  std::shared_ptr<const std::string> body() const noexcept { return body_of(current_.load()); }
+
+  void when_current(std::function<void(std::shared_ptr<const std::string>)> answer) {
+    auto snapshot = current_.load();
+    if (snapshot->failed != failed_now()) {  // marked failed since: nobody announces that, so it counts as a change
+      changes_.fetch_add(1);
+      request_round();
+    }
+    const std::uint64_t need = changes_.load();
+    if (snapshot->changes < need) {
+      // Under the lock: a round that finished meanwhile answered its waiters under it, and stop() answers all
+      // waiters under it once running_ is false.
+      std::lock_guard lock(waiters_mutex_);
+      snapshot = current_.load();
+      if (snapshot->changes < need && running_.load()) {
+        waiters_.push_back({need, std::move(answer)});
+        return;
+      }
+    }
+    answer(body_of(snapshot));
+  }
+
+  json document() const {
+    const auto snapshot = current_.load();
+    json doc = snapshot->doc;
+    if (services_.estop.latched()) {
+      doc["estopped"] = true;
+      doc["state"] = "estop";
+    }
+    return doc;
+  }
+
+  std::string robot_state() const {
+    if (services_.estop.latched()) return "estop";
+    if (failed_now() > 0) return "error";
+    return current_.load()->nav_running ? "running" : "idle";
+  }
+
+  void notify() noexcept { request_round(); }
+
+  void refresh() {
+    if (!running_.load()) return;
+    auto done = std::make_shared<std::promise<void>>();
+    auto finished = done->get_future();
+    worker_.post([this, done] {
+      round(true);
+      done->set_value();
+    });
+    finished.wait();
+  }
+
+  void publish(const InstanceContext& from, const json& status) noexcept override {
+    Entry* entry = nullptr;
+    for (const auto& candidate : entries_)
+      if (candidate->source.context == &from) entry = candidate.get();
+    if (entry == nullptr) return;
+    try {
+      json copy = status;  // the one allocation-heavy step, outside the lock
+      const std::int64_t now = services_.clock.now_us();
+      bool counted = false;
+      {
+        std::lock_guard lock(entry->mutex);
+        entry->tokens = std::min(kWaitBurst, entry->tokens + static_cast<double>(now - entry->tokens_us) * kWaitPerSecond / 1e6);
+        entry->tokens_us = now;
+        if (entry->tokens >= 1.0) {
+          entry->tokens -= 1.0;
+          counted = true;
+        }
+        entry->pending = std::move(copy);
+        entry->pending_us = now;
+      }
+      if (counted) changes_.fetch_add(1);  // after the store: a round that sees the count takes the value
+    } catch (...) {                        // no memory for the copy: the previous value stays, and the poll fallback catches up
+    }
+    request_round();
+  }
+
+ private:
+  struct Entry {
+    Source source;
+    // Written by publishing plugin threads, taken by the status thread.
+    std::mutex mutex;
+    std::optional<json> pending;
+    std::int64_t pending_us = 0;
+    double tokens = kWaitBurst;  // when_current() waits for this instance's publishes while there are tokens
+    std::int64_t tokens_us = 0;
+    // The status thread's own.
+    std::optional<json> last;
+    std::int64_t last_us = 0;  // when `last` was published or answered
+    std::optional<std::int64_t> asked_us;
+  };
+  struct Waiter {
+    std::uint64_t need;
+    std::function<void(std::shared_ptr<const std::string>)> answer;
+  };
+
+  std::shared_ptr<const std::string> body_of(std::shared_ptr<const Snapshot> snapshot) const noexcept {
+    const std::string* body = &snapshot->body[services_.estop.latched() ? 1 : 0];
+    return std::shared_ptr<const std::string>(std::move(snapshot), body);
+  }
+
+  std::size_t failed_now() const noexcept {
+    std::size_t failed = 0;
+    for (const auto& entry : entries_)
+      if (entry->source.health != nullptr && entry->source.health->failed()) ++failed;
+    return failed;
+  }
+
+  // Coalesced: at most one round queued, and none sooner than kRebuildGap after the previous one began.
+  void request_round() noexcept {
+    if (!running_.load() || round_requested_.exchange(true)) return;
+    try {
+      const std::int64_t wait_us = last_round_us_.load() + kRebuildGap.count() * 1000 - steady_us();
+      auto task = [this] { round(false); };
+      if (wait_us <= 0) worker_.post(std::move(task));
+      else worker_.schedule(std::chrono::microseconds(wait_us), std::move(task));
+    } catch (...) {  // no memory for the task: the next tick rebuilds
+      round_requested_.store(false);
+    }
+  }
+
+  void schedule_tick() {
+    worker_.schedule(kTick, [this] {
+      round(true);
+      if (running_.load()) schedule_tick();
+    });
+  }
+
+  // The status thread: takes what was published, asks the silent (`ask`), rebuilds, answers the waiters it can.
+  void round(bool ask) noexcept {
+    if (!running_.load()) return;
+    last_round_us_.store(steady_us());
+    round_requested_.store(false);  // a change from here on requests another round
+    const std::uint64_t seen = changes_.load();
+    try {
+      for (auto& entry : entries_) {  // what was published since
+        std::lock_guard lock(entry->mutex);
+        if (!entry->pending) continue;
+        entry->last = std::move(entry->pending);
+        entry->last_us = entry->pending_us;
+        entry->pending.reset();
+      }
+      if (ask) ask_silent();
+      current_.store(build(seen));
+    } catch (const std::exception& e) {
+      logger("kernel.status")->error("status rebuild failed: {}", e.what());
+    }
+    answer_waiters(seen);
+  }
+
+  // One at a time: each takes microseconds, and one that hangs costs one status deadline once (it is then failed
+  // and never asked again).
+  void ask_silent() {
+    for (auto& entry : entries_) {
+      const auto& source = entry->source;
+      if (!source.poll || (source.health != nullptr && source.health->failed())) continue;
+      const std::int64_t now = services_.clock.now_us();
+      const std::int64_t poll_after = std::chrono::microseconds(kPollAfter).count();
+      if (entry->last && now - entry->last_us < poll_after) continue;
+      if (entry->asked_us && now - *entry->asked_us < poll_after) continue;
+      entry->asked_us = now;
+      if (auto value = source.poll()) {
+        entry->last = std::move(*value);
+        entry->last_us = services_.clock.now_us();
+      }
+    }
+  }
+
+  std::shared_ptr<const Snapshot> build(std::uint64_t changes) const {
+    auto snapshot = std::make_shared<Snapshot>();
+    snapshot->changes = changes;
+    const std::int64_t now = services_.clock.now_us();
+    const std::int64_t stale_after = std::chrono::microseconds(kStaleAfter).count();
+    json doc = fixed_;
+    json capabilities = json::object();
+    json drivers = json::array();
+    bool nav_running = false;
+    for (const auto& entry : entries_) {
+      const auto& source = entry->source;
+      const bool failed = source.health != nullptr && source.health->failed();
+      json item = source.item;
+      item["state"] = failed ? "failed" : "ok";
+      if (failed) {
+        item["reason"] = source.health->reason();
+        ++snapshot->failed;
+      } else {
+        const std::int64_t age = now - (entry->last ? entry->last_us : created_us_);
+        if (age > stale_after) {
+          item["stale"] = true;
+          item["age_ms"] = age / 1000;
+        }
+        if (entry->last && !source.driver) {
+          add_nav_facts(source.name, *entry->last, doc, nav_running);
+          item["status"] = *entry->last;
+        }
+      }
+      if (source.driver) drivers.push_back(std::move(item));
+      else capabilities[source.name] = std::move(item);
+    }
+    const char* state = snapshot->failed > 0 ? "error" : nav_running ? "running" : "idle";
+    snapshot->nav_running = nav_running;
+    doc["state"] = state;
+    doc["estopped"] = false;
+    doc["uptime_s"] = (now - started_us_) / 1'000'000;
+    doc["drivers"] = std::move(drivers);
+    doc["capabilities"] = std::move(capabilities);
+    doc["nav_running"] = nav_running;
+    snapshot->body[0] = dump(doc);
+    doc["state"] = "estop";
+    doc["estopped"] = true;
+    snapshot->body[1] = dump(doc);
+    doc["state"] = state;
+    doc["estopped"] = false;
+    snapshot->doc = std::move(doc);
+    return snapshot;
+  }
+
+  void answer_waiters(std::uint64_t seen) noexcept {
+    std::vector<Waiter> ready;
+    {
+      std::lock_guard lock(waiters_mutex_);
+      if (waiters_.empty()) return;
+      auto keep = std::partition(waiters_.begin(), waiters_.end(), [seen](const Waiter& w) { return w.need > seen; });
+      std::move(keep, waiters_.end(), std::back_inserter(ready));
+      waiters_.erase(keep, waiters_.end());
+    }
+    for (auto& waiter : ready) {
+      try {
+        waiter.answer(body());
+      } catch (...) {  // the caller's answer must not throw; it cannot stop the status thread either
+      }
+    }
+  }
+
+  KernelServices& services_;
+  const json fixed_;
+  const std::int64_t started_us_;
+  const std::int64_t created_us_;                // the age of an entry nothing refreshed yet
+  std::vector<std::unique_ptr<Entry>> entries_;  // fixed after construction: publishers search it without a lock
+
+  std::atomic<std::shared_ptr<const Snapshot>> current_;
+  std::atomic<std::uint64_t> changes_{0};  // publishes within their rate, failures found by when_current()
+  std::atomic<bool> started_{false}, running_{false};
+  std::atomic<bool> round_requested_{false};
+  std::atomic<std::int64_t> last_round_us_{0};  // steady clock
+  std::mutex waiters_mutex_;
+  std::vector<Waiter> waiters_;
+  WorkerThread worker_{"kernel.status",
+                       [](const std::string& why) { logger("kernel.status")->error("status thread task failed: {}", why); }};
+};
+
+// ---- StatusBoard ------------------------------------------------------------------------------------------------
+
+json StatusBoard::fixed_fields(const RobotIdentity& identity, const std::vector<std::string>& caps, const PluginHost& host,
+                               std::string_view version) {
+  json plugins = json::array();
+  for (const auto& record : host.records()) {
+    json item{{"id", record->id}, {"version", record->version}, {"state", std::string(to_string(record->state))}};
+    if (!record->reason.empty()) item["reason"] = record->reason;
+    plugins.push_back(std::move(item));
+  }
+  return {{"ruri", identity.ruri},        {"name", identity.name}, {"version", std::string(version)},
+          {"rcan_version", kRcanVersion}, {"caps", caps},          {"plugins", std::move(plugins)}};
+}
+
+std::vector<StatusBoard::Source> StatusBoard::sources_of(PluginRuntime& runtime) {
+  std::vector<Source> sources;
+  for (const auto& instance : runtime.capabilities()) {
+    Source source{instance.name, false, {{"plugin", instance.plugin_id}}, &instance.health, instance.context.get(), {}};
+    if (instance.object) source.poll = [&runtime, &instance] { return runtime.status_of(instance); };
+    sources.push_back(std::move(source));
+  }
+  for (const auto& instance : runtime.drivers()) {
+    Source source{
+        instance.id,
+        true,
+        {{"id", instance.id}, {"protocol", instance.protocol}, {"plugin", instance.plugin_id}, {"actuates", instance.actuates}},
+        &instance.health,
+        instance.context.get(),
+        {}};
+    if (instance.object) source.poll = [&runtime, &instance] { return runtime.status_of(instance); };
+    sources.push_back(std::move(source));
+  }
+  return sources;
+}
+
+StatusBoard::StatusBoard(PluginRuntime& runtime, KernelServices& services, json fixed, std::int64_t started_us)
+    : StatusBoard(sources_of(runtime), services, std::move(fixed), started_us) {}
+
+StatusBoard::StatusBoard(std::vector<Source> sources, KernelServices& services, json fixed, std::int64_t started_us)
+    : impl_(std::make_shared<Impl>(std::move(sources), services, std::move(fixed), started_us)) {
+  impl_->listen_to_estop();
+}
+
+StatusBoard::~StatusBoard() { stop(); }
+
+void StatusBoard::start() { impl_->start(); }
+void StatusBoard::stop() noexcept { impl_->stop(); }
+std::shared_ptr<const std::string> StatusBoard::body() const noexcept { return impl_->body(); }
+void StatusBoard::when_current(std::function<void(std::shared_ptr<const std::string>)> answer) {
+  impl_->when_current(std::move(answer));
+}
+json StatusBoard::document() const { return impl_->document(); }
+std::string StatusBoard::robot_state() const { return impl_->robot_state(); }
+void StatusBoard::notify() noexcept { impl_->notify(); }
+void StatusBoard::refresh() { impl_->refresh(); }
+
+}  // namespace rcand::kernel

@@ -1,0 +1,102 @@
+// GET /api/status as a snapshot (issue 14 item 6). Plugins publish their status when it changes
+// (PluginContext::publish_status); the board keeps the latest of each instance and rebuilds the document on its own
+// thread, "kernel.status": on a 250 ms tick (uptime_s and ages stay right) and soon after a change (a publish, an
+// e-stop latch or clear, notify()), changes coalesced into at most one rebuild per 20 ms. Each rebuild serializes
+// the document once in two variants, e-stop latched or not, and body() hands out the one matching the latch now:
+// serving the status calls no plugin code and hops no thread.
+//
+// An instance that has not published for a second is asked through its status() on the status thread (the status
+// reader's 250 ms deadline still fails one that hangs), so plugins that never publish - ABI 1.0 ones - still appear.
+// An entry that neither a publish nor an answer refreshed for two seconds gets "stale": true and "age_ms" in its
+// item: a plugin that stops publishing shows as stale, not as a slow endpoint.
+#pragma once
+
+#include <chrono>
+#include <cstdint>
+#include <functional>
+#include <memory>
+#include <optional>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "kernel/plugins/instance_context.hpp"
+#include "kernel/plugins/plugin_host.hpp"
+#include "kernel/plugins/plugin_runtime.hpp"
+#include "kernel/registry/capability_registry.hpp"
+#include "kernel/safety/instance_health.hpp"
+
+namespace rcand::kernel {
+
+class StatusBoard {
+ public:
+  static constexpr std::chrono::milliseconds kTick{250};
+  static constexpr std::chrono::milliseconds kRebuildGap{20};
+  static constexpr std::chrono::milliseconds kPollAfter{1000};
+  static constexpr std::chrono::milliseconds kStaleAfter{2000};
+  // when_current() waits for an instance's publishes only while it publishes at most this often (a burst of
+  // kWaitBurst allowed): one that publishes faster is still shown, at most kRebuildGap late, but cannot make
+  // every request wait for the next rebuild.
+  static constexpr double kWaitPerSecond = 10.0;
+  static constexpr double kWaitBurst = 8.0;
+
+  // One plugin instance as the board sees it. rcand takes them from the plugin runtime (sources_of); tests make them.
+  struct Source {
+    std::string name;     // the capability name, or the driver id
+    bool driver = false;  // listed under "drivers" (without its status), else under "capabilities"
+    nlohmann::json item;  // its item's fields that never change: {"plugin"}, or {"id","protocol","plugin","actuates"}
+    const InstanceHealth* health = nullptr;               // failed: "state": "failed" with the reason, and never polled
+    const InstanceContext* context = nullptr;             // whose publish_status() feeds this entry; null: it never publishes
+    std::function<std::optional<nlohmann::json>()> poll;  // its status(), through the status reader; empty: never
+  };
+
+  // What GET /api/status says that never changes while rcand runs: ruri, name, version, rcan_version, caps, plugins.
+  static nlohmann::json fixed_fields(const RobotIdentity& identity, const std::vector<std::string>& caps, const PluginHost& host,
+                                     std::string_view version);
+  // Every capability, then every driver, of a started runtime (which must outlive the board), polled through
+  // PluginRuntime::status_of.
+  static std::vector<Source> sources_of(PluginRuntime& runtime);
+
+  // Main thread, after the plugins started and before anything is served (it adds e-stop listeners). `services`
+  // (its clock, e-stop and status sink) outlives the board; `started_us` is the kernel's start on that clock.
+  StatusBoard(PluginRuntime& runtime, KernelServices& services, nlohmann::json fixed, std::int64_t started_us);
+  StatusBoard(std::vector<Source> sources, KernelServices& services, nlohmann::json fixed, std::int64_t started_us);
+  ~StatusBoard();  // stop()
+  StatusBoard(const StatusBoard&) = delete;
+  StatusBoard& operator=(const StatusBoard&) = delete;
+
+  // Main thread. Attaches to services.status_sink, asks every instance once and builds the first document before
+  // returning (at most one status deadline, 250 ms, when a plugin's status() hangs), then ticks. Once.
+  void start();
+  // Detaches from the status sink (waiting out publishes inside it), joins the status thread and answers every
+  // when_current() still waiting. Idempotent; the last document stays readable.
+  void stop() noexcept;
+
+  // Any thread, never blocks: the current document serialized, with "estopped" and "state" as the e-stop is now.
+  std::shared_ptr<const std::string> body() const noexcept;
+  // body() once it includes every change made before this call (a publish within the instance's rate above, an
+  // instance marked failed): at once on this thread when the current document does (nearly always), else from the
+  // status thread right after the rebuild that does, at most kRebuildGap plus a rebuild later. For GET /api/status,
+  // so a client that changed something (or saw it changed elsewhere) reads it back. `answer` must not throw.
+  void when_current(std::function<void(std::shared_ptr<const std::string>)> answer);
+  // Any thread: the current document (for R2R status messages and telemetry), e-stop fields as now.
+  nlohmann::json document() const;
+  // Any thread: idle | running | error | estop (docs/protocol.md §5); the e-stop and failures as now, nav's running
+  // from the current document.
+  std::string robot_state() const;
+
+  // Any thread, never blocks: something the document shows changed without a publish (an instance marked failed,
+  // say); a rebuild follows within kRebuildGap.
+  void notify() noexcept;
+  // Runs a full round (publishes taken, silent instances asked, document rebuilt) on the status thread now and
+  // returns when it is done. Startup and tests; never from the status thread. A no-op once stopped.
+  void refresh();
+
+ private:
+  class Impl;
+  std::shared_ptr<Impl> impl_;  // shared with the e-stop listeners, which may outlive the board
+};
+
+}  // namespace rcand::kernel

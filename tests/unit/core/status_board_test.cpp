@@ -1,0 +1,291 @@
+// The status snapshot (issue 14 item 6): published statuses are served without calling plugin code, silent
+// instances are asked on the status thread, ones that neither publish nor answer show as stale, the e-stop variant
+// is picked live, and the document keeps every key GET /api/status always had.
+#include <doctest/doctest.h>
+
+#include <rcand/sdk/testing/manual_clock.hpp>
+
+#include <atomic>
+#include <chrono>
+#include <future>
+#include <memory>
+#include <mutex>
+#include <set>
+#include <string>
+
+#include "kernel/plugins/instance_context.hpp"
+#include "kernel/safety/estop.hpp"
+#include "kernel/safety/kernel_motion_gate.hpp"
+#include "kernel/status/status_board.hpp"
+
+using namespace rcand;
+using namespace rcand::kernel;
+using namespace std::chrono_literals;
+using nlohmann::json;
+
+namespace {
+
+constexpr auto kWait = 10s;  // generous: a loaded CI machine, never a sleep
+
+// A status() stand-in: counts calls, answers what the test set (nullopt: as one that throws or hangs).
+struct Poll {
+  std::mutex mutex;
+  std::optional<json> answer;
+  std::atomic<int> calls{0};
+  std::function<std::optional<json>()> fn() {
+    return [this] {
+      ++calls;
+      std::lock_guard lock(mutex);
+      return answer;
+    };
+  }
+  void set(std::optional<json> value) {
+    std::lock_guard lock(mutex);
+    answer = std::move(value);
+  }
+};
+
+struct Rig {
+  sdk::testing::ManualClock clock;
+  ActuatorTable actuators;
+  Estop estop{clock, actuators};
+  KernelMotionGate gate{actuators, estop};
+  sdk::ConfigView robot_config;
+  KernelServices services{clock, estop, gate, robot_config, nullptr, "rcan://test/robot", {}};
+  InstanceHealth nav_health, teleop_health, gripper_health, drive_health;
+  InstanceContext nav{"org.rcand.nav", "nav", services, json::object(), nav_health};
+  InstanceContext drive_context{"org.rcand.sim_drive", "drive0", services, json::object(), drive_health};
+  Poll nav_poll, teleop_poll, gripper_poll, drive_poll;
+  std::unique_ptr<StatusBoard> board;
+
+  Rig() {
+    clock.set_us(5'000'000);
+    nav_poll.set(json{{"running", false}, {"pose", {{"x_m", 0.0}, {"y_m", 0.0}, {"heading_deg", 0.0}}}});
+    teleop_poll.set(json{{"moving", false}});
+    gripper_poll.set(std::nullopt);  // answers nothing, never publishes
+    drive_poll.set(json{{"moving", false}});
+    std::vector<StatusBoard::Source> sources{
+        {"nav", false, {{"plugin", "org.rcand.nav"}}, &nav_health, &nav, nav_poll.fn()},
+        {"teleop", false, {{"plugin", "org.rcand.teleop"}}, &teleop_health, nullptr, teleop_poll.fn()},
+        {"com.acme.gripper", false, {{"plugin", "com.acme.gripper"}}, &gripper_health, nullptr, gripper_poll.fn()},
+        {"drive0",
+         true,
+         {{"id", "drive0"}, {"protocol", "sim_diff_drive"}, {"plugin", "org.rcand.sim_drive"}, {"actuates", true}},
+         &drive_health,
+         &drive_context,
+         drive_poll.fn()},
+    };
+    PluginHost no_plugins;
+    auto fixed =
+        StatusBoard::fixed_fields({"rcan://test/robot", "testbot", "rover"}, {"status", "nav", "teleop"}, no_plugins, "9.9.9");
+    board = std::make_unique<StatusBoard>(std::move(sources), services, std::move(fixed), clock.now_us());
+  }
+
+  json body() const { return json::parse(*board->body()); }
+  // The body once it includes every change made so far; answered by the status thread when a rebuild is due.
+  json current() const {
+    auto answered = std::make_shared<std::promise<std::string>>();
+    auto future = answered->get_future();
+    board->when_current([answered](std::shared_ptr<const std::string> body) { answered->set_value(*body); });
+    REQUIRE(future.wait_for(kWait) == std::future_status::ready);
+    return json::parse(future.get());
+  }
+  int polls() const { return nav_poll.calls + teleop_poll.calls + gripper_poll.calls + drive_poll.calls; }
+};
+
+std::set<std::string> keys_of(const json& object) {
+  std::set<std::string> keys;
+  for (const auto& [key, value] : object.items()) keys.insert(key);
+  return keys;
+}
+
+}  // namespace
+
+TEST_CASE("the document has exactly the keys GET /api/status always had, and asks every instance once at start") {
+  Rig rig;
+  rig.board->start();
+  CHECK(rig.nav_poll.calls == 1);
+  CHECK(rig.teleop_poll.calls == 1);
+  CHECK(rig.gripper_poll.calls == 1);
+  CHECK(rig.drive_poll.calls == 1);
+
+  const json doc = rig.body();
+  CHECK(keys_of(doc) == std::set<std::string>{"ruri", "name", "version", "rcan_version", "caps", "plugins", "state", "estopped",
+                                              "uptime_s", "drivers", "capabilities", "nav_running", "pose"});
+  CHECK(doc["ruri"] == "rcan://test/robot");
+  CHECK(doc["name"] == "testbot");
+  CHECK(doc["version"] == "9.9.9");
+  CHECK(doc["rcan_version"] == std::string(kRcanVersion));
+  CHECK(doc["caps"] == json{"status", "nav", "teleop"});
+  CHECK(doc["plugins"] == json::array());
+  CHECK(doc["state"] == "idle");
+  CHECK(doc["estopped"] == false);
+  CHECK(doc["uptime_s"] == 0);
+  CHECK(doc["nav_running"] == false);
+  CHECK(doc["pose"] == json{{"x_m", 0.0}, {"y_m", 0.0}, {"heading_deg", 0.0}});
+  CHECK(doc["capabilities"]["teleop"] == json{{"plugin", "org.rcand.teleop"}, {"state", "ok"}, {"status", {{"moving", false}}}});
+  CHECK(doc["capabilities"]["com.acme.gripper"] == json{{"plugin", "com.acme.gripper"}, {"state", "ok"}});
+  REQUIRE(doc["drivers"].size() == 1);
+  CHECK(doc["drivers"][0] == json{{"id", "drive0"},
+                                  {"protocol", "sim_diff_drive"},
+                                  {"plugin", "org.rcand.sim_drive"},
+                                  {"actuates", true},
+                                  {"state", "ok"}});
+  CHECK(rig.board->document() == doc);
+  CHECK(rig.board->robot_state() == "idle");
+}
+
+TEST_CASE("a published status is served without any status() call; nav's running and pose come from it") {
+  Rig rig;
+  rig.board->start();
+  const int asked = rig.polls();
+  const json pose{{"x_m", 1.5}, {"y_m", -0.25}, {"heading_deg", 30.0}};
+  rig.nav.publish_status({{"running", true}, {"state", "driving"}, {"pose", pose}});
+
+  const json doc = rig.current();  // answered by the rebuild the publish asked for
+  CHECK(doc["capabilities"]["nav"]["status"]["state"] == "driving");
+  CHECK(doc["nav_running"] == true);
+  CHECK(doc["state"] == "running");
+  CHECK(doc["pose"] == pose);
+  CHECK(rig.board->robot_state() == "running");
+  CHECK(rig.polls() == asked);
+
+  // Nine seconds later: nav kept publishing, so it is never asked; the silent ones are asked once a second.
+  for (int step = 1; step <= 10; ++step) {
+    rig.clock.advance(900ms);
+    rig.nav.publish_status({{"running", step < 10}, {"pose", pose}, {"step", step}});
+    rig.board->refresh();
+  }
+  CHECK(rig.nav_poll.calls == 1);     // only the first round at start
+  CHECK(rig.teleop_poll.calls == 6);  // at start, then whenever a second passed since: 1.8, 3.6, 5.4, 7.2, 9 s
+  const json later = rig.body();
+  CHECK(later["capabilities"]["nav"]["status"]["step"] == 10);
+  CHECK(later["nav_running"] == false);
+  CHECK(later["state"] == "idle");
+  CHECK(later["uptime_s"] == 9);
+}
+
+TEST_CASE("a silent instance is asked once a second on the status thread, not per read") {
+  Rig rig;
+  rig.board->start();
+  CHECK(rig.teleop_poll.calls == 1);
+  for (int i = 0; i < 1000; ++i) (void)rig.board->body();
+  rig.board->refresh();  // nothing is due yet
+  CHECK(rig.teleop_poll.calls == 1);
+
+  rig.teleop_poll.set(json{{"moving", true}});
+  rig.clock.advance(1100ms);
+  rig.board->refresh();
+  CHECK(rig.teleop_poll.calls == 2);
+  CHECK(rig.body()["capabilities"]["teleop"]["status"]["moving"] == true);
+  rig.board->refresh();
+  CHECK(rig.teleop_poll.calls == 2);
+}
+
+TEST_CASE("an instance that neither publishes nor answers is stale with its age; one that stops publishing too") {
+  Rig rig;
+  rig.board->start();
+  rig.nav.publish_status({{"running", false}, {"mark", "last words"}});
+  (void)rig.current();
+  rig.nav_poll.set(std::nullopt);  // from now on nav's status() answers nothing either
+
+  rig.clock.advance(1500ms);
+  rig.board->refresh();
+  CHECK_FALSE(rig.body()["capabilities"]["nav"].contains("stale"));
+
+  rig.clock.advance(1000ms);  // 2.5 s since nav's publish and since the gripper was first asked
+  rig.board->refresh();
+  const json doc = rig.body();
+  const json& gripper = doc["capabilities"]["com.acme.gripper"];
+  CHECK(gripper["stale"] == true);
+  CHECK(gripper["age_ms"] == 2500);
+  CHECK(gripper["state"] == "ok");  // stale is not failed: the state logic is as before
+  CHECK_FALSE(gripper.contains("status"));
+  const json& nav = doc["capabilities"]["nav"];
+  CHECK(nav["stale"] == true);
+  CHECK(nav["age_ms"] == 2500);
+  CHECK(nav["status"]["mark"] == "last words");                  // the last value it gave, marked stale
+  CHECK_FALSE(doc["capabilities"]["teleop"].contains("stale"));  // it answers when asked
+  CHECK_FALSE(doc["drivers"][0].contains("stale"));
+  CHECK(doc["state"] == "idle");
+
+  rig.nav.publish_status({{"running", false}, {"mark", "back"}});
+  const json back = rig.current();
+  CHECK_FALSE(back["capabilities"]["nav"].contains("stale"));
+  CHECK(back["capabilities"]["nav"]["status"]["mark"] == "back");
+}
+
+TEST_CASE("the e-stop flips estopped and state in body() at once, with no rebuild in between") {
+  Rig rig;
+  rig.board->start();
+  rig.board->stop();  // no status thread any more: only the variant choice can change what body() says
+  CHECK(rig.body()["estopped"] == false);
+  CHECK(rig.body()["state"] == "idle");
+
+  rig.estop.latch("test", "unit");
+  json latched = rig.body();
+  CHECK(latched["estopped"] == true);
+  CHECK(latched["state"] == "estop");
+  CHECK(rig.board->robot_state() == "estop");
+  CHECK(rig.board->document()["state"] == "estop");
+  latched.erase("estopped");
+
+  rig.estop.clear();
+  json cleared = rig.body();
+  CHECK(cleared["estopped"] == false);
+  CHECK(cleared["state"] == "idle");
+  cleared.erase("estopped");
+  cleared["state"] = "estop";
+  CHECK(cleared == latched);  // nothing else differs between the two variants
+}
+
+TEST_CASE("an instance marked failed shows at the next read through when_current, with no notify") {
+  Rig rig;
+  rig.board->start();
+  rig.teleop_health.mark_failed("handler threw: boom");
+  const json doc = rig.current();
+  CHECK(doc["capabilities"]["teleop"] ==
+        json{{"plugin", "org.rcand.teleop"}, {"state", "failed"}, {"reason", "handler threw: boom"}});
+  CHECK(doc["state"] == "error");
+  CHECK(rig.board->robot_state() == "error");
+
+  rig.clock.advance(5s);
+  const int asked = rig.teleop_poll.calls;
+  rig.board->refresh();
+  CHECK(rig.teleop_poll.calls == asked);  // a failed instance is never asked again
+  CHECK_FALSE(rig.body()["capabilities"]["teleop"].contains("stale"));
+
+  rig.drive_health.mark_failed("halt threw");
+  rig.board->notify();
+  const json drivers = rig.current()["drivers"];
+  CHECK(drivers[0]["state"] == "failed");
+  CHECK(drivers[0]["reason"] == "halt threw");
+}
+
+TEST_CASE("publishes coalesce; a driver's published status keeps it fresh without being listed") {
+  Rig rig;
+  rig.board->start();
+  for (int i = 0; i < 500; ++i) rig.drive_context.publish_status({{"moving", true}, {"n", i}});
+  const json doc = rig.current();
+  CHECK_FALSE(doc["drivers"][0].contains("status"));  // drivers are listed without their status, as before
+  rig.clock.advance(1500ms);
+  rig.board->refresh();
+  CHECK(rig.drive_poll.calls == 2);  // published 1.5 s ago: asked once more
+  rig.clock.advance(1000ms);
+  rig.board->refresh();
+  CHECK_FALSE(rig.body()["drivers"][0].contains("stale"));
+}
+
+TEST_CASE("stop is idempotent; afterwards publishes are dropped and when_current answers at once") {
+  Rig rig;
+  rig.board->start();
+  const std::string before = *rig.board->body();
+  rig.board->stop();
+  rig.board->stop();
+  rig.nav.publish_status({{"running", true}});
+  CHECK(*rig.board->body() == before);
+  CHECK(rig.current()["nav_running"] == false);
+  rig.board.reset();
+  rig.estop.latch("after the board", "unit");  // its listener outlives it harmlessly
+  CHECK(rig.estop.latched());
+}
