@@ -20,9 +20,9 @@
 
 #include "mosquitto_broker.hpp"
 #include "r2r_lab.hpp"
+#include "rcand_process.hpp"
 #include "services/r2r/transports/mqtt_transport.hpp"
 #include "services/r2r/transports/udp_transport.hpp"
-#include "rcand_process.hpp"
 #include "ws_client.hpp"
 
 using namespace rcand::test;

@@ -1,35 +1,35 @@
 #include "kernel/kernel.hpp"
 
-#include <boost/asio/ip/address.hpp>
 #include <sys/resource.h>
+#include <boost/asio/ip/address.hpp>
 
 #include <algorithm>
 #include <atomic>
 
-#include "kernel/auth/authenticator.hpp"
-#include "libs/rcan/ruri.hpp"
-#include "libs/rcan/secret_file.hpp"
-#include "libs/yaml/config_diff.hpp"
-#include "kernel/safety/actuator_table.hpp"
 #include "kernel/api/api.hpp"
 #include "kernel/api/capability_routes.hpp"
 #include "kernel/api/kernel_routes.hpp"
-#include "kernel/status/status_board.hpp"
-#include "kernel/service.hpp"
 #include "kernel/audit/audit_log.hpp"
-#include "kernel/safety/estop.hpp"
-#include "libs/base/keep_forever.hpp"
-#include "kernel/safety/kernel_motion_gate.hpp"
-#include "libs/base/logging.hpp"
-#include "libs/rcan/loopback.hpp"
+#include "kernel/auth/authenticator.hpp"
 #include "kernel/plugins/plugin_runtime.hpp"
+#include "kernel/safety/actuator_table.hpp"
+#include "kernel/safety/estop.hpp"
+#include "kernel/safety/kernel_motion_gate.hpp"
 #include "kernel/safety/state_dir.hpp"
-#include "libs/base/stop_path_priority.hpp"
+#include "kernel/service.hpp"
+#include "kernel/status/status_board.hpp"
 #include "kernel/steady_clock.hpp"
+#include "libs/base/bounded_text.hpp"
+#include "libs/base/keep_forever.hpp"
+#include "libs/base/logging.hpp"
+#include "libs/base/stop_path_priority.hpp"
 #include "libs/http/server.hpp"
 #include "libs/mdns/service_publisher.hpp"
+#include "libs/rcan/loopback.hpp"
+#include "libs/rcan/ruri.hpp"
+#include "libs/rcan/secret_file.hpp"
 #include "libs/swarm/swarm_registry.hpp"
-#include "libs/base/bounded_text.hpp"
+#include "libs/yaml/config_diff.hpp"
 
 namespace rcand::kernel {
 namespace {
@@ -44,9 +44,10 @@ std::size_t connections_within_fd_limit(std::size_t configured, std::size_t busy
   const std::size_t limit = files.rlim_cur;
   if (configured + busy_lane + kOtherFiles <= limit) return configured;
   const std::size_t fitting = limit > busy_lane + kOtherFiles + 16 ? limit - busy_lane - kOtherFiles : 16;
-  logger("kernel")->warn("the open-files limit is {} (ulimit -n; LimitNOFILE= under systemd): runtime.max_connections {} "
-                         "is served as {} so that a stop can still be accepted; raise the limit to serve more",
-                         limit, configured, fitting);
+  logger("kernel")->warn(
+      "the open-files limit is {} (ulimit -n; LimitNOFILE= under systemd): runtime.max_connections {} "
+      "is served as {} so that a stop can still be accepted; raise the limit to serve more",
+      limit, configured, fitting);
   return fitting;
 }
 
@@ -58,8 +59,10 @@ AuthSettings auth_settings(const RobotConfig& config, const std::string& ruri, c
   if (auth.mode == "open") {
     // docs/protocol.md §3 ruling: no-auth mode exists only on loopback.
     if (!is_loopback_address(address))
-      throw StartupError("runtime.auth.mode is \"open\" (no authentication), which rcand allows only on a loopback "
-                         "address; runtime.listen.address is " + address);
+      throw StartupError(
+          "runtime.auth.mode is \"open\" (no authentication), which rcand allows only on a loopback "
+          "address; runtime.listen.address is " +
+          address);
     settings.open_mode = true;
     logger("kernel.auth")->warn("authentication is OFF (runtime.auth.mode: open); listening on loopback only");
   }
@@ -77,9 +80,7 @@ AuthSettings auth_settings(const RobotConfig& config, const std::string& ruri, c
 
 }  // namespace
 
-std::vector<std::filesystem::path> default_plugin_paths() {
-  return {"/usr/local/lib/rcand/plugins", RCAND_DEFAULT_PLUGIN_DIR};
-}
+std::vector<std::filesystem::path> default_plugin_paths() { return {"/usr/local/lib/rcand/plugins", RCAND_DEFAULT_PLUGIN_DIR}; }
 
 struct Kernel::State {
   RobotConfig config;
@@ -178,8 +179,8 @@ void Kernel::State::load_swarm() {
 void Kernel::State::create_services(const KernelOptions& options) {
   service_host.reset(new ServiceHost{config, *auth, estop, audit, clock, *registry, *api,
                                      std::chrono::milliseconds(config.runtime.handler_timeout_ms), swarm,
-                                     [this] { return swarm_now.load(); }, [this] { return status_board->document(); },
-                                     bound_port, [this](R2rLinkFactory* links) { services.r2r = links; }});
+                                     [this] { return swarm_now.load(); }, [this] { return status_board->document(); }, bound_port,
+                                     [this](R2rLinkFactory* links) { services.r2r = links; }});
   for (const auto& make : options.services)
     if (auto service = make(*service_host)) optional_services.push_back(std::move(service));
 }
@@ -189,9 +190,8 @@ void Kernel::State::start_plugins() {
   std::vector<DeadlineCrew::Job> halts;
   for (const auto& slot : actuators.slots())
     if (slot.driver != nullptr) halts.push_back({slot.id, [driver = slot.driver] { driver->halt(); }});
-  halt_crew = std::make_unique<DeadlineCrew>("estop.halt", std::move(halts), [priority = config.runtime.stop_path_priority] {
-    enter_stop_path_priority(priority);
-  });
+  halt_crew = std::make_unique<DeadlineCrew>(
+      "estop.halt", std::move(halts), [priority = config.runtime.stop_path_priority] { enter_stop_path_priority(priority); });
   estop.use_halt_crew(halt_crew.get());
   runtime->start_capabilities(registry->names(), config);
   estop.on_latched([runtime = runtime.get()] { runtime->notify_estop(); });
@@ -207,8 +207,9 @@ void Kernel::State::start_plugins() {
 
 // The route table: the kernel's rows, the capabilities' rows, then each service's (which may wrap the others).
 void Kernel::State::add_routes() {
-  kernel_routes.reset(new KernelRouteDeps{clock, estop, audit, host, *runtime, std::string(kRcandVersion), started_us, *status_board,
-                                          [this] { return registry->advertise(status_board->robot_state(), bound_port.load()).discover; }});
+  kernel_routes.reset(
+      new KernelRouteDeps{clock, estop, audit, host, *runtime, std::string(kRcandVersion), started_us, *status_board,
+                          [this] { return registry->advertise(status_board->robot_state(), bound_port.load()).discover; }});
   add_kernel_routes(api->router(), *kernel_routes);
   capability_routes.reset(new CapabilityRouteDeps{*registry, *runtime, audit, estop, *timers,
                                                   std::chrono::milliseconds(config.runtime.handler_timeout_ms)});
@@ -324,10 +325,9 @@ std::uint16_t Kernel::start() {
   for (auto& service : s.optional_services) service->start(s.port);  // throws StartupError naming the setting
   if (s.mdns_publisher) {
     // docs/protocol.md §5: instance metadata.robot_name, the port bound, the TXT record of the one registry function (§9.5).
-    s.mdns_publisher->start({.name = s.config.robot_name,
-                             .type = std::string(kServiceType),
-                             .port = s.port,
-                             .txt = [&s] { return s.registry->advertise(s.status_board->robot_state(), s.port).txt; }});
+    s.mdns_publisher->start({.name = s.config.robot_name, .type = std::string(kServiceType), .port = s.port, .txt = [&s] {
+                               return s.registry->advertise(s.status_board->robot_state(), s.port).txt;
+                             }});
   }
   logger("kernel")->info("{} ({}) serving RCAN {} on http://{}:{} with capabilities [{}]", s.config.robot_name,
                          s.registry->identity().ruri, kRcanVersion, s.address, s.port,
@@ -407,9 +407,8 @@ Kernel::ReloadReport Kernel::reload(const std::filesystem::path& file) noexcept 
       for (const auto& item : items) text += (text.empty() ? "" : ", ") + item;
       return text.empty() ? std::string("none") : text;
     };
-    const std::string detail =
-        report.ok ? "applied: " + join(report.applied) + "; needs a restart: " + join(report.needs_restart)
-                  : "invalid, still running on the previous config: " + join(report.errors);
+    const std::string detail = report.ok ? "applied: " + join(report.applied) + "; needs a restart: " + join(report.needs_restart)
+                                         : "invalid, still running on the previous config: " + join(report.errors);
     // docs/protocol.md §6.3: a config change is audited like a command (before the log line that announces it).
     const auto seq = s.audit.begin("SIGHUP", "reload-" + std::to_string(s.clock.wall_ms()), "config reload");
     s.audit.finish(seq, report.ok ? "ok" : "error", detail.substr(0, 2000));

@@ -11,8 +11,8 @@
 #include <vector>
 
 #include "kernel/config/robot_config.hpp"
-#include "kernel/registry/capability_registry.hpp"
 #include "kernel/plugins/plugin_host.hpp"
+#include "kernel/registry/capability_registry.hpp"
 
 namespace rcand::kernel {
 
@@ -24,7 +24,7 @@ class StartupError : public std::runtime_error {
   using std::runtime_error::runtime_error;
 };
 
-class Service;      // kernel/service.hpp
+class Service;  // kernel/service.hpp
 struct ServiceHost;
 
 struct KernelOptions {

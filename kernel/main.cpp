@@ -1,12 +1,12 @@
 // rcand: the daemon. Parses the command line, loads the config, runs the kernel until SIGINT/SIGTERM; SIGHUP
 // reloads the config file (Kernel::reload).
-#include <chrono>
-#include <csignal>
-#include <cstdlib>
-#include <cstdio>
-#include <iostream>
 #include <pthread.h>
 #include <sys/resource.h>
+#include <chrono>
+#include <csignal>
+#include <cstdio>
+#include <cstdlib>
+#include <iostream>
 #include <set>
 #include <string>
 #include <thread>

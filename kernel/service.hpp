@@ -20,9 +20,9 @@
 #include "kernel/audit/audit_log.hpp"
 #include "kernel/auth/authenticator.hpp"
 #include "kernel/config/robot_config.hpp"
+#include "kernel/plugins/r2r_link_factory.hpp"
 #include "kernel/registry/capability_registry.hpp"
 #include "kernel/safety/estop.hpp"
-#include "kernel/plugins/r2r_link_factory.hpp"
 #include "libs/http/server_options.hpp"
 #include "libs/swarm/swarm_registry.hpp"
 

@@ -311,8 +311,8 @@ int run_watch(const Options& o, std::ostream& out, std::ostream& err) {
 int run_auction(const Options& o, std::ostream& out, std::ostream& err) {
   http::ClientResponse response;
   try {
-    response = http::request(o.host, o.port, "POST", "/api/r2r/auction", o.task.dump(),
-                                     {{"Authorization", "Bearer " + o.token}}, std::chrono::seconds(130));
+    response = http::request(o.host, o.port, "POST", "/api/r2r/auction", o.task.dump(), {{"Authorization", "Bearer " + o.token}},
+                             std::chrono::seconds(130));
   } catch (const std::exception& e) {
     err << "rcanctl r2r auction: " << e.what() << "\n";
     return kExitFailure;

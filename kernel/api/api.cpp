@@ -27,8 +27,9 @@ std::string client_address(const std::string& remote) {
 http::Response too_many_requests(const std::string& who, double per_s, std::chrono::milliseconds wait) {
   const auto retry_after_s = std::max<std::int64_t>(1, (wait.count() + 999) / 1000);
   json limit = per_s;
-  auto response = error_response(429, "RATE_LIMITED", "too many requests from " + who + " (limit " + limit.dump() + " per second)",
-                                 {{"retry_after_s", retry_after_s}});
+  auto response =
+      error_response(429, "RATE_LIMITED", "too many requests from " + who + " (limit " + limit.dump() + " per second)",
+                     {{"retry_after_s", retry_after_s}});
   response.headers.emplace_back("Retry-After", std::to_string(retry_after_s));
   return response;
 }
@@ -140,7 +141,8 @@ void Api::serve(http::Request&& request, const Principal* authenticated, http::R
   if (match.route == nullptr) {
     if (match.allowed.empty()) reply(error_response(404, "NOT_FOUND", "no endpoint " + bounded_text(call.request.path)));
     else
-      reply(error_response(405, "METHOD_NOT_ALLOWED", bounded_text(call.request.method) + " is not allowed on " + call.request.path,
+      reply(error_response(405, "METHOD_NOT_ALLOWED",
+                           bounded_text(call.request.method) + " is not allowed on " + call.request.path,
                            {{"allowed", match.allowed}}));
     return;
   }
@@ -148,7 +150,8 @@ void Api::serve(http::Request&& request, const Principal* authenticated, http::R
   if (!authenticate(call, authenticated, spec.scope, reply)) return;
   if (limited && !admit_principal(call, reply)) return;
   if (match.route->decorator) {
-    match.route->decorator(call, std::move(reply), [this, route = match.route](Call& c, Reply r) { dispatch(*route, c, std::move(r)); });
+    match.route->decorator(call, std::move(reply),
+                           [this, route = match.route](Call& c, Reply r) { dispatch(*route, c, std::move(r)); });
     return;
   }
   dispatch(*match.route, call, std::move(reply));

@@ -1,8 +1,8 @@
 // The HTTP API's front door (docs/protocol.md §7): the route table and the middleware every request goes through
 // once, in this order: message id → rate limit per address → route match (404/405) → authentication for the row's
-// scope → rate limit per principal → a service's decorator, if any → the audit entry (audited rows) → the e-stop pre-check (motion rows) → the
-// row's handler. Runs on the server's I/O threads and never blocks there: the stop handler runs inline; capability
-// handlers run on their own workers.
+// scope → rate limit per principal → a service's decorator, if any → the audit entry (audited rows) → the e-stop pre-check
+// (motion rows) → the row's handler. Runs on the server's I/O threads and never blocks there: the stop handler runs inline;
+// capability handlers run on their own workers.
 #pragma once
 
 #include <atomic>
@@ -11,13 +11,13 @@
 
 #include <nlohmann/json.hpp>
 
-#include "libs/base/rate_limiter.hpp"
 #include "kernel/api/router.hpp"
 #include "kernel/audit/audit_log.hpp"
 #include "kernel/auth/authenticator.hpp"
 #include "kernel/config/robot_config.hpp"
 #include "kernel/safety/estop.hpp"
 #include "libs/base/logging.hpp"
+#include "libs/base/rate_limiter.hpp"
 #include "libs/http/handler.hpp"
 
 namespace rcand::kernel {

@@ -4,9 +4,9 @@
 #include <memory>
 
 #include "kernel/api/answers.hpp"
-#include "libs/base/json_body.hpp"
 #include "kernel/plugins/guarded.hpp"
 #include "libs/base/bounded_text.hpp"
+#include "libs/base/json_body.hpp"
 
 namespace rcand::kernel {
 namespace {
@@ -35,7 +35,8 @@ class CapabilityRoutes {
   // The instance serving `name`, or answers 404/503 and returns null.
   CapabilityInstance* available(const std::string& name, Call& call, const Reply& reply) const {
     if (!d_.registry.declared(name)) {  // §9.1: an undeclared capability reaches no plugin
-      refuse(call, reply, answer(contract::not_declared(bounded_text(name), d_.registry.names())), "blocked", "capability not declared");
+      refuse(call, reply, answer(contract::not_declared(bounded_text(name), d_.registry.names())), "blocked",
+             "capability not declared");
       return nullptr;
     }
     CapabilityInstance* instance = d_.runtime.capability(name);
@@ -52,7 +53,8 @@ class CapabilityRoutes {
     CapabilityInstance* instance = available(name, call, reply);
     if (instance == nullptr) return;
     JsonBody body = parse_json_body(call.request.body);
-    if (!body.error.empty()) return refuse(call, reply, error_response(400, "BAD_REQUEST", body.error, {{"field", "body"}}), "blocked", "bad body");
+    if (!body.error.empty())
+      return refuse(call, reply, error_response(400, "BAD_REQUEST", body.error, {{"field", "body"}}), "blocked", "bad body");
     dispatch(*instance, route, call, std::move(body.value), reply);
   }
 
@@ -66,8 +68,10 @@ class CapabilityRoutes {
       name = rest.substr(0, rest.find('/'));
       subpath = rest.substr(name.size());
       if (find_standard_capability(name) != nullptr)  // standard ones have their own endpoints
-        return refuse(call, reply, error_response(404, "NOT_FOUND", "'" + bounded_text(name) + "' is a standard capability; use its standard endpoint"),
-                      "blocked", "standard capability under /api/cap");
+        return refuse(
+            call, reply,
+            error_response(404, "NOT_FOUND", "'" + bounded_text(name) + "' is a standard capability; use its standard endpoint"),
+            "blocked", "standard capability under /api/cap");
     }
     CapabilityInstance* instance = available(name, call, reply);
     if (instance == nullptr) return;
@@ -75,7 +79,8 @@ class CapabilityRoutes {
     for (const auto& route : instance->routes)
       if (route.action_type.empty() && route.path == (custom ? subpath : path)) methods.push_back(route.method);
     if (!methods.empty())
-      return refuse(call, reply, answer(contract::method_not_allowed(bounded_text(call.request.method), bounded_text(path), methods)),
+      return refuse(call, reply,
+                    answer(contract::method_not_allowed(bounded_text(call.request.method), bounded_text(path), methods)),
                     "blocked", "method not allowed");
     refuse(call, reply, answer(contract::no_endpoint(name, bounded_text(path))), "blocked", "no such route");
   }
@@ -92,14 +97,14 @@ class CapabilityRoutes {
       return reply(answer(contract::missing_action_type(declared_types)));
     const std::string type = body.value["type"].get<std::string>();
     const StandardCapability* standard = capability_of_action(type);
-    if (standard == nullptr)
-      return reply(answer(contract::unknown_action_type(bounded_text(type), declared_types)));
+    if (standard == nullptr) return reply(answer(contract::unknown_action_type(bounded_text(type), declared_types)));
     call.audit_seq = d_.audit.begin(call.principal, call.message_id, "POST /api/action " + type);
     CapabilityInstance* instance = available(std::string(standard->name), call, reply);
     if (instance == nullptr) return;
     const sdk::Route* route = nullptr;
     for (const auto& candidate : instance->routes)
-      if (candidate.path == contract::kActionPath && candidate.action_type == type && candidate.method == "POST") route = &candidate;
+      if (candidate.path == contract::kActionPath && candidate.action_type == type && candidate.method == "POST")
+        route = &candidate;
     if (route == nullptr)
       return refuse(call, reply, answer(contract::no_endpoint(instance->name, std::string(contract::kActionPath))), "blocked",
                     "no such route");
@@ -107,7 +112,8 @@ class CapabilityRoutes {
     if (!call.has_scope(scope))
       return refuse(call, reply, answer(contract::insufficient_scope("principal '" + call.principal + "'", scope)), "blocked",
                     "insufficient privileges");
-    if (route->motion && d_.estop.latched()) return refuse(call, reply, answer(contract::estop_active()), "blocked", "e-stop active");
+    if (route->motion && d_.estop.latched())
+      return refuse(call, reply, answer(contract::estop_active()), "blocked", "e-stop active");
     dispatch(*instance, *route, call, std::move(body.value), reply);
   }
 
@@ -117,7 +123,8 @@ class CapabilityRoutes {
   const CapabilityRouteDeps& d_;
 };
 
-void CapabilityRoutes::dispatch(CapabilityInstance& instance, const sdk::Route& route, Call& call, json body, const Reply& reply) const {
+void CapabilityRoutes::dispatch(CapabilityInstance& instance, const sdk::Route& route, Call& call, json body,
+                                const Reply& reply) const {
   auto request = std::make_shared<sdk::Request>();
   request->method = call.request.method;
   request->path = call.request.path;
@@ -137,7 +144,8 @@ void CapabilityRoutes::dispatch(CapabilityInstance& instance, const sdk::Route& 
     sdk::TimerId timer = 0;
   };
   auto pending = std::make_shared<Pending>();
-  auto finish = [audit = &d_.audit, seq = call.audit_seq, pending, reply](http::Response response, std::string outcome, std::string detail) {
+  auto finish = [audit = &d_.audit, seq = call.audit_seq, pending, reply](http::Response response, std::string outcome,
+                                                                          std::string detail) {
     if (pending->answered.exchange(true)) return;
     if (seq != 0) audit->finish(seq, std::move(outcome), std::move(detail));
     reply(std::move(response));
@@ -168,7 +176,8 @@ void CapabilityRoutes::dispatch(CapabilityInstance& instance, const sdk::Route& 
 }
 
 // Rows for the routes a running capability registered; a route outside its capability's mounts is never served.
-void add_instance_routes(Router& router, const std::shared_ptr<const CapabilityRoutes>& routes, const CapabilityInstance& instance) {
+void add_instance_routes(Router& router, const std::shared_ptr<const CapabilityRoutes>& routes,
+                         const CapabilityInstance& instance) {
   const StandardCapability* standard = find_standard_capability(instance.name);
   for (const auto& route : instance.routes) {
     if (!route.action_type.empty()) continue;  // served through POST /api/action
@@ -177,7 +186,8 @@ void add_instance_routes(Router& router, const std::shared_ptr<const CapabilityR
       return mount.ends_with('*') ? path.starts_with(mount.substr(0, mount.size() - 1)) : path == mount;
     });
     if (!mounted) {
-      logger("kernel.api")->warn("capability {}: route {} {} is outside its endpoints; not served", instance.name, route.method, path);
+      logger("kernel.api")
+          ->warn("capability {}: route {} {} is outside its endpoints; not served", instance.name, route.method, path);
       continue;
     }
     const Scope scope = contract::route_scope(route.scope, route.method, standard == nullptr);
@@ -185,7 +195,8 @@ void add_instance_routes(Router& router, const std::shared_ptr<const CapabilityR
       router.add({route.method, path, scope, !is_read(route.method), route.motion},
                  [routes, name = instance.name, &route](Call& call, Reply reply) { routes->serve(name, route, call, reply); });
     } catch (const std::logic_error&) {
-      logger("kernel.api")->warn("capability {}: route {} {} registered twice; the first one is served", instance.name, route.method, path);
+      logger("kernel.api")
+          ->warn("capability {}: route {} {} registered twice; the first one is served", instance.name, route.method, path);
     }
   }
 }
@@ -206,9 +217,12 @@ void add_capability_routes(Router& router, const CapabilityRouteDeps& deps) {
   };
   for (const auto& cap : standard_capabilities())
     for (auto mount : cap.mounts) fallback(std::string(mount), std::string(cap.name));
-  router.add({"GET", std::string(kCustomPrefix) + "*", Scope::Control}, [routes](Call& call, Reply reply) { routes->unrouted("", call, reply); });
-  router.add({"*", std::string(kCustomPrefix) + "*", Scope::Control, true}, [routes](Call& call, Reply reply) { routes->unrouted("", call, reply); });
-  router.add({"POST", std::string(contract::kActionPath), Scope::Control}, [routes](Call& call, Reply reply) { routes->action(call, reply); });
+  router.add({"GET", std::string(kCustomPrefix) + "*", Scope::Control},
+             [routes](Call& call, Reply reply) { routes->unrouted("", call, reply); });
+  router.add({"*", std::string(kCustomPrefix) + "*", Scope::Control, true},
+             [routes](Call& call, Reply reply) { routes->unrouted("", call, reply); });
+  router.add({"POST", std::string(contract::kActionPath), Scope::Control},
+             [routes](Call& call, Reply reply) { routes->action(call, reply); });
 }
 
 }  // namespace rcand::kernel

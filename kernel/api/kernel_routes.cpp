@@ -3,8 +3,8 @@
 #include <charconv>
 
 #include "kernel/api/answers.hpp"
-#include "libs/base/json_body.hpp"
 #include "libs/base/bounded_text.hpp"
+#include "libs/base/json_body.hpp"
 
 namespace rcand::kernel {
 namespace {
@@ -56,7 +56,8 @@ void estop_clear(const KernelRouteDeps& d, Call& call, const Reply& reply) {
 }
 
 void health(const KernelRouteDeps& d, const Reply& reply) {
-  reply(json_response(200, {{"status", "ok"}, {"uptime_s", (d.clock.now_us() - d.started_us) / 1'000'000}, {"version", d.version}}));
+  reply(json_response(200,
+                      {{"status", "ok"}, {"uptime_s", (d.clock.now_us() - d.started_us) / 1'000'000}, {"version", d.version}}));
 }
 
 // The snapshot as published, serialized once per change: no plugin code, no thread hop. when_current() answers at
@@ -95,7 +96,9 @@ void driver(const KernelRouteDeps& d, Call& call, const Reply& reply) {
   for (const auto& instance : d.runtime.drivers()) {
     if (instance.id != id) continue;
     auto status = d.runtime.status_of(instance);  // first: a status() that hangs fails the driver
-    json doc{{"id", instance.id}, {"protocol", instance.protocol}, {"plugin", instance.plugin_id},
+    json doc{{"id", instance.id},
+             {"protocol", instance.protocol},
+             {"plugin", instance.plugin_id},
              {"state", instance.health.failed() ? "failed" : "ok"}};
     if (instance.health.failed()) doc["reason"] = instance.health.reason();
     if (status) doc["status"] = std::move(*status);

@@ -25,8 +25,8 @@ struct KernelRouteDeps {
   PluginRuntime& runtime;
   std::string version;
   std::int64_t started_us = 0;
-  StatusBoard& status;                           // the GET /api/status snapshot
-  std::function<nlohmann::json()> discovery;                          // GET /api/discovery
+  StatusBoard& status;                        // the GET /api/status snapshot
+  std::function<nlohmann::json()> discovery;  // GET /api/discovery
 };
 
 // Startup. The dependencies outlive the router's use of them (the Kernel owns both).

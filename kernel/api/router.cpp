@@ -28,8 +28,9 @@ void Router::wrap(std::string_view method, std::string_view path, Decorator deco
   const Route* found = match(method, path).route;
   if (found == nullptr) throw std::logic_error("no route " + std::string(method) + " " + std::string(path) + " to wrap");
   Route& route = routes_[static_cast<std::size_t>(found - routes_.data())];
-  Decorator inner = route.decorator ? std::move(route.decorator)
-                                    : Decorator([](Call& call, Reply reply, const RouteHandler& next) { next(call, std::move(reply)); });
+  Decorator inner = route.decorator
+                        ? std::move(route.decorator)
+                        : Decorator([](Call& call, Reply reply, const RouteHandler& next) { next(call, std::move(reply)); });
   route.decorator = [method = std::string(method), outer = std::move(decorator), inner = std::move(inner)](
                         Call& call, Reply reply, const RouteHandler& next) {
     const RouteHandler rest = [&inner, &next](Call& c, Reply r) { inner(c, std::move(r), next); };

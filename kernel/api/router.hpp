@@ -43,10 +43,10 @@ struct RouteSpec {
   // longest prefix.
   std::string path;
   sdk::Scope scope = sdk::Scope::Status;
-  bool audited = false;       // the middleware records "METHOD path" (pending) before the handler; the handler
-                              // finishes it (Call::audit_seq) with its outcome
-  bool motion = false;        // 423 ESTOP_ACTIVE while latched, before the handler
-  bool rate_limited = true;   // false only for the e-stop paths (docs/protocol.md §6.4)
+  bool audited = false;      // the middleware records "METHOD path" (pending) before the handler; the handler
+                             // finishes it (Call::audit_seq) with its outcome
+  bool motion = false;       // 423 ESTOP_ACTIVE while latched, before the handler
+  bool rate_limited = true;  // false only for the e-stop paths (docs/protocol.md §6.4)
 };
 
 using Decorator = std::function<void(Call&, Reply, const RouteHandler& next)>;
@@ -68,8 +68,8 @@ class Router {
   void wrap(std::string_view method, std::string_view path, Decorator decorator);
 
   struct Match {
-    const Route* route = nullptr;       // null: no row for this method
-    std::vector<std::string> allowed;   // the methods the path has, when route is null (empty: 404)
+    const Route* route = nullptr;      // null: no row for this method
+    std::vector<std::string> allowed;  // the methods the path has, when route is null (empty: 404)
   };
   // Any thread, lock-free (the table is immutable while serving).
   Match match(std::string_view method, std::string_view path) const;

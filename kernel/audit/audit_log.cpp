@@ -16,8 +16,12 @@ namespace rcand::kernel {
 namespace {
 
 nlohmann::json audit_entry_json(const AuditEntry& entry) {
-  nlohmann::json item{{"seq", entry.seq},           {"principal", entry.principal}, {"ruri", entry.ruri},
-                      {"timestamp_ms", entry.timestamp_ms}, {"message_id", entry.message_id}, {"event", entry.event},
+  nlohmann::json item{{"seq", entry.seq},
+                      {"principal", entry.principal},
+                      {"ruri", entry.ruri},
+                      {"timestamp_ms", entry.timestamp_ms},
+                      {"message_id", entry.message_id},
+                      {"event", entry.event},
                       {"outcome", entry.outcome}};
   if (!entry.detail.empty()) item["detail"] = entry.detail;
   return item;
@@ -64,8 +68,9 @@ bool AuditLog::log_line_allowed(const std::string& principal) noexcept {
   try {
     const auto verdict = log_limit_.admit(principal);
     if (verdict.log && verdict.suppressed > 0)
-      logger("kernel.audit")->warn("{} audit log lines for {} suppressed (more than {} a second; the audit log itself has them all)",
-                                   verdict.suppressed, principal, kLogLinesPerSecond);
+      logger("kernel.audit")
+          ->warn("{} audit log lines for {} suppressed (more than {} a second; the audit log itself has them all)",
+                 verdict.suppressed, principal, kLogLinesPerSecond);
     return verdict.log;
   } catch (...) {
     return false;
@@ -78,9 +83,10 @@ void AuditLog::identify(std::string robot_ruri, const sdk::Clock& clock) {
 }
 
 std::uint64_t AuditLog::begin(const std::string& principal, const std::string& message_id, std::string event) {
-  const std::int64_t now_ms = clock_ != nullptr ? clock_->wall_ms()
-                                                : std::chrono::duration_cast<std::chrono::milliseconds>(
-                                                      std::chrono::system_clock::now().time_since_epoch()).count();
+  const std::int64_t now_ms =
+      clock_ != nullptr
+          ? clock_->wall_ms()
+          : std::chrono::duration_cast<std::chrono::milliseconds>(std::chrono::system_clock::now().time_since_epoch()).count();
   return record({0, principal, robot_ruri_, message_id, std::move(event), now_ms, "pending", {}});
 }
 

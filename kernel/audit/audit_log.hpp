@@ -16,8 +16,8 @@
 
 #include <atomic>
 #include <cstdint>
-#include <filesystem>
 #include <deque>
+#include <filesystem>
 #include <mutex>
 #include <string>
 
@@ -36,9 +36,9 @@ struct AuditEntry {
 
 class AuditLog {
  public:
-  static constexpr std::size_t kFieldLimit = 200;      // principal, ruri, message_id
-  static constexpr std::size_t kEventLimit = 300;      // "POST /api/action <type>"
-  static constexpr std::size_t kDetailLimit = 2000;    // why it was blocked or failed
+  static constexpr std::size_t kFieldLimit = 200;          // principal, ruri, message_id
+  static constexpr std::size_t kEventLimit = 300;          // "POST /api/action <type>"
+  static constexpr std::size_t kDetailLimit = 2000;        // why it was blocked or failed
   static constexpr std::uint32_t kLogLinesPerSecond = 20;  // "kernel.audit" log lines per principal
   static constexpr std::uintmax_t kDefaultMaxFileBytes = 64ull << 20;
   static constexpr int kDefaultKeepFiles = 4;
@@ -70,9 +70,9 @@ class AuditLog {
  private:
   const std::size_t capacity_;
   std::uint64_t dropped_ = 0;
-  std::mutex file_mutex_;  // the file's own lock: writing never holds mutex_
-  int fd_ = -1;                             // under file_mutex_
-  std::atomic<bool> persisting_{false};     // set once fd_ and file_name_ are (file_name_ never changes afterwards)
+  std::mutex file_mutex_;                // the file's own lock: writing never holds mutex_
+  int fd_ = -1;                          // under file_mutex_
+  std::atomic<bool> persisting_{false};  // set once fd_ and file_name_ are (file_name_ never changes afterwards)
   std::string file_name_;
   std::uintmax_t file_bytes_ = 0, max_bytes_ = kDefaultMaxFileBytes;
   int keep_ = kDefaultKeepFiles;

@@ -31,9 +31,8 @@ std::string role_too_low(sdk::Role role, sdk::Scope needed) {
 Authenticator::Authenticator(AuthSettings settings) : settings_(std::move(settings)) {
   for (PresharedToken& token : settings_.tokens) {
     token.sha256_hex = lower(token.sha256_hex);
-    if (token.sha256_hex.size() != 64 || !std::all_of(token.sha256_hex.begin(), token.sha256_hex.end(), [](char c) {
-          return std::isxdigit(static_cast<unsigned char>(c));
-        }))
+    if (token.sha256_hex.size() != 64 || !std::all_of(token.sha256_hex.begin(), token.sha256_hex.end(),
+                                                      [](char c) { return std::isxdigit(static_cast<unsigned char>(c)); }))
       throw std::invalid_argument("auth: the sha256 of the token for principal '" + token.principal +
                                   "' must be 64 hex digits (make one with `rcanctl token hash`)");
   }
@@ -61,8 +60,7 @@ std::variant<Principal, AuthError> Authenticator::authorize(std::optional<std::s
   if (replaced_.load(std::memory_order_acquire)) return replacement_.load()->authorize(bearer, needed, now_s);
   if (needed == sdk::Scope::None) return Principal{"anonymous", sdk::Role::Guest, {}, "anonymous"};
   if (settings_.open_mode) return Principal{"open", sdk::Role::Creator, default_scopes(sdk::Role::Creator), "open"};
-  if (!bearer || bearer->empty())
-    return unauthorized("authentication required: send 'Authorization: Bearer <token>'");
+  if (!bearer || bearer->empty()) return unauthorized("authentication required: send 'Authorization: Bearer <token>'");
   if (looks_like_jwt(*bearer)) return authorize_jwt(*bearer, needed, now_s);
   return authorize_preshared(*bearer, needed);
 }

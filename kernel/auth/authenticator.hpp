@@ -25,15 +25,15 @@ struct AuthSettings {
   bool open_mode = false;                 // explicit "no auth" (the kernel refuses it off loopback)
   std::optional<std::string> jwt_secret;  // HS256 secret bytes; nullopt = JWTs are not accepted
   std::vector<PresharedToken> tokens;
-  std::string robot_ruri;                 // for aud
-  std::string device_id;                  // for fleet
+  std::string robot_ruri;  // for aud
+  std::string device_id;   // for fleet
 };
 
 struct Principal {
   std::string name;
   sdk::Role role = sdk::Role::Guest;
   std::vector<sdk::Scope> scopes;
-  std::string via;  // "token" | "jwt" | "open" | "anonymous"
+  std::string via;                                       // "token" | "jwt" | "open" | "anonymous"
   std::optional<std::int64_t> expires_s = std::nullopt;  // a JWT's exp (Unix s): what was authorized with it is void from then on
 };
 

@@ -40,8 +40,10 @@ std::string check_role(const json& value);  // below, next to the message helper
 
 constexpr double kIntMax = INT_MAX;
 
-// Every known key, in file order. Free-form blocks are `open` mappings with no children listed.
-const std::vector<KeySpec>& build_schema() {
+// Every known key, in file order. Free-form blocks are `open` mappings with no children listed. A table, one key per
+// row, kept in its hand layout (clang-format would give each field a line) and exempt from the function-size limit.
+// clang-format off
+const std::vector<KeySpec>& build_schema() {  // NOLINT(readability-function-size)
   static const std::vector<KeySpec> table = {
       {.path = "rcan_version", .type = String, .required = true, .non_empty = true,
        .description = "RCAN version the file is written for, quoted (\"1.3\")"},
@@ -257,6 +259,7 @@ const std::vector<KeySpec>& build_schema() {
   };
   return table;
 }
+// clang-format on
 
 std::string_view parent_of(std::string_view schema_path) {
   if (schema_path.ends_with("[]")) return schema_path.substr(0, schema_path.size() - 2);

@@ -24,16 +24,16 @@ struct KeySpec {
   std::string_view path = {};
   ValueType type = ValueType::Any;
   bool required = false;
-  nlohmann::json default_value = nullptr;  // null: no default
+  nlohmann::json default_value = nullptr;                        // null: no default
   std::optional<double> min = std::nullopt, max = std::nullopt;  // numbers; `min_exclusive` makes min a strict bound
   bool min_exclusive = false;
   std::vector<std::string_view> choices = {};  // strings
-  bool ignore_case = false;               // for `choices`
-  bool open = false;                      // mappings: keys without a spec are accepted without a warning
-  bool non_empty = false;                 // strings
-  bool unique = false;                    // no two items of the enclosing sequence share the value
-  bool secret = false;                    // never echo the value in a message
-  std::string_view required_unless = {};  // a sibling key whose presence lifts `required`
+  bool ignore_case = false;                    // for `choices`
+  bool open = false;                           // mappings: keys without a spec are accepted without a warning
+  bool non_empty = false;                      // strings
+  bool unique = false;                         // no two items of the enclosing sequence share the value
+  bool secret = false;                         // never echo the value in a message
+  std::string_view required_unless = {};       // a sibling key whose presence lifts `required`
   ValueCheck check = nullptr;
   std::string_view description = {};
 };

@@ -85,7 +85,8 @@ RuntimeConfig extract_runtime(const json& doc, const fs::path& base_dir) {
   r.handler_timeout_ms = static_cast<int>(value_or_default<std::int64_t>(doc, "runtime.handler_timeout_ms"));
   r.stop_path_priority = static_cast<int>(value_or_default<std::int64_t>(doc, "runtime.stop_path_priority"));
   r.max_connections = static_cast<std::size_t>(value_or_default<std::int64_t>(doc, "runtime.max_connections"));
-  r.max_connections_per_address = static_cast<std::size_t>(value_or_default<std::int64_t>(doc, "runtime.max_connections_per_address"));
+  r.max_connections_per_address =
+      static_cast<std::size_t>(value_or_default<std::int64_t>(doc, "runtime.max_connections_per_address"));
   r.plugin_start_timeout_ms = static_cast<int>(value_or_default<std::int64_t>(doc, "runtime.plugin_start_timeout_ms"));
   if (const json* audit_file = find(doc, "runtime.audit_file"); audit_file != nullptr && audit_file->is_string())
     r.audit_file = resolve(base_dir, audit_file->get<std::string>());
@@ -163,9 +164,8 @@ LoadedConfig parse_robot_config(std::string_view yaml, const std::string& displa
   std::stable_sort(diagnostics.begin(), diagnostics.end(), [](const ConfigDiagnostic& a, const ConfigDiagnostic& b) {
     return std::pair(a.mark.line, a.mark.column) < std::pair(b.mark.line, b.mark.column);
   });
-  const bool has_error = std::any_of(diagnostics.begin(), diagnostics.end(), [](const ConfigDiagnostic& d) {
-    return d.severity == ConfigDiagnostic::Severity::Error;
-  });
+  const bool has_error = std::any_of(diagnostics.begin(), diagnostics.end(),
+                                     [](const ConfigDiagnostic& d) { return d.severity == ConfigDiagnostic::Severity::Error; });
   if (has_error || !document.ok) throw ConfigError(std::move(diagnostics));
 
   std::error_code ec;

@@ -1,4 +1,5 @@
-// The robot's `.rcan.yaml` file (docs/protocol.md §10), loaded, validated against one schema table and turned into typed settings.
+// The robot's `.rcan.yaml` file (docs/protocol.md §10), loaded, validated against one schema table and turned into typed
+// settings.
 #pragma once
 
 #include <nlohmann/json.hpp>
@@ -44,11 +45,11 @@ struct RuntimeConfig {
   // HTTP connection limits: beyond them only the e-stop is served (503 SERVER_BUSY for the rest).
   std::size_t max_connections = 10000;
   std::size_t max_connections_per_address = 256;
-  int stop_path_priority = 10;  // SCHED_FIFO priority of the threads a stop runs on; 0 = leave them as they are
+  int stop_path_priority = 10;          // SCHED_FIFO priority of the threads a stop runs on; 0 = leave them as they are
   int plugin_start_timeout_ms = 10000;  // a plugin's factory/start()/routes() that takes longer fails its instance
   std::optional<std::filesystem::path> audit_file;  // absolute after loading; every audit entry appended as a JSON line
-  std::uint64_t audit_max_bytes = 64ull << 20;        // audit_file rotates past this size
-  int audit_keep_files = 4;                           // rotated audit files kept
+  std::uint64_t audit_max_bytes = 64ull << 20;      // audit_file rotates past this size
+  int audit_keep_files = 4;                         // rotated audit files kept
   // The e-stop latch record and the running marker (absolute after loading): runtime.state_dir, else
   // $STATE_DIRECTORY (its first entry), else /var/lib/rcand.
   std::filesystem::path state_dir = "/var/lib/rcand";

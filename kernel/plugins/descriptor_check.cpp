@@ -40,8 +40,8 @@ std::optional<DescriptorVerdict> check_descriptor(const rcand_plugin_descriptor*
                         "upgrade rcand, or " + rebuild_hint());
   if (d->register_plugin == nullptr) return incompatible("descriptor has no register function", "build it with RCAND_PLUGIN");
 
-  const std::string mismatch_hint = "make RCAND_PLUGIN(id, version, ...) and " + manifest.file.filename().string() +
-                                    " agree, then rebuild";
+  const std::string mismatch_hint =
+      "make RCAND_PLUGIN(id, version, ...) and " + manifest.file.filename().string() + " agree, then rebuild";
   if (d->plugin_id == nullptr || manifest.id != d->plugin_id)
     return DescriptorVerdict{PluginState::ManifestMismatch,
                              "descriptor id '" + std::string(d->plugin_id ? d->plugin_id : "(null)") +

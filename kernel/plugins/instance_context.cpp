@@ -55,9 +55,8 @@ sdk::Worker& InstanceContext::worker(std::string_view name) {
   for (auto& worker : workers_)
     if (worker->name() == full) return *worker;
   // An exception escaping a worker task is plugin code failing: the instance goes out of service.
-  return *workers_.emplace_back(std::make_unique<WorkerThread>(full, [this, full](const std::string& why) {
-    health_.mark_failed("worker " + full + ": " + why);
-  }));
+  return *workers_.emplace_back(std::make_unique<WorkerThread>(
+      full, [this, full](const std::string& why) { health_.mark_failed("worker " + full + ": " + why); }));
 }
 
 sdk::R2rLink* InstanceContext::r2r() noexcept {

@@ -8,12 +8,12 @@
 #include <string>
 
 #include "kernel/audit/audit_log.hpp"
+#include "kernel/plugins/r2r_link_factory.hpp"
 #include "kernel/safety/estop.hpp"
 #include "kernel/safety/instance_health.hpp"
 #include "kernel/safety/kernel_motion_gate.hpp"
 #include "libs/base/logging.hpp"
 #include "libs/base/worker_thread.hpp"
-#include "kernel/plugins/r2r_link_factory.hpp"
 #include "rcand/sdk/context.hpp"
 #include "rcand/sdk/obstacle_source.hpp"
 

@@ -53,8 +53,8 @@ class Fields {
 // A reverse-domain id or a capability/driver name: no spaces, slashes or other URL-hostile characters.
 bool is_identifier(const std::string& text) {
   for (const char c : text) {
-    const bool ok = (c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') || (c >= '0' && c <= '9') || c == '.' ||
-                    c == '_' || c == '-';
+    const bool ok =
+        (c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') || (c >= '0' && c <= '9') || c == '.' || c == '_' || c == '-';
     if (!ok) return false;
   }
   return !text.empty();
@@ -68,7 +68,8 @@ ProvidedItem parse_provided(const Fields& f, const json& entry, const std::strin
   if (item.kind != "capability" && item.kind != "driver")
     f.fail(field + ".kind", "expected \"capability\" or \"driver\", found \"" + item.kind + "\"");
   item.name = f.string(f.require(entry, "name", field + ".name"), field + ".name");
-  if (!is_identifier(item.name)) f.fail(field + ".name", "'" + item.name + "' is not a valid name (letters, digits, '.', '_', '-')");
+  if (!is_identifier(item.name))
+    f.fail(field + ".name", "'" + item.name + "' is not a valid name (letters, digits, '.', '_', '-')");
   if (const auto it = entry.find("actuates"); it != entry.end()) item.actuates = f.boolean(*it, field + ".actuates");
   if (const auto it = entry.find("interface"); it != entry.end()) {
     if (item.kind != "driver") f.fail(field + ".interface", "only drivers implement an actuator interface");
@@ -97,8 +98,7 @@ PluginManifest parse_manifest(const json& doc, const std::filesystem::path& file
 
   const std::string library = f.string(f.require(doc, "library", "library"), "library");
   const std::filesystem::path library_path(library);
-  if (library_path.is_absolute())
-    f.fail("library", "expected a path relative to the manifest's folder, found '" + library + "'");
+  if (library_path.is_absolute()) f.fail("library", "expected a path relative to the manifest's folder, found '" + library + "'");
   m.library = (m.file.parent_path() / library_path).lexically_normal();
 
   const json& abi = f.require(doc, "abi", "abi");
@@ -121,8 +121,7 @@ PluginManifest parse_manifest(const json& doc, const std::filesystem::path& file
 
   if (const auto it = doc.find("requires"); it != doc.end()) {
     if (!it->is_array()) f.fail("requires", std::string("expected array of interface names, found ") + it->type_name());
-    for (std::size_t i = 0; i < it->size(); ++i)
-      m.requires_.push_back(f.string((*it)[i], "requires[" + std::to_string(i) + "]"));
+    for (std::size_t i = 0; i < it->size(); ++i) m.requires_.push_back(f.string((*it)[i], "requires[" + std::to_string(i) + "]"));
   }
 
   if (const auto it = doc.find("config"); it != doc.end()) {

@@ -24,7 +24,7 @@ struct PluginManifest {
   std::string id, version, description;
   int abi_major = 0, abi_minor = 0;
   std::vector<ProvidedItem> provides;
-  std::vector<std::string> requires_;  // actuator interfaces some enabled driver must provide
+  std::vector<std::string> requires_;                       // actuator interfaces some enabled driver must provide
   nlohmann::json config_schema = nlohmann::json::object();  // validated: see apply_config_schema()
 };
 

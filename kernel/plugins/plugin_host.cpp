@@ -24,13 +24,12 @@ void set_state(PluginRecord& record, PluginState state, std::string reason, std:
   record.state = state;
   record.reason = std::move(reason);
   record.hint = std::move(hint);
-  if (is_failure(state)) plugins_logger()->error("plugin {} ({}): {}: {}", record.id, record.manifest_file.string(),
-                                                  to_string(state), record.reason);
+  if (is_failure(state))
+    plugins_logger()->error("plugin {} ({}): {}: {}", record.id, record.manifest_file.string(), to_string(state), record.reason);
 }
 
 bool installed(const PluginRecord& record) {
-  return record.manifest.has_value() && record.state != PluginState::DuplicateId &&
-         record.state != PluginState::InvalidManifest;
+  return record.manifest.has_value() && record.state != PluginState::DuplicateId && record.state != PluginState::InvalidManifest;
 }
 
 bool provides(const PluginRecord& record, std::string_view kind, std::string_view name) {
@@ -114,8 +113,7 @@ void PluginHost::scan(const std::vector<fs::path>& plugin_paths) {
         record->version = record->manifest->version;
       } catch (const std::exception& e) {
         record->id = normal.filename().string();  // something to show; the manifest's id is not trustworthy
-        set_state(*record, PluginState::InvalidManifest, e.what(),
-                  "fix the manifest (format: manifests/manifest.schema.json)");
+        set_state(*record, PluginState::InvalidManifest, e.what(), "fix the manifest (format: manifests/manifest.schema.json)");
         records_.push_back(std::move(record));
         continue;
       }
@@ -153,9 +151,8 @@ void PluginHost::load_needed(const std::set<std::string>& capabilities, const st
     if (providers.empty()) return;
     chosen.insert(providers.front());
     for (std::size_t i = 1; i < providers.size(); ++i)
-      passed_over.emplace(providers[i], std::string(kind) + " '" + name + "' is provided by " + providers.front()->id +
-                                            " (" + providers.front()->manifest_file.filename().string() +
-                                            "), first in scan order");
+      passed_over.emplace(providers[i], std::string(kind) + " '" + name + "' is provided by " + providers.front()->id + " (" +
+                                            providers.front()->manifest_file.filename().string() + "), first in scan order");
   };
   for (const auto& name : capabilities) choose("capability", name, providers_of_capability(name));
   for (const auto& protocol : driver_protocols) choose("driver", protocol, providers_of_driver(protocol));
@@ -167,8 +164,7 @@ void PluginHost::load_needed(const std::set<std::string>& capabilities, const st
     if (chosen.count(record.get()) != 0) {
       open(*record);
     } else if (const auto it = passed_over.find(record.get()); it != passed_over.end()) {
-      set_state(*record, PluginState::InstalledNotEnabled, it->second,
-                "remove one of the providers to choose the other");
+      set_state(*record, PluginState::InstalledNotEnabled, it->second, "remove one of the providers to choose the other");
     } else {
       std::vector<std::string> names;
       for (const auto& item : record->manifest->provides) names.push_back(item.kind + " '" + item.name + "'");
@@ -201,8 +197,8 @@ bool PluginHost::open_library(PluginRecord& record) {
   std::error_code ec;
   if (!fs::exists(manifest.library, ec))
     return set_state(record, PluginState::FailedToOpen, "library " + lib + " not found",
-                     "install " + manifest.library.filename().string() + " next to " +
-                         manifest.file.filename().string() + ", or fix its \"library\" field"),
+                     "install " + manifest.library.filename().string() + " next to " + manifest.file.filename().string() +
+                         ", or fix its \"library\" field"),
            false;
   auto library = std::make_shared<boost::dll::shared_library>();
   try {
@@ -217,7 +213,8 @@ bool PluginHost::open_library(PluginRecord& record) {
                        "run `ldd -r " + lib + "`"),
              false;
   } catch (const std::exception& e) {
-    return set_state(record, PluginState::FailedToOpen, "cannot open " + lib + ": " + e.what(), "run `ldd -r " + lib + "`"), false;
+    return set_state(record, PluginState::FailedToOpen, "cannot open " + lib + ": " + e.what(), "run `ldd -r " + lib + "`"),
+           false;
   }
   record.library = library;  // from here on the handle stays, whatever the outcome
   return true;
@@ -261,11 +258,12 @@ std::shared_ptr<detail::RecordingRegistrar> PluginHost::run_register(PluginRecor
     bool returned = false;
   };
   auto registration = std::make_shared<Registration>();
-  const bool finished = bounded_call("plugin.register", register_timeout_, [registration, who = record.id, register_plugin = d.register_plugin] {
-    sdk::Registrar& base = *registration->registrar;
-    registration->returned = guarded_call(who, "register", registration->failure,
-                                          [&] { register_plugin(reinterpret_cast<rcand_registrar*>(&base)); });
-  });
+  const bool finished =
+      bounded_call("plugin.register", register_timeout_, [registration, who = record.id, register_plugin = d.register_plugin] {
+        sdk::Registrar& base = *registration->registrar;
+        registration->returned = guarded_call(who, "register", registration->failure,
+                                              [&] { register_plugin(reinterpret_cast<rcand_registrar*>(&base)); });
+      });
   if (!finished)
     return set_state(record, PluginState::RegistrationFailed,
                      "register() did not return within " + std::to_string(register_timeout_.count()) +
@@ -288,7 +286,8 @@ bool PluginHost::accept(PluginRecord& record, detail::RecordingRegistrar& regist
   const PluginManifest& manifest = *record.manifest;
   std::vector<ProvidedItem> registered;
   for (const auto& c : registrar.capabilities) registered.push_back({"capability", c.info.name, c.info.actuates, ""});
-  for (const auto& dr : registrar.drivers) registered.push_back({"driver", dr.info.protocol, dr.info.actuates, dr.info.interface});
+  for (const auto& dr : registrar.drivers)
+    registered.push_back({"driver", dr.info.protocol, dr.info.actuates, dr.info.interface});
   if (const auto differences = provides_differences(manifest.provides, registered); !differences.empty())
     return set_state(record, PluginState::ManifestMismatch, join(differences, "; "),
                      "make " + manifest.file.filename().string() +
@@ -329,8 +328,7 @@ namespace {
 std::string provides_text(const PluginRecord& record) {
   if (!record.manifest) return "-";
   std::vector<std::string> names;
-  for (const auto& item : record.manifest->provides)
-    names.push_back(item.kind == "driver" ? "driver:" + item.name : item.name);
+  for (const auto& item : record.manifest->provides) names.push_back(item.kind == "driver" ? "driver:" + item.name : item.name);
   return join(names, ",");
 }
 }  // namespace

@@ -4,10 +4,10 @@
 #include <mutex>
 #include <set>
 
-#include "libs/base/keep_forever.hpp"
 #include "kernel/plugins/bounded_call.hpp"
-#include "kernel/plugins/settings_schema.hpp"
 #include "kernel/plugins/guarded.hpp"
+#include "kernel/plugins/settings_schema.hpp"
+#include "libs/base/keep_forever.hpp"
 
 namespace rcand::kernel {
 namespace {
@@ -53,10 +53,8 @@ template <class Object> void offer_obstacle_source(KernelServices& services, con
   const auto* source = dynamic_cast<const sdk::ObstacleSource*>(object);
   if (source == nullptr) return;
   const sdk::ObstacleSource* none = nullptr;
-  if (services.obstacles.compare_exchange_strong(none, source))
-    logger("kernel.plugins")->info("{} is the obstacle source", what);
-  else
-    logger("kernel.plugins")->warn("{} also provides obstacles; the first one found is used", what);
+  if (services.obstacles.compare_exchange_strong(none, source)) logger("kernel.plugins")->info("{} is the obstacle source", what);
+  else logger("kernel.plugins")->warn("{} also provides obstacles; the first one found is used", what);
 }
 
 // The plugin's factory, then start(), then `more` (a capability's routes()), all through the trampoline, on a thread
@@ -190,8 +188,7 @@ void PluginRuntime::start_capabilities(const std::vector<std::string>& names, co
   auto log = logger("kernel.plugins");
   for (const auto& name : names) {
     if (name == kStatusCapability) continue;  // the kernel's own
-    auto [registered, plugin] =
-        find_loaded(host_, host_.providers_of_capability(name), &PluginRecord::capabilities, name);
+    auto [registered, plugin] = find_loaded(host_, host_.providers_of_capability(name), &PluginRecord::capabilities, name);
     auto& instance = capabilities_.emplace_back();
     instance.name = name;
     if (registered == nullptr) {
@@ -208,21 +205,20 @@ void PluginRuntime::start_capabilities(const std::vector<std::string>& names, co
       log->error("capability {}: {}", name, instance.health.reason());
       continue;
     }
-    const nlohmann::json raw = config.runtime.capabilities.contains(name) ? config.runtime.capabilities.at(name)
-                                                                          : nlohmann::json::object();
+    const nlohmann::json raw =
+        config.runtime.capabilities.contains(name) ? config.runtime.capabilities.at(name) : nlohmann::json::object();
     auto settings = validated_settings(config, *plugin, raw, false, "runtime.capabilities." + name);
     instance.context = std::make_unique<InstanceContext>(plugin->id, name, services_, std::move(settings), instance.health);
-    instance.handler_worker = std::make_unique<WorkerThread>("cap." + name, [&health = instance.health](const std::string& why) {
-      health.mark_failed(why);
-    });
+    instance.handler_worker = std::make_unique<WorkerThread>(
+        "cap." + name, [&health = instance.health](const std::string& why) { health.mark_failed(why); });
 
     instance.who = "plugin " + plugin->id + " capability " + name;
     bool abandoned = false;
     std::vector<sdk::Route> routes;
-    instance.object = create_and_start<sdk::Capability>(
-        instance.who, registered->factory, *instance.context, instance.health,
-        std::chrono::milliseconds(config.runtime.plugin_start_timeout_ms), abandoned,
-        [&routes](sdk::Capability& object) { routes = object.routes(); });
+    instance.object =
+        create_and_start<sdk::Capability>(instance.who, registered->factory, *instance.context, instance.health,
+                                          std::chrono::milliseconds(config.runtime.plugin_start_timeout_ms), abandoned,
+                                          [&routes](sdk::Capability& object) { routes = object.routes(); });
     if (abandoned) keep_forever(instance.context);  // still in use by the plugin thread that never returned
     if (!instance.object) continue;
     if (!instance.health.failed()) {
@@ -314,8 +310,8 @@ template <class Instances> bool shut_down_all(Instances& instances, std::chrono:
       if (state == DeadlineCrew::State::Failed)
         logger("kernel.plugins")->error("{}: shutdown() threw: {}", members[i]->who, outcomes[i].error);
       if (state == DeadlineCrew::State::Pending)
-        logger("kernel.plugins")->error("{}: shutdown() did not return within {} ms; left running", members[i]->who,
-                                        deadline.count());
+        logger("kernel.plugins")
+            ->error("{}: shutdown() did not return within {} ms; left running", members[i]->who, deadline.count());
     } catch (...) {
     }
     if (state == DeadlineCrew::State::Pending) abandoned = true;

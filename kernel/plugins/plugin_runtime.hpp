@@ -13,11 +13,11 @@
 #include <vector>
 
 #include "kernel/config/robot_config.hpp"
+#include "kernel/plugins/instance_context.hpp"
+#include "kernel/plugins/plugin_host.hpp"
+#include "kernel/plugins/status_reader.hpp"
 #include "kernel/safety/actuator_table.hpp"
 #include "kernel/safety/deadline_crew.hpp"
-#include "kernel/plugins/instance_context.hpp"
-#include "kernel/plugins/status_reader.hpp"
-#include "kernel/plugins/plugin_host.hpp"
 
 namespace rcand::kernel {
 
@@ -29,7 +29,7 @@ struct DriverInstance {
   bool actuates = false;
   InstanceHealth health;
   std::unique_ptr<InstanceContext> context;
-  std::unique_ptr<sdk::Driver> object;  // null when it could not be created
+  std::unique_ptr<sdk::Driver> object;   // null when it could not be created
   std::size_t status_index = kNoStatus;  // its source in the status reader
 };
 
@@ -39,7 +39,7 @@ struct CapabilityInstance {
   bool actuates = false;
   InstanceHealth health;
   std::unique_ptr<InstanceContext> context;
-  std::unique_ptr<sdk::Capability> object;     // null when it could not be created
+  std::unique_ptr<sdk::Capability> object;  // null when it could not be created
   std::vector<sdk::Route> routes;
   std::unique_ptr<WorkerThread> handler_worker;  // "cap.<name>": handlers run here, one at a time
   std::size_t status_index = kNoStatus;          // its source in the status reader
@@ -92,7 +92,7 @@ class PluginRuntime {
   // destroyed under it.
   bool abandon_capabilities_ = false;
   bool abandon_drivers_ = false;
-  std::unique_ptr<DeadlineCrew> estop_crew_;  // declared after the instances: stopped before they are destroyed
+  std::unique_ptr<DeadlineCrew> estop_crew_;     // declared after the instances: stopped before they are destroyed
   std::unique_ptr<StatusReader> status_reader_;  // likewise
 };
 

@@ -12,8 +12,7 @@ namespace {
 using nlohmann::json;
 
 constexpr std::array<std::string_view, 6> kTypes{"string", "number", "integer", "boolean", "array", "object"};
-constexpr std::array<std::string_view, 7> kEntryKeys{"type",    "default", "required",   "minimum",
-                                                     "maximum", "enum",    "description"};
+constexpr std::array<std::string_view, 7> kEntryKeys{"type", "default", "required", "minimum", "maximum", "enum", "description"};
 
 bool type_matches(std::string_view type, const json& value) {
   if (type == "string") return value.is_string();
@@ -124,7 +123,8 @@ void check_config_schema(const json& schema, const std::string& prefix) {
                                 closest_hint(attribute, kEntryKeys));
     }
     const auto type = entry.find("type");
-    if (type == entry.end()) throw ConfigSchemaError(field + ".type: required (one of string, number, integer, boolean, array, object)");
+    if (type == entry.end())
+      throw ConfigSchemaError(field + ".type: required (one of string, number, integer, boolean, array, object)");
     if (!type->is_string() || std::find(kTypes.begin(), kTypes.end(), type->get<std::string>()) == kTypes.end())
       throw ConfigSchemaError(field + ".type: expected one of string, number, integer, boolean, array, object, found " +
                               type->dump());
@@ -136,16 +136,14 @@ void check_config_schema(const json& schema, const std::string& prefix) {
       if (!numeric) throw ConfigSchemaError(field + "." + bound + ": only allowed for number and integer settings");
       if (!it->is_number()) throw ConfigSchemaError(field + "." + bound + ": expected number, found " + it->type_name());
     }
-    if (entry.contains("minimum") && entry.contains("maximum") &&
-        entry["minimum"].get<double>() > entry["maximum"].get<double>())
+    if (entry.contains("minimum") && entry.contains("maximum") && entry["minimum"].get<double>() > entry["maximum"].get<double>())
       throw ConfigSchemaError(field + ".minimum: greater than maximum");
     if (const auto required = entry.find("required"); required != entry.end() && !required->is_boolean())
       throw ConfigSchemaError(field + ".required: expected boolean, found " + required->type_name());
     if (const auto text = entry.find("description"); text != entry.end() && !text->is_string())
       throw ConfigSchemaError(field + ".description: expected string, found " + text->type_name());
     if (const auto choices = entry.find("enum"); choices != entry.end()) {
-      if (!choices->is_array() || choices->empty())
-        throw ConfigSchemaError(field + ".enum: expected a non-empty array");
+      if (!choices->is_array() || choices->empty()) throw ConfigSchemaError(field + ".enum: expected a non-empty array");
       for (const auto& choice : *choices)
         if (!type_matches(type_name, choice))
           throw ConfigSchemaError(field + ".enum: " + choice.dump() + " is not a " + type_name);
@@ -165,8 +163,7 @@ json apply_config_schema(const json& schema, const json& settings, bool allow_un
       if (const auto fallback = entry.find("default"); fallback != entry.end()) result[key] = *fallback;
       else if (entry.value("required", false))
         throw ConfigSchemaError(key + ": required (" + expectation(entry["type"].get<std::string>(), entry) +
-                                (entry.contains("description") ? ": " + entry["description"].get<std::string>() : "") +
-                                ")");
+                                (entry.contains("description") ? ": " + entry["description"].get<std::string>() : "") + ")");
       else if (it != result.end()) result.erase(it);  // an explicit null means "not set"
       continue;
     }

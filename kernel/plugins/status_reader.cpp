@@ -1,7 +1,7 @@
 #include "kernel/plugins/status_reader.hpp"
 
-#include "libs/base/logging.hpp"
 #include "kernel/plugins/guarded.hpp"
+#include "libs/base/logging.hpp"
 
 namespace rcand::kernel {
 namespace {
@@ -60,10 +60,10 @@ std::vector<std::optional<nlohmann::json>> StatusReader::read(std::span<const st
     }
     if (slot.hung.exchange(true)) continue;  // another reader already reported it
     const auto& source = sources_[index];
-    const std::string why = state == DeadlineCrew::State::Failed
-                                ? "status() ended the thread: " + outcomes[a].error
-                                : "status() did not return within " + std::to_string(kStatusDeadline.count()) +
-                                      " ms (it must not block)";
+    const std::string why =
+        state == DeadlineCrew::State::Failed
+            ? "status() ended the thread: " + outcomes[a].error
+            : "status() did not return within " + std::to_string(kStatusDeadline.count()) + " ms (it must not block)";
     logger("kernel.plugins")->error("{}: {}", source.who, why);
     if (source.health != nullptr) source.health->mark_failed(why);
   }

@@ -49,7 +49,8 @@ std::vector<std::string> auto_detect(const RobotConfig& config, const ProviderLo
   }
   if (drive) {
     if (has_nav_physics(config)) add_unique(found, std::string(kNavCapability));
-    else notes.emplace_back("nav not declared: physics.wheel_circumference_m and physics.turn_time_per_deg_s are required (§10.2)");
+    else
+      notes.emplace_back("nav not declared: physics.wheel_circumference_m and physics.turn_time_per_deg_s are required (§10.2)");
     add_unique(found, std::string(kTeleopCapability));
   }
   if (config.has_camera) add_unique(found, std::string(kVisionCapability));
@@ -82,9 +83,7 @@ bool has_nav_physics(const RobotConfig& config) noexcept {
 
 CapabilityPlan plan_capabilities(const RobotConfig& config, const ProviderLookup& lookup) {
   CapabilityPlan plan;
-  auto providers = [&](std::string_view name) {
-    return lookup.providers ? lookup.providers(name) : std::vector<std::string>{};
-  };
+  auto providers = [&](std::string_view name) { return lookup.providers ? lookup.providers(name) : std::vector<std::string>{}; };
 
   if (!config.capabilities) {
     plan.auto_detected = true;
@@ -125,8 +124,7 @@ CapabilityPlan plan_capabilities(const RobotConfig& config, const ProviderLookup
         if (standard != nullptr)
           message += "; the plugin that could is " + std::string(first_party_provider(name).plugin) + " (package " +
                      std::string(first_party_provider(name).package) + ")";
-        else
-          message += "; install the vendor plugin that provides it into a plugin path";
+        else message += "; install the vendor plugin that provides it into a plugin path";
         fail(config, path, message);
       }
     }
@@ -169,15 +167,10 @@ Advertisement CapabilityRegistry::advertise(std::string_view status, std::uint16
             {"name", identity_.name},
             {"status", std::string(status)}};
 
-  ad.discover = {{"ruri", identity_.ruri},
-                 {"name", identity_.name},
-                 {"model", identity_.model},
-                 {"version", kRcanVersion},
-                 {"status", status},
-                 {"port", port},
-                 {"capabilities", ad.capabilities},
-                 {"service_type", kServiceType},
-                 {"txt_record", ad.txt}};
+  ad.discover = {
+      {"ruri", identity_.ruri}, {"name", identity_.name}, {"model", identity_.model},        {"version", kRcanVersion},
+      {"status", status},       {"port", port},           {"capabilities", ad.capabilities}, {"service_type", kServiceType},
+      {"txt_record", ad.txt}};
   return ad;
 }
 

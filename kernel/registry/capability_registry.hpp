@@ -51,10 +51,10 @@ struct RobotIdentity {
 };
 
 struct Advertisement {
-  std::vector<std::string> capabilities;        // the one list
-  nlohmann::json config_view;                   // {"rcan_protocol":{"capabilities":[...]}}
-  std::map<std::string, std::string> txt;       // mDNS TXT keys (docs/protocol.md §5)
-  nlohmann::json discover;                      // GET /api/discovery (docs/protocol.md §5 ruling)
+  std::vector<std::string> capabilities;   // the one list
+  nlohmann::json config_view;              // {"rcan_protocol":{"capabilities":[...]}}
+  std::map<std::string, std::string> txt;  // mDNS TXT keys (docs/protocol.md §5)
+  nlohmann::json discover;                 // GET /api/discovery (docs/protocol.md §5 ruling)
 };
 
 class CapabilityRegistry {

@@ -18,9 +18,9 @@ inline constexpr std::string_view kVisionCapability = "vision";
 inline constexpr std::string_view kChatCapability = "chat";
 inline constexpr std::string_view kArmCapability = "arm";
 
-using sdk::contract::StandardCapability;
 using sdk::contract::capability_of_action;
 using sdk::contract::standard_capabilities;
+using sdk::contract::StandardCapability;
 inline const StandardCapability* find_standard_capability(std::string_view name) noexcept {
   return sdk::contract::find_standard(name);
 }

@@ -56,9 +56,9 @@ class ActuatorTable {
   std::uint32_t stops_waiting() const noexcept { return exit_waiters_.load(); }
 
  private:
-  std::deque<ActuatorSlot> slots_;  // deque: slots never move, so pointers stay valid
-  mutable std::atomic<std::uint32_t> command_exits_{0};    // bumped by every leave_command (the futex word)
-  mutable std::atomic<std::uint32_t> exit_waiters_{0};     // stops waiting in wait_for_commands
+  std::deque<ActuatorSlot> slots_;                       // deque: slots never move, so pointers stay valid
+  mutable std::atomic<std::uint32_t> command_exits_{0};  // bumped by every leave_command (the futex word)
+  mutable std::atomic<std::uint32_t> exit_waiters_{0};   // stops waiting in wait_for_commands
 };
 
 }  // namespace rcand::kernel

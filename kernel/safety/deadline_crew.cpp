@@ -54,7 +54,7 @@ struct DeadlineCrew::Shared {
 
   std::atomic<std::uint32_t> round{0};
   std::atomic<std::uint32_t> completions{0};  // bumped (and woken) whenever a member finishes or retires
-  std::deque<Member> members;  // deque: members never move, their threads hold references
+  std::deque<Member> members;                 // deque: members never move, their threads hold references
 
   void serve(Member& member);
   void completed() noexcept {
@@ -175,16 +175,22 @@ std::vector<DeadlineCrew::Outcome> DeadlineCrew::run_round(ForEach each, Clock::
 
 std::vector<DeadlineCrew::Outcome> DeadlineCrew::run_all(std::chrono::steady_clock::time_point deadline) noexcept {
   auto& members = shared_->members;
-  return run_round([&](auto&& f) { for (auto& member : members) f(member); }, deadline);
+  return run_round(
+      [&](auto&& f) {
+        for (auto& member : members) f(member);
+      },
+      deadline);
 }
 
 std::vector<DeadlineCrew::Outcome> DeadlineCrew::run_some(std::span<const std::size_t> indices,
                                                           std::chrono::steady_clock::time_point deadline) noexcept {
   auto& members = shared_->members;
-  return run_round([&](auto&& f) {
-    for (const auto index : indices)
-      if (index < members.size()) f(members[index]);
-  }, deadline);
+  return run_round(
+      [&](auto&& f) {
+        for (const auto index : indices)
+          if (index < members.size()) f(members[index]);
+      },
+      deadline);
 }
 
 bool DeadlineCrew::quiesce(std::chrono::milliseconds grace) noexcept {

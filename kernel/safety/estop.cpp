@@ -50,8 +50,9 @@ Estop::StopReport Estop::latch(const std::string& reason, const std::string& sou
     sleepers_.notify_all();
     for (auto& listener : listeners_) listener();
     if (report.newly_latched)
-      logger("kernel.estop")->warn("e-stop latched by {}: {} ({} actuators halted in {} us)", source, reason,
-                                   report.drivers.size(), report.latency_us);
+      logger("kernel.estop")
+          ->warn("e-stop latched by {}: {} ({} actuators halted in {} us)", source, reason, report.drivers.size(),
+                 report.latency_us);
   } catch (...) {  // bookkeeping must never undo a stop that already happened
   }
   return report;

@@ -17,8 +17,7 @@ class KernelMotionGate final : public sdk::MotionGate {
  public:
   KernelMotionGate(ActuatorTable& actuators, Estop& estop) : actuators_(actuators), estop_(estop) {}
 
-  sdk::GateStatus actuate(std::string_view actuator_id,
-                          const std::function<void(sdk::ActuatorDriver&)>& command) override;
+  sdk::GateStatus actuate(std::string_view actuator_id, const std::function<void(sdk::ActuatorDriver&)>& command) override;
   void halt(std::string_view actuator_id) noexcept override;
   std::vector<sdk::ActuatorInfo> actuators() const override;
   sdk::GateStatus inspect(std::string_view actuator_id,

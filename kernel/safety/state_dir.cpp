@@ -71,7 +71,8 @@ std::string write_state_file(const fs::path& dir, const std::string& name, const
     return "cannot fsync " + temp.string() + ": " + error;
   }
   ::close(fd);
-  if (::rename(temp.c_str(), final_path.c_str()) != 0) return "cannot rename to " + final_path.string() + ": " + std::strerror(errno);
+  if (::rename(temp.c_str(), final_path.c_str()) != 0)
+    return "cannot rename to " + final_path.string() + ": " + std::strerror(errno);
   if (!fsync_state_dir(dir)) return "cannot fsync " + dir.string();
   return {};
 }
@@ -130,7 +131,8 @@ StateDir::StateDir(fs::path dir) : dir_(std::move(dir)) {
     if (const auto text = read_state_file(dir_ / kLatchFile)) {
       previous_.latch = parse(*text);
       // A record that cannot be read may have said "latched": assume it did.
-      if (!previous_.latch) previous_.latch = LatchRecord{true, std::string("the e-stop record ") + kLatchFile + " is unreadable", "startup", 0};
+      if (!previous_.latch)
+        previous_.latch = LatchRecord{true, std::string("the e-stop record ") + kLatchFile + " is unreadable", "startup", 0};
     }
     const std::string marker = "pid " + std::to_string(::getpid()) + ", started " + std::to_string(state_wall_ms()) + " ms\n";
     if (const auto error = write_state_file(dir_, kRunningFile, marker); !error.empty()) state_dir_error(dir_, error);
@@ -199,8 +201,8 @@ void StateDir::clean_exit(const LatchRecord& last) noexcept {
   std::error_code ec;
   fs::remove(dir_ / kRunningFile, ec);
   if (ec || !fsync_state_dir(dir_))
-    logger("kernel.state")->error("runtime.state_dir: cannot remove the running marker in {}; the next start will be latched",
-                                  dir_.string());
+    logger("kernel.state")
+        ->error("runtime.state_dir: cannot remove the running marker in {}; the next start will be latched", dir_.string());
 }
 
 }  // namespace rcand::kernel

@@ -37,13 +37,10 @@ std::size_t RateLimiter::keys() const {
 // key is busy, the one idle longest goes (its owner starts again from a full bucket: generous, never a lock-out).
 void RateLimiter::make_room(std::int64_t now_us) {
   const double refill_us = capacity_ / limit_.per_s * 1e6;
-  std::erase_if(buckets_, [&](const auto& entry) {
-    return static_cast<double>(now_us - entry.second.updated_us) >= refill_us;
-  });
+  std::erase_if(buckets_, [&](const auto& entry) { return static_cast<double>(now_us - entry.second.updated_us) >= refill_us; });
   if (buckets_.size() < max_keys_) return;
-  const auto oldest = std::min_element(buckets_.begin(), buckets_.end(), [](const auto& a, const auto& b) {
-    return a.second.updated_us < b.second.updated_us;
-  });
+  const auto oldest = std::min_element(buckets_.begin(), buckets_.end(),
+                                       [](const auto& a, const auto& b) { return a.second.updated_us < b.second.updated_us; });
   buckets_.erase(oldest);
 }
 

@@ -18,8 +18,9 @@ std::string enter_stop_path_priority(int priority) noexcept {
     const int error = pthread_setschedparam(pthread_self(), SCHED_FIFO, &param);
     if (error == 0) return {};
     std::string why = "runtime.stop_path_priority " + std::to_string(priority) + ": cannot make the stop path real-time (" +
-                      std::strerror(error) + "); stops share the CPU with all other work. Allow it with LimitRTPRIO=" +
-                      std::to_string(priority) + " (systemd) or CAP_SYS_NICE, or set it to 0";
+                      std::strerror(error) +
+                      "); stops share the CPU with all other work. Allow it with LimitRTPRIO=" + std::to_string(priority) +
+                      " (systemd) or CAP_SYS_NICE, or set it to 0";
     static std::atomic<bool> warned{false};
     if (!warned.exchange(true)) logger("kernel")->warn("{}", why);
     return why;

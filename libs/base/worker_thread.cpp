@@ -1,7 +1,7 @@
 #include "libs/base/worker_thread.hpp"
 
-#include <boost/asio/post.hpp>
 #include <pthread.h>
+#include <boost/asio/post.hpp>
 
 #include "libs/base/logging.hpp"
 

@@ -1,8 +1,8 @@
 // sdk::Worker on one dedicated thread (an asio io_context), named and joined by the kernel.
 #pragma once
 
-#include <boost/asio/io_context.hpp>
 #include <boost/asio/executor_work_guard.hpp>
+#include <boost/asio/io_context.hpp>
 #include <boost/asio/steady_timer.hpp>
 
 #include <functional>

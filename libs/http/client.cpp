@@ -60,8 +60,7 @@ std::string to_lower(std::string_view text) {
 }
 
 bool has_header(const std::map<std::string, std::string>& headers, std::string_view name) {
-  return std::any_of(headers.begin(), headers.end(),
-                     [&](const auto& h) { return beast::iequals(h.first, bsv(name)); });
+  return std::any_of(headers.begin(), headers.end(), [&](const auto& h) { return beast::iequals(h.first, bsv(name)); });
 }
 
 // A failure on a kept-alive connection before any byte of the answer: the server had closed it while idle.
@@ -97,8 +96,7 @@ struct Client::Impl {
 
   // Runs the loop until the operations started by `start` complete. Every operation is on the stream, whose
   // deadline bounds it, so run() cannot outlive the deadline by much.
-  template <class Start>
-  beast::error_code run(Start&& start) {
+  template <class Start> beast::error_code run(Start&& start) {
     beast::error_code result = net::error::would_block;
     ioc.restart();
     start([&result](beast::error_code ec, auto&&...) { result = ec; });
@@ -148,8 +146,7 @@ struct Client::Impl {
   }
 };
 
-Client::Client(std::string host, std::uint16_t port, std::chrono::milliseconds timeout)
-    : impl_(std::make_unique<Impl>()) {
+Client::Client(std::string host, std::uint16_t port, std::chrono::milliseconds timeout) : impl_(std::make_unique<Impl>()) {
   impl_->host = std::move(host);
   impl_->port = port;
   impl_->timeout = timeout;

@@ -112,7 +112,8 @@ void Listener::admit_busy(Stream::socket_type socket, std::string address) {
   // address, else from the address holding most of the lane, so a flood evicts itself and not the one operator. A
   // stop is sent with the connection: one whose bytes are waiting to be read is never evicted. When every waiter
   // has sent something, the newcomer is refused instead (those are answered soon).
-  if (busy_lane_.size() >= core_.options.busy_lane && !evict_silent_waiter(address) && !evict_silent_waiter(busiest_lane_address())) {
+  if (busy_lane_.size() >= core_.options.busy_lane && !evict_silent_waiter(address) &&
+      !evict_silent_waiter(busiest_lane_address())) {
     socket.close(ignored);
     return;
   }

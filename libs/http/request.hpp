@@ -15,7 +15,7 @@ struct Request {
   std::map<std::string, std::string> query;    // percent-decoded (+ is space); the first of repeated keys wins
   std::map<std::string, std::string> headers;  // names lower-cased; repeated headers joined with ", "
   std::string body;
-  std::string remote;                          // "127.0.0.1:54321" ("[::1]:54321" for IPv6)
+  std::string remote;  // "127.0.0.1:54321" ("[::1]:54321" for IPv6)
 
   // The header's value, looked up by its lower-case name.
   std::optional<std::string_view> header(std::string_view lower_name) const;

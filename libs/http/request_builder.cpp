@@ -25,13 +25,15 @@ std::string ascii_case(std::string_view text, char from, char to) {
 std::optional<HeaderRefusal> check_header(const RequestParser::value_type& message) {
   const auto method = ssv(message.method_string());
   if (std::any_of(method.begin(), method.end(), [](char c) { return c >= 'a' && c <= 'z'; }))
-    return HeaderRefusal{400, "BAD_REQUEST", "method '" + bounded_text(method, 32) + "' is not upper case (HTTP methods are case-sensitive)"};
+    return HeaderRefusal{400, "BAD_REQUEST",
+                         "method '" + bounded_text(method, 32) + "' is not upper case (HTTP methods are case-sensitive)"};
   if (message.version() >= 11 && message.find(boost::beast::http::field::host) == message.end())
     return HeaderRefusal{400, "BAD_REQUEST", "an HTTP/1.1 request needs a Host header"};
   if (const auto coding = message.find(boost::beast::http::field::transfer_encoding); coding != message.end()) {
     std::string codings;
     for (const auto& field : message)
-      if (field.name() == boost::beast::http::field::transfer_encoding) codings += (codings.empty() ? "" : ",") + std::string(ssv(field.value()));
+      if (field.name() == boost::beast::http::field::transfer_encoding)
+        codings += (codings.empty() ? "" : ",") + std::string(ssv(field.value()));
     std::erase_if(codings, [](char c) { return c == ' ' || c == '\t'; });
     if (ascii_case(codings, 'A', 'a') != "chunked")
       return HeaderRefusal{501, "NOT_IMPLEMENTED",

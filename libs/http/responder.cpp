@@ -23,9 +23,8 @@ void Responder::respond(Response response) {
   // Inline when already on the session's loop (the common, fast case); queued otherwise. A stopped loop never runs
   // it, and destroys it with the loop.
   auto executor = session->executor();
-  boost::asio::dispatch(executor, [session = std::move(session), response = std::move(response)]() mutable {
-    session->send(std::move(response));
-  });
+  boost::asio::dispatch(
+      executor, [session = std::move(session), response = std::move(response)]() mutable { session->send(std::move(response)); });
 }
 
 }  // namespace rcand::http::detail

@@ -2,8 +2,8 @@
 // that outlives the Server keeps them (stopped) alive and its late answer is simply dropped.
 #pragma once
 
-#include <boost/asio/io_context.hpp>
 #include <spdlog/logger.h>
+#include <boost/asio/io_context.hpp>
 
 #include <atomic>
 #include <cstddef>

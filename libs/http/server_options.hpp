@@ -26,23 +26,23 @@ struct UpgradeVerdict {
 using UpgradeHandler = std::function<UpgradeVerdict(const Request&)>;
 
 struct ServerOptions {
-  std::string address = "127.0.0.1";                // an IP address or a resolvable host name
-  std::uint16_t port = 0;                           // 0 = any free port
-  int io_threads = 2;                               // >= 1 worker loops, each on its own thread (plus the accept loop)
-  std::size_t body_limit = 1024 * 1024;             // larger → 413 PAYLOAD_TOO_LARGE, then close
+  std::string address = "127.0.0.1";                 // an IP address or a resolvable host name
+  std::uint16_t port = 0;                            // 0 = any free port
+  int io_threads = 2;                                // >= 1 worker loops, each on its own thread (plus the accept loop)
+  std::size_t body_limit = 1024 * 1024;              // larger → 413 PAYLOAD_TOO_LARGE, then close
   std::chrono::milliseconds header_timeout{10'000};  // whole request (headers+body) must arrive within this,
                                                      // counted from its first byte (from accept for the first one)
   std::chrono::milliseconds idle_timeout{60'000};    // keep-alive connection idle between requests; also bounds
                                                      // writing one response to a client that does not read
-  std::size_t max_connections = 10'000;             // beyond it a new connection is busy (see priority), logged once
-  std::size_t max_connections_per_address = 256;    // one client address holds at most this many; beyond: busy
-  UpgradeHandler upgrade;                           // empty: upgrade requests go to the Handler
+  std::size_t max_connections = 10'000;              // beyond it a new connection is busy (see priority), logged once
+  std::size_t max_connections_per_address = 256;     // one client address holds at most this many; beyond: busy
+  UpgradeHandler upgrade;                            // empty: upgrade requests go to the Handler
   // The requests nothing may delay or lock out (rcand: the e-stop). When set, the accept thread (an event loop of
   // its own, on which no other work ever waits) reads each new connection's requests and handles them there while
-  // this says so; the first other request moves the connection to a worker loop for good. A connection beyond the limits is not closed at once
-  // but joins the busy lane (at most busy_lane of them, the oldest evicted first, each given at most 2 s to send its
-  // request): a priority request is answered, anything else gets 503 SERVER_BUSY with Retry-After. Unset: the
-  // acceptor hands connections straight to the workers and closes those beyond the limits.
+  // this says so; the first other request moves the connection to a worker loop for good. A connection beyond the limits is not
+  // closed at once but joins the busy lane (at most busy_lane of them, the oldest evicted first, each given at most 2 s to send
+  // its request): a priority request is answered, anything else gets 503 SERVER_BUSY with Retry-After. Unset: the acceptor hands
+  // connections straight to the workers and closes those beyond the limits.
   std::function<bool(const Request&)> priority;
   std::size_t busy_lane = 256;  // more than a burst of silent connections can fill while a stop is being sent
   // Run first on each I/O thread: `accept_loop` true on the accept thread (rcand makes it real-time there).

@@ -17,9 +17,9 @@
 
 #include <boost/beast/websocket/rfc6455.hpp>
 
-#include "libs/http/upgrade.hpp"
 #include "libs/http/request_builder.hpp"
 #include "libs/http/responder.hpp"
+#include "libs/http/upgrade.hpp"
 
 namespace rcand::http::detail {
 
@@ -65,9 +65,7 @@ bool is_safe_value(std::string_view value) noexcept {
   return value.find_first_of(std::string_view{"\r\n\0", 3}) == std::string_view::npos;
 }
 
-bool has_close_token(std::string_view value) {
-  return to_lower(value).find("close") != std::string::npos;
-}
+bool has_close_token(std::string_view value) { return to_lower(value).find("close") != std::string::npos; }
 
 // Boost 1.74's Beast speaks boost::string_view.
 beast::string_view bsv(std::string_view s) noexcept { return {s.data(), s.size()}; }
@@ -127,14 +125,13 @@ void Session::wait_for_request() {
   }
   // Idle between requests: wait for the first byte under idle_timeout; the request itself then gets header_timeout.
   stream_.expires_after(core_.options.idle_timeout);
-  stream_.async_read_some(buffer_.prepare(kReadChunk),
-                          [self = shared_from_this()](beast::error_code ec, std::size_t bytes) {
-                            if (ec) return self->on_read_error(ec);
-                            self->buffer_.commit(bytes);
-                            if (self->closed_) return;
-                            self->stream_.expires_after(self->core_.options.header_timeout);
-                            self->parse_buffered();
-                          });
+  stream_.async_read_some(buffer_.prepare(kReadChunk), [self = shared_from_this()](beast::error_code ec, std::size_t bytes) {
+    if (ec) return self->on_read_error(ec);
+    self->buffer_.commit(bytes);
+    if (self->closed_) return;
+    self->stream_.expires_after(self->core_.options.header_timeout);
+    self->parse_buffered();
+  });
 }
 
 void Session::new_parser() {
@@ -152,17 +149,14 @@ void Session::parse_buffered() {
   if (parser_->is_done()) return dispatch_request();
   if (parser_->is_header_done()) return on_header({});
   bhttp::async_read_header(stream_, buffer_, *parser_,
-                           [self = shared_from_this()](beast::error_code read_ec, std::size_t) {
-                             self->on_header(read_ec);
-                           });
+                           [self = shared_from_this()](beast::error_code read_ec, std::size_t) { self->on_header(read_ec); });
 }
 
 void Session::read_header() {
   new_parser();
   // The deadline set before this covers header and body: a slow-loris client is cut off at header_timeout.
-  bhttp::async_read_header(stream_, buffer_, *parser_, [self = shared_from_this()](beast::error_code ec, std::size_t) {
-    self->on_header(ec);
-  });
+  bhttp::async_read_header(stream_, buffer_, *parser_,
+                           [self = shared_from_this()](beast::error_code ec, std::size_t) { self->on_header(ec); });
 }
 
 void Session::on_header(beast::error_code ec) {
@@ -204,8 +198,7 @@ void Session::on_read_error(beast::error_code ec) {
   if (ec == bhttp::error::body_limit) {
     core_.log->debug("{}: request body over the limit of {} bytes", remote_, core_.options.body_limit);
     return send_error_and_close(413, "PAYLOAD_TOO_LARGE",
-                                "request body exceeds the limit of " + std::to_string(core_.options.body_limit) +
-                                    " bytes");
+                                "request body exceeds the limit of " + std::to_string(core_.options.body_limit) + " bytes");
   }
   if (ec == bhttp::error::header_limit) {
     core_.log->debug("{}: request header over {} bytes", remote_, kHeaderLimit);
@@ -325,7 +318,8 @@ bool Session::try_upgrade(Request& request) {
   // RFC 6455 §4.4: a version we do not speak gets 426 naming the one we do (as JSON, like every error here).
   if (auto version = request.header("sec-websocket-version"); verdict.take && (!version || *version != "13")) {
     verdict.take = nullptr;
-    verdict.refuse = error_response(426, "UPGRADE_REQUIRED", "unsupported WebSocket version (Sec-WebSocket-Version): only 13 is spoken");
+    verdict.refuse =
+        error_response(426, "UPGRADE_REQUIRED", "unsupported WebSocket version (Sec-WebSocket-Version): only 13 is spoken");
     verdict.refuse->headers.emplace_back("Sec-WebSocket-Version", "13");
   }
   if (verdict.take) {
@@ -422,8 +416,7 @@ void Session::linger_close() {
 }
 
 void Session::drain() {
-  stream_.async_read_some(buffer_.prepare(kReadChunk), [self = shared_from_this()](beast::error_code ec,
-                                                                                    std::size_t bytes) {
+  stream_.async_read_some(buffer_.prepare(kReadChunk), [self = shared_from_this()](beast::error_code ec, std::size_t bytes) {
     self->drained_ += bytes;
     if (ec || self->closed_ || self->drained_ > kLingerBytes) return self->close();
     self->drain();

@@ -77,7 +77,7 @@ class Session : public std::enable_shared_from_this<Session> {
   Stream stream_;
   boost::beast::flat_buffer buffer_;
   std::optional<boost::beast::http::request_parser<boost::beast::http::string_body>> parser_;
-  boost::beast::http::request<boost::beast::http::string_body> message_;  // the request being handled (parser's)
+  boost::beast::http::request<boost::beast::http::string_body> message_;    // the request being handled (parser's)
   boost::beast::http::response<boost::beast::http::string_body> response_;  // alive while being written
   std::string remote_;
   std::size_t drained_ = 0;

@@ -91,8 +91,8 @@ std::string parse_target(std::string_view target, std::string& path, std::map<st
     if (pair.empty()) continue;
     auto eq = pair.find('=');
     auto key = decode_component(pair.substr(0, eq), true);
-    auto value = eq == std::string_view::npos ? std::optional<std::string>{std::string{}}
-                                              : decode_component(pair.substr(eq + 1), true);
+    auto value =
+        eq == std::string_view::npos ? std::optional<std::string>{std::string{}} : decode_component(pair.substr(eq + 1), true);
     if (!key || !value) {
       query.clear();
       return "bad percent-encoding in the query string";

@@ -26,8 +26,8 @@ class AvahiConnection {
   // Every event runs on the poll thread with the poll lock held.
   struct Events {
     std::function<void(AvahiClient*)> running;  // the daemon serves (first time or again): (re)create entries
-    std::function<void()> interrupted;           // entries were withdrawn by the daemon (host rename, waiting)
-    std::function<void()> lost;                  // the client is about to be freed: drop every object made on it
+    std::function<void()> interrupted;          // entries were withdrawn by the daemon (host rename, waiting)
+    std::function<void()> lost;                 // the client is about to be freed: drop every object made on it
     // Once, in start(), before the poll thread runs: the place to create watches and timers. (Avahi's simple poll
     // asserts when a watch is added from another thread while it dispatches, even under the lock.)
     std::function<void(const AvahiPoll*)> prepare;

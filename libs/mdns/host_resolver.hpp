@@ -58,10 +58,10 @@ class AvahiHostResolver final : public swarm::HostResolver {
     std::string why;
     std::chrono::steady_clock::time_point expires;
   };
-  friend struct AvahiHostResolverCallbacks;  // Avahi's C callbacks
-  void start_queued();  // Avahi thread
+  friend struct AvahiHostResolverCallbacks;                                                   // Avahi's C callbacks
+  void start_queued();                                                                        // Avahi thread
   void finish(const std::string& host, std::vector<std::string> addresses, std::string why);  // any thread
-  void cancel_lookups(const std::string& why);  // Avahi thread
+  void cancel_lookups(const std::string& why);                                                // Avahi thread
 
   std::shared_ptr<spdlog::logger> log_;
   HostResolverOptions options_;
@@ -69,10 +69,10 @@ class AvahiHostResolver final : public swarm::HostResolver {
   int wake_fd_ = -1;
   AvahiWatch* wake_watch_ = nullptr;
   std::atomic<bool> started_{false};  // the wake-up watch exists: lookups can be queued
-  std::mutex mutex_;  // cache_, waiters_, queue_
+  std::mutex mutex_;                  // cache_, waiters_, queue_
   std::map<std::string, CacheEntry> cache_;
-  std::map<std::string, std::vector<Done>> waiters_;  // hosts being resolved, with whoever waits for them
-  std::deque<std::string> queue_;                     // hosts to start resolving on the Avahi thread
+  std::map<std::string, std::vector<Done>> waiters_;        // hosts being resolved, with whoever waits for them
+  std::deque<std::string> queue_;                           // hosts to start resolving on the Avahi thread
   std::map<std::string, std::unique_ptr<Lookup>> lookups_;  // Avahi thread only
 };
 

@@ -50,17 +50,12 @@ void on_browse(AvahiServiceBrowser*, AvahiIfIndex interface, AvahiProtocol proto
                                      AvahiLookupFlags(0), &on_resolved, browse) != nullptr)
         ++browse->resolving;
       break;
-    case AVAHI_BROWSER_REMOVE:
-      browse->found.erase(name);
-      break;
-    case AVAHI_BROWSER_ALL_FOR_NOW:
-      browse->all_for_now = true;
-      break;
+    case AVAHI_BROWSER_REMOVE: browse->found.erase(name); break;
+    case AVAHI_BROWSER_ALL_FOR_NOW: browse->all_for_now = true; break;
     case AVAHI_BROWSER_FAILURE:
       browse->error = std::string("browsing failed: ") + avahi_strerror(avahi_client_errno(browse->client));
       break;
-    case AVAHI_BROWSER_CACHE_EXHAUSTED:
-      break;
+    case AVAHI_BROWSER_CACHE_EXHAUSTED: break;
   }
 }
 

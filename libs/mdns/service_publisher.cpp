@@ -112,9 +112,9 @@ void ServicePublisher::add_and_commit() {
   const TxtList txt = to_txt_list(published_txt_);
   for (int attempt = 0; attempt <= kMaxRenames; ++attempt) {
     const std::string name = published_name();
-    const int added = avahi_entry_group_add_service_strlst(group_, AVAHI_IF_UNSPEC, AVAHI_PROTO_UNSPEC, AvahiPublishFlags(0),
-                                                           name.c_str(), spec_.type.c_str(), nullptr, nullptr, spec_.port,
-                                                           txt.get());
+    const int added =
+        avahi_entry_group_add_service_strlst(group_, AVAHI_IF_UNSPEC, AVAHI_PROTO_UNSPEC, AvahiPublishFlags(0), name.c_str(),
+                                             spec_.type.c_str(), nullptr, nullptr, spec_.port, txt.get());
     if (added == AVAHI_ERR_COLLISION) {
       take_alternative_name("is already registered with this avahi-daemon");
       avahi_entry_group_reset(group_);
@@ -149,8 +149,8 @@ void ServicePublisher::take_alternative_name(const char* why) {
 void ServicePublisher::handle_group(AvahiEntryGroup* group, int state) {
   switch (static_cast<AvahiEntryGroupState>(state)) {
     case AVAHI_ENTRY_GROUP_ESTABLISHED:
-      log_->info("mDNS: published '{}' ({}, port {}, status {})", published_name(),
-                            spec_.type, spec_.port, published_txt_["status"]);
+      log_->info("mDNS: published '{}' ({}, port {}, status {})", published_name(), spec_.type, spec_.port,
+                 published_txt_["status"]);
       break;
     case AVAHI_ENTRY_GROUP_COLLISION:
       // Another host on the network probed the name first: the Avahi way is the next alternative name.
@@ -164,8 +164,7 @@ void ServicePublisher::handle_group(AvahiEntryGroup* group, int state) {
       committed_ = false;
       break;
     case AVAHI_ENTRY_GROUP_UNCOMMITED:
-    case AVAHI_ENTRY_GROUP_REGISTERING:
-      break;
+    case AVAHI_ENTRY_GROUP_REGISTERING: break;
   }
 }
 
@@ -175,9 +174,8 @@ void ServicePublisher::refresh_txt() {
   if (txt == published_txt_) return;
   const TxtList list = to_txt_list(txt);
   const std::string name = published_name();
-  const int updated = avahi_entry_group_update_service_txt_strlst(group_, AVAHI_IF_UNSPEC, AVAHI_PROTO_UNSPEC,
-                                                                  AvahiPublishFlags(0), name.c_str(), spec_.type.c_str(),
-                                                                  nullptr, list.get());
+  const int updated = avahi_entry_group_update_service_txt_strlst(
+      group_, AVAHI_IF_UNSPEC, AVAHI_PROTO_UNSPEC, AvahiPublishFlags(0), name.c_str(), spec_.type.c_str(), nullptr, list.get());
   if (updated < 0) {
     log_->warn("mDNS: cannot update the TXT record of '{}': {} (retrying)", name, avahi_strerror(updated));
     return;  // published_txt_ unchanged: the next tick tries again

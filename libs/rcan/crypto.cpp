@@ -52,8 +52,7 @@ std::string hmac_sha256(std::string_view key, std::string_view data) {
 std::string base64url_encode(std::string_view data) {
   if (data.empty()) return {};
   std::string out(4 * ((data.size() + 2) / 3) + 1, '\0');  // EVP_EncodeBlock writes a trailing NUL
-  const int written = EVP_EncodeBlock(reinterpret_cast<unsigned char*>(out.data()), bytes(data),
-                                      static_cast<int>(data.size()));
+  const int written = EVP_EncodeBlock(reinterpret_cast<unsigned char*>(out.data()), bytes(data), static_cast<int>(data.size()));
   out.resize(static_cast<std::size_t>(written));
   while (!out.empty() && out.back() == '=') out.pop_back();
   for (char& c : out) {
@@ -75,8 +74,8 @@ std::optional<std::string> base64url_decode(std::string_view text) {
   const std::size_t padding = (4 - standard.size() % 4) % 4;
   standard.append(padding, '=');
   std::vector<unsigned char> out(standard.size() / 4 * 3);
-  const int written = EVP_DecodeBlock(out.data(), reinterpret_cast<const unsigned char*>(standard.data()),
-                                      static_cast<int>(standard.size()));
+  const int written =
+      EVP_DecodeBlock(out.data(), reinterpret_cast<const unsigned char*>(standard.data()), static_cast<int>(standard.size()));
   if (written < 0 || static_cast<std::size_t>(written) < padding) return std::nullopt;
   std::string decoded(reinterpret_cast<const char*>(out.data()), static_cast<std::size_t>(written) - padding);
   // Unused low bits must be zero: otherwise "Zh" and "Zg" would both decode to "f" and a signature could be re-spelled.

@@ -63,8 +63,8 @@ std::optional<std::vector<std::string>> string_list(const json& value, bool allo
 
 std::string issue_jwt_hs256(const JwtClaims& claims, std::string_view secret) {
   const json header = {{"alg", "HS256"}, {"typ", "JWT"}};
-  json payload = {{"sub", claims.sub},     {"iss", claims.iss},     {"role", claims.role},
-                  {"scope", claims.scope}, {"iat", claims.iat},     {"exp", claims.exp}};
+  json payload = {{"sub", claims.sub},     {"iss", claims.iss}, {"role", claims.role},
+                  {"scope", claims.scope}, {"iat", claims.iat}, {"exp", claims.exp}};
   payload["aud"] = claims.aud.size() == 1 ? json(claims.aud.front()) : json(claims.aud);
   if (claims.fleet) payload["fleet"] = *claims.fleet;
   const std::string signing_input = base64url_encode(header.dump()) + "." + base64url_encode(payload.dump());
@@ -73,9 +73,8 @@ std::string issue_jwt_hs256(const JwtClaims& claims, std::string_view secret) {
 
 bool looks_like_jwt(std::string_view token) noexcept {
   if (std::count(token.begin(), token.end(), '.') != 2) return false;
-  return std::all_of(token.begin(), token.end(), [](char c) {
-    return std::isalnum(static_cast<unsigned char>(c)) || c == '-' || c == '_' || c == '.';
-  });
+  return std::all_of(token.begin(), token.end(),
+                     [](char c) { return std::isalnum(static_cast<unsigned char>(c)) || c == '-' || c == '_' || c == '.'; });
 }
 
 std::variant<JwtClaims, JwtError> verify_jwt_hs256(std::string_view token, std::string_view secret, std::int64_t now_s) {

@@ -4,8 +4,7 @@ namespace rcand {
 
 std::vector<sdk::Scope> default_scopes(sdk::Role role) {
   std::vector<sdk::Scope> scopes;
-  for (sdk::Scope scope : {sdk::Scope::Status, sdk::Scope::Control, sdk::Scope::Config, sdk::Scope::Training,
-                           sdk::Scope::Admin})
+  for (sdk::Scope scope : {sdk::Scope::Status, sdk::Scope::Control, sdk::Scope::Config, sdk::Scope::Training, sdk::Scope::Admin})
     if (sdk::role_grants(role, scope)) scopes.push_back(scope);
   return scopes;
 }

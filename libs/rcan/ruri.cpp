@@ -51,9 +51,7 @@ bool valid_device_id(std::string_view s) {
 }
 
 // A segment is valid as itself or, when wildcards are allowed, as a whole '*'.
-bool segment_ok(std::string_view s, bool (*valid)(std::string_view), bool wild) {
-  return (wild && s == kWildcard) || valid(s);
-}
+bool segment_ok(std::string_view s, bool (*valid)(std::string_view), bool wild) { return (wild && s == kWildcard) || valid(s); }
 
 RuriParse fail(std::string error) { return {std::nullopt, std::move(error)}; }
 
@@ -71,8 +69,8 @@ std::string Ruri::to_string() const {
   std::string out(kScheme);
   if (local_form) {
     out += manufacturer + "." + model + "." + device_id;
-  } else if (registry == kWildcard && manufacturer == kWildcard && model == kWildcard && device_id == kWildcard &&
-             !port && !capability) {
+  } else if (registry == kWildcard && manufacturer == kWildcard && model == kWildcard && device_id == kWildcard && !port &&
+             !capability) {
     return out + std::string(kWildcard);
   } else {
     out += registry + "/" + manufacturer + "/" + model + "/" + device_id;
@@ -123,8 +121,8 @@ RuriParse parse_ruri(std::string_view text, bool allow_wildcards) {
       const std::string_view digits = device.substr(colon + 1);
       unsigned value = 0;
       const auto [end, ec] = std::from_chars(digits.data(), digits.data() + digits.size(), value);
-      if (digits.empty() || digits.size() > 5 || ec != std::errc{} || end != digits.data() + digits.size() ||
-          value == 0 || value > 65535)
+      if (digits.empty() || digits.size() > 5 || ec != std::errc{} || end != digits.data() + digits.size() || value == 0 ||
+          value > 65535)
         return fail("RURI " + quoted(text) + ": port must be a number from 1 to 65535");
       ruri.port = static_cast<std::uint16_t>(value);
       device = device.substr(0, colon);

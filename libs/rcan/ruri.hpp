@@ -1,5 +1,6 @@
-// Robot URIs (docs/protocol.md §1): the canonical form rcan://<registry>/<manufacturer>/<model>/<device-id>[:<port>][/<capability>]
-// and the local shorthand rcan://<manufacturer>.<model>.<instance>[/<capability>] (registry "local.rcan"), one parser.
+// Robot URIs (docs/protocol.md §1): the canonical form
+// rcan://<registry>/<manufacturer>/<model>/<device-id>[:<port>][/<capability>] and the local shorthand
+// rcan://<manufacturer>.<model>.<instance>[/<capability>] (registry "local.rcan"), one parser.
 #pragma once
 
 #include <cstdint>

@@ -31,12 +31,9 @@ json malformed(json entry, const char* key) {
 }  // namespace
 
 json node_entry(const PeerResult& result, BroadcastKind kind) {
-  json entry{{"name", result.name},
-             {"address", result.address},
-             {"ok", false},
-             {"http_status", nullptr},
-             {"executed", false},
-             {"latency_ms", std::round(result.latency_ms * 1000.0) / 1000.0},
+  json entry{{"name", result.name}, {"address", result.address},
+             {"ok", false},         {"http_status", nullptr},
+             {"executed", false},   {"latency_ms", std::round(result.latency_ms * 1000.0) / 1000.0},
              {"error", nullptr}};
   if (!result.reachable) {
     entry["error"] = result.error.empty() ? "no answer" : result.error;

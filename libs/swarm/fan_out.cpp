@@ -54,7 +54,7 @@ struct IdleConnection {
 // PeerOps and the PeerOps only point at the loop: no cycle, so destroying the loop after stop() frees them all.
 struct FanOut::Loop : std::enable_shared_from_this<FanOut::Loop> {
   net::io_context io{1};
-  std::shared_ptr<HostResolver> resolver;  // may be null: getaddrinfo for every host
+  std::shared_ptr<HostResolver> resolver;                   // may be null: getaddrinfo for every host
   std::map<std::string, std::vector<IdleConnection>> idle;  // by "ip:port"; touched only on the loop thread
   net::executor_work_guard<net::io_context::executor_type> work{io.get_executor()};
   std::thread thread;
@@ -62,8 +62,7 @@ struct FanOut::Loop : std::enable_shared_from_this<FanOut::Loop> {
   bool alive = true;
 
   // Posts `fn` unless the loop was stopped (then it is dropped).
-  template <class Fn>
-  void post(Fn&& fn) {
+  template <class Fn> void post(Fn&& fn) {
     std::lock_guard lock(mutex);
     if (alive) net::post(io, std::forward<Fn>(fn));
   }
@@ -127,10 +126,16 @@ struct Batch {
 
 class PeerOp : public std::enable_shared_from_this<PeerOp> {
  public:
-  PeerOp(FanOut::Loop& loop, std::shared_ptr<Batch> batch, std::size_t index, PeerRequest request,
-         Clock::time_point start, std::chrono::milliseconds timeout)
-      : loop_(&loop), batch_(std::move(batch)), index_(index), request_(std::move(request)), start_(start),
-        timeout_(timeout), deadline_(start + timeout), timer_(loop_->io) {}
+  PeerOp(FanOut::Loop& loop, std::shared_ptr<Batch> batch, std::size_t index, PeerRequest request, Clock::time_point start,
+         std::chrono::milliseconds timeout)
+      : loop_(&loop),
+        batch_(std::move(batch)),
+        index_(index),
+        request_(std::move(request)),
+        start_(start),
+        timeout_(timeout),
+        deadline_(start + timeout),
+        timer_(loop_->io) {}
 
   void start() {
     boost::system::error_code ec;

@@ -46,8 +46,8 @@ struct PeerResult {
   bool reachable = false;  // an HTTP answer arrived
   int status = 0;          // HTTP status when reachable
   std::string body;
-  double latency_ms = 0;   // from the start of the fan-out to this peer's answer or failure
-  std::string error;       // transport failure ("cannot connect to ...: Connection refused", "timed out after 300 ms")
+  double latency_ms = 0;  // from the start of the fan-out to this peer's answer or failure
+  std::string error;      // transport failure ("cannot connect to ...: Connection refused", "timed out after 300 ms")
 };
 
 class FanOut {

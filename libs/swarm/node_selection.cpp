@@ -26,8 +26,8 @@ std::variant<std::vector<SwarmNode>, SelectionError> select_nodes(const SwarmReg
                                         join_names(std::vector<std::string>(all_tags.begin(), all_tags.end()))};
   std::vector<SwarmNode> chosen;
   for (const auto& node : registry.nodes) {
-    const bool named = selection.names.empty() ||
-                       std::find(selection.names.begin(), selection.names.end(), node.name) != selection.names.end();
+    const bool named =
+        selection.names.empty() || std::find(selection.names.begin(), selection.names.end(), node.name) != selection.names.end();
     const bool tagged = std::all_of(selection.tags.begin(), selection.tags.end(), [&](const auto& t) { return node.has_tag(t); });
     if (named && tagged) chosen.push_back(node);
   }

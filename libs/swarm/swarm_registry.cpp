@@ -191,8 +191,7 @@ SwarmRegistry parse_swarm(std::string_view yaml, const std::string& display_name
     auto node = parser.node(nodes[i], i);
     if (!node) continue;
     if (!seen.insert(node->name).second) {
-      parser.error(nodes[i]["name"].Mark(), "nodes[" + std::to_string(i) + "].name",
-                   "duplicate node name '" + node->name + "'");
+      parser.error(nodes[i]["name"].Mark(), "nodes[" + std::to_string(i) + "].name", "duplicate node name '" + node->name + "'");
       continue;
     }
     registry.nodes.push_back(std::move(*node));

@@ -20,10 +20,10 @@ struct SwarmNode {
   std::string host;               // MUST: mDNS hostname or IP address
   std::optional<std::string> ip;  // SHOULD: static fallback when `host` does not resolve
   std::uint16_t port = kDefaultSwarmPort;
-  std::string token;              // MUST: secret
+  std::string token;  // MUST: secret
   std::optional<std::string> rcan, added;
   std::vector<std::string> tags;
-  int line = 0;                   // 1-based line of the entry in the file
+  int line = 0;  // 1-based line of the entry in the file
 
   bool has_tag(std::string_view tag) const;
   // "host:port" (the address the registry names, before resolution).

@@ -29,7 +29,8 @@ std::vector<std::string> changed_keys(const nlohmann::json& before, const nlohma
 }
 
 bool key_is_under(const std::string& path, const std::string& prefix) {
-  return path == prefix || (path.size() > prefix.size() && path.compare(0, prefix.size(), prefix) == 0 && path[prefix.size()] == '.');
+  return path == prefix ||
+         (path.size() > prefix.size() && path.compare(0, prefix.size(), prefix) == 0 && path[prefix.size()] == '.');
 }
 
 }  // namespace rcand

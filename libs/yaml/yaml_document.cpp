@@ -40,11 +40,20 @@ std::size_t first_invalid_utf8(std::string_view s) {
     const auto c = static_cast<unsigned char>(s[i]);
     std::size_t len = 0;
     std::uint32_t cp = 0;
-    if (c < 0x80) { ++i; continue; }
-    if ((c & 0xE0) == 0xC0) { len = 2; cp = c & 0x1F; }
-    else if ((c & 0xF0) == 0xE0) { len = 3; cp = c & 0x0F; }
-    else if ((c & 0xF8) == 0xF0) { len = 4; cp = c & 0x07; }
-    else return i;
+    if (c < 0x80) {
+      ++i;
+      continue;
+    }
+    if ((c & 0xE0) == 0xC0) {
+      len = 2;
+      cp = c & 0x1F;
+    } else if ((c & 0xF0) == 0xE0) {
+      len = 3;
+      cp = c & 0x0F;
+    } else if ((c & 0xF8) == 0xF0) {
+      len = 4;
+      cp = c & 0x07;
+    } else return i;
     if (i + len > s.size()) return i;
     for (std::size_t k = 1; k < len; ++k) {
       const auto cc = static_cast<unsigned char>(s[i + k]);
@@ -61,8 +70,10 @@ std::size_t first_invalid_utf8(std::string_view s) {
 SourceMark mark_of_offset(const std::string& file, std::string_view text, std::size_t offset) {
   int line = 1, column = 1;
   for (std::size_t i = 0; i < offset && i < text.size(); ++i) {
-    if (text[i] == '\n') { ++line; column = 1; }
-    else ++column;
+    if (text[i] == '\n') {
+      ++line;
+      column = 1;
+    } else ++column;
   }
   return SourceMark{file, line, column};
 }
@@ -83,9 +94,9 @@ class Converter {
 
   json convert(const YAML::Node& node, const std::string& path, int depth) {
     if (++values_ > kMaxValues) {
-      diagnostics_.push_back(error_at(to_mark(file_, node.Mark()), path,
-                                      "the document is too large (more than " + std::to_string(kMaxValues) +
-                                          " values once aliases are expanded)"));
+      diagnostics_.push_back(
+          error_at(to_mark(file_, node.Mark()), path,
+                   "the document is too large (more than " + std::to_string(kMaxValues) + " values once aliases are expanded)"));
       throw Abort{};
     }
     if (depth > kMaxDepth) {
@@ -113,8 +124,7 @@ class Converter {
           const YAML::Node value = it->second;
           const SourceMark key_mark = to_mark(file_, key.Mark());
           if (!key.IsScalar()) {
-            diagnostics_.push_back(
-                error_at(key_mark, path, std::string("a key must be a plain name, found ") + node_kind(key)));
+            diagnostics_.push_back(error_at(key_mark, path, std::string("a key must be a plain name, found ") + node_kind(key)));
             continue;
           }
           const std::string& name = key.Scalar();
@@ -124,9 +134,8 @@ class Converter {
           }
           const std::string p = child_path(path, name);
           if (object.contains(name)) {
-            diagnostics_.push_back(error_at(key_mark, p,
-                                            "duplicate key '" + name + "'; it was first written at line " +
-                                                std::to_string(marks_[p].line)));
+            diagnostics_.push_back(error_at(
+                key_mark, p, "duplicate key '" + name + "'; it was first written at line " + std::to_string(marks_[p].line)));
             continue;
           }
           marks_[p] = key_mark;
@@ -154,9 +163,7 @@ class Converter {
   std::size_t values_ = 0;
 };
 
-template <class Pred> bool all_of(std::string_view s, Pred pred) {
-  return std::all_of(s.begin(), s.end(), pred);
-}
+template <class Pred> bool all_of(std::string_view s, Pred pred) { return std::all_of(s.begin(), s.end(), pred); }
 
 bool is_digit(char c) { return c >= '0' && c <= '9'; }
 
@@ -226,9 +233,8 @@ json resolve_plain_scalar(const std::string& text) {
     if (ec2 == std::errc{} && end2 == digits.data() + digits.size()) return big;
     return parse_float(text);
   }
-  const bool is_octal = text.size() > 2 && text.starts_with("0o") && all_of(std::string_view(text).substr(2), [](char c) {
-                          return c >= '0' && c <= '7';
-                        });
+  const bool is_octal = text.size() > 2 && text.starts_with("0o") &&
+                        all_of(std::string_view(text).substr(2), [](char c) { return c >= '0' && c <= '7'; });
   const bool is_hex = text.size() > 2 && text.starts_with("0x") && all_of(std::string_view(text).substr(2), [](char c) {
                         return std::isxdigit(static_cast<unsigned char>(c)) != 0;
                       });
@@ -238,8 +244,7 @@ json resolve_plain_scalar(const std::string& text) {
     const char* last = text.data() + text.size();
     auto [end, ec] = std::from_chars(first, last, value, is_octal ? 8 : 16);
     if (ec == std::errc{} && end == last) {
-      if (value <= static_cast<std::uint64_t>(std::numeric_limits<std::int64_t>::max()))
-        return static_cast<std::int64_t>(value);
+      if (value <= static_cast<std::uint64_t>(std::numeric_limits<std::int64_t>::max())) return static_cast<std::int64_t>(value);
       return value;
     }
     return text;
@@ -271,9 +276,7 @@ std::string child_path(const std::string& parent, std::string_view key) {
   return out;
 }
 
-std::string item_path(const std::string& parent, std::size_t index) {
-  return parent + "[" + std::to_string(index) + "]";
-}
+std::string item_path(const std::string& parent, std::size_t index) { return parent + "[" + std::to_string(index) + "]"; }
 
 // Counts the documents of a stream by their start events, and is never asked past the second: yaml-cpp 0.7's
 // LoadAll never returns on some inputs (a lone "," makes the parser yield empty documents forever, found by

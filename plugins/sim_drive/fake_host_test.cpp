@@ -80,7 +80,10 @@ class Probe final : public Capability {
   explicit Probe(PluginContext& ctx) : ctx_(ctx) {}
   std::vector<Route> routes() override {
     return {
-        {"GET", "/api/nav/probe", Scope::Status, false, "", [](const Request&) { return Response::ok({{"probe", true}}); }},
+        {"GET", "/api/nav/probe", Scope::Status, false, "",
+         [](const Request&) {
+           return Response::ok({{"probe", true}});
+         }},
         {"POST", "/api/nav/probe/config", Scope::Config, false, "", [](const Request&) { return Response::ok(); }},
         {"POST", "/api/nav/probe/move", Scope::Control, true, "",
          [this](const Request& req) {

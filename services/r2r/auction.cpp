@@ -18,8 +18,8 @@ Outgoing negotiation(const std::string& task_id, const char* action, const std::
   return {MessageType::Negotiation, json{{"task_id", task_id}, {"action", action}}, target};
 }
 
-Outgoing task_response(const std::string& task_id, bool accepted, std::optional<double> estimated_time,
-                       const std::string& target, std::string reason = {}) {
+Outgoing task_response(const std::string& task_id, bool accepted, std::optional<double> estimated_time, const std::string& target,
+                       std::string reason = {}) {
   json payload{{"task_id", task_id}, {"accepted", accepted}};
   payload["estimated_time"] = estimated_time ? json(*estimated_time) : json();
   if (!reason.empty()) payload["reason"] = std::move(reason);
@@ -153,8 +153,8 @@ std::vector<Outgoing> Auctioneer::tick(double now_s) {
       const std::string silent = *a.winner;
       a.excluded.insert(silent);
       json error{{"code", static_cast<int>(ErrorCode::NetworkTimeout)},
-                 {"message", "no task_response to the award of task '" + task_id + "' within " +
-                                 json(kWinnerGraceS).dump() + " s of the bid deadline; re-auctioned without you"},
+                 {"message", "no task_response to the award of task '" + task_id + "' within " + json(kWinnerGraceS).dump() +
+                                 " s of the bid deadline; re-auctioned without you"},
                  {"task_id", task_id}};
       step.push_back({MessageType::Error, std::move(error), silent});
       auto reopened = reopen(a, now_s);

@@ -24,7 +24,7 @@ struct Outgoing {
 };
 
 inline constexpr double kWinnerGraceS = 2.0;  // docs/protocol.md §11: a winner silent past bid_deadline + 2 s gets 104
-inline constexpr int kMaxAuctionRounds = 5;     // re-opened at most this often before it ends as NoBids
+inline constexpr int kMaxAuctionRounds = 5;   // re-opened at most this often before it ends as NoBids
 
 struct Bid {
   std::string bidder;
@@ -77,10 +77,10 @@ class Auctioneer {
     double bid_deadline = 0.0;
     State state = State::Bidding;
     int round = 1;
-    std::map<std::string, Bid> bids;  // this round's, by bidder
+    std::map<std::string, Bid> bids;      // this round's, by bidder
     std::vector<nlohmann::json> history;  // every bid of every round, for the result
     double award_deadline = 0.0;
-    std::set<std::string> excluded;   // silent or declining winners
+    std::set<std::string> excluded;  // silent or declining winners
     std::optional<std::string> winner;
     std::optional<double> estimated_time;
   };
@@ -130,8 +130,7 @@ class Bidder {
                              const Context& context);
   // An award: task_response accepted with estimated_time; the same award again is answered the same way; an award
   // for a task held from another requester gets error 102; an award for a task never bid on is declined.
-  Outgoing on_award(const std::string& requester, const std::string& task_id, const nlohmann::json& award_header,
-                    double now_s);
+  Outgoing on_award(const std::string& requester, const std::string& task_id, const nlohmann::json& award_header, double now_s);
   // The requester withdrew, or timed us out (104): forget the bid; a task held from that requester is released.
   void on_withdraw(const std::string& requester, const std::string& task_id);
   // The local robot finished (or gave up) a held task. False when it did not hold it.
@@ -153,7 +152,7 @@ class Bidder {
   double held_expiry(std::optional<double> deadline, double now_s) const;
   Limits limits_;
   std::map<std::pair<std::string, std::string>, PendingBid> bids_;  // (requester, task_id)
-  std::map<std::string, Held> held_;                                 // by task_id
+  std::map<std::string, Held> held_;                                // by task_id
 };
 
 }  // namespace rcand::kernel::r2r

@@ -38,7 +38,7 @@ struct DrivePhysics {
 
 struct NavCostSettings {
   DrivePhysics physics;
-  double speed = 0.5;             // the fraction of full speed nav would use (nav's default waypoint speed)
+  double speed = 0.5;              // the fraction of full speed nav would use (nav's default waypoint speed)
   double seconds_per_task = 30.0;  // what each queued task adds
 };
 

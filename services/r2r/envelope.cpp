@@ -4,8 +4,8 @@
 #include <cmath>
 #include <utility>
 
-#include "services/r2r/payload_schema.hpp"
 #include "libs/base/bounded_text.hpp"
+#include "services/r2r/payload_schema.hpp"
 
 namespace rcand::kernel::r2r {
 namespace {
@@ -44,8 +44,8 @@ std::optional<R2rError> read_id(const json& header, const char* key, bool requir
   if (!it->is_string()) return invalid(field, std::string("header.") + key + " must be a string, found " + found(*it));
   if (it->get_ref<const std::string&>().empty()) return invalid(field, std::string("header.") + key + " must not be empty");
   if (it->get_ref<const std::string&>().size() > kMaxIdBytes)
-    return invalid(field, std::string("header.") + key + " is longer than " + std::to_string(kMaxIdBytes) +
-                              " bytes (a robot name or RURI)");
+    return invalid(
+        field, std::string("header.") + key + " is longer than " + std::to_string(kMaxIdBytes) + " bytes (a robot name or RURI)");
   out = it->get<std::string>();
   return std::nullopt;
 }
@@ -89,7 +89,8 @@ std::variant<Envelope, R2rError> parse_envelope(std::string_view bytes) {
   if (header_it != doc.end() && header_it->is_object()) {
     ref = error_ref(*header_it);
     if (const auto s = header_it->find("source_id"); s != header_it->end() && s->is_string() &&
-        !s->get_ref<const std::string&>().empty() && s->get_ref<const std::string&>().size() <= kMaxIdBytes)
+                                                     !s->get_ref<const std::string&>().empty() &&
+                                                     s->get_ref<const std::string&>().size() <= kMaxIdBytes)
       received_source = s->get<std::string>();
   }
   if (const auto t = doc.find("type"); t != doc.end() && t->is_string())
@@ -128,8 +129,10 @@ std::variant<Envelope, R2rError> parse_envelope(std::string_view bytes) {
   if (auto bad = read_id(header, "target_id", false, envelope.target_id)) return fail(*bad);
 
   const auto type = doc.find("type");
-  if (type == doc.end()) return fail(invalid("/type", "type is required: one of status, task_request, task_response, "
-                                                      "command, negotiation, error"));
+  if (type == doc.end())
+    return fail(invalid("/type",
+                        "type is required: one of status, task_request, task_response, "
+                        "command, negotiation, error"));
   if (!type->is_string()) return fail(invalid("/type", "type must be a string, found " + found(*type)));
   const auto parsed_type = parse_message_type(type->get_ref<const std::string&>());
   if (!parsed_type)
@@ -161,8 +164,6 @@ json to_json(const Envelope& envelope) {
   return json{{"header", header_json(envelope)}, {"type", std::string(type_name(envelope.type))}, {"payload", envelope.payload}};
 }
 
-std::string serialize(const Envelope& envelope) {
-  return to_json(envelope).dump(-1, ' ', false, json::error_handler_t::replace);
-}
+std::string serialize(const Envelope& envelope) { return to_json(envelope).dump(-1, ' ', false, json::error_handler_t::replace); }
 
 }  // namespace rcand::kernel::r2r

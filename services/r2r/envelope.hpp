@@ -15,8 +15,8 @@
 namespace rcand::kernel::r2r {
 
 inline constexpr std::size_t kMaxMessageBytes = 64 * 1024;  // docs/protocol.md §11: larger is refused with code 100
-inline constexpr int kMaxMessageDepth = 32;                  // JSON nesting; deeper is refused with code 100
-inline constexpr std::size_t kMaxIdBytes = 256;  // source_id / target_id: longer is refused with code 100
+inline constexpr int kMaxMessageDepth = 32;                 // JSON nesting; deeper is refused with code 100
+inline constexpr std::size_t kMaxIdBytes = 256;             // source_id / target_id: longer is refused with code 100
 inline constexpr std::string_view kProtocolVersion = "1.0";
 
 enum class MessageType { Status, TaskRequest, TaskResponse, Command, Negotiation, Error };
@@ -41,9 +41,9 @@ struct Envelope {
 struct R2rError {
   ErrorCode code = ErrorCode::InvalidFormat;
   std::string message;
-  std::string field;                 // JSON pointer of the fault ("/header/source_id"), empty when it is the whole message
-  std::optional<nlohmann::json> ref;  // the received header when it was an object, for the error reply
-  std::optional<std::string> type;    // the received "type" when it was a string (never answer an `error` with an error)
+  std::string field;                     // JSON pointer of the fault ("/header/source_id"), empty when it is the whole message
+  std::optional<nlohmann::json> ref;     // the received header when it was an object, for the error reply
+  std::optional<std::string> type;       // the received "type" when it was a string (never answer an `error` with an error)
   std::optional<std::string> source_id;  // the received source_id when it was a non-empty string (where to answer)
 };
 

@@ -11,8 +11,8 @@
 #include <stdexcept>
 #include <utility>
 
-#include "libs/rcan/role_scopes.hpp"
 #include "libs/rcan/base64.hpp"
+#include "libs/rcan/role_scopes.hpp"
 
 namespace rcand::kernel::r2r {
 namespace {
@@ -205,17 +205,17 @@ std::variant<Principal, AuthFailure> MessageAuthenticator::authorize(const Envel
   if (auto* failure = std::get_if<AuthFailure>(&who)) return *failure;
   const Principal& principal = std::get<Principal>(who);
   if (std::find(principal.scopes.begin(), principal.scopes.end(), needed) == principal.scopes.end())
-    return AuthFailure{"principal '" + principal.name + "' (" + std::string(sdk::role_name(principal.role)) +
-                       ") lacks scope '" + std::string(sdk::scope_name(needed)) + "' needed for a " +
-                       std::string(type_name(envelope.type)) + " message"};
+    return AuthFailure{"principal '" + principal.name + "' (" + std::string(sdk::role_name(principal.role)) + ") lacks scope '" +
+                       std::string(sdk::scope_name(needed)) + "' needed for a " + std::string(type_name(envelope.type)) +
+                       " message"};
   return who;
 }
 
 std::variant<Principal, AuthFailure> MessageAuthenticator::verify_signature(const Envelope& envelope, const json& raw,
                                                                             double now_s) const {
   const json& signature = envelope.header_extra["signature"];
-  if (!signature.is_object() || !signature.contains("key_id") || !signature["key_id"].is_string() ||
-      !signature.contains("sig") || !signature["sig"].is_string())
+  if (!signature.is_object() || !signature.contains("key_id") || !signature["key_id"].is_string() || !signature.contains("sig") ||
+      !signature["sig"].is_string())
     return AuthFailure{"header.signature must be {\"key_id\": string, \"sig\": base64 string}"};
   const std::string& key_id = signature["key_id"].get_ref<const std::string&>();
   const auto peer = std::find_if(settings_.peers.begin(), settings_.peers.end(),

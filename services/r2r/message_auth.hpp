@@ -21,7 +21,7 @@
 namespace rcand::kernel::r2r {
 
 inline constexpr double kDefaultReplayWindowS = 30.0;  // signed messages older than this are refused
-inline constexpr double kDefaultFutureSkewS = 5.0;      // ... and so are ones this far in the future
+inline constexpr double kDefaultFutureSkewS = 5.0;     // ... and so are ones this far in the future
 
 // An Ed25519 key (public, or a private key that can also sign). Move-only; owns its EVP_PKEY.
 class Ed25519Key {
@@ -52,7 +52,7 @@ class Ed25519Key {
 };
 
 struct PeerKey {
-  std::string name;  // the peer's robot name; also the key_id it signs with
+  std::string name;                  // the peer's robot name; also the key_id it signs with
   sdk::Role role = sdk::Role::User;  // what a message signed by it may do
   std::shared_ptr<const Ed25519Key> key;
 };
@@ -84,13 +84,12 @@ class MessageAuthenticator {
   // the principal), else required signatures -> failure, else header.auth.token, else the transport's principal.
   // `raw` is the message as received (for the signature input); now_s = wall clock, Unix seconds.
   std::variant<Principal, AuthFailure> authorize(const Envelope& envelope, const nlohmann::json& raw,
-                                                 const std::optional<Principal>& transport_principal,
-                                                 sdk::Scope needed, double now_s) const;
+                                                 const std::optional<Principal>& transport_principal, sdk::Scope needed,
+                                                 double now_s) const;
   const MessageAuthSettings& settings() const noexcept { return settings_; }
 
  private:
-  std::variant<Principal, AuthFailure> verify_signature(const Envelope& envelope, const nlohmann::json& raw,
-                                                        double now_s) const;
+  std::variant<Principal, AuthFailure> verify_signature(const Envelope& envelope, const nlohmann::json& raw, double now_s) const;
   const Authenticator& tokens_;
   MessageAuthSettings settings_;
 };

@@ -103,8 +103,7 @@ std::optional<PayloadFault> check_task_response(const json& p) {
 std::optional<PayloadFault> check_negotiation(const json& p) {
   if (auto bad = first({string_field(p, "task_id", true, true), string_field(p, "action", true, true)})) return bad;
   const std::string& action = p["action"].get_ref<const std::string&>();
-  if (action == "bid")
-    return first({number_field(p, "cost", true, false, 0.0), string_array_field(p, "capabilities", false)});
+  if (action == "bid") return first({number_field(p, "cost", true, false, 0.0), string_array_field(p, "capabilities", false)});
   if (action == "award" || action == "withdraw") return std::nullopt;
   return PayloadFault{"/payload/action", "action must be bid, award or withdraw, found '" + action + "'"};
 }

@@ -63,10 +63,9 @@ std::unique_ptr<sdk::R2rLink> PluginBridge::make_link(sdk::Worker& worker, std::
 
 void PluginBridge::deliver(const ReceivedMessage& m) {
   // Built once, shared by every subscriber's queued task.
-  auto message = std::make_shared<const sdk::R2rMessage>(sdk::R2rMessage{std::string(type_name(m.envelope.type)),
-                                                                         m.envelope.source_id, m.envelope.target_id,
-                                                                         m.envelope.timestamp, m.envelope.payload,
-                                                                         m.principal, m.transport});
+  auto message = std::make_shared<const sdk::R2rMessage>(
+      sdk::R2rMessage{std::string(type_name(m.envelope.type)), m.envelope.source_id, m.envelope.target_id, m.envelope.timestamp,
+                      m.envelope.payload, m.principal, m.transport});
   std::lock_guard lock(mutex_);
   for (const auto& [id, entry] : subscriptions_) {
     const Subscription& sub = entry.second;
@@ -100,7 +99,8 @@ std::uint64_t PluginBridge::subscribe(const Link* owner, std::string_view type, 
   if (!callback) throw std::invalid_argument("R2R subscribe needs a callback");
   std::lock_guard lock(mutex_);
   const std::uint64_t id = next_id_++;
-  subscriptions_.emplace(id, std::make_pair(owner, Subscription{*parsed, &worker, std::move(callback), std::make_shared<bool>(true)}));
+  subscriptions_.emplace(
+      id, std::make_pair(owner, Subscription{*parsed, &worker, std::move(callback), std::make_shared<bool>(true)}));
   return id;
 }
 

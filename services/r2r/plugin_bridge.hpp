@@ -11,9 +11,9 @@
 #include <string>
 #include <vector>
 
-#include "services/r2r/r2r_node.hpp"
 #include "rcand/sdk/r2r.hpp"
 #include "rcand/sdk/worker.hpp"
+#include "services/r2r/r2r_node.hpp"
 
 namespace rcand::kernel::r2r {
 

@@ -25,13 +25,13 @@ class BridgeLinks final : public R2rLinkFactory {
 class R2rModule final : public Service {
  public:
   explicit R2rModule(ServiceHost& host) : host_(host) {
-    service_ = R2rService::from_config({host.config, host.auth,
-                                        [api = &host.api](const Principal& principal, nlohmann::json body,
-                                                          std::function<void(int, nlohmann::json)> done) {
-                                          api->execute_action(principal, std::move(body), std::move(done));
-                                        },
-                                        host.status_document, host.estop, host.clock, host.swarm_at_start,
-                                        host.registry.identity().ruri, host.registry.names()});
+    service_ = R2rService::from_config(
+        {host.config, host.auth,
+         [api = &host.api](const Principal& principal, nlohmann::json body, std::function<void(int, nlohmann::json)> done) {
+           api->execute_action(principal, std::move(body), std::move(done));
+         },
+         host.status_document, host.estop, host.clock, host.swarm_at_start, host.registry.identity().ruri,
+         host.registry.names()});
     if (!service_) return;
     bridge_.attach(service_->node());
     host.offer_r2r_links(&links_);

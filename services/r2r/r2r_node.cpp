@@ -5,10 +5,10 @@
 #include <algorithm>
 #include <cmath>
 
+#include "libs/base/bounded_text.hpp"
 #include "libs/rcan/ruri.hpp"
 #include "services/r2r/payload_schema.hpp"
 #include "services/r2r/replay_guard.hpp"
-#include "libs/base/bounded_text.hpp"
 
 namespace rcand::kernel::r2r {
 using nlohmann::json;
@@ -85,7 +85,8 @@ TaskSpec task_from(const json& p) {
   task.task_id = p["task_id"].get<std::string>();
   task.description = p.value("description", "");
   if (p.contains("deadline")) task.deadline = p["deadline"].get<double>();
-  if (p.contains("required_capabilities")) task.required_capabilities = p["required_capabilities"].get<std::vector<std::string>>();
+  if (p.contains("required_capabilities"))
+    task.required_capabilities = p["required_capabilities"].get<std::vector<std::string>>();
   task.location = point_of(p, "location");
   return task;
 }
@@ -94,8 +95,7 @@ TaskSpec task_from(const json& p) {
 
 struct R2rNode::Impl {
   explicit Impl(R2rNodeDeps&& d)
-      : deps(std::move(d)), auth(deps.authenticator, deps.settings.auth),
-        log(deps.log ? deps.log : spdlog::default_logger()) {
+      : deps(std::move(d)), auth(deps.authenticator, deps.settings.auth), log(deps.log ? deps.log : spdlog::default_logger()) {
     default_cost = nav_time_cost({deps.physics, 0.5, deps.settings.seconds_per_task});
     cost = deps.cost_function ? deps.cost_function : default_cost;
     if (const RuriParse parsed = parse_ruri(deps.identity.ruri); parsed.ruri) own_ruri = parsed.ruri;
@@ -206,9 +206,8 @@ struct R2rNode::Impl {
   Peer& peer_entry_locked(const std::string& source) {
     if (const auto it = peers.find(source); it != peers.end()) return it->second;
     while (!peers.empty() && peers.size() >= std::max<std::size_t>(deps.settings.max_peers, 1)) {
-      const auto oldest = std::min_element(peers.begin(), peers.end(), [](const auto& a, const auto& b) {
-        return a.second.last_seen_ms < b.second.last_seen_ms;
-      });
+      const auto oldest = std::min_element(
+          peers.begin(), peers.end(), [](const auto& a, const auto& b) { return a.second.last_seen_ms < b.second.last_seen_ms; });
       peers.erase(oldest);
     }
     return peers[source];
@@ -221,9 +220,8 @@ struct R2rNode::Impl {
 
   // An `error` answering a message from `source` (never to an `error`, never to ourselves).
   // `source` is nullopt when the message was too broken to say who sent it (then only `reply` can carry the answer).
-  Wire error_reply(ErrorCode code, std::string message, const std::optional<json>& ref,
-                   const std::optional<std::string>& source, const Route& reply,
-                   std::optional<json> extra = std::nullopt) const {
+  Wire error_reply(ErrorCode code, std::string message, const std::optional<json>& ref, const std::optional<std::string>& source,
+                   const Route& reply, std::optional<json> extra = std::nullopt) const {
     json payload = make_error_payload(code, std::move(message), ref);
     if (extra) payload.update(*extra);
     return wire({MessageType::Error, std::move(payload), source}, reply);
@@ -307,8 +305,7 @@ void R2rNode::receive(InboundMessage message) {
   if (auto* bad = std::get_if<R2rError>(&parsed)) {
     s.log->info("r2r: refused a message from {} via {}: {}{}{}", message.peer, message.transport, bad->message,
                 bad->field.empty() ? "" : " at ", bad->field);
-    const bool answerable = bad->type != "error" && !(bad->source_id && s.is_self(*bad->source_id)) &&
-                            (bad->source_id || reply);
+    const bool answerable = bad->type != "error" && !(bad->source_id && s.is_self(*bad->source_id)) && (bad->source_id || reply);
     if (!answerable) {
       std::lock_guard lock(s.mutex);
       ++s.counters.rejected;
@@ -345,8 +342,8 @@ void R2rNode::receive(InboundMessage message) {
     // Signed before this robot started: its replay memory cannot know whether it was handled before a restart, so it
     // is refused (103) - nothing signed before a restart is replayable after it.
     if (envelope.timestamp < s.started_s) {
-      const std::string why = "signed message timestamped before this robot started (" + json(s.started_s).dump() +
-                              "): refused as a possible replay";
+      const std::string why =
+          "signed message timestamped before this robot started (" + json(s.started_s).dump() + "): refused as a possible replay";
       s.log->info("r2r: refused a signed {} from '{}' via {}: {}", type_name(envelope.type), source, message.transport, why);
       if (is_error) {
         std::lock_guard lock(s.mutex);
@@ -374,9 +371,10 @@ void R2rNode::receive(InboundMessage message) {
       ++s.counters.rejected;
       return;
     }
-    reject(s.error_reply(ErrorCode::UnknownTarget, "unknown target robot '" + *envelope.target_id + "': this is '" +
-                                                       s.deps.identity.name + "' and it does not forward",
-                         clean_ref, source, reply));
+    reject(s.error_reply(
+        ErrorCode::UnknownTarget,
+        "unknown target robot '" + *envelope.target_id + "': this is '" + s.deps.identity.name + "' and it does not forward",
+        clean_ref, source, reply));
     return;
   }
 
@@ -452,20 +450,19 @@ void R2rNode::receive(InboundMessage message) {
       return;
     }
     std::weak_ptr<Impl> weak = impl_;
-    s.deps.command_executor(principal, envelope.payload,
-                            [weak, clean_ref, source, reply](int status, json body) {
-                              const auto self = weak.lock();
-                              if (!self || (status >= 200 && status < 300)) return;
-                              const std::string why = body.is_object() && body.contains("error") && body["error"].is_string()
-                                                          ? body["error"].get<std::string>()
-                                                          : "command failed";
-                              const ErrorCode code = status == 423                   ? ErrorCode::EstopActive
-                                                     : status == 401 || status == 403 ? ErrorCode::Unauthorized
-                                                                                      : ErrorCode::InvalidFormat;
-                              json extra{{"http_status", status}};  // rcand extension: the HTTP-equivalent answer
-                              if (body.is_object() && body.contains("code")) extra["http_code"] = body["code"];
-                              self->transmit({self->error_reply(code, why, clean_ref, source, reply, extra)});
-                            });
+    s.deps.command_executor(principal, envelope.payload, [weak, clean_ref, source, reply](int status, json body) {
+      const auto self = weak.lock();
+      if (!self || (status >= 200 && status < 300)) return;
+      const std::string why = body.is_object() && body.contains("error") && body["error"].is_string()
+                                  ? body["error"].get<std::string>()
+                                  : "command failed";
+      const ErrorCode code = status == 423                    ? ErrorCode::EstopActive
+                             : status == 401 || status == 403 ? ErrorCode::Unauthorized
+                                                              : ErrorCode::InvalidFormat;
+      json extra{{"http_status", status}};  // rcand extension: the HTTP-equivalent answer
+      if (body.is_object() && body.contains("code")) extra["http_code"] = body["code"];
+      self->transmit({self->error_reply(code, why, clean_ref, source, reply, extra)});
+    });
   }
 
   if (!to_notify.empty()) {
@@ -527,8 +524,8 @@ std::variant<SendOutcome, R2rError> R2rNode::send_message(MessageType type, json
   Wire w = impl_->wire({type, std::move(payload), target});
   const std::size_t size = std::max(w.bytes.size(), w.open_bytes.size());
   if (size > kMaxMessageBytes)
-    return invalid("", "message is " + std::to_string(size) + " bytes, more than the " +
-                           std::to_string(kMaxMessageBytes) + " allowed");
+    return invalid(
+        "", "message is " + std::to_string(size) + " bytes, more than the " + std::to_string(kMaxMessageBytes) + " allowed");
   SendOutcome outcome;
   outcome.bytes = w.open_bytes;
   outcome.queued_on = std::move(impl_->transmit({std::move(w)}).front());
@@ -566,7 +563,9 @@ json R2rNode::held_tasks() const {
   std::lock_guard lock(impl_->mutex);
   json tasks = json::array();
   for (const auto& [task_id, held] : impl_->bidder.held())
-    tasks.push_back({{"task_id", task_id}, {"requester", held.requester}, {"estimated_time", held.estimated_time},
+    tasks.push_back({{"task_id", task_id},
+                     {"requester", held.requester},
+                     {"estimated_time", held.estimated_time},
                      {"accepted_s", held.accepted_s}});
   return tasks;
 }

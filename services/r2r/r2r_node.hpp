@@ -21,19 +21,19 @@
 #include <spdlog/logger.h>
 
 #include "kernel/auth/authenticator.hpp"
+#include "rcand/sdk/clock.hpp"
 #include "services/r2r/auction.hpp"
 #include "services/r2r/cost_function.hpp"
 #include "services/r2r/envelope.hpp"
 #include "services/r2r/message_auth.hpp"
 #include "services/r2r/r2r_settings.hpp"
 #include "services/r2r/transport.hpp"
-#include "rcand/sdk/clock.hpp"
 
 namespace rcand::kernel::r2r {
 
 struct NodeIdentity {
-  std::string name;  // metadata.robot_name: source_id of everything this node sends
-  std::string ruri;  // accepted as an alias of `name` in target_id
+  std::string name;                       // metadata.robot_name: source_id of everything this node sends
+  std::string ruri;                       // accepted as an alias of `name` in target_id
   std::vector<std::string> capabilities;  // the registry's names (what this robot may bid with)
 };
 
@@ -67,12 +67,12 @@ struct R2rNodeDeps {
   const sdk::Clock& clock;
   const Authenticator& authenticator;  // the robot's HTTP authenticator: header.auth.token is checked against it
   R2rSettings settings;
-  StatusSource status_source;          // may be empty: status says unknown everywhere
-  CommandExecutor command_executor;    // may be empty: every command is refused (code 103, "commands disabled")
-  CostFunction cost_function;          // empty: nav_time_cost(physics below)
-  DrivePhysics physics;                // for the default cost function
-  std::vector<Transport*> transports;  // not owned; outlive the node. Also add_transport() later.
-  std::shared_ptr<spdlog::logger> log; // null: spdlog's default logger
+  StatusSource status_source;           // may be empty: status says unknown everywhere
+  CommandExecutor command_executor;     // may be empty: every command is refused (code 103, "commands disabled")
+  CostFunction cost_function;           // empty: nav_time_cost(physics below)
+  DrivePhysics physics;                 // for the default cost function
+  std::vector<Transport*> transports;   // not owned; outlive the node. Also add_transport() later.
+  std::shared_ptr<spdlog::logger> log;  // null: spdlog's default logger
 };
 
 // What send_message() did: the message as sent without any bearer token (the spelling safe to show), and the
@@ -109,8 +109,7 @@ class R2rNode {
   // Sends a message of `type` with `payload` to `target` (nullopt: broadcast) on every transport that accepts it,
   // signed/tokened per settings. Returns the bytes sent, or an R2rError (code 100) when the payload is invalid for the
   // type. True delivery is not confirmed (UDP, MQTT QoS 0).
-  std::variant<std::string, R2rError> send(MessageType type, nlohmann::json payload,
-                                           const std::optional<std::string>& target);
+  std::variant<std::string, R2rError> send(MessageType type, nlohmann::json payload, const std::optional<std::string>& target);
   // The same, saying which transports took it.
   std::variant<SendOutcome, R2rError> send_message(MessageType type, nlohmann::json payload,
                                                    const std::optional<std::string>& target);

@@ -87,14 +87,19 @@ void handle(R2rService* service, AuditLog& audit, Call& call, const Reply& respo
   if (request.path == "/api/r2r/send") {
     const json& b = body.value;
     if (!b.is_object() || !b.contains("type") || !b["type"].is_string())
-      return refuse(failure(400, "BAD_REQUEST", "body needs a string \"type\" (status, task_request, task_response, "
-                                                "command, negotiation, error)", "type"),
+      return refuse(failure(400, "BAD_REQUEST",
+                            "body needs a string \"type\" (status, task_request, task_response, "
+                            "command, negotiation, error)",
+                            "type"),
                     "no type");
     const auto type = r2r::parse_message_type(b["type"].get<std::string>());
-    if (!type) return refuse(failure(400, "BAD_REQUEST", "unknown R2R message type '" + b["type"].get<std::string>() + "'", "type"), "unknown type");
+    if (!type)
+      return refuse(failure(400, "BAD_REQUEST", "unknown R2R message type '" + b["type"].get<std::string>() + "'", "type"),
+                    "unknown type");
     std::optional<std::string> target;
     if (b.contains("target") && !b["target"].is_null()) {
-      if (!b["target"].is_string()) return refuse(failure(400, "BAD_REQUEST", "target must be a robot name", "target"), "bad target");
+      if (!b["target"].is_string())
+        return refuse(failure(400, "BAD_REQUEST", "target must be a robot name", "target"), "bad target");
       target = b["target"].get<std::string>();
     }
     const json payload = b.contains("payload") ? b["payload"] : json::object();
@@ -108,13 +113,12 @@ void handle(R2rService* service, AuditLog& audit, Call& call, const Reply& respo
     // a WebSocket write queue). No transport taking it (an unknown, unreachable target) is queued: false.
     const bool queued = !outcome.queued_on.empty();
     audit.finish(seq, queued ? "ok" : "failed",
-                     std::string(target ? "to " + *target : "broadcast") + (queued ? "" : ": no transport could take it"));
+                 std::string(target ? "to " + *target : "broadcast") + (queued ? "" : ": no transport could take it"));
     json message = json::parse(outcome.bytes, nullptr, false);
     if (message.is_object() && message.contains("header")) message["header"].erase("auth");  // never echo the token
     respond(answer(200, {{"queued", queued}, {"transports", outcome.queued_on}, {"message", message}}));
     return;
   }
-
 
   // POST /api/r2r/auction
   auto task = read_task(body.value);
@@ -122,7 +126,8 @@ void handle(R2rService* service, AuditLog& audit, Call& call, const Reply& respo
   bool wait = true;
   std::chrono::milliseconds timeout = kDefaultAuctionWait;
   if (body.value.contains("wait")) {
-    if (!body.value["wait"].is_boolean()) return refuse(failure(400, "BAD_REQUEST", "wait must be true or false", "wait"), "bad wait");
+    if (!body.value["wait"].is_boolean())
+      return refuse(failure(400, "BAD_REQUEST", "wait must be true or false", "wait"), "bad wait");
     wait = body.value["wait"].get<bool>();
   }
   if (body.value.contains("timeout_ms")) {

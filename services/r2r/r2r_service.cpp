@@ -139,7 +139,8 @@ std::unique_ptr<R2rService> R2rService::from_config(R2rServiceDeps deps) {
   if (!r2r_block.is_object() || !r2r_block.contains("enabled") || r2r_block["enabled"] != true) return nullptr;
   auto impl = std::make_unique<Impl>(std::move(deps));
   Impl& s = *impl;
-  const std::filesystem::path base_dir = cfg.source_file.empty() ? std::filesystem::current_path() : cfg.source_file.parent_path();
+  const std::filesystem::path base_dir =
+      cfg.source_file.empty() ? std::filesystem::current_path() : cfg.source_file.parent_path();
   r2r::R2rSettings settings;
   try {
     settings = r2r::load_r2r_settings(r2r_block, base_dir);
@@ -169,13 +170,14 @@ std::unique_ptr<R2rService> R2rService::from_config(R2rServiceDeps deps) {
   s.udp_enabled = r2r_block.value("udp_enabled", true);
   if (r2r_block.contains("udp_port")) s.udp_port = r2r_block["udp_port"].get<std::uint16_t>();
   // A socket bound to one unicast address never sees broadcasts: any address, unless the robot is loopback-only.
-  s.udp_bind = r2r_block.value("udp_bind", is_loopback_address(cfg.runtime.listen_address) ? cfg.runtime.listen_address : "0.0.0.0");
+  s.udp_bind =
+      r2r_block.value("udp_bind", is_loopback_address(cfg.runtime.listen_address) ? cfg.runtime.listen_address : "0.0.0.0");
   // No implicit destination (issue 13 #10): status datagrams go only where the operator says (udp_broadcast).
   const json destinations = r2r_block.contains("udp_broadcast") ? r2r_block["udp_broadcast"] : json::array();
   for (std::size_t i = 0; i < destinations.size(); ++i) {
     try {
-      s.udp_destinations.push_back(r2r::parse_udp_destination(destinations[i].get<std::string>(),
-                                                              "runtime.r2r.udp_broadcast[" + std::to_string(i) + "]"));
+      s.udp_destinations.push_back(
+          r2r::parse_udp_destination(destinations[i].get<std::string>(), "runtime.r2r.udp_broadcast[" + std::to_string(i) + "]"));
     } catch (const std::invalid_argument& e) {
       throw StartupError(e.what());
     }
@@ -187,10 +189,9 @@ std::unique_ptr<R2rService> R2rService::from_config(R2rServiceDeps deps) {
       .authenticator = s.deps.authenticator,
       .settings = std::move(settings),
       .status_source = [impl = &s] { return impl->local_status(); },
-      .command_executor =
-          [execute = s.deps.execute_action](const Principal& principal, json body, r2r::CommandDone done) {
-            execute(principal, std::move(body), std::move(done));
-          },
+      .command_executor = [execute = s.deps.execute_action](
+                              const Principal& principal, json body,
+                              r2r::CommandDone done) { execute(principal, std::move(body), std::move(done)); },
       .cost_function = {},
       .physics = {cfg.wheel_circumference_m.value_or(0.0), cfg.turn_time_per_deg_s.value_or(0.0), cfg.max_wheel_rps},
       .transports = {s.ws.get()},
@@ -200,12 +201,16 @@ std::unique_ptr<R2rService> R2rService::from_config(R2rServiceDeps deps) {
   // UDP and MQTT never carry the bearer token (header.auth.token goes only over WebSocket): without a signing key,
   // what this robot sends over them is unauthenticated and peers that require credentials refuse it.
   if (node_deps.settings.outbound_token && !node_deps.settings.private_key && (s.mqtt || s.udp_enabled))
-    s.log->warn("r2r: runtime.r2r.token_file is sent over WebSocket only, never over {}; set runtime.r2r.private_key_file "
-                "so peers can authenticate those messages (signed)",
-                s.mqtt && s.udp_enabled ? "UDP or MQTT" : s.mqtt ? "MQTT" : "UDP");
+    s.log->warn(
+        "r2r: runtime.r2r.token_file is sent over WebSocket only, never over {}; set runtime.r2r.private_key_file "
+        "so peers can authenticate those messages (signed)",
+        s.mqtt && s.udp_enabled ? "UDP or MQTT"
+        : s.mqtt                ? "MQTT"
+                                : "UDP");
   if (s.udp_enabled && s.udp_destinations.empty())
-    s.log->warn("r2r: runtime.r2r.udp_broadcast is not set: status is not sent over UDP (received only); name the "
-                "destinations, e.g. udp_broadcast: [\"192.168.1.255\"]");
+    s.log->warn(
+        "r2r: runtime.r2r.udp_broadcast is not set: status is not sent over UDP (received only); name the "
+        "destinations, e.g. udp_broadcast: [\"192.168.1.255\"]");
   s.node = std::make_unique<r2r::R2rNode>(std::move(node_deps));
   return std::unique_ptr<R2rService>(new R2rService(std::move(impl)));
 }
@@ -275,15 +280,19 @@ json R2rService::peers() const {
   if (s.udp) {
     json destinations = json::array();
     for (const auto& destination : s.udp_destinations)
-      destinations.push_back(!destination.port                                 ? destination.host
-                             : destination.host.find(':') != std::string::npos ? "[" + destination.host + "]:" + std::to_string(destination.port)
-                                                                               : destination.host + ":" + std::to_string(destination.port));
+      destinations.push_back(!destination.port ? destination.host
+                             : destination.host.find(':') != std::string::npos
+                                 ? "[" + destination.host + "]:" + std::to_string(destination.port)
+                                 : destination.host + ":" + std::to_string(destination.port));
     transports["udp"] = {{"port", s.udp->bound_port()}, {"destinations", std::move(destinations)}};
   }
   doc["transports"] = std::move(transports);
   const auto counters = s.node->counters();
-  doc["counters"] = {{"received", counters.received}, {"accepted", counters.accepted}, {"rejected", counters.rejected},
-                     {"sent", counters.sent},         {"send_failed", counters.send_failed}};
+  doc["counters"] = {{"received", counters.received},
+                     {"accepted", counters.accepted},
+                     {"rejected", counters.rejected},
+                     {"sent", counters.sent},
+                     {"send_failed", counters.send_failed}};
   doc["held_tasks"] = s.node->held_tasks();
   return doc;
 }

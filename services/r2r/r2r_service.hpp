@@ -6,8 +6,8 @@
 #include <nlohmann/json.hpp>
 
 #include <chrono>
-#include <functional>
 #include <cstdint>
+#include <functional>
 #include <memory>
 #include <string>
 #include <vector>
@@ -17,9 +17,9 @@
 #include "kernel/safety/estop.hpp"
 #include "libs/http/handler.hpp"
 #include "libs/http/server_options.hpp"
-#include "services/r2r/r2r_node.hpp"
 #include "libs/swarm/swarm_registry.hpp"
 #include "rcand/sdk/clock.hpp"
+#include "services/r2r/r2r_node.hpp"
 
 namespace rcand::kernel {
 

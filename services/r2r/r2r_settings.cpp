@@ -81,7 +81,8 @@ R2rSettings load_r2r_settings(const json& r2r, const std::filesystem::path& base
   if (const auto file = r2r.find("private_key_file"); file != r2r.end()) {
     if (!file->is_string() || file->get_ref<const std::string&>().empty()) bad("private_key_file", "expected a file name");
     try {
-      s.private_key = std::make_shared<const Ed25519Key>(Ed25519Key::private_from_file(resolve(base_dir, file->get<std::string>())));
+      s.private_key =
+          std::make_shared<const Ed25519Key>(Ed25519Key::private_from_file(resolve(base_dir, file->get<std::string>())));
     } catch (const std::exception& e) {
       bad("private_key_file", e.what());
     }

@@ -14,8 +14,8 @@ std::string replay_key(const nlohmann::json& message) {
   const std::string input = signing_input(message);
   std::string digest(EVP_MAX_MD_SIZE, '\0');
   unsigned int length = 0;
-  if (EVP_Digest(input.data(), input.size(), reinterpret_cast<unsigned char*>(digest.data()), &length, EVP_sha256(),
-                 nullptr) != 1)
+  if (EVP_Digest(input.data(), input.size(), reinterpret_cast<unsigned char*>(digest.data()), &length, EVP_sha256(), nullptr) !=
+      1)
     throw std::runtime_error("SHA-256 failed");
   digest.resize(length);
   return digest;

@@ -16,8 +16,8 @@
 namespace rcand::services {
 namespace {
 
-using nlohmann::json;
 using kernel::Call;
+using nlohmann::json;
 
 using kernel::Reply;
 using kernel::RouteHandler;
@@ -84,7 +84,8 @@ class SwarmBroadcast final : public kernel::Service {
   std::string_view name() const noexcept override { return "swarm_broadcast"; }
 
   void add_routes(kernel::Router& router) override {
-    router.wrap("POST", "/api/stop", [this](Call& call, Reply reply, const RouteHandler& next) { stop_route(call, std::move(reply), next); });
+    router.wrap("POST", "/api/stop",
+                [this](Call& call, Reply reply, const RouteHandler& next) { stop_route(call, std::move(reply), next); });
     router.wrap("POST", "/api/command",
                 [this](Call& call, Reply reply, const RouteHandler& next) { command_route(call, std::move(reply), next); });
   }
@@ -104,7 +105,8 @@ class SwarmBroadcast final : public kernel::Service {
   void stop_route(Call& call, Reply reply, const RouteHandler& next) {
     JsonBody body = parse_json_body(call.request.body);
     const bool body_ok = body.error.empty() && body.value.is_object();
-    if (call.request.header("x-swarm-forwarded") || !is_broadcast(call.request, body_ok, body.value)) return next(call, std::move(reply));
+    if (call.request.header("x-swarm-forwarded") || !is_broadcast(call.request, body_ok, body.value))
+      return next(call, std::move(reply));
     http::Response local;  // the local stop first, inline, before anything is forwarded
     next(call, [&local](http::Response response) { local = std::move(response); });
     broadcast({true, body_ok ? body.value : json::object(), {}}, call, std::move(reply), std::move(local));
@@ -121,7 +123,8 @@ class SwarmBroadcast final : public kernel::Service {
     }
     JsonBody body = parse_json_body(call.request.body);
     // Not a broadcast, or a body the normal path must refuse (400 naming the body).
-    if (!body.error.empty() || !is_broadcast(call.request, body.value.is_object(), body.value)) return next(call, std::move(reply));
+    if (!body.error.empty() || !is_broadcast(call.request, body.value.is_object(), body.value))
+      return next(call, std::move(reply));
     broadcast({false, body.value.is_object() ? body.value : json::object(), {}}, call, std::move(reply), {});
   }
 
@@ -225,29 +228,31 @@ class SwarmBroadcast final : public kernel::Service {
 
   // The local run goes through the normal path, marked as forwarded so it is not broadcast again and the e-stop
   // acknowledgement applies here too.
-  void run_local_command(const Call& call, const json& body, const std::shared_ptr<Gather>& gather, std::function<void()> complete) {
+  void run_local_command(const Call& call, const json& body, const std::shared_ptr<Gather>& gather,
+                         std::function<void()> complete) {
     http::Request local = call.request;
     local.headers.erase("x-swarm-broadcast");
     local.headers["x-swarm-forwarded"] = host_.registry.identity().ruri;
     local.headers["x-message-id"] = call.message_id;
     local.body = body.dump();
     const auto started = std::chrono::steady_clock::now();
-    host_.api.handle(std::move(local), [gather, complete, name = host_.registry.identity().name, started](http::Response response) {
-      swarm::PeerResult result;
-      result.name = name;
-      result.address = "local";
-      result.reachable = true;
-      result.status = response.status;
-      result.body = std::move(response.body);
-      result.latency_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - started).count();
-      json entry = swarm::node_entry(result, swarm::BroadcastKind::Command);
-      entry["local"] = true;
-      {
-        std::lock_guard lock(gather->mutex);
-        gather->local = std::move(entry);
-      }
-      complete();
-    });
+    host_.api.handle(
+        std::move(local), [gather, complete, name = host_.registry.identity().name, started](http::Response response) {
+          swarm::PeerResult result;
+          result.name = name;
+          result.address = "local";
+          result.reachable = true;
+          result.status = response.status;
+          result.body = std::move(response.body);
+          result.latency_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - started).count();
+          json entry = swarm::node_entry(result, swarm::BroadcastKind::Command);
+          entry["local"] = true;
+          {
+            std::lock_guard lock(gather->mutex);
+            gather->local = std::move(entry);
+          }
+          complete();
+        });
   }
 
   static void answer(kernel::AuditLog& audit, Gather& gather, std::uint64_t seq, const Reply& reply) {
@@ -267,7 +272,8 @@ class SwarmBroadcast final : public kernel::Service {
       nodes.push_back(swarm::node_entry(result, is_stop ? swarm::BroadcastKind::Stop : swarm::BroadcastKind::Command));
     json doc = swarm::broadcast_document(std::move(nodes));
     const auto& summary = doc["summary"];
-    audit.finish(seq, summary["failed"] == 0 ? "ok" : "error", summary["ok"].dump() + "/" + summary["total"].dump() + " nodes ok");
+    audit.finish(seq, summary["failed"] == 0 ? "ok" : "error",
+                 summary["ok"].dump() + "/" + summary["total"].dump() + " nodes ok");
     if (is_stop) doc.update(gather.stop_fields);  // the local stop's own fields stay on top
     reply(kernel::json_response(200, doc));
   }
@@ -279,6 +285,8 @@ class SwarmBroadcast final : public kernel::Service {
 
 }  // namespace
 
-std::unique_ptr<kernel::Service> make_swarm_broadcast(kernel::ServiceHost& host) { return std::make_unique<SwarmBroadcast>(host); }
+std::unique_ptr<kernel::Service> make_swarm_broadcast(kernel::ServiceHost& host) {
+  return std::make_unique<SwarmBroadcast>(host);
+}
 
 }  // namespace rcand::services

@@ -11,12 +11,12 @@
 #include <memory>
 
 #include "fuzz_check.hpp"
-#include "libs/rcan/crypto.hpp"
-#include "kernel/config/robot_config.hpp"
 #include "kernel/api/api.hpp"
+#include "kernel/config/robot_config.hpp"
 #include "kernel/kernel.hpp"
 #include "kernel/service.hpp"
 #include "libs/base/logging.hpp"
+#include "libs/rcan/crypto.hpp"
 
 namespace rcand::fuzz {
 namespace {
@@ -43,8 +43,10 @@ runtime:
     mode: tokens
     jwt_secret_file: jwt.secret
     tokens:
-      - {principal: fuzz-owner, role: owner, sha256: )" + rcand::sha256_hex(kOwnerToken) + R"(}
-      - {principal: fuzz-guest, role: guest, sha256: )" + rcand::sha256_hex(kGuestToken) + R"(}
+      - {principal: fuzz-owner, role: owner, sha256: )" +
+         rcand::sha256_hex(kOwnerToken) + R"(}
+      - {principal: fuzz-guest, role: guest, sha256: )" +
+         rcand::sha256_hex(kGuestToken) + R"(}
   logging: {level: error}
   rate_limit: {per_principal_per_s: 0, per_address_per_s: 0}   # every input reaches the code it aims at
 )";

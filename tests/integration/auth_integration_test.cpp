@@ -86,8 +86,8 @@ TEST_CASE("auth: each JWT failure is a 401 with a clear message, never echoing t
   // alg none: header {"alg":"none","typ":"JWT"} with the good payload and no signature.
   const auto payload = good.substr(good.find('.') + 1, good.rfind('.') - good.find('.') - 1);
   const std::string alg_none = rcand::base64url_encode(R"({"alg":"none","typ":"JWT"})") + "." + payload + ".";
-  const std::string alg_none_signed = rcand::base64url_encode(R"({"alg":"none","typ":"JWT"})") + "." + payload + "." +
-                                      good.substr(good.rfind('.') + 1);
+  const std::string alg_none_signed =
+      rcand::base64url_encode(R"({"alg":"none","typ":"JWT"})") + "." + payload + "." + good.substr(good.rfind('.') + 1);
 
   for (const auto& entry : std::vector<std::pair<std::string, std::string>>{{"bad signature", tampered},
                                                                              {"wrong key", wrong_key},

@@ -67,9 +67,9 @@ TEST_CASE("fault drill: SIGHUP with the config replaced by garbage keeps the old
 
   // A valid file: a new owner token replaces the old ones, the log level changes, a driver changes (restart needed).
   auto next = config;
-  next["runtime"]["auth"]["tokens"] = json::array(
-      {{{"principal", "fresh-owner"}, {"role", "owner"}, {"sha256", rcand::sha256_hex("fresh-token")}},
-       {{"principal", "guest-principal"}, {"role", "guest"}, {"sha256", rcand::sha256_hex("guest-token")}}});
+  next["runtime"]["auth"]["tokens"] =
+      json::array({{{"principal", "fresh-owner"}, {"role", "owner"}, {"sha256", rcand::sha256_hex("fresh-token")}},
+                   {{"principal", "guest-principal"}, {"role", "guest"}, {"sha256", rcand::sha256_hex("guest-token")}}});
   next["runtime"]["logging"]["level"] = "warn";
   next["drivers"][0]["id"] = "drive9";
   rcand.dir().write("robot.rcan.yaml", next.dump(2));

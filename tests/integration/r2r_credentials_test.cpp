@@ -5,8 +5,8 @@
 #include <chrono>
 #include <string>
 
-#include "r2r_lab.hpp"
 #include "libs/rcan/jwt.hpp"
+#include "r2r_lab.hpp"
 #include "rcand_process.hpp"
 #include "temp_dir.hpp"
 #include "ws_client.hpp"

@@ -14,9 +14,9 @@
 
 #include "mosquitto_broker.hpp"
 #include "r2r_lab.hpp"
+#include "rcand_process.hpp"
 #include "services/r2r/message_auth.hpp"
 #include "services/r2r/transports/mqtt_transport.hpp"
-#include "rcand_process.hpp"
 
 using namespace rcand::test;
 using nlohmann::json;

@@ -14,13 +14,13 @@
 #include <mutex>
 #include <thread>
 
+#include "libs/rcan/base64.hpp"
 #include "mosquitto_broker.hpp"
 #include "r2r_lab.hpp"
-#include "libs/rcan/base64.hpp"
-#include "services/r2r/message_auth.hpp"
-#include "services/r2r/transports/mqtt_transport.hpp"
 #include "rcand_process.hpp"
 #include "sanitized_build.hpp"
+#include "services/r2r/message_auth.hpp"
+#include "services/r2r/transports/mqtt_transport.hpp"
 #include "ws_client.hpp"
 
 using namespace rcand::test;

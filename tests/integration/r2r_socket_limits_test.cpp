@@ -12,8 +12,8 @@
 #include <string>
 #include <vector>
 
-#include "r2r_lab.hpp"
 #include "libs/rcan/jwt.hpp"
+#include "r2r_lab.hpp"
 #include "rcand_process.hpp"
 #include "sanitized_build.hpp"
 #include "temp_dir.hpp"
@@ -73,8 +73,6 @@ rcand::http::ClientResponse raw_upgrade(const RcandProcess& robot, const std::st
                         {"Sec-WebSocket-Version", "13"},
                         {"Sec-WebSocket-Key", "dGhlIHNhbXBsZSBub25jZQ=="}});
 }
-
-
 
 }  // namespace
 

@@ -256,7 +256,7 @@ int RcandProcess::kill_hard() {
 std::string RcandProcess::stderr_text() const { return slurp(dir_.path() / "stderr"); }
 
 http::ClientResponse RcandProcess::request(const std::string& method, const std::string& target, const std::string& token,
-                                                   const std::string& body, std::map<std::string, std::string> headers) const {
+                                           const std::string& body, std::map<std::string, std::string> headers) const {
   if (!token.empty()) headers["Authorization"] = "Bearer " + token;
   return http::request(host_, port_, method, target, body, headers, std::chrono::seconds(10));
 }

@@ -58,7 +58,7 @@ class RcandProcess {
 
   // One request on a fresh connection; `token` becomes "Authorization: Bearer <token>" when non-empty.
   http::ClientResponse request(const std::string& method, const std::string& target, const std::string& token = {},
-                                       const std::string& body = {}, std::map<std::string, std::string> headers = {}) const;
+                               const std::string& body = {}, std::map<std::string, std::string> headers = {}) const;
   // request() with the body parsed as JSON (null when it is not JSON).
   nlohmann::json json(const std::string& method, const std::string& target, const std::string& token = {},
                       const std::string& body = {}, int* status = nullptr) const;

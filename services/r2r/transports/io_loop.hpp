@@ -2,8 +2,8 @@
 // goes on, so one bad message never silences a transport.
 #pragma once
 
-#include <boost/asio/io_context.hpp>
 #include <spdlog/logger.h>
+#include <boost/asio/io_context.hpp>
 
 #include <exception>
 #include <memory>
@@ -12,8 +12,7 @@
 
 namespace rcand::kernel::r2r {
 
-inline std::thread start_io_loop(boost::asio::io_context& ioc, std::shared_ptr<spdlog::logger> log,
-                                 std::string_view what) {
+inline std::thread start_io_loop(boost::asio::io_context& ioc, std::shared_ptr<spdlog::logger> log, std::string_view what) {
   return std::thread([&ioc, log = std::move(log), what] {
     for (;;) {
       try {

@@ -49,7 +49,8 @@ MqttOptions mqtt_options_from_config(const nlohmann::json& mqtt, const std::stri
       throw std::invalid_argument(at + "." + key + ": expected a non-empty string");
     return mqtt[key].get<std::string>();
   };
-  auto file = [&](const nlohmann::json& block, const char* key, const std::string& where) -> std::optional<std::filesystem::path> {
+  auto file = [&](const nlohmann::json& block, const char* key,
+                  const std::string& where) -> std::optional<std::filesystem::path> {
     if (!block.contains(key) || block[key].is_null()) return std::nullopt;
     return resolve(block[key], base_dir, where + "." + key);
   };
@@ -116,8 +117,8 @@ struct MqttTransport::State {
     auto& state = *static_cast<State*>(self);
     if (rc != 0) {
       if (!state.outage_logged.exchange(true))
-        state.log->warn("r2r mqtt: broker {}:{} refused the connection: {} (retrying)", state.options.host,
-                        state.options.port, mosquitto_connack_string(rc));
+        state.log->warn("r2r mqtt: broker {}:{} refused the connection: {} (retrying)", state.options.host, state.options.port,
+                        mosquitto_connack_string(rc));
       return;
     }
     state.connected = true;
@@ -128,8 +129,7 @@ struct MqttTransport::State {
     for (const auto& topic : state.options.extra_subscriptions) mosquitto_subscribe(client, nullptr, topic.c_str(), 1);
     if (state.outage_logged.exchange(false))
       state.log->info("r2r mqtt: reconnected to {}:{}", state.options.host, state.options.port);
-    else
-      state.log->info("r2r mqtt: connected to {}:{} as {}", state.options.host, state.options.port, state.own_topic);
+    else state.log->info("r2r mqtt: connected to {}:{} as {}", state.options.host, state.options.port, state.own_topic);
   }
 
   static void on_disconnect(mosquitto*, void* self, int rc) {
@@ -192,7 +192,8 @@ void MqttTransport::start(Deliver deliver) {
     const std::string key = o.tls->key_file ? o.tls->key_file->string() : std::string();
     const int rc = mosquitto_tls_set(s.client, ca.c_str(), nullptr, cert.empty() ? nullptr : cert.c_str(),
                                      key.empty() ? nullptr : key.c_str(), nullptr);
-    if (rc != MOSQ_ERR_SUCCESS) fail("runtime.r2r.mqtt.tls: " + std::string(mosquitto_strerror(rc)) + " (check ca_file, cert_file, key_file)");
+    if (rc != MOSQ_ERR_SUCCESS)
+      fail("runtime.r2r.mqtt.tls: " + std::string(mosquitto_strerror(rc)) + " (check ca_file, cert_file, key_file)");
   }
   mosquitto_connect_callback_set(s.client, &State::on_connect);
   mosquitto_disconnect_callback_set(s.client, &State::on_disconnect);

@@ -13,15 +13,15 @@
 #include <string>
 #include <vector>
 
-#include <nlohmann/json.hpp>
 #include <spdlog/logger.h>
+#include <nlohmann/json.hpp>
 
 #include "services/r2r/transport.hpp"
 
 namespace rcand::kernel::r2r {
 
 struct MqttTls {
-  std::filesystem::path ca_file;                  // required for TLS
+  std::filesystem::path ca_file;                   // required for TLS
   std::optional<std::filesystem::path> cert_file;  // client certificate (with key_file): mutual TLS
   std::optional<std::filesystem::path> key_file;
 };
@@ -38,7 +38,7 @@ struct MqttOptions {
   int keepalive_s = 30;
   std::string topic_prefix = "r2r";
   std::vector<std::string> extra_subscriptions;  // e.g. "r2r/#" for an observer (rcanctl r2r watch)
-  std::shared_ptr<spdlog::logger> log;  // null: spdlog's default logger
+  std::shared_ptr<spdlog::logger> log;           // null: spdlog's default logger
 };
 
 // Reads runtime.r2r.mqtt (relative files against base_dir). Throws std::invalid_argument naming the key at fault.

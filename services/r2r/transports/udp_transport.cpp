@@ -2,11 +2,11 @@
 
 #include "services/r2r/transports/io_loop.hpp"
 
+#include <spdlog/spdlog.h>
 #include <boost/asio/executor_work_guard.hpp>
 #include <boost/asio/io_context.hpp>
 #include <boost/asio/ip/udp.hpp>
 #include <boost/asio/post.hpp>
-#include <spdlog/spdlog.h>
 
 #include <atomic>
 #include <mutex>
@@ -84,8 +84,8 @@ struct UdpTransport::State {
         message.bytes.assign(buffer.data(), bytes);  // an oversize datagram stays oversize: the node refuses it (100)
         message.transport = "udp";
         const auto address = sender.address();
-        message.peer = (address.is_v6() ? "[" + address.to_string() + "]" : address.to_string()) + ":" +
-                       std::to_string(sender.port());
+        message.peer =
+            (address.is_v6() ? "[" + address.to_string() + "]" : address.to_string()) + ":" + std::to_string(sender.port());
         std::shared_lock lock(deliver_mutex);
         if (deliver) deliver(std::move(message));
       } else {

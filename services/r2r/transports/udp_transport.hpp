@@ -10,15 +10,15 @@
 #include <string>
 #include <vector>
 
-#include <nlohmann/json.hpp>
 #include <spdlog/logger.h>
+#include <nlohmann/json.hpp>
 
 #include "services/r2r/transport.hpp"
 
 namespace rcand::kernel::r2r {
 
 struct UdpDestination {
-  std::string host;   // an IPv4/IPv6 address (resolved once at start)
+  std::string host;        // an IPv4/IPv6 address (resolved once at start)
   std::uint16_t port = 0;  // 0: the transport's own port (every robot of the fleet listens on the same one)
 };
 

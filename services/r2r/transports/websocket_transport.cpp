@@ -2,27 +2,27 @@
 
 #include "services/r2r/transports/io_loop.hpp"
 
+#include <spdlog/spdlog.h>
 #include <boost/asio/executor_work_guard.hpp>
 #include <boost/asio/ip/tcp.hpp>
 #include <boost/asio/post.hpp>
 #include <boost/asio/steady_timer.hpp>
 #include <boost/beast/core/buffers_to_string.hpp>
 #include <boost/beast/websocket.hpp>
-#include <spdlog/spdlog.h>
 
 #include <algorithm>
 #include <cstdint>
-#include <limits>
 #include <deque>
+#include <limits>
 #include <map>
 #include <mutex>
 #include <set>
 #include <shared_mutex>
 #include <thread>
 
+#include "libs/base/bounded_text.hpp"
 #include "libs/http/upgrade.hpp"
 #include "services/r2r/transports/message_peek.hpp"
-#include "libs/base/bounded_text.hpp"
 
 namespace rcand::kernel::r2r {
 
@@ -45,8 +45,11 @@ std::string endpoint_text(const tcp::endpoint& endpoint) {
 
 struct WebSocketTransport::Hub : std::enable_shared_from_this<Hub> {
   Hub(WebSocketOptions options_in, const Authenticator& authenticator_in, std::shared_ptr<spdlog::logger> log_in)
-      : options(std::move(options_in)), authenticator(authenticator_in),
-        log(log_in ? std::move(log_in) : options.log ? options.log : spdlog::default_logger()) {}
+      : options(std::move(options_in)),
+        authenticator(authenticator_in),
+        log(log_in        ? std::move(log_in)
+            : options.log ? options.log
+                          : spdlog::default_logger()) {}
 
   const WebSocketOptions options;
   const Authenticator& authenticator;
@@ -127,9 +130,12 @@ class Connection : public std::enable_shared_from_this<Connection> {
  public:
   enum class Direction { Inbound, Outbound };
 
-  Connection(std::weak_ptr<Hub> hub, Stream stream, Direction direction, std::string peer,
-             std::optional<Principal> principal, const WebSocketOptions& options)
-      : hub_(std::move(hub)), ws_(std::move(stream)), direction_(direction), peer_(std::move(peer)),
+  Connection(std::weak_ptr<Hub> hub, Stream stream, Direction direction, std::string peer, std::optional<Principal> principal,
+             const WebSocketOptions& options)
+      : hub_(std::move(hub)),
+        ws_(std::move(stream)),
+        direction_(direction),
+        peer_(std::move(peer)),
         principal_(std::move(principal)),
         trusted_(direction == Direction::Outbound || (principal_ && sdk::role_grants(principal_->role, sdk::Scope::Config))),
         max_queued_(options.max_queued_bytes) {
@@ -174,9 +180,8 @@ class Connection : public std::enable_shared_from_this<Connection> {
 
   // Any thread.
   void send(std::string bytes) {
-    net::post(ws_.get_executor(), [self = shared_from_this(), bytes = std::move(bytes)]() mutable {
-      self->enqueue(std::move(bytes));
-    });
+    net::post(ws_.get_executor(),
+              [self = shared_from_this(), bytes = std::move(bytes)]() mutable { self->enqueue(std::move(bytes)); });
   }
   void close() {
     net::post(ws_.get_executor(), [self = shared_from_this()] { self->shut(); });
@@ -188,7 +193,7 @@ class Connection : public std::enable_shared_from_this<Connection> {
   bool trusted_with_secrets() const noexcept { return trusted_.load(std::memory_order_acquire); }
   const std::string& peer() const noexcept { return peer_; }
   std::size_t queued_bytes() const noexcept { return queued_bytes_.load(std::memory_order_relaxed); }
-  std::string name_;  // the robot this connection reaches (guarded by Hub::mutex)
+  std::string name_;        // the robot this connection reaches (guarded by Hub::mutex)
   std::string counted_as_;  // inbound, capped: the principal it counts against (guarded by Hub::mutex)
 
  private:
@@ -201,9 +206,8 @@ class Connection : public std::enable_shared_from_this<Connection> {
         if (!parse_ec) {
           const tcp::endpoint endpoint{address, port_};
           peer_ = endpoint_text(endpoint);
-          beast::get_lowest_layer(ws_).async_connect(endpoint, [self = shared_from_this()](beast::error_code connect_ec) {
-            self->on_connected(connect_ec);
-          });
+          beast::get_lowest_layer(ws_).async_connect(
+              endpoint, [self = shared_from_this()](beast::error_code connect_ec) { self->on_connected(connect_ec); });
           return;
         }
       }
@@ -330,7 +334,8 @@ class Connection : public std::enable_shared_from_this<Connection> {
   void enqueue(std::string bytes) {
     if (closed_ || !credential_holds()) return;
     if (queued_bytes_ + bytes.size() > max_queued_) {  // a peer that does not read: drop it, not our memory
-      if (auto hub = hub_.lock()) hub->log->warn("r2r ws: {} is not reading ({} bytes queued); closing", peer_, queued_bytes_.load());
+      if (auto hub = hub_.lock())
+        hub->log->warn("r2r ws: {} is not reading ({} bytes queued); closing", peer_, queued_bytes_.load());
       return shut();
     }
     queued_bytes_ += bytes.size();
@@ -362,10 +367,8 @@ class Connection : public std::enable_shared_from_this<Connection> {
                        ec == net::error::eof || ec == beast::error::timeout;
     auto hub = hub_.lock();
     if (hub) {
-      if (oversize)
-        hub->log->info("r2r ws: {} sent a message over {} bytes; closed with 1009", peer_, ws_.read_message_max());
-      else if (!quiet)
-        hub->log->debug("r2r ws: {} {}: {}", peer_, what, ec.message());
+      if (oversize) hub->log->info("r2r ws: {} sent a message over {} bytes; closed with 1009", peer_, ws_.read_message_max());
+      else if (!quiet) hub->log->debug("r2r ws: {} {}: {}", peer_, what, ec.message());
     }
     // Beast has already sent the close frame (1009 for an oversize message); drop the socket.
     shut(oversize);
@@ -380,9 +383,8 @@ class Connection : public std::enable_shared_from_this<Connection> {
     if (open_ && ws_.is_open()) {
       // A clean close when we can (the peer learns we are going away); the socket goes when it completes or times out.
       lowest.expires_after(std::chrono::milliseconds(500));
-      ws_.async_close(close_reason_, [self = shared_from_this()](beast::error_code) {
-        beast::get_lowest_layer(self->ws_).close();
-      });
+      ws_.async_close(close_reason_,
+                      [self = shared_from_this()](beast::error_code) { beast::get_lowest_layer(self->ws_).close(); });
     } else {
       lowest.close();
     }
@@ -396,8 +398,8 @@ class Connection : public std::enable_shared_from_this<Connection> {
   Direction direction_;
   std::string peer_;
   std::optional<Principal> principal_;
-  std::atomic<bool> trusted_;  // follows principal_ (a reload may lower its role)
-  std::string bearer_;                // inbound: the credential, to re-authorize after a reload
+  std::atomic<bool> trusted_;          // follows principal_ (a reload may lower its role)
+  std::string bearer_;                 // inbound: the credential, to re-authorize after a reload
   std::uint64_t auth_generation_ = 0;  // the authenticator's generation it was last authorized under
   std::optional<net::steady_timer> expiry_;
   websocket::close_reason close_reason_{websocket::close_code::going_away};
@@ -523,11 +525,11 @@ http::UpgradeHandler WebSocketTransport::upgrade_handler() {
       } else if (hub->inbound >= o.max_connections) {
         refusal = http::error_response(503, "UNAVAILABLE", "too many R2R connections");
       } else if (capped && holds >= o.max_connections_per_principal) {
-        refusal = http::error_response(
-            429, "TOO_MANY_CONNECTIONS",
-            "principal '" + bounded_text(principal.name, 64) + "' already holds " + std::to_string(holds) +
-                " R2R WebSocket connections, the most a " + std::string(sdk::role_name(principal.role)) +
-                " may (runtime.r2r.ws_max_connections_per_principal); close one first");
+        refusal =
+            http::error_response(429, "TOO_MANY_CONNECTIONS",
+                                 "principal '" + bounded_text(principal.name, 64) + "' already holds " + std::to_string(holds) +
+                                     " R2R WebSocket connections, the most a " + std::string(sdk::role_name(principal.role)) +
+                                     " may (runtime.r2r.ws_max_connections_per_principal); close one first");
       } else if (capped && hub->inbound >= open_to_all) {
         refusal = http::error_response(503, "R2R_SLOTS_RESERVED",
                                        "the remaining R2R WebSocket connections are reserved for OWNER and CREATOR "
@@ -609,8 +611,7 @@ bool WebSocketTransport::send_own(const std::string& with_token, const std::stri
         recipients.push_back(connection);
       }
       for (const auto& node : hub.options.dial_peers) {
-        if (node.name == hub.options.self_name || hub.by_name.contains(node.name) || hub.in_backoff_locked(node.name))
-          continue;
+        if (node.name == hub.options.self_name || hub.by_name.contains(node.name) || hub.in_backoff_locked(node.name)) continue;
         recipients.push_back(hub.dial_locked(node));
       }
     }

@@ -13,30 +13,30 @@
 #include <string>
 #include <vector>
 
-#include <nlohmann/json.hpp>
 #include <spdlog/logger.h>
+#include <nlohmann/json.hpp>
 
 #include "kernel/auth/authenticator.hpp"
 #include "libs/http/server_options.hpp"
-#include "services/r2r/transport.hpp"
 #include "libs/swarm/swarm_registry.hpp"
+#include "services/r2r/transport.hpp"
 
 namespace rcand::kernel::r2r {
 
 inline constexpr std::string_view kWebSocketPath = "/ws/r2r";
 
 struct WebSocketOptions {
-  std::string self_name;                    // never dialed, even when swarm.yaml lists it
+  std::string self_name;                     // never dialed, even when swarm.yaml lists it
   std::vector<swarm::SwarmNode> dial_peers;  // empty: this robot never dials (MQTT carries what WS cannot)
   std::size_t max_message_bytes = 64 * 1024;
-  std::chrono::milliseconds idle_timeout{30'000};       // no frame (pongs count) this long: closed; pings at half
-  std::chrono::milliseconds handshake_timeout{5'000};   // dial: connect + upgrade
-  std::chrono::milliseconds redial_backoff{2'000};      // after a failed dial, messages to that peer are refused
-  std::size_t max_connections = 256;                    // inbound; beyond it the upgrade answers 503 UNAVAILABLE
-  std::size_t max_connections_per_principal = 8;        // inbound sockets one principal below OWNER may hold (429)
-  std::size_t reserved_connections = 32;                // of max_connections, only for OWNER and CREATOR (503)
-  std::size_t max_queued_bytes = 1024 * 1024;           // per connection; beyond it (a peer that does not read) dropped
-  std::shared_ptr<spdlog::logger> log;                  // null: spdlog's default logger
+  std::chrono::milliseconds idle_timeout{30'000};      // no frame (pongs count) this long: closed; pings at half
+  std::chrono::milliseconds handshake_timeout{5'000};  // dial: connect + upgrade
+  std::chrono::milliseconds redial_backoff{2'000};     // after a failed dial, messages to that peer are refused
+  std::size_t max_connections = 256;                   // inbound; beyond it the upgrade answers 503 UNAVAILABLE
+  std::size_t max_connections_per_principal = 8;       // inbound sockets one principal below OWNER may hold (429)
+  std::size_t reserved_connections = 32;               // of max_connections, only for OWNER and CREATOR (503)
+  std::size_t max_queued_bytes = 1024 * 1024;          // per connection; beyond it (a peer that does not read) dropped
+  std::shared_ptr<spdlog::logger> log;                 // null: spdlog's default logger
 };
 
 // The runtime.r2r keys of the WebSocket transport (validated by the config schema): ws_max_connections,

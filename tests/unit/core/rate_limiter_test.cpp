@@ -3,9 +3,9 @@
 
 #include <string>
 
+#include "libs/base/bounded_text.hpp"
 #include "libs/base/json_body.hpp"
 #include "libs/base/rate_limiter.hpp"
-#include "libs/base/bounded_text.hpp"
 
 using namespace rcand;
 

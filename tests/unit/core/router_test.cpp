@@ -93,7 +93,8 @@ struct ApiRig {
   AuditLog audit;
   Authenticator auth{[] {
     AuthSettings settings;
-    settings.tokens = {{"guest", sdk::Role::Guest, sha256_hex("guest-token")}, {"owner", sdk::Role::Owner, sha256_hex("owner-token")}};
+    settings.tokens = {{"guest", sdk::Role::Guest, sha256_hex("guest-token")},
+                       {"owner", sdk::Role::Owner, sha256_hex("owner-token")}};
     return settings;
   }()};
   RuntimeConfig runtime;

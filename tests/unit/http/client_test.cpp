@@ -3,8 +3,8 @@
 #include <chrono>
 
 #include "http_test_util.hpp"
-#include "raw_socket.hpp"
 #include "libs/http/client.hpp"
+#include "raw_socket.hpp"
 
 using namespace rcand::test;
 

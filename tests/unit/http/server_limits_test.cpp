@@ -4,8 +4,8 @@
 #include <atomic>
 
 #include "http_test_util.hpp"
-#include "raw_socket.hpp"
 #include "libs/http/client.hpp"
+#include "raw_socket.hpp"
 
 using namespace rcand::test;
 using nlohmann::json;

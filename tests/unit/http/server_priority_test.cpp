@@ -10,8 +10,8 @@
 #include <vector>
 
 #include "http_test_util.hpp"
-#include "raw_socket.hpp"
 #include "libs/http/upgrade.hpp"
+#include "raw_socket.hpp"
 
 using namespace rcand::test;
 using nlohmann::json;

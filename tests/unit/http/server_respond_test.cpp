@@ -9,8 +9,8 @@
 #include <thread>
 
 #include "http_test_util.hpp"
-#include "raw_socket.hpp"
 #include "libs/http/client.hpp"
+#include "raw_socket.hpp"
 
 using namespace rcand::test;
 using nlohmann::json;

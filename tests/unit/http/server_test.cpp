@@ -6,8 +6,8 @@
 #include <vector>
 
 #include "http_test_util.hpp"
-#include "raw_socket.hpp"
 #include "libs/http/client.hpp"
+#include "raw_socket.hpp"
 
 using namespace rcand::test;
 using nlohmann::json;

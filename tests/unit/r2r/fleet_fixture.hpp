@@ -11,10 +11,10 @@
 #include <string>
 #include <vector>
 
-#include "loopback_network.hpp"
 #include "libs/rcan/crypto.hpp"
-#include "services/r2r/r2r_node.hpp"
+#include "loopback_network.hpp"
 #include "rcand/sdk/testing/manual_clock.hpp"
+#include "services/r2r/r2r_node.hpp"
 
 namespace r2r_test {
 

@@ -1,7 +1,7 @@
 #include <doctest/doctest.h>
 
-#include "libs/rcan/crypto.hpp"
 #include "libs/rcan/base64.hpp"
+#include "libs/rcan/crypto.hpp"
 #include "services/r2r/message_auth.hpp"
 #include "services/r2r/replay_guard.hpp"
 

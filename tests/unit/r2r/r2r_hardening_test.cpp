@@ -9,8 +9,8 @@
 #include <vector>
 
 #include "fleet_fixture.hpp"
-#include "services/r2r/auction.hpp"
 #include "libs/rcan/base64.hpp"
+#include "services/r2r/auction.hpp"
 #include "services/r2r/replay_guard.hpp"
 
 using namespace r2r_test;

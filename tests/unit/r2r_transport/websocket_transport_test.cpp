@@ -16,12 +16,12 @@
 #include <thread>
 
 #include "inbox.hpp"
-#include "ws_client.hpp"
+#include "libs/http/server.hpp"
 #include "libs/rcan/crypto.hpp"
 #include "libs/rcan/jwt.hpp"
-#include "libs/http/server.hpp"
 #include "services/r2r/transports/websocket_transport.hpp"
 #include "wire_message.hpp"
+#include "ws_client.hpp"
 
 using namespace rcand;
 using namespace rcand::kernel;

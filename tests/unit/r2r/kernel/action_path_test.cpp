@@ -7,13 +7,13 @@
 #include <mutex>
 #include <thread>
 
-#include "loopback_network.hpp"
-#include "libs/rcan/crypto.hpp"
-#include "libs/rcan/role_scopes.hpp"
 #include "kernel/api/api.hpp"
 #include "kernel/kernel.hpp"
-#include "services/r2r/r2r_node.hpp"
+#include "libs/rcan/crypto.hpp"
+#include "libs/rcan/role_scopes.hpp"
+#include "loopback_network.hpp"
 #include "rcand/sdk/testing/manual_clock.hpp"
+#include "services/r2r/r2r_node.hpp"
 
 using namespace rcand;
 using namespace rcand::kernel;

@@ -80,10 +80,12 @@ inline Scope route_scope(Scope declared, std::string_view method, bool custom) n
 // ---- the answers both hosts give ---------------------------------------------------------------------------
 
 inline Response missing_action_type(std::vector<std::string> allowed) {
-  return Response::error(400, "BAD_REQUEST", "body needs a string \"type\"", Json{{"field", "type"}, {"allowed", std::move(allowed)}});
+  return Response::error(400, "BAD_REQUEST", "body needs a string \"type\"",
+                         Json{{"field", "type"}, {"allowed", std::move(allowed)}});
 }
 inline Response unknown_action_type(const std::string& type, std::vector<std::string> allowed) {
-  return Response::error(400, "BAD_REQUEST", "unknown action type '" + type + "'", Json{{"field", "type"}, {"allowed", std::move(allowed)}});
+  return Response::error(400, "BAD_REQUEST", "unknown action type '" + type + "'",
+                         Json{{"field", "type"}, {"allowed", std::move(allowed)}});
 }
 inline Response not_declared(const std::string& capability, std::vector<std::string> declared) {
   return Response::error(404, "CAPABILITY_NOT_FOUND", "this robot does not declare the '" + capability + "' capability",
@@ -103,16 +105,19 @@ inline Response estop_active() {
   return Response::error(423, "ESTOP_ACTIVE", "e-stop is latched; clear it with POST /api/estop/clear");
 }
 inline Response out_of_service(const std::string& capability, const std::string& why) {
-  return Response::error(503, "UNAVAILABLE", "capability '" + capability + "' is out of service: " + why, Json{{"capability", capability}});
+  return Response::error(503, "UNAVAILABLE", "capability '" + capability + "' is out of service: " + why,
+                         Json{{"capability", capability}});
 }
 inline Response handler_threw(const std::string& capability) {
-  return Response::error(500, "INTERNAL", "capability '" + capability + "' failed while handling the request; it is now out of service");
+  return Response::error(500, "INTERNAL",
+                         "capability '" + capability + "' failed while handling the request; it is now out of service");
 }
 
 // A handler's answer as it reaches the client: the error shape (docs/protocol.md §4) guaranteed on every non-2xx
 // status, and an invalid status replaced by a 500.
 inline Response normalized(const Response& answer) {
-  if (answer.status < 100 || answer.status > 599) return Response::error(500, "INTERNAL", "capability answered an invalid status");
+  if (answer.status < 100 || answer.status > 599)
+    return Response::error(500, "INTERNAL", "capability answered an invalid status");
   if (answer.status < 300) return answer;
   Json body = answer.body.is_object() ? answer.body : Json::object();
   if (!body.contains("error")) body["error"] = "request failed";

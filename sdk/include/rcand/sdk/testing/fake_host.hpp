@@ -764,7 +764,8 @@ class FakeHost {
       if (r.method == method) route = &r;
     }
     if (!route) {
-      if (!methods.empty() && request.path != contract::kActionPath) return contract::method_not_allowed(method, request.path, methods);
+      if (!methods.empty() && request.path != contract::kActionPath)
+        return contract::method_not_allowed(method, request.path, methods);
       return contract::no_endpoint(slot->name, request.path);
     }
     const Scope scope = contract::route_scope(route->scope, method, custom);
