@@ -1,4 +1,5 @@
 #include "kernel/config/config_schema.hpp"
+#include "libs/rcan/loopback.hpp"
 
 #include "libs/yaml/yaml_document.hpp"
 
@@ -548,7 +549,7 @@ void check_cross_field_rules(const json& doc, Validator& validator) {
   const json* address = at(doc, {"runtime", "listen", "address"});
   if (mode && mode->is_string() && *mode == "open") {
     const std::string listen = address && address->is_string() ? address->get<std::string>() : "127.0.0.1";
-    if (!is_loopback_address(listen))
+    if (!is_loopback_address(std::string(listen)))
       validator.error("runtime.auth.mode",
                       "\"open\" mode (no authentication) is allowed only on a loopback address, but "
                       "runtime.listen.address is " + dump(json(listen)) + "; use mode \"tokens\" or listen on 127.0.0.1");
@@ -578,20 +579,6 @@ const json& schema_default(std::string_view schema_path) {
   static const json none = nullptr;
   const KeySpec* spec = find_spec(schema_path);
   return spec ? spec->default_value : none;
-}
-
-bool is_loopback_address(std::string_view address) {
-  if (address == "localhost") return true;
-  const std::string text(address);
-  unsigned char bytes[16] = {};
-  if (inet_pton(AF_INET, text.c_str(), bytes) == 1) return bytes[0] == 127;
-  if (inet_pton(AF_INET6, text.c_str(), bytes) == 1) {
-    static constexpr unsigned char kLoopback6[16] = {0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 1};
-    static constexpr unsigned char kMapped4[12] = {0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0xff, 0xff};
-    if (std::equal(bytes, bytes + 16, kLoopback6)) return true;
-    return std::equal(bytes, bytes + 12, kMapped4) && bytes[12] == 127;
-  }
-  return false;
 }
 
 void validate_config(const json& doc, const std::map<std::string, SourceMark>& marks, const std::string& file,

@@ -47,7 +47,4 @@ const nlohmann::json& schema_default(std::string_view schema_path);
 void validate_config(const nlohmann::json& doc, const std::map<std::string, SourceMark>& marks, const std::string& file,
                      std::vector<ConfigDiagnostic>& out);
 
-// "127.0.0.1", "127.x.y.z", "::1", "localhost".
-bool is_loopback_address(std::string_view address);
-
 }  // namespace rcand::kernel::config_detail

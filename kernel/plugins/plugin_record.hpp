@@ -1,8 +1,6 @@
 // Everything the kernel knows about one scanned plugin.
 #pragma once
 
-// export.hpp first: sdk/capability.hpp uses RCAND_INTERFACE without including it (reported to the SDK owner).
-#include <rcand/sdk/export.hpp>
 #include <rcand/sdk/registrar.hpp>
 
 #include <filesystem>

@@ -18,7 +18,7 @@ namespace rcand::http {
 // longer counts in max_connections nor is closed by stop(): the taker owns it); `refuse` set - that answer is sent
 // as plain HTTP and the connection closes (401 without credentials, 503); neither - the request goes to the Handler
 // like any other (which answers 404 for a path nobody upgrades). Must not block.
-struct Upgraded;  // rcand/kernel/http/upgrade.hpp
+struct Upgraded;  // libs/http/upgrade.hpp
 struct UpgradeVerdict {
   std::function<void(Upgraded&&)> take;
   std::optional<Response> refuse;

@@ -1,5 +1,6 @@
 // Bad files: every problem reported at once, with file:line:column, the key path, what was expected and found.
 #include "config_test_support.hpp"
+#include "libs/rcan/loopback.hpp"
 
 #include <doctest/doctest.h>
 
@@ -352,5 +353,27 @@ TEST_CASE("hostile input fails cleanly") {
     const auto errors = parse_errors(join(minimal_lines()) + "camera: {[a]: 1}\n");
     REQUIRE(errors.size() == 1);
     CHECK(contains(errors[0].message, "key must be a plain name"));
+  }
+}
+
+// One loopback rule (libs/rcan/loopback.hpp) for config validation and for the kernel at startup: a name such as
+// "localhost" is not a loopback address to either, so a file that validates also starts.
+TEST_CASE("open auth mode: only a literal loopback listen address validates, the same rule the kernel applies") {
+  auto with_listen = [](const std::string& address) {
+    auto lines = minimal_lines();
+    lines.emplace_back("runtime:");
+    lines.emplace_back("  listen: {address: \"" + address + "\"}");
+    lines.emplace_back("  auth: {mode: open}");
+    return join(lines);
+  };
+  for (const char* address : {"127.0.0.1", "127.0.0.2", "::1", "::ffff:127.0.0.1"}) {
+    CAPTURE(address);
+    parse_ok(with_listen(address));
+    CHECK(rcand::is_loopback_address(address));
+  }
+  for (const char* address : {"localhost", "0.0.0.0", "192.168.1.10", "::", "::ffff:10.0.0.1"}) {
+    CAPTURE(address);
+    CHECK_THROWS_AS(parse_robot_config(with_listen(address), "robot.rcan.yaml", "."), ConfigError);
+    CHECK_FALSE(rcand::is_loopback_address(address));
   }
 }
