@@ -142,19 +142,19 @@ for f in files:
         print(f"unit\t{unit}")
 PY
     )
-    todo=()
+    to_check=()
     for line in "${units[@]+"${units[@]}"}"; do
       kind=${line%%$'\t'*}; f=${line#*$'\t'}
-      if [ "$kind" = skip ]; then echo "  (not compiled in $build, not checked: $f)"; else todo+=("$f"); fi
+      if [ "$kind" = skip ]; then echo "  (not compiled in $build, not checked: $f)"; else to_check+=("$f"); fi
     done
-    if [ ${#todo[@]} -gt 0 ]; then
+    if [ ${#to_check[@]} -gt 0 ]; then
       logs=$(mktemp -d)
       trap 'rm -rf "$logs"' EXIT
       header_filter="^$root/($(IFS='|'; echo "${dirs[*]}"))/.*\\.(h|hpp)\$"
       export build header_filter logs
       # Every unit also runs readability-function-size; its findings are kept for kernel/ only (below).
       # shellcheck disable=SC2016  # expanded by the inner bash
-      printf '%s\0' "${todo[@]}" | xargs -0 -P "$jobs" -n 1 bash -c '
+      printf '%s\0' "${to_check[@]}" | xargs -0 -P "$jobs" -n 1 bash -c '
         log="$logs/$(echo "$1" | tr / _).log"
         clang-tidy-14 -p "$build" --quiet --header-filter="$header_filter" --checks=readability-function-size "$1" \
           > "$log" 2>&1 || true' _
@@ -214,7 +214,7 @@ print("\n".join(findings))
 sys.exit(1 if findings else 0)
 PY
       then
-        echo "clang-tidy: ok (${#todo[@]} files)"
+        echo "clang-tidy: ok (${#to_check[@]} files)"
       else
         failed+=("clang-tidy")
         echo "fix: the findings above by hand, or clang-tidy-14 -p $build --fix <file> where a fix is offered"

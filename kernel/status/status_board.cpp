@@ -1,5 +1,7 @@
 #include "kernel/status/status_board.hpp"
 
+#include "libs/base/json_body.hpp"
+
 #include <algorithm>
 #include <atomic>
 #include <future>
@@ -16,12 +18,6 @@ namespace {
 
 using nlohmann::json;
 using Clock = std::chrono::steady_clock;
-
-bool is_true(const json& object, const char* key) {
-  if (!object.is_object()) return false;
-  const auto found = object.find(key);
-  return found != object.end() && found->is_boolean() && found->get<bool>();
-}
 
 // What the nav capability adds to the document: "nav_running" and the dead-reckoned "pose" at the top level, from
 // its status. (To be routed through the standard capability table.)

@@ -19,4 +19,11 @@ struct JsonBody {
 
 JsonBody parse_json_body(std::string_view text);
 
+// True only for a JSON true at `key`: a plugin's or a peer's "running": "yes" is not true, and not an error either.
+inline bool is_true(const nlohmann::json& object, const char* key) {
+  if (!object.is_object()) return false;
+  const auto found = object.find(key);
+  return found != object.end() && found->is_boolean() && found->get<bool>();
+}
+
 }  // namespace rcand

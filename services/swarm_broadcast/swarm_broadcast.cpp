@@ -34,12 +34,6 @@ bool header_true(const http::Request& request, std::string_view name) {
   return lower == "true" || lower == "1";
 }
 
-bool is_true(const json& object, const char* key) {
-  if (!object.is_object()) return false;
-  const auto found = object.find(key);
-  return found != object.end() && found->is_boolean() && found->get<bool>();
-}
-
 // "nodes"/"tags" of a broadcast body: a string or an array of strings.
 std::optional<std::string> read_selection(const json& body, const char* key, std::vector<std::string>& out) {
   if (!body.is_object() || !body.contains(key) || body[key].is_null()) return std::nullopt;
@@ -103,6 +97,10 @@ class SwarmBroadcast final : public kernel::Service {
   };
 
   void stop_route(Call& call, Reply reply, const RouteHandler& next) {
+    // The stop path: a stop that cannot be a broadcast (no header, no "broadcast" in its body) goes straight on,
+    // without parsing its body here as well as in the stop handler.
+    if (!header_true(call.request, "x-swarm-broadcast") && call.request.body.find("broadcast") == std::string::npos)
+      return next(call, std::move(reply));
     JsonBody body = parse_json_body(call.request.body);
     const bool body_ok = body.error.empty() && body.value.is_object();
     if (call.request.header("x-swarm-forwarded") || !is_broadcast(call.request, body_ok, body.value))
