@@ -127,7 +127,8 @@ struct Kernel::State {
   void restore_latch();
 };
 
-// Manifests only: nothing is opened until we know what the config needs.
+// Manifests only: nothing is opened until we know what the config needs. Then the registry, and the robot config as
+// plugins see it.
 void Kernel::State::load_plugins(const KernelOptions& options) {
   auto log = logger("kernel");
   auto plugin_paths = options.plugin_paths.value_or(config.runtime.plugin_paths);
@@ -144,6 +145,15 @@ void Kernel::State::load_plugins(const KernelOptions& options) {
     for (const auto* plugin : host.providers_of_capability(capability)) found.push_back(plugin->id);
     return found;
   };
+  lookup.declared_when = [this] {
+    std::vector<std::pair<std::string, std::string>> found;
+    for (const auto& record : host.records())
+      if (record->manifest)
+        for (const auto& declared : record->manifest->declared_when)
+          if (!host.providers_of_capability(declared.capability).empty())
+            found.emplace_back(declared.capability, declared.config_key);
+    return found;
+  };
   CapabilityPlan plan = plan_capabilities(config, lookup);
   for (const auto& note : plan.notes) log->info("{}", note);
 
@@ -158,6 +168,12 @@ void Kernel::State::load_plugins(const KernelOptions& options) {
       log->error("plugin {} ({}): {} — {}{}", record->id, record->manifest_file.string(), to_string(record->state),
                  record->reason, record->hint.empty() ? "" : " (hint: " + record->hint + ")");
   registry = std::make_unique<CapabilityRegistry>(RobotIdentity{services.ruri, config.robot_name, config.model}, std::move(plan));
+  // Plugins see the robot config without rcand's own auth settings, and with rcan_protocol.capabilities as declared
+  // (auto-detected ones filled in): what this robot may bid with, for one.
+  nlohmann::json visible = config.doc;
+  if (visible.contains("runtime") && visible["runtime"].is_object()) visible["runtime"].erase("auth");
+  visible["rcan_protocol"]["capabilities"] = registry->names();
+  robot_config_view = sdk::ConfigView(std::move(visible));
 }
 
 // §15: the swarm peers. No file means no peers (broadcasts reach this robot only); a malformed one stops startup.
@@ -180,7 +196,7 @@ void Kernel::State::create_services(const KernelOptions& options) {
   service_host.reset(new ServiceHost{config, *auth, estop, audit, clock, *registry, *api,
                                      std::chrono::milliseconds(config.runtime.handler_timeout_ms), swarm,
                                      [this] { return swarm_now.load(); }, [this] { return status_board->document(); }, bound_port,
-                                     [this](R2rLinkFactory* links) { services.r2r = links; }});
+                                     [this](R2rLinkFactory* links) { services.r2r = links; }, services.directory});
   for (const auto& make : options.services)
     if (auto service = make(*service_host)) optional_services.push_back(std::move(service));
 }
@@ -225,11 +241,6 @@ Kernel::Kernel(RobotConfig config, KernelOptions options) : state_(std::make_uni
   s.port = options.port.value_or(cfg.listen_port());
   s.started_us = s.clock.now_us();
 
-  // Plugins see the robot config without rcand's own auth settings.
-  nlohmann::json visible = cfg.doc;
-  if (visible.contains("runtime") && visible["runtime"].is_object()) visible["runtime"].erase("auth");
-  s.robot_config_view = sdk::ConfigView(std::move(visible));
-
   s.services.ruri = robot_ruri(cfg.ruri, cfg.manufacturer, cfg.model, cfg.robot_uuid);
   s.auth = std::make_unique<Authenticator>(auth_settings(cfg, s.services.ruri, s.address));
   s.audit.identify(s.services.ruri, s.clock);
@@ -261,6 +272,19 @@ Kernel::Kernel(RobotConfig config, KernelOptions options) : state_(std::make_uni
 }
 
 Kernel::~Kernel() { shutdown(); }
+
+std::vector<std::string> Kernel::check(RobotConfig config, const KernelOptions& options) {
+  State s;
+  s.config = std::move(config);
+  s.services.ruri = robot_ruri(s.config.ruri, s.config.manufacturer, s.config.model, s.config.robot_uuid);
+  s.auth = std::make_unique<Authenticator>(auth_settings(s.config, s.services.ruri, s.config.runtime.listen_address));
+  s.load_swarm();  // reads the secret and swarm files as serving would: a file rcand cannot read fails here too
+  s.load_plugins(options);
+  PluginRuntime runtime(s.host, s.services, s.actuators);
+  auto problems = runtime.check(s.config, s.registry->names());
+  if (!problems.empty()) throw ConfigError(std::move(problems));
+  return s.registry->names();
+}
 
 // runtime.state_dir (one rcand per state dir): the e-stop starts latched when the last run ended without a clean
 // shutdown or while latched, with the reason in GET /api/estop and the audit log. Before anything is served.
@@ -333,6 +357,10 @@ std::uint16_t Kernel::start() {
                          s.registry->identity().ruri, kRcanVersion, s.address, s.port,
                          s.registry->advertise("idle", s.port).txt.at("caps"));
   return s.port;
+}
+
+bool Kernel::stop_path_responsive(std::chrono::milliseconds within) const {
+  return state_ && state_->server && state_->server->accept_loop_responsive(within);
 }
 
 void Kernel::shutdown() noexcept {

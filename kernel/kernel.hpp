@@ -2,6 +2,7 @@
 // the daemon's main is a thin wrapper around it.
 #pragma once
 
+#include <chrono>
 #include <filesystem>
 #include <functional>
 #include <memory>
@@ -47,10 +48,17 @@ class Kernel {
   Kernel(const Kernel&) = delete;
   Kernel& operator=(const Kernel&) = delete;
 
+  // rcand --check-config: loads the plugins the config needs and checks every driver, capability and setting against
+  // them (PluginRuntime::check) without starting anything: no plugin instance, no device opened, no file written, no
+  // socket. Returns the capability names; throws ConfigError with every problem found, or StartupError.
+  static std::vector<std::string> check(RobotConfig config, const KernelOptions& options);
+
   // Binds and serves; returns the bound port.
   std::uint16_t start();
   // The e-stop path runs first (motors halt), then HTTP stops, then plugins shut down. Idempotent.
   void shutdown() noexcept;
+  // Whether the thread that reads and handles the e-stop answers within `within` (the service watchdog's check).
+  bool stop_path_responsive(std::chrono::milliseconds within) const;
 
   // Config reload (SIGHUP): re-reads `file`. Invalid (a config error with file:line:column, an unreadable JWT secret
   // or swarm file): logged, nothing changes. Valid: applies what can change while serving - runtime.auth (tokens, JWT

@@ -7,6 +7,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <iostream>
+#include <optional>
 #include <set>
 #include <string>
 #include <thread>
@@ -16,6 +17,9 @@
 #include "kernel/kernel.hpp"
 #include "kernel/service.hpp"
 #include "libs/base/logging.hpp"
+#include "libs/base/service_watchdog.hpp"
+#include "libs/base/systemd_notify.hpp"
+#include "libs/base/user_access.hpp"
 #include "rcand/sdk/abi.h"
 
 namespace {
@@ -24,14 +28,17 @@ using namespace rcand;
 using namespace rcand::kernel;
 
 constexpr const char* kUsage = R"(usage: rcand [--config FILE] [--plugin-path DIR]... [--port N]
-       rcand --check-config FILE
+       rcand --check-config FILE [--as-user NAME]
        rcand --check-plugins [--config FILE] [--plugin-path DIR]...
        rcand --version
 
   --config FILE        robot config (.rcan.yaml); default /etc/rcand/robot.rcan.yaml
   --plugin-path DIR    load plugins from DIR instead of runtime.plugin_paths (repeatable)
   --port N             listen on port N instead of the configured one (0: any free port)
-  --check-config FILE  validate FILE (schema, capabilities against installed plugins) and exit
+  --check-config FILE  validate FILE (schema, drivers, capabilities and plugin settings against the installed
+                       plugins) and exit; starts nothing, opens no device, writes no file
+  --as-user NAME       with --check-config: also check that user NAME (the service's rcand) can read and write
+                       every file, directory and device the config names
   --check-plugins      open every installed plugin, print the table, exit 1 if any failed
 
 On start, rcand prints one line "rcand: listening on http://ADDRESS:PORT" on stdout once it serves.
@@ -44,6 +51,7 @@ struct Options {
   std::vector<std::filesystem::path> plugin_paths;
   std::optional<std::uint16_t> port;
   bool check_config = false, check_plugins = false;
+  std::string as_user;  // --check-config --as-user NAME
 };
 
 int usage_error(const std::string& message) {
@@ -114,6 +122,10 @@ std::optional<int> parse_arguments(const std::vector<std::string>& args, Options
       if (!v) return usage_error(arg + " needs a file");
       options.config = *v;
       options.check_config = options.check_config || arg == "--check-config";
+    } else if (arg == "--as-user") {
+      auto v = value();
+      if (!v) return usage_error("--as-user needs a user name");
+      options.as_user = *v;
     } else if (arg == "--plugin-path") {
       auto v = value();
       if (!v) return usage_error("--plugin-path needs a directory");
@@ -137,13 +149,50 @@ std::optional<int> parse_arguments(const std::vector<std::string>& args, Options
   return std::nullopt;
 }
 
+// --as-user: what `user` could not open of what the config names (the service runs as `rcand`, not as the admin).
+std::vector<std::string> access_problems(const RobotConfig& config, const Options& options, const UserIdentity& user) {
+  std::vector<std::pair<std::filesystem::path, Access>> needed{{options.config, Access::Read},
+                                                               {config.runtime.state_dir, Access::Write}};
+  if (config.runtime.auth.jwt_secret_file) needed.emplace_back(*config.runtime.auth.jwt_secret_file, Access::Read);
+  if (config.runtime.audit_file) needed.emplace_back(*config.runtime.audit_file, Access::Write);
+  if (std::filesystem::exists(config.runtime.swarm_file)) needed.emplace_back(config.runtime.swarm_file, Access::Read);
+  auto plugin_paths = options.plugin_paths.empty() ? config.runtime.plugin_paths : options.plugin_paths;
+  for (const auto& dir : plugin_paths.empty() ? default_plugin_paths() : plugin_paths)
+    if (std::filesystem::exists(dir)) needed.emplace_back(dir, Access::Read);
+  // Devices: any driver setting or camera key that names one.
+  std::vector<nlohmann::json> holders;
+  for (const auto& driver : config.drivers) holders.push_back(driver.settings);
+  if (config.doc.contains("camera")) holders.push_back(config.doc["camera"]);
+  for (const auto& holder : holders)
+    if (holder.is_object())
+      for (const auto& [key, value] : holder.items())
+        if (value.is_string() && value.get<std::string>().starts_with("/dev/"))
+          needed.emplace_back(value.get<std::string>(), Access::ReadWrite);
+  std::vector<std::string> problems;
+  for (const auto& [path, access] : needed)
+    if (auto problem = access_problem(user, path, access); !problem.empty()) problems.push_back(std::move(problem));
+  return problems;
+}
+
 int serve(const Options& options, LoadedConfig loaded, sigset_t& signals) {
   const std::string address = loaded.config.runtime.listen_address;
   Kernel kernel(std::move(loaded.config), kernel_options(options));
   const auto port = kernel.start();
   std::cout << "rcand: listening on http://" << address << ":" << port << std::endl;
+  // Under systemd (Type=notify): ready now; reloads and the stop announced; the watchdog fed while the e-stop's
+  // thread answers.
+  notify_service_manager("READY=1\nSTATUS=serving on port " + std::to_string(port));
+  std::optional<ServiceWatchdog> watchdog;
+  if (const auto interval = service_watchdog_interval())
+    watchdog.emplace(*interval, [&kernel](std::chrono::milliseconds within) { return kernel.stop_path_responsive(within); });
   int signal = 0;
-  while (sigwait(&signals, &signal) == 0 && signal == SIGHUP) kernel.reload(options.config);
+  while (sigwait(&signals, &signal) == 0 && signal == SIGHUP) {
+    notify_service_manager("RELOADING=1");
+    kernel.reload(options.config);
+    notify_service_manager("READY=1");
+  }
+  notify_service_manager("STOPPING=1");
+  watchdog.reset();
   rcand::logger("kernel")->info("signal {}: shutting down", signal);
   // The motors halt first and within the stop deadline; a plugin stuck in its shutdown hook must not keep the
   // process alive after that (systemd would wait for TimeoutStopSec, then SIGKILL).
@@ -179,10 +228,16 @@ int main(int argc, char** argv) {
     print_warnings(loaded);
     configure_logging(loaded.config.runtime.log_level);
     if (!options.check_config) return serve(options, std::move(loaded), signals);
-    // Everything short of serving: plugins are scanned and capabilities checked against them.
-    Kernel kernel(std::move(loaded.config), kernel_options(options));
+    if (!options.as_user.empty()) {
+      const auto user = lookup_user(options.as_user);
+      if (!user) return usage_error("--as-user: no user named '" + options.as_user + "'");
+      const auto problems = access_problems(loaded.config, options, *user);
+      for (const auto& problem : problems) std::cerr << "rcand: --as-user " << options.as_user << ": " << problem << "\n";
+      if (!problems.empty()) return 1;
+    }
+    // Everything short of serving, and nothing it would touch: plugins checked against the config, none started.
+    const auto names = Kernel::check(std::move(loaded.config), kernel_options(options));
     std::cout << options.config << ": OK (capabilities: ";
-    const auto& names = kernel.registry().names();
     for (std::size_t i = 0; i < names.size(); ++i) std::cout << (i ? ", " : "") << names[i];
     std::cout << ")\n";
     return 0;

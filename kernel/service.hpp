@@ -21,6 +21,7 @@
 #include "kernel/auth/authenticator.hpp"
 #include "kernel/config/robot_config.hpp"
 #include "kernel/plugins/r2r_link_factory.hpp"
+#include "kernel/plugins/service_directory.hpp"
 #include "kernel/registry/capability_registry.hpp"
 #include "kernel/safety/estop.hpp"
 #include "libs/http/server_options.hpp"
@@ -45,6 +46,9 @@ struct ServiceHost {
   const std::atomic<std::uint16_t>& port;           // the bound HTTP port (0 until start)
   // Set by a service before the plugins start, so their contexts can hand out R2R links.
   std::function<void(R2rLinkFactory*)> offer_r2r_links;
+  // The services plugin instances offer (rcand/sdk/services.hpp): sdk::find<T>(plugin_services) at use time, any
+  // thread, never blocks; null while nothing offers T (the plugins start after the services are made).
+  const ServiceDirectory& plugin_services;
 };
 
 class Service {

@@ -10,7 +10,9 @@ packages=(
   libavahi-client-dev                       # mDNS publish/resolve/browse (Avahi client over the system D-Bus)
   avahi-daemon avahi-utils dbus iproute2    # mDNS integration tests: private daemons in network namespaces
   libmosquitto-dev mosquitto mosquitto-clients  # R2R over MQTT; a real broker in the R2R tests
+  libopencv-core-dev libopencv-imgproc-dev libopencv-imgcodecs-dev libopencv-videoio-dev  # the vision plugin
   curl                                      # README examples
+  systemd                                   # systemd-analyze: the packaged unit's verify and security checks
 )
 # --checks: also what the test suite's code checks need (tests/check_kernel_shape.py, tests/check_style.sh).
 if [ "${1:-}" = "--checks" ]; then

@@ -5,17 +5,19 @@
 #include <algorithm>
 #include <charconv>
 #include <cmath>
-#include <optional>
 #include <cstdlib>
-#include <fstream>
 #include <iomanip>
+#include <optional>
 #include <ostream>
 #include <sstream>
 #include <variant>
 
+#include "libs/mdns/host_resolver.hpp"
 #include "libs/swarm/broadcast_report.hpp"
 #include "libs/swarm/fan_out.hpp"
 #include "libs/swarm/node_selection.hpp"
+#include "local_names.hpp"
+#include "robot_connection.hpp"
 #include "text_table.hpp"
 
 namespace rcand::rcanctl {
@@ -33,11 +35,6 @@ std::optional<int> parse_int(std::string_view text, int low, int high) {
   const auto [end, ec] = std::from_chars(text.data(), text.data() + text.size(), value);
   if (ec != std::errc{} || end != text.data() + text.size() || value < low || value > high) return std::nullopt;
   return value;
-}
-
-std::string trim_newline(std::string text) {
-  while (!text.empty() && (text.back() == '\n' || text.back() == '\r')) text.pop_back();
-  return text;
 }
 
 // One node's row: the table's columns and the JSON object of --json.
@@ -68,6 +65,11 @@ Row status_row(const swarm::PeerResult& result) {
   }
   for (const char* key : {"ruri", "version", "state", "estopped", "caps"})
     if (body.contains(key)) object[key] = body[key];
+  // A robot that answers but reports a fault (a failed plugin or driver) is not "ok": scripts see exit 1.
+  if (object["state"] == "error") {
+    object["error"] = "the robot reports state error (rcanctl plugins names what failed)";
+    return {object, false};
+  }
   object["ok"] = true;
   return {object, true};
 }
@@ -191,14 +193,11 @@ bool parse_fleet_options(std::span<const std::string> args, Operation op, bool s
       return false;
     }
     if (!token_file.empty()) {
-      std::ifstream in(token_file);
-      if (!in) {
-        err << prefix << "cannot read --token-file " << token_file << "\n";
+      options.token = read_token_file(token_file);
+      if (options.token.empty()) {
+        err << prefix << "cannot read a token from --token-file " << token_file << "\n";
         return false;
       }
-      std::stringstream text;
-      text << in.rdbuf();
-      options.token = trim_newline(text.str());
     }
     if (options.token.empty() && options.nodes.empty())
       if (const char* env = std::getenv("RCAND_TOKEN")) options.token = env;
@@ -262,7 +261,10 @@ int run_fleet_operation(Operation op, const std::vector<swarm::SwarmNode>& targe
       requests.push_back(swarm::peer_request(node, "POST", "/api/command", json{{"instruction", options.instruction}}.dump()));
   }
   const int default_ms = op == Operation::Stop ? 400 : op == Operation::Status ? 2000 : 15000;
-  swarm::FanOut fan_out;
+  // "*.local" hosts through avahi-daemon (no libnss-mdns needed); the Avahi client only when a target needs it.
+  const bool any_local =
+      std::any_of(targets.begin(), targets.end(), [](const auto& node) { return mdns::is_mdns_host(node.host); });
+  swarm::FanOut fan_out(any_local ? local_name_resolver() : nullptr);
   auto results = fan_out.run_and_wait(std::move(requests), std::chrono::milliseconds(options.timeout_ms ? options.timeout_ms : default_ms));
   fan_out.stop();
 

@@ -7,7 +7,9 @@
 #include <vector>
 
 #include "discover_command.hpp"
+#include "doctor_command.hpp"
 #include "exit_codes.hpp"
+#include "operator_commands.hpp"
 #include "r2r_command.hpp"
 #include "robot_commands.hpp"
 #include "swarm_command.hpp"
@@ -22,13 +24,17 @@ struct Subcommand {
 };
 
 constexpr Subcommand kSubcommands[] = {
-    {"token", "issue JWTs (token issue), hash or create pre-shared tokens (token hash, token new)",
-     rcand::rcanctl::run_token},
+    {"token", "issue JWTs (token issue), hash or create pre-shared tokens (token hash, token new)", rcand::rcanctl::run_token},
     {"status", "one robot's status (--host/--port/--token, or --node NAME of swarm.yaml)", rcand::rcanctl::run_status},
     {"stop", "latch one robot's e-stop and confirm its motors stopped", rcand::rcanctl::run_stop},
     {"command", "send one robot an instruction: command --instruction \"...\"", rcand::rcanctl::run_command},
-    {"swarm", "status|stop|command on swarm.yaml nodes in parallel (--node, --tag, --swarm, --json)",
-     rcand::rcanctl::run_swarm},
+    {"estop", "show the e-stop (estop), or clear it (estop clear, owner token)", rcand::rcanctl::run_estop},
+    {"move", "teleop: move --linear X --angular Y [--duration MS | --hold]", rcand::rcanctl::run_move},
+    {"nav", "nav go --distance M [--heading DEG] [--speed S] | nav status | nav cancel", rcand::rcanctl::run_nav},
+    {"plugins", "the plugins found: version, state, what each provides, why one failed", rcand::rcanctl::run_plugins},
+    {"audit", "the audit log, oldest first (--limit N, --follow; owner token)", rcand::rcanctl::run_audit},
+    {"doctor", "what is wrong with this robot's setup, and the command that fixes each", rcand::rcanctl::run_doctor},
+    {"swarm", "status|stop|command on swarm.yaml nodes in parallel (--node, --tag, --swarm, --json)", rcand::rcanctl::run_swarm},
     {"discover", "find robots on the LAN by mDNS (_rcan._tcp) and check each one's DISCOVER document (--timeout S, --json)",
      rcand::rcanctl::run_discover},
     {"r2r", "robot-to-robot: send one message and print the answers, watch traffic, run an auction (r2r --help)",

@@ -14,7 +14,7 @@ constexpr std::string_view kRobotUsage =
     "       any of them with --node NAME [--swarm FILE] instead of --host/--port/--token: a node of swarm.yaml\n"
     "  HOST default 127.0.0.1, PORT default 8000, the token may also come from $RCAND_TOKEN;\n"
     "  --swarm default /etc/rcand/swarm.yaml. Output: a table, or one JSON object per node with --json.\n"
-    "  Exit: 0 success, 1 the robot failed or was unreachable, 2 usage or config error.\n";
+    "  Exit: 0 success, 1 the robot failed, was unreachable or reports state error, 2 usage or config error.\n";
 
 }  // namespace
 

@@ -16,13 +16,14 @@ python3 tests/check_kernel_shape.py
 # instantiated once per batch instead of once per file, which takes the clean normal build from ~12 to ~7 minutes
 # on 2 cores. Developers' own builds stay per-file (fast incremental rebuilds); this keeps the code unity-clean.
 stage "normal build"
-cmake -S . -B build -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo -DCMAKE_UNITY_BUILD=ON > /dev/null
+cmake -S . -B build -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo -DCMAKE_UNITY_BUILD=ON -DRCAND_BUILD_TESTS=ON \
+      -DRCAND_BUILD_BENCH=ON > /dev/null
 cmake --build build
 # Style on the last commit's changed lines (clang-format) and files (clang-tidy). clang-tidy reads the per-file
 # compile commands of a configure-only, non-unity tree (the unity build's merge the sources).
 stage "style of the last commit"
 if git rev-parse -q --verify HEAD~1 > /dev/null; then
-  cmake -S . -B build-lint -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo > /dev/null
+  cmake -S . -B build-lint -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo -DRCAND_BUILD_TESTS=ON -DRCAND_BUILD_BENCH=ON > /dev/null
   tests/check_style.sh HEAD~1 build-lint
 else
   echo "no parent commit: skipped"
@@ -38,7 +39,8 @@ bench/soak/run-soak.sh build --smoke
 stage "sanitizer build"
 export ASAN_OPTIONS="detect_leaks=1:abort_on_error=1" UBSAN_OPTIONS="print_stacktrace=1:halt_on_error=1"
 cmake -S . -B build-sanitize -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo -DCMAKE_C_COMPILER=clang-14 \
-      -DCMAKE_CXX_COMPILER=clang++-14 -DRCAND_FUZZ=ON -DRCAND_BUILD_BENCH=OFF -DCMAKE_UNITY_BUILD=ON > /dev/null
+      -DCMAKE_CXX_COMPILER=clang++-14 -DRCAND_FUZZ=ON -DRCAND_BUILD_TESTS=ON -DRCAND_BUILD_BENCH=OFF -DCMAKE_UNITY_BUILD=ON \
+      > /dev/null
 cmake --build build-sanitize
 stage "sanitizer build: tests"
 ctest --test-dir build-sanitize --output-on-failure --timeout 600

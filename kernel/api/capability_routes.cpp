@@ -7,6 +7,7 @@
 #include "kernel/plugins/guarded.hpp"
 #include "libs/base/bounded_text.hpp"
 #include "libs/base/json_body.hpp"
+#include "libs/http/stream_writer.hpp"
 
 namespace rcand::kernel {
 namespace {
@@ -21,6 +22,29 @@ bool is_read(std::string_view method) { return method == "GET" || method == "HEA
 
 // The contract's answers (the fake host gives the same ones) as HTTP responses.
 http::Response answer(const sdk::Response& response) { return json_response(response.status, response.body); }
+
+// A dispatched request is answered once: by its handler (or stream writer), or by the timeout, whichever is first.
+struct Pending {
+  std::atomic<bool> answered{false}, returned{false};  // returned: the handler itself came back
+  sdk::TimerId timer = 0;
+};
+using Finish = std::function<bool(http::Response, std::string outcome, std::string detail)>;
+
+std::shared_ptr<sdk::Request> make_request(const Call& call, json body) {
+  auto request = std::make_shared<sdk::Request>();
+  request->method = call.request.method;
+  request->path = call.request.path;
+  if (call.request.path.starts_with(kCustomPrefix)) {
+    const auto after = call.request.path.find('/', kCustomPrefix.size());
+    request->subpath = after == std::string::npos ? "" : call.request.path.substr(after);
+  }
+  request->query = call.request.query;
+  request->body = std::move(body);
+  request->principal = call.principal;
+  request->role = call.role;
+  request->message_id = call.message_id;
+  return request;
+}
 
 class CapabilityRoutes {
  public:
@@ -58,6 +82,32 @@ class CapabilityRoutes {
     dispatch(*instance, route, call, std::move(body.value), reply);
   }
 
+  // A stream route: the handler gets a writer whose first answer (a stream, a body, or JSON) ends the timeout.
+  void serve_stream(const std::string& name, const sdk::StreamRoute& route, Call& call, const Reply& reply) const {
+    CapabilityInstance* instance = available(name, call, reply);
+    if (instance == nullptr) return;
+    auto request = make_request(call, json());
+    auto pending = std::make_shared<Pending>();
+    Finish finish = arm(*instance, call, reply, pending);
+    auto writer = http::make_stream_writer([finish, timers = &d_.timers, pending](http::Response response) {
+      const int status = response.status;
+      if (!finish(std::move(response), status < 300 ? "ok" : "error", status < 300 ? "" : std::to_string(status))) return false;
+      timers->cancel(pending->timer);
+      return true;
+    });
+    instance->handler_worker->post([finish, target = instance, handler = route.handler, request, pending, writer]() mutable {
+      if (pending->answered.load()) return;  // timed out while queued
+      std::string failure;
+      // The handler gets a copy: ours outlives a throw, so the capability is failed before any answer (a dropped
+      // writer's 500) can reach the client and let its next request in.
+      const bool ok = guarded_call(target->who, "stream handler", failure, [&] { handler(*request, writer); });
+      pending->returned = true;
+      if (ok) return;
+      target->health.mark_failed("stream handler threw: " + failure);
+      finish(answer(contract::handler_threw(target->name)), "error", failure);
+    });
+  }
+
   // What a mount answers when no row of a running capability matched: not declared, out of service, or no route.
   void unrouted(std::string name, Call& call, const Reply& reply) const {
     const std::string& path = call.request.path;
@@ -78,6 +128,8 @@ class CapabilityRoutes {
     std::vector<std::string> methods;
     for (const auto& route : instance->routes)
       if (route.action_type.empty() && route.path == (custom ? subpath : path)) methods.push_back(route.method);
+    for (const auto& route : instance->stream_routes)
+      if (route.path == (custom ? subpath : path)) methods.push_back(route.method);
     if (!methods.empty())
       return refuse(call, reply,
                     answer(contract::method_not_allowed(bounded_text(call.request.method), bounded_text(path), methods)),
@@ -118,49 +170,47 @@ class CapabilityRoutes {
   }
 
   void dispatch(CapabilityInstance& instance, const sdk::Route& route, Call& call, json body, const Reply& reply) const;
+  // The once-only answer of a dispatched request, and its timeout: a handler still running then fails its
+  // capability; one that returned without answering (a stream never started) only gets the client a 503.
+  Finish arm(CapabilityInstance& instance, const Call& call, const Reply& reply, const std::shared_ptr<Pending>& pending) const;
 
  private:
   const CapabilityRouteDeps& d_;
 };
 
-void CapabilityRoutes::dispatch(CapabilityInstance& instance, const sdk::Route& route, Call& call, json body,
-                                const Reply& reply) const {
-  auto request = std::make_shared<sdk::Request>();
-  request->method = call.request.method;
-  request->path = call.request.path;
-  if (call.request.path.starts_with(kCustomPrefix)) {
-    const auto after = call.request.path.find('/', kCustomPrefix.size());
-    request->subpath = after == std::string::npos ? "" : call.request.path.substr(after);
-  }
-  request->query = call.request.query;
-  request->body = std::move(body);
-  request->principal = call.principal;
-  request->role = call.role;
-  request->message_id = call.message_id;
-
-  // Whichever comes first — the handler's answer or the timeout — answers; the other does nothing.
-  struct Pending {
-    std::atomic<bool> answered{false};
-    sdk::TimerId timer = 0;
-  };
-  auto pending = std::make_shared<Pending>();
-  auto finish = [audit = &d_.audit, seq = call.audit_seq, pending, reply](http::Response response, std::string outcome,
-                                                                          std::string detail) {
-    if (pending->answered.exchange(true)) return;
+Finish CapabilityRoutes::arm(CapabilityInstance& instance, const Call& call, const Reply& reply,
+                             const std::shared_ptr<Pending>& pending) const {
+  Finish finish = [audit = &d_.audit, seq = call.audit_seq, pending, reply](http::Response response, std::string outcome,
+                                                                            std::string detail) {
+    if (pending->answered.exchange(true)) return false;
     if (seq != 0) audit->finish(seq, std::move(outcome), std::move(detail));
     reply(std::move(response));
+    return true;
   };
   CapabilityInstance* target = &instance;
-  pending->timer = d_.timers.schedule(d_.handler_timeout, [finish, target, timeout = d_.handler_timeout] {
-    const std::string why = "handler did not answer within " + std::to_string(timeout.count()) + " ms";
-    target->health.mark_failed(why);
-    logger("kernel.api")->error("capability {}: {}; marked failed", target->name, why);
+  pending->timer = d_.timers.schedule(d_.handler_timeout, [finish, target, pending, timeout = d_.handler_timeout] {
+    const bool hung = !pending->returned.load();
+    const std::string why = std::string(hung ? "handler did not answer" : "stream handler did not start its answer") +
+                            " within " + std::to_string(timeout.count()) + " ms";
+    if (hung && !pending->answered.load()) {
+      target->health.mark_failed(why);
+      logger("kernel.api")->error("capability {}: {}; marked failed", target->name, why);
+    }
     finish(error_response(503, "UNAVAILABLE", "capability '" + target->name + "' " + why), "error", why);
   });
-  instance.handler_worker->post([timers = &d_.timers, finish, target, handler = route.handler, request, pending] {
+  return finish;
+}
+
+void CapabilityRoutes::dispatch(CapabilityInstance& instance, const sdk::Route& route, Call& call, json body,
+                                const Reply& reply) const {
+  auto request = make_request(call, std::move(body));
+  auto pending = std::make_shared<Pending>();
+  Finish finish = arm(instance, call, reply, pending);
+  instance.handler_worker->post([timers = &d_.timers, finish, target = &instance, handler = route.handler, request, pending] {
     if (pending->answered.load()) return;  // timed out while queued
     std::string failure;
     auto result = guarded_result(target->who, "request handler", failure, [&] { return handler(*request); });
+    pending->returned = true;
     timers->cancel(pending->timer);
     if (!result) {
       target->health.mark_failed("request handler threw: " + failure);
@@ -175,30 +225,36 @@ void CapabilityRoutes::dispatch(CapabilityInstance& instance, const sdk::Route& 
   });
 }
 
-// Rows for the routes a running capability registered; a route outside its capability's mounts is never served.
+// Rows for the routes a running capability registered (JSON and stream ones); a route outside its capability's
+// mounts is never served.
 void add_instance_routes(Router& router, const std::shared_ptr<const CapabilityRoutes>& routes,
                          const CapabilityInstance& instance) {
   const StandardCapability* standard = find_standard_capability(instance.name);
-  for (const auto& route : instance.routes) {
-    if (!route.action_type.empty()) continue;  // served through POST /api/action
-    const std::string path = contract::served_path(instance.name, route.path);
+  auto add = [&](const std::string& method, const std::string& route_path, Scope declared, bool motion, RouteHandler handler) {
+    const std::string path = contract::served_path(instance.name, route_path);
     const bool mounted = !standard || std::any_of(standard->mounts.begin(), standard->mounts.end(), [&](std::string_view mount) {
       return mount.ends_with('*') ? path.starts_with(mount.substr(0, mount.size() - 1)) : path == mount;
     });
     if (!mounted) {
-      logger("kernel.api")
-          ->warn("capability {}: route {} {} is outside its endpoints; not served", instance.name, route.method, path);
-      continue;
+      logger("kernel.api")->warn("capability {}: route {} {} is outside its endpoints; not served", instance.name, method, path);
+      return;
     }
-    const Scope scope = contract::route_scope(route.scope, route.method, standard == nullptr);
+    const Scope scope = contract::route_scope(declared, method, standard == nullptr);
     try {
-      router.add({route.method, path, scope, !is_read(route.method), route.motion},
-                 [routes, name = instance.name, &route](Call& call, Reply reply) { routes->serve(name, route, call, reply); });
+      router.add({method, path, scope, !is_read(method), motion}, std::move(handler));
     } catch (const std::logic_error&) {
       logger("kernel.api")
-          ->warn("capability {}: route {} {} registered twice; the first one is served", instance.name, route.method, path);
+          ->warn("capability {}: route {} {} registered twice; the first one is served", instance.name, method, path);
     }
+  };
+  for (const auto& route : instance.routes) {
+    if (!route.action_type.empty()) continue;  // served through POST /api/action
+    add(route.method, route.path, route.scope, route.motion,
+        [routes, name = instance.name, &route](Call& call, Reply reply) { routes->serve(name, route, call, reply); });
   }
+  for (const auto& route : instance.stream_routes)
+    add(route.method, route.path, route.scope, false,
+        [routes, name = instance.name, &route](Call& call, Reply reply) { routes->serve_stream(name, route, call, reply); });
 }
 
 }  // namespace

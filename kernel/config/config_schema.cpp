@@ -12,6 +12,7 @@
 #include <algorithm>
 #include <climits>
 #include <cmath>
+#include <stdexcept>
 #include <unordered_map>
 
 namespace rcand::kernel::config_detail {
@@ -37,8 +38,6 @@ std::string check_sha256(const json& value) {
   return "";
 }
 
-std::string check_role(const json& value);  // below, next to the message helpers it uses
-
 constexpr double kIntMax = INT_MAX;
 
 // Every known key, in file order. Free-form blocks are `open` mappings with no children listed. A table, one key per
@@ -52,8 +51,9 @@ const std::vector<KeySpec>& build_schema() {  // NOLINT(readability-function-siz
       {.path = "metadata", .type = Mapping, .required = true, .description = "who the robot is"},
       {.path = "metadata.robot_name", .type = String, .required = true, .non_empty = true,
        .description = "robot name, unique in a fleet (mDNS instance name, R2R id)"},
-      {.path = "metadata.robot_uuid", .type = String, .required = true, .non_empty = true,
-       .required_unless = "ruri", .description = "device id; its first 8 hex digits name the robot in its RURI"},
+      {.path = "metadata.robot_uuid", .type = String, .non_empty = true,
+       .description = "device id; its first 8 hex digits name the robot in its RURI (left out, or the all-zero "
+                      "placeholder: derived from /etc/machine-id)"},
       {.path = "metadata.manufacturer", .type = String, .required = true, .non_empty = true,
        .description = "manufacturer segment of the RURI"},
       {.path = "metadata.model", .type = String, .required = true, .non_empty = true,
@@ -179,84 +179,8 @@ const std::vector<KeySpec>& build_schema() {  // NOLINT(readability-function-siz
       {.path = "runtime.capabilities", .type = Mapping, .description = "per-capability plugin settings"},
       {.path = "runtime.capabilities.*", .type = Mapping, .open = true,
        .description = "settings of one capability (validated by its plugin)"},
+      // Its keys are the R2R service's own (services/r2r/r2r_settings.cpp), joined through a ConfigFragment.
       {.path = "runtime.r2r", .type = Mapping, .open = true, .description = "robot-to-robot settings"},
-      // R2R protocol core (docs/protocol.md §11, README "R2R"); the transports' own keys sit beside these.
-      {.path = "runtime.r2r.origin", .type = Mapping, .description = "where this robot's dead-reckoning frame starts in the fleet frame"},
-      {.path = "runtime.r2r.origin.x", .type = Number, .default_value = 0, .description = "metres"},
-      {.path = "runtime.r2r.origin.y", .type = Number, .default_value = 0, .description = "metres"},
-      {.path = "runtime.r2r.origin.heading_deg", .type = Number, .default_value = 0, .description = "degrees, counter-clockwise"},
-      {.path = "runtime.r2r.status_interval_ms", .type = Integer, .default_value = 1000, .min = 0, .max = 3600000,
-       .min_exclusive = true, .description = "how often status is sent (and on change)"},
-      {.path = "runtime.r2r.bid_window_ms", .type = Integer, .default_value = 1000, .min = 0, .max = 3600000,
-       .min_exclusive = true, .description = "how long an auction this robot opens collects bids"},
-      {.path = "runtime.r2r.cost_per_queued_task_s", .type = Number, .default_value = 30, .min = 0,
-       .description = "seconds each task already held adds to a bid"},
-      {.path = "runtime.r2r.require_signatures", .type = Boolean, .default_value = false,
-       .description = "refuse R2R messages without a valid Ed25519 signature (code 103)"},
-      {.path = "runtime.r2r.replay_window_s", .type = Number, .default_value = 30, .min = 0, .min_exclusive = true,
-       .description = "signed messages older than this are refused (code 103)"},
-      {.path = "runtime.r2r.max_peers", .type = Integer, .default_value = 1024, .min = 1, .max = 1000000,
-       .description = "peers remembered in GET /api/r2r/peers; beyond it the least recently heard is forgotten"},
-      {.path = "runtime.r2r.peer_expiry_s", .type = Number, .default_value = 120, .min = 0, .min_exclusive = true,
-       .description = "a peer heard nothing from for this long is forgotten"},
-      {.path = "runtime.r2r.max_held_tasks", .type = Integer, .default_value = 64, .min = 1, .max = 1000000,
-       .description = "tasks this robot holds at once; beyond it requests and awards are declined"},
-      {.path = "runtime.r2r.private_key_file", .type = String, .non_empty = true,
-       .description = "this robot's Ed25519 private key, PEM (relative to this file); signs every R2R message"},
-      {.path = "runtime.r2r.token_file", .type = String, .non_empty = true,
-       .description = "file holding the token this robot sends in header.auth.token (relative to this file)"},
-      {.path = "runtime.r2r.peers", .type = Sequence, .description = "peers whose signatures this robot accepts"},
-      {.path = "runtime.r2r.peers[]", .type = Mapping, .description = "one peer: name, public_key_file or public_key, role"},
-      {.path = "runtime.r2r.peers[].name", .type = String, .required = true, .non_empty = true, .unique = true,
-       .description = "the peer's robot name, also its signature key_id"},
-      {.path = "runtime.r2r.peers[].public_key_file", .type = String, .non_empty = true,
-       .description = "the peer's Ed25519 public key, PEM (relative to this file)"},
-      {.path = "runtime.r2r.peers[].public_key", .type = String, .non_empty = true,
-       .description = "the peer's Ed25519 public key: 32 bytes, base64"},
-      {.path = "runtime.r2r.peers[].role", .type = String, .default_value = "USER", .check = check_role,
-       .description = "what the peer's signed messages may do: GUEST, USER, LEASEE, OWNER or CREATOR"},
-      // R2R transports (WebSocket /ws/r2r, UDP status, MQTT); the protocol's own keys are listed with the r2r module's.
-      {.path = "runtime.r2r.enabled", .type = Boolean, .default_value = false,
-       .description = "speak R2R (seed 004): WS /ws/r2r, UDP status, MQTT when configured"},
-      {.path = "runtime.r2r.ws_dial", .type = Boolean,
-       .description = "dial swarm.yaml peers over WebSocket when a message must reach them (default: when no mqtt)"},
-      {.path = "runtime.r2r.ws_max_connections", .type = Integer, .default_value = 256, .min = 1, .max = 1000000,
-       .description = "inbound WS /ws/r2r connections; beyond it the upgrade answers 503 UNAVAILABLE"},
-      {.path = "runtime.r2r.ws_max_connections_per_principal", .type = Integer, .default_value = 8, .min = 1, .max = 1000000,
-       .description = "inbound /ws/r2r connections one principal below OWNER may hold; beyond it 429 TOO_MANY_CONNECTIONS"},
-      {.path = "runtime.r2r.ws_reserved_connections", .type = Integer, .default_value = 32, .min = 0, .max = 1000000,
-       .description = "of ws_max_connections, the last ones only OWNER and CREATOR get (503 R2R_SLOTS_RESERVED to others)"},
-      {.path = "runtime.r2r.ws_max_queued_bytes", .type = Integer, .default_value = 1048576, .min = 1024, .max = 1073741824,
-       .description = "bytes queued to one /ws/r2r connection; a client that does not read past it is closed"},
-      {.path = "runtime.r2r.udp_enabled", .type = Boolean, .default_value = true,
-       .description = "send and receive status over UDP"},
-      {.path = "runtime.r2r.udp_port", .type = Integer, .min = 0, .max = 65535,
-       .description = "UDP port for status; rcan_protocol.port when absent"},
-      {.path = "runtime.r2r.udp_bind", .type = String, .non_empty = true,
-       .description = "UDP bind address; 0.0.0.0 (the listen address when it is loopback)"},
-      {.path = "runtime.r2r.udp_broadcast", .type = Sequence,
-       .description = "where status datagrams go (e.g. [\"192.168.1.255\"]); none when absent: UDP status is not sent"},
-      {.path = "runtime.r2r.udp_broadcast[]", .type = String, .non_empty = true,
-       .description = "an IP address, optionally with :port"},
-      {.path = "runtime.r2r.mqtt", .type = Mapping, .open = true, .description = "MQTT broker for R2R (topics r2r/<name>, r2r/broadcast)"},
-      {.path = "runtime.r2r.mqtt.host", .type = String, .non_empty = true, .description = "broker host"},
-      {.path = "runtime.r2r.mqtt.port", .type = Integer, .min = 1, .max = 65535,
-       .description = "broker port (1883, or 8883 with tls)"},
-      {.path = "runtime.r2r.mqtt.tls", .type = Mapping, .description = "TLS to the broker"},
-      {.path = "runtime.r2r.mqtt.tls.ca_file", .type = String, .required = true, .non_empty = true,
-       .description = "CA certificate the broker's certificate must chain to"},
-      {.path = "runtime.r2r.mqtt.tls.cert_file", .type = String, .non_empty = true, .description = "client certificate"},
-      {.path = "runtime.r2r.mqtt.tls.key_file", .type = String, .non_empty = true, .description = "client key"},
-      {.path = "runtime.r2r.mqtt.username", .type = String, .non_empty = true,
-       .description = "broker user name (default: the robot name when a password or token is set)"},
-      {.path = "runtime.r2r.mqtt.password_file", .type = String, .non_empty = true,
-       .description = "file holding the broker password"},
-      {.path = "runtime.r2r.mqtt.token_file", .type = String, .non_empty = true,
-       .description = "file holding a token sent as the broker password"},
-      {.path = "runtime.r2r.mqtt.client_id", .type = String, .non_empty = true,
-       .description = "MQTT client id (default rcand-<robot name>)"},
-      {.path = "runtime.r2r.mqtt.keepalive_s", .type = Integer, .default_value = 30, .min = 5, .max = 65535,
-       .description = "MQTT keep-alive"},
   };
   return table;
 }
@@ -273,7 +197,18 @@ std::string_view last_segment(std::string_view schema_path) {
   return dot == std::string_view::npos ? schema_path : schema_path.substr(dot + 1);
 }
 
+// The services' fragments, registered before main (ConfigFragment), and whether the index below was built already.
+struct FragmentRegistry {
+  std::vector<const std::vector<KeySpec>*> fragments;
+  bool indexed = false;
+};
+FragmentRegistry& registry() {
+  static FragmentRegistry instance;
+  return instance;
+}
+
 struct SchemaIndex {
+  std::vector<const KeySpec*> rows;  // the table's, then each fragment's
   std::unordered_map<std::string_view, const KeySpec*> by_path;
   std::unordered_map<std::string_view, std::vector<const KeySpec*>> children;  // named children of a mapping spec
 };
@@ -281,10 +216,14 @@ struct SchemaIndex {
 const SchemaIndex& schema_index() {
   static const SchemaIndex index = [] {
     SchemaIndex built;
-    for (const auto& spec : build_schema()) {
-      built.by_path.emplace(spec.path, &spec);
-      const auto name = last_segment(spec.path);
-      if (!spec.path.ends_with("[]") && name != "*") built.children[parent_of(spec.path)].push_back(&spec);
+    for (const auto& spec : build_schema()) built.rows.push_back(&spec);
+    registry().indexed = true;
+    for (const auto* fragment : registry().fragments)
+      for (const auto& spec : *fragment) built.rows.push_back(&spec);
+    for (const KeySpec* spec : built.rows) {
+      built.by_path.emplace(spec->path, spec);
+      const auto name = last_segment(spec->path);
+      if (!spec->path.ends_with("[]") && name != "*") built.children[parent_of(spec->path)].push_back(spec);
     }
     return built;
   }();
@@ -342,6 +281,8 @@ std::string describe(const json& value, bool secret) {
   }
 }
 
+}  // namespace
+
 // Role names come from the SDK, the same parser auth uses, so the file and the runtime cannot disagree.
 std::string check_role(const json& value) {
   const auto& text = value.get_ref<const std::string&>();
@@ -356,6 +297,8 @@ std::string check_role(const json& value) {
   if (const auto guess = closest_match(text, names)) message += "; did you mean '" + *guess + "'?";
   return message;
 }
+
+namespace {
 
 bool type_matches(ValueType type, const json& value) {
   switch (type) {
@@ -487,11 +430,14 @@ class Validator {
     if (children == schema_index().children.end()) return;
     for (const KeySpec* child : children->second) {
       const std::string name(last_segment(child->path));
-      if (!child->required || value.contains(name)) continue;
+      const auto condition = child->required_if.empty() ? value.end() : value.find(std::string(child->required_if));
+      const bool required_now = condition != value.end() && *condition == true;
+      if (!(child->required || required_now) || value.contains(name)) continue;
       if (!child->required_unless.empty() && value.contains(std::string(child->required_unless))) continue;
       std::string message = "required key '" + name + "' is missing";
       if (!child->required_unless.empty())
         message += " (give '" + name + "' or '" + std::string(child->required_unless) + "')";
+      if (required_now) message += " (" + std::string(child->required_if) + " is true, so " + name + " must be set)";
       message += "; expected " + type_phrase(child->type) + ": " + std::string(child->description);
       // The key is not in the file, so point at the block that should hold it.
       out_.push_back({ConfigDiagnostic::Severity::Error, mark(key_path), child_path(key_path, name), std::move(message)});
@@ -504,8 +450,12 @@ class Validator {
     if (const auto it = schema_index().children.find(schema_path); it != schema_index().children.end())
       for (const KeySpec* child : it->second) allowed.emplace_back(last_segment(child->path));
     std::string message = "unknown key '" + name + "'";
+    // A near miss of a key this block takes is a typo whose setting would be silently lost ("rcan_protocl:" and the
+    // robot advertises what it auto-detects): an error. Other unknown keys (other runtimes' keys) stay warnings.
+    auto severity = ConfigDiagnostic::Severity::Warning;
     if (const auto guess = closest_match(name, allowed)) {
       message += "; did you mean '" + *guess + "'?";
+      severity = ConfigDiagnostic::Severity::Error;
     } else if (const auto elsewhere = known_elsewhere(name)) {
       message += "; did you mean '" + *elsewhere + "'? (it belongs in another block)";
     } else {
@@ -513,15 +463,15 @@ class Validator {
       for (const auto& key : allowed) list += (list.empty() ? "" : ", ") + key;
       message += list.empty() ? "; this block takes no keys" : "; allowed keys here: " + list;
     }
-    out_.push_back({ConfigDiagnostic::Severity::Warning, mark(child_key), key_path, std::move(message)});
+    out_.push_back({severity, mark(child_key), key_path, std::move(message)});
   }
 
   // A key written in the wrong block ("plugin_paths" at the top instead of under runtime).
   static std::optional<std::string> known_elsewhere(const std::string& name) {
-    for (const auto& spec : config_schema()) {
-      if (spec.path.find('[') != std::string_view::npos || spec.path.find('*') != std::string_view::npos) continue;
-      if (spec.path.find('.') != std::string_view::npos && iequals(last_segment(spec.path), name))
-        return std::string(spec.path);
+    for (const KeySpec* spec : config_schema()) {
+      if (spec->path.find('[') != std::string_view::npos || spec->path.find('*') != std::string_view::npos) continue;
+      if (spec->path.find('.') != std::string_view::npos && iequals(last_segment(spec->path), name))
+        return std::string(spec->path);
     }
     return std::nullopt;
   }
@@ -567,7 +517,7 @@ void check_cross_field_rules(const json& doc, Validator& validator) {
 
 }  // namespace
 
-const std::vector<KeySpec>& config_schema() { return build_schema(); }
+const std::vector<const KeySpec*>& config_schema() { return schema_index().rows; }
 
 const KeySpec* find_spec(std::string_view schema_path) {
   const auto& index = schema_index().by_path;
@@ -597,12 +547,32 @@ void validate_config(const json& doc, const std::map<std::string, SourceMark>& m
 
 namespace rcand::kernel {
 
+ConfigFragment::ConfigFragment(std::vector<KeySpec> rows) : rows_(std::move(rows)) {
+  auto& registry = config_detail::registry();
+  if (registry.indexed) throw std::logic_error("a config fragment was registered after the first validation");
+  registry.fragments.push_back(&rows_);
+}
+
+void ConfigFragment::check(const nlohmann::json& block, std::string_view schema_path) const {
+  const KeySpec* spec = config_detail::find_spec(schema_path);
+  if (spec == nullptr) throw std::logic_error("no config key " + std::string(schema_path));
+  const std::map<std::string, SourceMark> no_marks;
+  const std::string no_file;
+  std::vector<ConfigDiagnostic> found;
+  config_detail::Validator validator(no_marks, no_file, found);
+  validator.check(*spec, block, std::string(schema_path));
+  for (const auto& diagnostic : found)
+    if (diagnostic.severity == ConfigDiagnostic::Severity::Error)
+      throw std::invalid_argument(diagnostic.key_path + ": " + diagnostic.message);
+}
+
 std::string config_reference() {
   using config_detail::config_schema;
   std::size_t width = 0;
-  for (const auto& spec : config_schema()) width = std::max(width, spec.path.size());
+  for (const KeySpec* row : config_schema()) width = std::max(width, row->path.size());
   std::string out;
-  for (const auto& spec : config_schema()) {
+  for (const KeySpec* row : config_schema()) {
+    const KeySpec& spec = *row;
     std::string line(spec.path);
     line.resize(width + 2, ' ');
     std::string type = config_detail::type_phrase(spec.type);

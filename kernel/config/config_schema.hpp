@@ -1,5 +1,6 @@
-// The one table that describes every known key of a `.rcan.yaml` file (fluent-bit config_map style), and the
-// validator that walks a document against it (internal to the config module).
+// The one table that describes every known key of a `.rcan.yaml` file (fluent-bit config_map style), the validator
+// that walks a document against it, and the door through which a service's own block of keys joins it
+// (ConfigFragment: runtime.r2r is services/r2r's), so every key is checked once, by one engine, with file:line:column.
 #pragma once
 
 #include "kernel/config/robot_config.hpp"
@@ -34,11 +35,13 @@ struct KeySpec {
   bool unique = false;                         // no two items of the enclosing sequence share the value
   bool secret = false;                         // never echo the value in a message
   std::string_view required_unless = {};       // a sibling key whose presence lifts `required`
+  std::string_view required_if = {};           // a sibling boolean key whose `true` makes this key required
   ValueCheck check = nullptr;
   std::string_view description = {};
 };
 
-const std::vector<KeySpec>& config_schema();
+// Every row: the kernel's table, then each linked service's fragment, in registration order.
+const std::vector<const KeySpec*>& config_schema();
 const KeySpec* find_spec(std::string_view schema_path);
 // The table's default for `schema_path` (null json when it has none).
 const nlohmann::json& schema_default(std::string_view schema_path);
@@ -47,4 +50,33 @@ const nlohmann::json& schema_default(std::string_view schema_path);
 void validate_config(const nlohmann::json& doc, const std::map<std::string, SourceMark>& marks, const std::string& file,
                      std::vector<ConfigDiagnostic>& out);
 
+// A role name as auth reads it (GUEST ... CREATOR, any case); for rows of any fragment that name a role.
+std::string check_role(const nlohmann::json& value);
+
 }  // namespace rcand::kernel::config_detail
+
+namespace rcand::kernel {
+
+using config_detail::KeySpec;
+using config_detail::ValueType;
+
+// A service's own keys, under a block the kernel's table declares as an open mapping (runtime.r2r). A fragment is a
+// static object in the service's library: it registers itself before main, so the loader, --check-config and a
+// SIGHUP reload check its keys like the kernel's, while the kernel never names the service. Registering after the
+// first validation is a programming error (std::logic_error).
+class ConfigFragment {
+ public:
+  explicit ConfigFragment(std::vector<KeySpec> rows);
+  ConfigFragment(const ConfigFragment&) = delete;
+  ConfigFragment& operator=(const ConfigFragment&) = delete;
+
+  const std::vector<KeySpec>& rows() const noexcept { return rows_; }
+  // The same validation for `block`, the value at `schema_path` (a plain path such as "runtime.r2r") read outside a
+  // config file: throws std::invalid_argument "<key path>: <problem>" for its first error.
+  void check(const nlohmann::json& block, std::string_view schema_path) const;
+
+ private:
+  std::vector<KeySpec> rows_;
+};
+
+}  // namespace rcand::kernel

@@ -1,6 +1,7 @@
 #include "kernel/config/robot_config.hpp"
 
 #include "kernel/config/config_schema.hpp"
+#include "libs/rcan/machine_identity.hpp"
 #include "libs/yaml/yaml_document.hpp"
 
 #include <rcand/sdk/scope.hpp>
@@ -121,6 +122,14 @@ RobotConfig extract(yaml::YamlDocument yaml, const fs::path& source_file, const 
   c.manufacturer = value_or_default<std::string>(doc, "metadata.manufacturer");
   c.model = value_or_default<std::string>(doc, "metadata.model");
   c.ruri = optional_value<std::string>(doc, "metadata.ruri");
+  if (!c.ruri && (c.robot_uuid.empty() || is_placeholder_uuid(c.robot_uuid))) {  // one packaged config, many robots
+    const auto derived = robot_uuid_from_machine_id();
+    if (!derived)
+      throw ConfigError({{ConfigDiagnostic::Severity::Error, c.mark_of("metadata.robot_uuid"), "metadata.robot_uuid",
+                          "not set (or the all-zero placeholder), and /etc/machine-id cannot be read to derive one: "
+                          "give this robot its own UUID"}});
+    c.robot_uuid = *derived;
+  }
 
   c.has_agent = doc.contains("agent");
   c.has_camera = doc.contains("camera");

@@ -45,7 +45,18 @@ InstanceContext::InstanceContext(std::string plugin_id, std::string instance_id,
       settings_(std::move(settings)),
       health_(health) {}
 
-InstanceContext::~InstanceContext() { join_workers(); }
+InstanceContext::~InstanceContext() {
+  withdraw_offers();
+  join_workers();
+}
+
+bool InstanceContext::offer_service(std::string_view interface_id, const void* service) noexcept {
+  try {
+    return services_.directory.offer_service(interface_id, service, this, plugin_id_ + " (" + instance_id_ + ")", &health_);
+  } catch (...) {  // no memory for the name: not offered
+    return false;
+  }
+}
 
 sdk::Worker& InstanceContext::worker(std::string_view name) {
   if (name.empty() || name.find_first_of(" /\t\n") != std::string_view::npos)

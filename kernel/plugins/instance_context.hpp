@@ -9,6 +9,7 @@
 
 #include "kernel/audit/audit_log.hpp"
 #include "kernel/plugins/r2r_link_factory.hpp"
+#include "kernel/plugins/service_directory.hpp"
 #include "kernel/safety/estop.hpp"
 #include "kernel/safety/instance_health.hpp"
 #include "kernel/safety/kernel_motion_gate.hpp"
@@ -54,13 +55,14 @@ struct KernelServices {
   const sdk::ConfigView& robot_config;
   AuditLog* audit = nullptr;  // plugin-requested e-stops are audited (docs/protocol.md §6.3); null in tests without one
   std::string ruri;           // the robot's RURI, for those audit entries
-  // The first driver or capability implementing sdk::ObstacleSource; set by the plugin runtime at startup.
-  std::atomic<const sdk::ObstacleSource*> obstacles{nullptr};
   // Plugins' R2R links (docs/protocol.md §11) when runtime.r2r.enabled, set before any plugin starts; null: no R2R here.
   R2rLinkFactory* r2r = nullptr;
   // PluginContext::publish_status() goes here (the status board attaches itself when it starts). The braces let an
   // aggregate initialization leave it out without -Wmissing-field-initializers.
   StatusSinkSlot status_sink{};
+  // The services instances offer each other (PluginContext::offer_service), also read by the status board and lent
+  // to rcand's in-tree services.
+  ServiceDirectory directory{};
 };
 
 // The e-stop as a plugin instance sees it: request_estop() writes an audit entry naming the plugin (before the
@@ -96,11 +98,18 @@ class InstanceContext final : public sdk::PluginContext {
   const sdk::ConfigView& config() const noexcept override { return settings_; }
   const sdk::ConfigView& robot_config() const noexcept override { return services_.robot_config; }
   sdk::Worker& worker(std::string_view name) override;
-  const sdk::ObstacleSource* obstacles() const noexcept override { return services_.obstacles.load(); }
+  // The deprecated shim: the ObstacleSource service.
+  const sdk::ObstacleSource* obstacles() const noexcept override { return sdk::find<sdk::ObstacleSource>(*this); }
   // Created on first use; its callbacks run on this instance's worker "r2r".
   sdk::R2rLink* r2r() noexcept override;
   // To KernelServices::status_sink: a copy and a brief lock there, nothing else on the plugin's thread.
   void publish_status(const nlohmann::json& status) noexcept override { services_.status_sink.publish(*this, status); }
+  // To KernelServices::directory, owned by this context; not found once this instance is failed.
+  const void* service(std::string_view interface_id) const noexcept override { return services_.directory.service(interface_id); }
+  bool offer_service(std::string_view interface_id, const void* service) noexcept override;
+
+  // Withdraws every service this instance offered: before its shutdown(), and when the context goes. Idempotent.
+  void withdraw_offers() noexcept { services_.directory.withdraw(this); }
 
   // Joins every worker this instance created (their queued tasks finish first). Idempotent.
   void join_workers();

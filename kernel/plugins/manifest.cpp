@@ -1,6 +1,7 @@
 #include "kernel/plugins/manifest.hpp"
 
 #include <fstream>
+#include <optional>
 #include <set>
 #include <sstream>
 #include <utility>
@@ -81,6 +82,18 @@ ProvidedItem parse_provided(const Fields& f, const json& entry, const std::strin
   return item;
 }
 
+// A capability's "declared_when": the dotted config key whose value `true` declares it (runtime.r2r.enabled).
+std::optional<DeclaredWhen> parse_declared_when(const Fields& f, const json& entry, const ProvidedItem& item,
+                                                const std::string& field) {
+  const auto it = entry.find("declared_when");
+  if (it == entry.end()) return std::nullopt;
+  const std::string key = f.string(*it, field + ".declared_when");
+  if (item.kind != "capability") f.fail(field + ".declared_when", "only a capability is declared by a config key");
+  if (!is_identifier(key) || key.front() == '.' || key.back() == '.' || key.find("..") != std::string::npos)
+    f.fail(field + ".declared_when", "expected a dotted config key such as \"runtime.r2r.enabled\", found '" + key + "'");
+  return DeclaredWhen{item.name, key};
+}
+
 }  // namespace
 
 PluginManifest parse_manifest(const json& doc, const std::filesystem::path& file) {
@@ -116,6 +129,7 @@ PluginManifest parse_manifest(const json& doc, const std::filesystem::path& file
     const std::string field = "provides[" + std::to_string(i) + "]";
     ProvidedItem item = parse_provided(f, provides[i], field);
     if (!seen.emplace(item.kind, item.name).second) f.fail(field + ".name", item.kind + " '" + item.name + "' is listed twice");
+    if (auto declared = parse_declared_when(f, provides[i], item, field)) m.declared_when.push_back(std::move(*declared));
     m.provides.push_back(std::move(item));
   }
 

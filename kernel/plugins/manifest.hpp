@@ -19,11 +19,20 @@ struct ProvidedItem {
   bool operator==(const ProvidedItem&) const = default;
 };
 
+// A capability the plugin declares by itself when a config key is true (a "provides" entry's "declared_when"): the
+// fleet plugin joins every robot with runtime.r2r.enabled. The registry reads these; the kernel names none of them.
+struct DeclaredWhen {
+  std::string capability;
+  std::string config_key;  // dotted path into the robot config ("runtime.r2r.enabled")
+  bool operator==(const DeclaredWhen&) const = default;
+};
+
 struct PluginManifest {
   std::filesystem::path file, library;  // library is absolute (resolved against the manifest's folder)
   std::string id, version, description;
   int abi_major = 0, abi_minor = 0;
   std::vector<ProvidedItem> provides;
+  std::vector<DeclaredWhen> declared_when;                  // from "provides" entries
   std::vector<std::string> requires_;                       // actuator interfaces some enabled driver must provide
   nlohmann::json config_schema = nlohmann::json::object();  // validated: see apply_config_schema()
 };

@@ -246,6 +246,7 @@ const rcand_plugin_descriptor* PluginHost::read_descriptor(PluginRecord& record)
   if (auto verdict = check_descriptor(*descriptor, *record.manifest))
     return set_state(record, verdict->state, std::move(verdict->reason), std::move(verdict->hint)), nullptr;
   if ((*descriptor)->build_info != nullptr) record.build_info = (*descriptor)->build_info;
+  record.abi_minor = (*descriptor)->abi_minor;
   return *descriptor;
 }
 

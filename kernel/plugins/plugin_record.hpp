@@ -28,6 +28,7 @@ struct PluginRecord {
   std::filesystem::path manifest_file;
   std::optional<PluginManifest> manifest;  // nullopt when invalid
   std::string id, version, build_info;     // build_info from the descriptor once opened
+  int abi_minor = 0;  // the descriptor's: which appended virtuals the plugin's objects have (stream_routes() from 2)
   PluginState state = PluginState::InstalledNotEnabled;
   std::string reason, hint;  // e.g. "built for ABI 2, kernel speaks 1" / "rebuild against rcand-sdk 1.x"
   // Filled only when state is Loaded (nothing of a failed plugin runs).

@@ -7,27 +7,17 @@
 #include "kernel/plugins/bounded_call.hpp"
 #include "kernel/plugins/guarded.hpp"
 #include "kernel/plugins/settings_schema.hpp"
+#include "libs/base/closest_match.hpp"
 #include "libs/base/keep_forever.hpp"
 
 namespace rcand::kernel {
 namespace {
 
-[[noreturn]] void settings_error(const RobotConfig& config, const std::string& path, const std::string& message) {
-  ConfigDiagnostic diagnostic;
-  diagnostic.mark = config.mark_of(path);
-  diagnostic.key_path = path;
-  diagnostic.message = message;
-  throw ConfigError({std::move(diagnostic)});
-}
-
+// The instance's settings against its manifest's schema; a fault is a config error at the key's file:line:column.
 nlohmann::json validated_settings(const RobotConfig& config, const PluginRecord& plugin, const nlohmann::json& settings,
                                   bool allow_unknown, const std::string& path) {
   const nlohmann::json schema = plugin.manifest ? plugin.manifest->config_schema : nlohmann::json::object();
-  try {
-    return apply_config_schema(schema, settings, allow_unknown);
-  } catch (const ConfigSchemaError& e) {
-    settings_error(config, path, std::string(e.what()) + " (settings of plugin " + plugin.id + ")");
-  }
+  return plugin_settings(config, plugin.id, schema, settings, allow_unknown, path);
 }
 
 const std::string& key_of(const RegisteredDriver& item) { return item.info.protocol; }
@@ -47,14 +37,12 @@ std::pair<const Registered*, PluginRecord*> find_loaded(PluginHost& host, const 
   return {nullptr, last};
 }
 
-// The first started driver or capability implementing sdk::ObstacleSource becomes the robot's obstacle source
-// (vision's depth zones), handed to every plugin through PluginContext::obstacles().
-template <class Object> void offer_obstacle_source(KernelServices& services, const Object* object, const std::string& what) {
+// Plugins built before ABI 1.2 cannot offer services: a started driver or capability implementing
+// sdk::ObstacleSource (vision's depth zones) is offered for them, unless it offered itself. The first one wins; a
+// later one is refused and logged by the directory.
+template <class Object> void offer_obstacle_source(InstanceContext& context, const Object* object) {
   const auto* source = dynamic_cast<const sdk::ObstacleSource*>(object);
-  if (source == nullptr) return;
-  const sdk::ObstacleSource* none = nullptr;
-  if (services.obstacles.compare_exchange_strong(none, source)) logger("kernel.plugins")->info("{} is the obstacle source", what);
-  else logger("kernel.plugins")->warn("{} also provides obstacles; the first one found is used", what);
+  if (source != nullptr && sdk::find<sdk::ObstacleSource>(context) != source) sdk::offer<sdk::ObstacleSource>(context, *source);
 }
 
 // The plugin's factory, then start(), then `more` (a capability's routes()), all through the trampoline, on a thread
@@ -107,7 +95,7 @@ std::unique_ptr<Object> create_and_start(const std::string& who,
 }
 
 // What makes a plugin's route list unusable (it would fail every request, or shadow another route), if anything.
-std::optional<std::string> route_problem(const std::vector<sdk::Route>& routes) {
+template <class RouteType> std::optional<std::string> route_problem(const std::vector<RouteType>& routes) {
   static const std::set<std::string> kMethods{"GET", "POST", "PUT", "PATCH", "DELETE", "HEAD"};
   std::set<std::pair<std::string, std::string>> seen;
   for (const auto& route : routes) {
@@ -115,7 +103,9 @@ std::optional<std::string> route_problem(const std::vector<sdk::Route>& routes) 
     if (!kMethods.contains(route.method)) return name + ": method must be one of GET, POST, PUT, PATCH, DELETE, HEAD";
     if (!route.path.empty() && route.path.front() != '/') return name + ": path must be empty or start with '/'";
     if (!route.handler) return name + ": no handler";
-    if (!seen.insert({route.method, route.path + "\n" + route.action_type}).second) return name + ": declared twice";
+    std::string key = route.path;
+    if constexpr (requires { route.action_type; }) key += "\n" + route.action_type;
+    if (!seen.insert({route.method, key}).second) return name + ": declared twice";
   }
   return std::nullopt;
 }
@@ -178,7 +168,7 @@ void PluginRuntime::start_drivers(const RobotConfig& config) {
       }
       actuators_.add(entry.id, std::string(actuator->interface_name()), plugin->id, actuator, &instance.health);
     }
-    if (!instance.health.failed()) offer_obstacle_source(services_, instance.object.get(), "driver " + entry.id);
+    if (!instance.health.failed()) offer_obstacle_source(*instance.context, instance.object.get());
     log->info("driver {} ({}, {}) {}", entry.id, entry.protocol, plugin->id,
               instance.health.failed() ? "failed: " + instance.health.reason() : "started");
   }
@@ -215,19 +205,29 @@ void PluginRuntime::start_capabilities(const std::vector<std::string>& names, co
     instance.who = "plugin " + plugin->id + " capability " + name;
     bool abandoned = false;
     std::vector<sdk::Route> routes;
+    std::vector<sdk::StreamRoute> streams;
     instance.object =
         create_and_start<sdk::Capability>(instance.who, registered->factory, *instance.context, instance.health,
                                           std::chrono::milliseconds(config.runtime.plugin_start_timeout_ms), abandoned,
-                                          [&routes](sdk::Capability& object) { routes = object.routes(); });
+                                          [&routes, &streams, minor = plugin->abi_minor](sdk::Capability& object) {
+                                            routes = object.routes();
+                                            if (minor >= 2) streams = object.stream_routes();  // older: no such virtual
+                                          });
     if (abandoned) keep_forever(instance.context);  // still in use by the plugin thread that never returned
     if (!instance.object) continue;
     if (!instance.health.failed()) {
       if (auto problem = route_problem(routes)) instance.health.mark_failed("routes() returned an unusable route: " + *problem);
-      else instance.routes = std::move(routes);
+      else if (auto bad = route_problem(streams))
+        instance.health.mark_failed("stream_routes() returned an unusable route: " + *bad);
+      else {
+        instance.routes = std::move(routes);
+        instance.stream_routes = std::move(streams);
+      }
     }
-    if (!instance.health.failed()) offer_obstacle_source(services_, instance.object.get(), "capability " + name);
+    if (!instance.health.failed()) offer_obstacle_source(*instance.context, instance.object.get());
     log->info("capability {} ({}) {}, {} routes", name, plugin->id,
-              instance.health.failed() ? "failed: " + instance.health.reason() : "started", instance.routes.size());
+              instance.health.failed() ? "failed: " + instance.health.reason() : "started",
+              instance.routes.size() + instance.stream_routes.size());
   }
   start_crews();
 }
@@ -242,6 +242,68 @@ std::vector<std::optional<nlohmann::json>> PluginRuntime::capability_statuses() 
   for (const auto& instance : capabilities_) indices.push_back(instance.health.failed() ? kNoStatus : instance.status_index);
   if (!status_reader_) return std::vector<std::optional<nlohmann::json>>(indices.size());
   return status_reader_->read(indices);
+}
+
+namespace {
+
+// "no installed plugin provides driver protocol 'x'; did you mean 'y'?", or why the plugin that would is not loaded.
+std::string unserved(const PluginHost& host, std::string_view kind, const std::string& name, const PluginRecord* plugin) {
+  if (plugin != nullptr)
+    return "plugin " + plugin->id + " (" + std::string(kind) + " '" + name + "') is " + std::string(to_string(plugin->state)) +
+           ": " + plugin->reason;
+  std::vector<std::string> known;
+  for (const auto& record : host.records())
+    if (record->manifest)
+      for (const auto& item : record->manifest->provides)
+        if ((kind == "driver protocol") == (item.kind == "driver")) known.push_back(item.name);
+  std::string message = "no installed plugin provides " + std::string(kind) + " '" + name + "'";
+  if (const auto guess = closest_match(name, known)) message += "; did you mean '" + *guess + "'?";
+  return message;
+}
+
+}  // namespace
+
+std::vector<ConfigDiagnostic> PluginRuntime::check(const RobotConfig& config, const std::vector<std::string>& capabilities) {
+  std::vector<ConfigDiagnostic> problems;
+  const auto problem = [&](const std::string& path, std::string message) {
+    problems.push_back({ConfigDiagnostic::Severity::Error, config.mark_of(path), path, std::move(message)});
+  };
+  const auto settings = [&](const PluginRecord& plugin, const nlohmann::json& value, bool driver, const std::string& path) {
+    try {
+      validated_settings(config, plugin, value, driver, path);
+    } catch (const ConfigError& e) {
+      problems.insert(problems.end(), e.diagnostics().begin(), e.diagnostics().end());
+    }
+  };
+  std::set<std::string> interfaces;  // what the configured actuating drivers provide
+  for (std::size_t i = 0; i < config.drivers.size(); ++i) {
+    const auto& entry = config.drivers[i];
+    const std::string path = "drivers[" + std::to_string(i) + "]";
+    auto [registered, plugin] =
+        find_loaded(host_, host_.providers_of_driver(entry.protocol), &PluginRecord::drivers, entry.protocol);
+    if (registered == nullptr) {
+      problem(path + ".protocol", unserved(host_, "driver protocol", entry.protocol, plugin));
+      continue;
+    }
+    if (registered->info.actuates) interfaces.insert(registered->info.interface);
+    settings(*plugin, entry.settings, true, path);
+  }
+  for (const auto& name : capabilities) {
+    if (name == kStatusCapability) continue;  // the kernel's own
+    auto [registered, plugin] = find_loaded(host_, host_.providers_of_capability(name), &PluginRecord::capabilities, name);
+    if (registered == nullptr) {
+      problem("rcan_protocol.capabilities", unserved(host_, "capability", name, plugin));
+      continue;
+    }
+    for (const auto& needed : plugin->manifest->requires_)
+      if (!interfaces.contains(needed))
+        problem("rcan_protocol.capabilities",
+                "capability " + name + " requires a " + needed + " actuator, and no configured driver provides one");
+    const nlohmann::json raw =
+        config.runtime.capabilities.contains(name) ? config.runtime.capabilities.at(name) : nlohmann::json::object();
+    settings(*plugin, raw, false, "runtime.capabilities." + name);
+  }
+  return problems;
 }
 
 std::optional<std::string> PluginRuntime::missing_requirement(const PluginRecord& plugin) const {
@@ -282,11 +344,13 @@ void PluginRuntime::notify_estop() noexcept {
 
 namespace {
 
-// Every instance's shutdown() in parallel on a crew of its own, waited for up to `deadline`; then the workers of
-// each instance whose hook returned are joined. A hook that throws out of its noexcept is contained and logged;
-// one still running at the deadline is logged and left running, and true is returned: its object and context must
-// never be destroyed.
+// Every instance's shutdown() in parallel on a crew of its own, waited for up to `deadline`, after their service
+// offers were withdrawn; then the workers of each instance whose hook returned are joined. A hook that throws out
+// of its noexcept is contained and logged; one still running at the deadline is logged and left running, and true
+// is returned: its object and context must never be destroyed.
 template <class Instances> bool shut_down_all(Instances& instances, std::chrono::milliseconds deadline) noexcept {
+  for (auto& instance : instances)
+    if (instance.context) instance.context->withdraw_offers();
   std::vector<typename Instances::value_type*> members;
   std::optional<DeadlineCrew> crew;
   try {

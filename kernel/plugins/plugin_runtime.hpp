@@ -41,6 +41,7 @@ struct CapabilityInstance {
   std::unique_ptr<InstanceContext> context;
   std::unique_ptr<sdk::Capability> object;  // null when it could not be created
   std::vector<sdk::Route> routes;
+  std::vector<sdk::StreamRoute> stream_routes;   // ABI 1.2 plugins only (Capability::stream_routes())
   std::unique_ptr<WorkerThread> handler_worker;  // "cap.<name>": handlers run here, one at a time
   std::size_t status_index = kNoStatus;          // its source in the status reader
 };
@@ -54,6 +55,11 @@ class PluginRuntime {
   // config file's line and column); plugin code that throws marks only that instance failed.
   void start_drivers(const RobotConfig& config);
   void start_capabilities(const std::vector<std::string>& names, const RobotConfig& config);
+  // rcand --check-config: what the two above would refuse or fail, found without creating any instance (no plugin
+  // factory runs, no device is opened): a driver protocol or capability no loaded plugin serves (with a did-you-mean
+  // over the installed ones), settings that fail the manifest's schema, an actuator interface a capability requires
+  // and no configured driver provides. Every problem at its config position.
+  std::vector<ConfigDiagnostic> check(const RobotConfig& config, const std::vector<std::string>& capabilities);
 
   CapabilityInstance* capability(std::string_view name) noexcept;
   const std::deque<DriverInstance>& drivers() const noexcept { return drivers_; }

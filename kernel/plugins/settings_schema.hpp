@@ -1,29 +1,36 @@
-// One schema table validates a plugin instance's settings (the manifest's "config"), fills in defaults,
-// and rejects unknown keys naming the allowed ones (fluent-bit's config_map idea).
+// A plugin instance's settings: the rule is the SDK contract's (rcand/sdk/contract/settings.hpp), the very functions
+// the fake host calls, so the two cannot disagree. The kernel adds what only it knows: where the key at fault is
+// written in the config file.
 #pragma once
 
 #include <nlohmann/json.hpp>
 
-#include <stdexcept>
 #include <string>
+
+#include "kernel/config/robot_config.hpp"
+#include "rcand/sdk/contract/settings.hpp"
 
 namespace rcand::kernel {
 
-// Names the key at fault and what was expected and found: "watchdog_ms: expected integer >= 1, found -3".
-// String values are never echoed (they may be secrets); only their type is.
-class ConfigSchemaError : public std::runtime_error {
- public:
-  using std::runtime_error::runtime_error;
-};
+// "watchdog_ms: expected integer >= 1, found -3"; key() and problem() apart.
+using ConfigSchemaError = sdk::contract::SettingsError;
 
-// Throws ConfigSchemaError when `schema` itself is malformed (a manifest schema never is: parse_manifest
-// checks it with check_config_schema). `field_prefix` is prepended to field names ("config.").
-void check_config_schema(const nlohmann::json& schema, const std::string& field_prefix = {});
+// A manifest's "config" schema, checked at load; `field_prefix` starts field names ("config.").
+inline void check_config_schema(const nlohmann::json& schema, const std::string& field_prefix = {}) {
+  sdk::contract::check_settings_schema(schema, field_prefix);
+}
 
-// Validates instance settings (an object, or null for "none") against a manifest "config" schema and
-// returns them with defaults filled in. Each schema key: {"type": string|number|integer|boolean|array|object,
-// "default", "required", "minimum", "maximum", "enum", "description"}. Keys not in the schema are kept when
-// `allow_unknown` (driver entries also carry id/protocol), and rejected otherwise.
-nlohmann::json apply_config_schema(const nlohmann::json& schema, const nlohmann::json& settings, bool allow_unknown);
+// The settings with defaults filled in, or ConfigSchemaError. `driver_entry`: a drivers[] entry, whose RCAN fields
+// (id, protocol, port, address, baud_rate, channels) are kept beside the plugin's own settings.
+inline nlohmann::json apply_config_schema(const nlohmann::json& schema, const nlohmann::json& settings, bool driver_entry) {
+  return driver_entry ? sdk::contract::apply_settings(schema, settings, sdk::contract::kDriverEntryKeys)
+                      : sdk::contract::apply_settings(schema, settings);
+}
+
+// apply_config_schema() for the instance configured at `path` ("drivers[0]", "runtime.capabilities.teleop") by
+// plugin `plugin_id`: a refusal is a ConfigError at the file:line:column of the key at fault (of the block, when the
+// key is not written there), like every other config error.
+nlohmann::json plugin_settings(const RobotConfig& config, const std::string& plugin_id, const nlohmann::json& schema,
+                               const nlohmann::json& settings, bool driver_entry, const std::string& path);
 
 }  // namespace rcand::kernel

@@ -59,6 +59,30 @@ std::vector<std::string> auto_detect(const RobotConfig& config, const ProviderLo
   return found;
 }
 
+bool config_flag_set(const nlohmann::json& doc, std::string_view dotted) {
+  const nlohmann::json* node = &doc;
+  for (std::size_t at = 0; at <= dotted.size();) {
+    const std::size_t dot = std::min(dotted.find('.', at), dotted.size());
+    if (!node->is_object()) return false;
+    const auto it = node->find(std::string(dotted.substr(at, dot - at)));
+    if (it == node->end()) return false;
+    node = &*it;
+    at = dot + 1;
+  }
+  return node->is_boolean() && node->get<bool>();
+}
+
+// Plugins that declare a capability by themselves (a manifest's "declared_when": the fleet plugin on robots with
+// runtime.r2r.enabled) join the plan whether the list was written or auto-detected.
+void add_declared_when(const RobotConfig& config, const ProviderLookup& lookup, CapabilityPlan& plan) {
+  if (!lookup.declared_when) return;
+  for (const auto& [name, key] : lookup.declared_when()) {
+    if (!config_flag_set(config.doc, key) || std::find(plan.names.begin(), plan.names.end(), name) != plan.names.end()) continue;
+    plan.names.push_back(name);
+    plan.notes.push_back("'" + name + "' declared: " + key + " is true and an installed plugin declares it then");
+  }
+}
+
 }  // namespace
 
 bool is_reverse_domain_name(std::string_view name) noexcept {
@@ -97,6 +121,7 @@ CapabilityPlan plan_capabilities(const RobotConfig& config, const ProviderLookup
       plan.names.push_back(std::move(name));
     }
     plan.notes.push_back("capabilities auto-detected (§9.3): " + join(plan.names, ", "));
+    add_declared_when(config, lookup, plan);
     return plan;
   }
 
@@ -134,6 +159,7 @@ CapabilityPlan plan_capabilities(const RobotConfig& config, const ProviderLookup
     }
     plan.names.push_back(name);
   }
+  add_declared_when(config, lookup, plan);
   return plan;
 }
 

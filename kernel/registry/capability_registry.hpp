@@ -10,6 +10,7 @@
 #include <span>
 #include <string>
 #include <string_view>
+#include <utility>
 #include <vector>
 
 #include "kernel/config/robot_config.hpp"
@@ -32,6 +33,9 @@ struct ProviderLookup {
   std::function<std::optional<std::string>(std::string_view protocol)> driver_interface;
   // Installed plugins that provide a capability, as "id (state)" for messages; empty when none.
   std::function<std::vector<std::string>(std::string_view capability)> providers;
+  // Capabilities installed plugins declare by themselves when a config key is true (their manifests' "declared_when"):
+  // {capability, dotted config key}.
+  std::function<std::vector<std::pair<std::string, std::string>>()> declared_when;
 };
 
 struct CapabilityPlan {
@@ -44,6 +48,7 @@ struct CapabilityPlan {
 // kernel's own), and nav needs the §10.2 physics fields; violations throw ConfigError with file:line:column.
 // Absent list: §9.3 auto-detection, extended so any driver implementing differential_drive implies teleop (and nav
 // with physics); auto-detected capabilities without an installed provider are dropped with a note.
+// Either way, a capability an installed plugin declares by itself is added when its config key is true.
 CapabilityPlan plan_capabilities(const RobotConfig& config, const ProviderLookup& lookup);
 
 struct RobotIdentity {

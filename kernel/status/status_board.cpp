@@ -1,7 +1,5 @@
 #include "kernel/status/status_board.hpp"
 
-#include "libs/base/json_body.hpp"
-
 #include <algorithm>
 #include <atomic>
 #include <future>
@@ -9,9 +7,9 @@
 #include <limits>
 #include <mutex>
 
-#include "kernel/registry/standard_capabilities.hpp"
 #include "libs/base/logging.hpp"
 #include "libs/base/worker_thread.hpp"
+#include "rcand/sdk/pose_source.hpp"
 
 namespace rcand::kernel {
 namespace {
@@ -19,12 +17,15 @@ namespace {
 using nlohmann::json;
 using Clock = std::chrono::steady_clock;
 
-// What the nav capability adds to the document: "nav_running" and the dead-reckoned "pose" at the top level, from
-// its status. (To be routed through the standard capability table.)
-void add_nav_facts(const std::string& capability, const json& status, json& doc, bool& nav_running) {
-  if (capability != kNavCapability || !status.is_object()) return;
-  nav_running = is_true(status, "running");
-  if (status.contains("pose")) doc["pose"] = status["pose"];
+// The top-level "pose" and whether the robot drives itself ("nav_running"), from the robot's PoseSource service
+// (nav's dead-reckoned pose), read once per rebuild: none offered (no nav, or nav failed), no pose and not running.
+bool add_pose(const ServiceDirectory& directory, json& doc) {
+  const auto* source = sdk::find<sdk::PoseSource>(directory);
+  if (source == nullptr) return false;
+  const sdk::PoseReading reading = source->read();
+  if (reading.available)
+    doc["pose"] = {{"x_m", reading.pose.x_m}, {"y_m", reading.pose.y_m}, {"heading_deg", reading.pose.heading_deg}};
+  return reading.busy;
 }
 
 std::string dump(const json& doc) {
@@ -261,7 +262,7 @@ class StatusBoard::Impl final : public StatusSink, public std::enable_shared_fro
     json doc = fixed_;
     json capabilities = json::object();
     json drivers = json::array();
-    bool nav_running = false;
+    const bool nav_running = add_pose(services_.directory, doc);
     for (const auto& entry : entries_) {
       const auto& source = entry->source;
       const bool failed = source.health != nullptr && source.health->failed();
@@ -276,10 +277,7 @@ class StatusBoard::Impl final : public StatusSink, public std::enable_shared_fro
           item["stale"] = true;
           item["age_ms"] = age / 1000;
         }
-        if (entry->last && !source.driver) {
-          add_nav_facts(source.name, *entry->last, doc, nav_running);
-          item["status"] = *entry->last;
-        }
+        if (entry->last && !source.driver) item["status"] = *entry->last;
       }
       if (source.driver) drivers.push_back(std::move(item));
       else capabilities[source.name] = std::move(item);

@@ -9,6 +9,9 @@
 // reader's 250 ms deadline still fails one that hangs), so plugins that never publish - ABI 1.0 ones - still appear.
 // An entry that neither a publish nor an answer refreshed for two seconds gets "stale": true and "age_ms" in its
 // item: a plugin that stops publishing shows as stale, not as a slow endpoint.
+//
+// The top-level "pose" and "nav_running" come from the PoseSource service (sdk/pose_source.hpp, offered by nav),
+// read on the status thread at each rebuild - never per request.
 #pragma once
 
 #include <chrono>
@@ -83,8 +86,8 @@ class StatusBoard {
   void when_current(std::function<void(std::shared_ptr<const std::string>)> answer);
   // Any thread: the current document (for R2R status messages and telemetry), e-stop fields as now.
   nlohmann::json document() const;
-  // Any thread: idle | running | error | estop (docs/protocol.md §5); the e-stop and failures as now, nav's running
-  // from the current document.
+  // Any thread: idle | running | error | estop (docs/protocol.md §5); the e-stop and failures as now, the PoseSource's
+  // busy flag as of the current document.
   std::string robot_state() const;
 
   // Any thread, never blocks: something the document shows changed without a publish (an instance marked failed,

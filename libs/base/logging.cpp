@@ -1,21 +1,49 @@
 #include "libs/base/logging.hpp"
 
+#include <spdlog/pattern_formatter.h>
 #include <spdlog/sinks/stdout_color_sinks.h>
 #include <spdlog/spdlog.h>
 
 #include <mutex>
 
+#include "libs/base/systemd_notify.hpp"
+
 namespace rcand {
 namespace {
 std::mutex g_create_mutex;  // only serializes logger creation, never logging itself
-}
+
+// %* : the line's syslog priority as journald reads it from a stream ("<3>" error ... "<7>" debug/trace).
+class JournalPriority final : public spdlog::custom_flag_formatter {
+ public:
+  void format(const spdlog::details::log_msg& msg, const std::tm&, spdlog::memory_buf_t& dest) override {
+    const char* prefix = "<6>";
+    switch (msg.level) {
+      case spdlog::level::critical: prefix = "<2>"; break;
+      case spdlog::level::err: prefix = "<3>"; break;
+      case spdlog::level::warn: prefix = "<4>"; break;
+      case spdlog::level::info: prefix = "<6>"; break;
+      default: prefix = "<7>"; break;
+    }
+    dest.append(prefix, prefix + 3);
+  }
+  std::unique_ptr<custom_flag_formatter> clone() const override { return std::make_unique<JournalPriority>(); }
+};
+
+}  // namespace
 
 void configure_logging(std::string_view level) {
   // Every log goes to stderr (journald captures it); stdout carries only the ready line.
   if (!spdlog::get("rcand")) spdlog::set_default_logger(spdlog::stderr_color_mt("rcand"));
   spdlog::set_level(spdlog::level::from_str(std::string(level)));
-  // No timestamps when journald adds its own would be nicer; keep them for plain terminals and test logs.
-  spdlog::set_pattern("%Y-%m-%dT%H:%M:%S.%e %^%l%$ [%n] %v");
+  // Under systemd, journald keeps each line's priority ("<N>" prefix) and adds its own timestamp; elsewhere (a
+  // terminal, the tests' logs) lines carry the time and a coloured level.
+  if (stderr_is_journal()) {
+    auto formatter = std::make_unique<spdlog::pattern_formatter>();
+    formatter->add_flag<JournalPriority>('*').set_pattern("%*%l [%n] %v");
+    spdlog::set_formatter(std::move(formatter));
+  } else {
+    spdlog::set_pattern("%Y-%m-%dT%H:%M:%S.%e %^%l%$ [%n] %v");
+  }
 }
 
 std::shared_ptr<spdlog::logger> logger(const std::string& name) {

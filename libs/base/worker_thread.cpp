@@ -9,24 +9,43 @@ namespace rcand {
 
 WorkerThread::WorkerThread(std::string name, std::function<void(const std::string&)> on_error)
     : name_(std::move(name)), on_error_(std::move(on_error)), work_(io_.get_executor()) {
-  thread_ = std::thread([this] {
-    // Linux thread names are at most 15 characters; enough to tell workers apart in top and gdb.
-    pthread_setname_np(pthread_self(), name_.substr(0, 15).c_str());
-    io_.run();
-  });
+  thread_ = std::thread([this] { run(); });
 }
 
 WorkerThread::~WorkerThread() { join(); }
+
+void WorkerThread::run() noexcept {
+  // Linux thread names are at most 15 characters; enough to tell workers apart in top and gdb.
+  pthread_setname_np(pthread_self(), name_.substr(0, 15).c_str());
+  // Tasks are guarded one by one (run_guarded); an I/O handler given straight to the context is guarded here. After
+  // a throw, asio lets run() go on where it left off.
+  for (;;) {
+    try {
+      io_.run();
+      return;
+    } catch (const std::exception& e) {
+      report("handler", e.what());
+    } catch (...) {
+      report("handler", "non-standard exception");
+    }
+  }
+}
+
+void WorkerThread::report(const char* what, const std::string& why) noexcept {
+  try {
+    logger("kernel.workers")->error("worker {}: {} threw: {}", name_, what, why);
+    if (on_error_) on_error_(why);
+  } catch (...) {  // nothing left to tell; the loop goes on
+  }
+}
 
 void WorkerThread::run_guarded(const std::function<void()>& task) noexcept {
   try {
     task();
   } catch (const std::exception& e) {
-    logger("kernel.workers")->error("worker {}: task threw: {}", name_, e.what());
-    if (on_error_) on_error_(e.what());
+    report("task", e.what());
   } catch (...) {
-    logger("kernel.workers")->error("worker {}: task threw a non-standard exception", name_);
-    if (on_error_) on_error_("non-standard exception");
+    report("task", "non-standard exception");
   }
 }
 
@@ -75,7 +94,29 @@ void WorkerThread::join() {
     for (auto& [id, timer] : timers_) boost::asio::post(io_, [timer = timer] { timer->cancel(); });
     timers_.clear();
   }
+  end_thread();
+}
+
+void WorkerThread::stop_after_queued() noexcept {
+  if (!thread_.joinable()) return;
+  try {
+    boost::asio::post(io_, [this] { io_.stop(); });
+  } catch (...) {  // no memory for the posted stop: stop at once instead
+    io_.stop();
+  }
+  end_thread();
+}
+
+void WorkerThread::stop() noexcept {
+  if (!thread_.joinable()) return;
+  io_.stop();
+  end_thread();
+}
+
+void WorkerThread::end_thread() noexcept {
   work_.reset();
+  // A task that ends its own worker cannot wait for itself: the loop ends after it, the owner's join() reaps it.
+  if (std::this_thread::get_id() == thread_.get_id()) return;
   thread_.join();
 }
 

@@ -5,8 +5,9 @@
 #include <chrono>
 #include <stdexcept>
 #include <string>
-#include <unordered_map>
+#include <vector>
 
+#include "libs/http/busy_lane.hpp"
 #include "libs/http/connection_ticket.hpp"
 #include "libs/http/session.hpp"
 
@@ -108,12 +109,7 @@ void Listener::admit_busy(Stream::socket_type socket, std::string address) {
     return;
   }
   std::erase_if(busy_lane_, [](const BusyWaiter& waiter) { return waiter.session.expired(); });
-  // Full: a waiter that has sent nothing goes (a slow-loris or a silent flood): the oldest from the newcomer's own
-  // address, else from the address holding most of the lane, so a flood evicts itself and not the one operator. A
-  // stop is sent with the connection: one whose bytes are waiting to be read is never evicted. When every waiter
-  // has sent something, the newcomer is refused instead (those are answered soon).
-  if (busy_lane_.size() >= core_.options.busy_lane && !evict_silent_waiter(address) &&
-      !evict_silent_waiter(busiest_lane_address())) {
+  if (busy_lane_.size() >= core_.options.busy_lane && !make_room(address)) {
     socket.close(ignored);
     return;
   }
@@ -125,28 +121,32 @@ void Listener::admit_busy(Stream::socket_type socket, std::string address) {
   session->start();
 }
 
-std::string Listener::busiest_lane_address() const {
-  std::unordered_map<std::string_view, std::size_t> held;
-  std::string_view busiest;
-  std::size_t most = 0;
-  for (const auto& waiter : busy_lane_)
-    if (const std::size_t count = ++held[waiter.address]; count > most) {
-      most = count;
-      busiest = waiter.address;
+bool Listener::make_room(std::string_view newcomer) {
+  // Choose by what each waiter's session has read (no system call per waiter: a churning flood admits thousands),
+  // then look in the chosen one's socket: bytes may have arrived that the loop has not read yet. A waiter that
+  // turns out to hold more (a stop) is re-ranked and the choice made again; each is looked at once at most.
+  std::vector<LaneWaiter> lane;
+  std::vector<bool> looked(busy_lane_.size(), false);
+  lane.reserve(busy_lane_.size());
+  for (const auto& waiter : busy_lane_) {
+    const auto session = waiter.session.lock();
+    lane.push_back({waiter.address, session ? session->pending_input(false) : PendingInput::Ordinary});
+  }
+  for (;;) {
+    const auto evict = choose_eviction(lane, newcomer);
+    if (!evict) return false;
+    const auto session = busy_lane_[*evict].session.lock();
+    if (session && !looked[*evict]) {
+      looked[*evict] = true;
+      if (const auto seen = session->pending_input(true); seen != lane[*evict].input) {
+        lane[*evict].input = seen;
+        continue;
+      }
     }
-  return std::string(busiest);
-}
-
-bool Listener::evict_silent_waiter(const std::string& address) {
-  for (auto it = busy_lane_.begin(); it != busy_lane_.end(); ++it) {
-    if (it->address != address) continue;
-    auto waiter = it->session.lock();
-    if (waiter && waiter->has_pending_input()) continue;
-    if (waiter) waiter->close();
-    busy_lane_.erase(it);
+    if (session) session->close();
+    busy_lane_.erase(busy_lane_.begin() + static_cast<std::ptrdiff_t>(*evict));
     return true;
   }
-  return false;
 }
 
 }  // namespace rcand::http::detail

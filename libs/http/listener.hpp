@@ -30,15 +30,14 @@ class Listener {
  private:
   void accept();
   void on_accept(boost::system::error_code ec, IoSlot& slot, Stream::socket_type socket);
-  // A connection beyond the limits: into the busy lane (evicting its oldest when full), or closed without priority.
+  // A connection beyond the limits: into the busy lane (making room when full), or closed without priority.
   void admit_busy(Stream::socket_type socket, std::string address);
 
   ServerCore& core_;
   boost::asio::ip::tcp::acceptor acceptor_;
   boost::asio::steady_timer backoff_;  // after accept errors such as EMFILE, so a full fd table does not spin us
-  // Evicts the oldest busy-lane waiter from `address` that has sent nothing; false when there is none.
-  bool evict_silent_waiter(const std::string& address);
-  std::string busiest_lane_address() const;
+  // A full lane evicts one waiter for a newcomer from `newcomer` (the rule: busy_lane.hpp); false: refuse it.
+  bool make_room(std::string_view newcomer);
 
   struct BusyWaiter {
     std::weak_ptr<Session> session;

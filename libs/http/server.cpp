@@ -7,6 +7,7 @@
 #include <pthread.h>
 
 #include <exception>
+#include <future>
 #include <stdexcept>
 #include <string>
 
@@ -158,6 +159,19 @@ void Server::stop_locked() noexcept {
   }
   threads_.clear();
   core_->log->info("stopped");
+}
+
+bool Server::accept_loop_responsive(std::chrono::milliseconds within) const {
+  std::shared_ptr<detail::ServerCore> core;
+  {
+    std::lock_guard lock(lifecycle_);
+    if (!started_ || stopped_ || core_->slots.empty()) return false;
+    core = core_;
+  }
+  auto ran = std::make_shared<std::promise<void>>();
+  auto done = ran->get_future();
+  boost::asio::post(core->slots.front()->ioc, [ran] { ran->set_value(); });
+  return done.wait_for(within) == std::future_status::ready;
 }
 
 std::size_t Server::connection_count() const noexcept {

@@ -3,6 +3,7 @@
 // takes a lock shared between connections.
 #pragma once
 
+#include <chrono>
 #include <cstddef>
 #include <cstdint>
 #include <memory>
@@ -37,6 +38,9 @@ class Server {
   void stop();
   // Connections currently open (accepted and not yet closed).
   std::size_t connection_count() const noexcept;
+  // Whether the accept loop (where the e-stop is read and handled) runs a posted no-op within `within`: the liveness
+  // the service watchdog reports. False before start and after stop. Any thread but the accept loop's.
+  bool accept_loop_responsive(std::chrono::milliseconds within) const;
 
  private:
   void stop_locked() noexcept;
@@ -46,7 +50,7 @@ class Server {
   std::shared_ptr<detail::ServerCore> core_;
   std::unique_ptr<detail::Listener> listener_;
   std::vector<std::thread> threads_;
-  std::mutex lifecycle_;  // start() against stop(); never taken on the request path
+  mutable std::mutex lifecycle_;  // start() against stop(); never taken on the request path
   bool started_ = false;
   bool stopped_ = false;
 };

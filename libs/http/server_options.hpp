@@ -47,6 +47,9 @@ struct ServerOptions {
   std::size_t busy_lane = 256;  // more than a burst of silent connections can fill while a stop is being sent
   // Run first on each I/O thread: `accept_loop` true on the accept thread (rcand makes it real-time there).
   std::function<void(bool accept_loop)> on_thread_start;
+  // A streamed answer (Response::stream) whose client takes longer than this to accept one part is closed: a viewer
+  // that stopped reading holds one part and its socket buffers, and only for this long.
+  std::chrono::milliseconds stream_stall_timeout{10'000};
 };
 
 }  // namespace rcand::http

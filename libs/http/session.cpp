@@ -6,10 +6,11 @@
 #include <boost/beast/http/read.hpp>
 #include <boost/beast/http/write.hpp>
 
-#include <sys/ioctl.h>
+#include <sys/socket.h>
 #include <unistd.h>
 
 #include <algorithm>
+#include <array>
 #include <cerrno>
 #include <chrono>
 #include <cstring>
@@ -100,16 +101,31 @@ void Session::start() {
   wait_for_request();
 }
 
-bool Session::has_pending_input() noexcept {
-  if (closed_) return false;
-  if (buffer_.size() > 0) return true;
-  int waiting = 0;
-  return ::ioctl(stream_.socket().native_handle(), FIONREAD, &waiting) == 0 && waiting > 0;
+PendingInput Session::pending_input(bool look_in_socket) noexcept {
+  if (closed_) return PendingInput::Silent;
+  if (answering_) return *answering_;
+  try {
+    if (parser_ && parser_->is_header_done()) {  // only its body is missing
+      const auto& message = parser_->get();
+      std::string start = std::string(message.method_string()) + ' ' + std::string(message.target()) + ' ';
+      return classify_pending(start, core_.options.priority);
+    }
+    if (buffer_.size() > 0)  // the header is read whole before it is parsed, so this begins with its request line
+      return classify_pending({static_cast<const char*>(buffer_.data().data()), buffer_.size()}, core_.options.priority);
+    if (!look_in_socket) return PendingInput::Silent;
+    char peeked[256];
+    const ssize_t got = ::recv(stream_.socket().native_handle(), peeked, sizeof peeked, MSG_PEEK | MSG_DONTWAIT);
+    return classify_pending({peeked, got > 0 ? static_cast<std::size_t>(got) : 0}, core_.options.priority);
+  } catch (...) {  // allocation failure: keep the waiter
+    return PendingInput::Priority;
+  }
 }
 
 void Session::close() noexcept {
   if (closed_) return;
   closed_ = true;
+  // The producer of a streamed answer sees closed() and stops pushing.
+  if (body_stream_) body_stream_->close();
   stream_.close();  // also cancels the stream's timers, so every pending operation completes
 }
 
@@ -229,7 +245,9 @@ void Session::dispatch_request() {
     core_.log->debug("{}: {}", remote_, problem);
     return send_error_and_close(400, "BAD_REQUEST", problem);
   }
-  if (placement_ != Placement::Worker && !core_.is_priority(request)) {
+  const bool priority = core_.is_priority(request);
+  if (placement_ == Placement::BusyLane) answering_ = priority ? PendingInput::Priority : PendingInput::Ordinary;
+  if (placement_ != Placement::Worker && !priority) {
     if (placement_ == Placement::BusyLane) return answer_busy();
     return move_to_worker(std::move(request));
   }
@@ -341,7 +359,10 @@ bool Session::try_upgrade(Request& request) {
 }
 
 void Session::send(Response response) {
-  if (closed_ || !awaiting_response_) return;
+  if (closed_ || !awaiting_response_) {
+    if (response.stream) response.stream->close();  // nobody will ever take its parts
+    return;
+  }
   awaiting_response_ = false;
   write(std::move(response), !keep_alive_ || core_.stopping.load(std::memory_order_relaxed));
 }
@@ -356,6 +377,7 @@ void Session::send_error_and_close(int status, std::string_view code, std::strin
 void Session::write(Response response, bool close_after) {
   if (response.status < 200 || response.status > 599) {
     core_.log->error("{}: handler answered with invalid status {}; sending 500", remote_, response.status);
+    if (response.stream) response.stream->close();
     response = error_response(500, "INTERNAL", "internal error");
   }
   bhttp::response<bhttp::string_body> message;
@@ -380,9 +402,14 @@ void Session::write(Response response, bool close_after) {
     }
     message.insert(bsv(name), bsv(value));
   }
+  if (response.stream) {  // its end is the connection's: no Content-Length, no keep-alive
+    body_stream_ = std::move(response.stream);
+    close_after = true;
+    if (head_) body_stream_->close();
+  }
   message.keep_alive(!close_after);
   // 204 and 304 carry neither a body nor Content-Length (RFC 9110 §8.6); HEAD gets the length without the body.
-  if (response.status != 204 && response.status != 304) {
+  if (!body_stream_ && response.status != 204 && response.status != 304) {
     message.content_length(response.body.size());
     if (!head_) message.body() = std::move(response.body);
   }
@@ -400,6 +427,7 @@ void Session::on_write(beast::error_code ec, bool close_after) {
     return close();
   }
   if (closed_) return;
+  if (body_stream_ && !streaming_) return start_streaming();
   if (close_after) return linger_close();
   // On the accept loop a connection stays while it sends only priority requests (a stop button's kept-alive
   // connection); its first other request moves it to a worker (dispatch_request).
@@ -421,6 +449,62 @@ void Session::drain() {
     if (ec || self->closed_ || self->drained_ > kLingerBytes) return self->close();
     self->drain();
   });
+}
+
+}  // namespace rcand::http::detail
+
+namespace rcand::http::detail {
+
+void Session::start_streaming() {
+  streaming_ = true;
+  body_stream_->attach([weak = weak_from_this(), executor = executor()] {
+    net::post(executor, [weak] {
+      if (auto self = weak.lock()) self->pump();
+    });
+  });
+  stream_.expires_never();  // the watching read has no deadline; each part's write gets stream_stall_timeout
+  watch_client();
+  pump();
+}
+
+void Session::pump() {
+  if (closed_ || writing_part_ || ending_) return;
+  switch (body_stream_->next(part_)) {
+    case ResponseStream::Next::Wait: return;  // push() wakes us
+    case ResponseStream::Next::End: return end_stream();
+    case ResponseStream::Next::Part: break;
+  }
+  writing_part_ = true;
+  const std::array<net::const_buffer, 3> buffers{
+      net::buffer(part_.head), part_.data ? net::buffer(*part_.data) : net::const_buffer(), net::buffer(part_.tail)};
+  stream_.expires_after(core_.options.stream_stall_timeout);  // the read is pending: this times the write only
+  net::async_write(stream_, buffers, [self = shared_from_this()](beast::error_code ec, std::size_t) {
+    self->writing_part_ = false;
+    if (ec) {
+      if (!self->closed_) self->core_.log->debug("{}: stream write failed: {}", self->remote_, ec.message());
+      return self->close();
+    }
+    self->body_stream_->written(self->part_.data ? self->part_.data->size() : 0);
+    self->part_ = {};  // the frame is shared: let it go as soon as it is written
+    self->pump();
+  });
+}
+
+void Session::watch_client() {
+  // Whatever the client sends while it watches is read and dropped; its end (or an error) ends the stream.
+  stream_.async_read_some(buffer_.prepare(kReadChunk), [self = shared_from_this()](beast::error_code ec, std::size_t) {
+    if (self->closed_) return;
+    if (self->ending_) return self->linger_close();
+    if (ec) return self->close();
+    self->watch_client();
+  });
+}
+
+void Session::end_stream() {
+  ending_ = true;
+  beast::error_code ec;
+  stream_.socket().cancel(ec);  // completes the watching read, which then closes gracefully (linger_close)
+  if (ec) close();
 }
 
 }  // namespace rcand::http::detail

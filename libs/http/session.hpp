@@ -5,6 +5,10 @@
 // are priority requests, and handled there too; the first other request moves the connection (its socket, buffered
 // bytes and that request) to a worker loop for good. A busy-lane connection answers one priority request, or 503.
 //
+// Streamed answers (Response::stream): the header goes out with "Connection: close" and no Content-Length, then each
+// part the producer pushes, one write at a time; meanwhile a read watches for the client leaving. The connection
+// closes when the stream ends, the client leaves, or one part takes longer than stream_stall_timeout to write.
+//
 // WebSocket seam: an upgrade request is offered to ServerOptions::upgrade in dispatch_request(); when the hook takes
 // it, the stream, the raw request and the buffered bytes move out (http/upgrade.hpp) and this object simply ends.
 #pragma once
@@ -21,9 +25,11 @@
 #include <string>
 #include <string_view>
 
+#include "libs/http/busy_lane.hpp"
 #include "libs/http/connection_ticket.hpp"
 #include "libs/http/request.hpp"
 #include "libs/http/response.hpp"
+#include "libs/http/response_stream.hpp"
 #include "libs/http/server_core.hpp"
 
 namespace rcand::http::detail {
@@ -42,8 +48,9 @@ class Session : public std::enable_shared_from_this<Session> {
 
   void start();
   void close() noexcept;
-  // Bytes of the client's wait to be read (buffered here or in the socket): it has sent its request, or part of it.
-  bool has_pending_input() noexcept;
+  // What the client has sent that is not yet handled, for the busy lane: what this session has read, and with
+  // `look_in_socket` also what waits unread in the socket (a system call).
+  PendingInput pending_input(bool look_in_socket) noexcept;
   // Answers the request in flight; ignored when closed or when nothing is in flight.
   void send(Response response);
   boost::asio::io_context::executor_type executor() const noexcept { return slot_.ioc.get_executor(); }
@@ -69,6 +76,11 @@ class Session : public std::enable_shared_from_this<Session> {
   void on_write(boost::beast::error_code ec, bool close_after);
   void linger_close();
   void drain();
+  // A streamed answer, once its header is written: parts as they come, until the end or the client leaves.
+  void start_streaming();
+  void pump();
+  void watch_client();
+  void end_stream();
 
   ServerCore& core_;
   IoSlot& slot_;
@@ -87,6 +99,11 @@ class Session : public std::enable_shared_from_this<Session> {
   bool awaiting_response_ = false;
   bool fresh_ = true;  // no request read yet: the first one gets header_timeout from accept
   bool closed_ = false;
+  std::optional<PendingInput> answering_;  // busy lane: the request being answered, whose bytes are consumed
+
+  std::shared_ptr<ResponseStream> body_stream_;  // a streamed answer's parts; closed with the session
+  ResponseStream::Part part_;                    // the part being written
+  bool streaming_ = false, writing_part_ = false, ending_ = false;
 };
 
 }  // namespace rcand::http::detail

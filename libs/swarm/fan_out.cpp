@@ -1,10 +1,10 @@
 #include "libs/swarm/fan_out.hpp"
 
 #include <netdb.h>
+#include <pthread.h>
 #include <sys/socket.h>
 
 #include <boost/asio/connect.hpp>
-#include <boost/asio/executor_work_guard.hpp>
 #include <boost/asio/io_context.hpp>
 #include <boost/asio/ip/tcp.hpp>
 #include <boost/asio/post.hpp>
@@ -21,6 +21,8 @@
 #include <map>
 #include <mutex>
 #include <thread>
+
+#include "libs/base/worker_thread.hpp"
 
 namespace rcand::swarm {
 
@@ -53,12 +55,12 @@ struct IdleConnection {
 // Owned by the FanOut (and kept alive by helper threads still about to post). Pending handlers in `io` hold the
 // PeerOps and the PeerOps only point at the loop: no cycle, so destroying the loop after stop() frees them all.
 struct FanOut::Loop : std::enable_shared_from_this<FanOut::Loop> {
-  net::io_context io{1};
+  // The thread "swarm.fanout"; declared first, so the connections below are closed before its io_context goes.
+  WorkerThread worker{"swarm.fanout", nullptr};
+  net::io_context& io = worker.context();
   std::shared_ptr<HostResolver> resolver;                   // may be null: getaddrinfo for every host
   std::map<std::string, std::vector<IdleConnection>> idle;  // by "ip:port"; touched only on the loop thread
-  net::executor_work_guard<net::io_context::executor_type> work{io.get_executor()};
-  std::thread thread;
-  std::mutex mutex;  // guards `alive` against helper threads posting after stop()
+  std::mutex mutex;                                         // guards `alive` against helper threads posting after stop()
   bool alive = true;
 
   // Posts `fn` unless the loop was stopped (then it is dropped).
@@ -155,6 +157,7 @@ class PeerOp : public std::enable_shared_from_this<PeerOp> {
     if (loop_->resolver && loop_->resolver->handles(request_.host)) return resolve_with(*loop_->resolver);
     // The helper holds the op weakly: the op lives and dies on the loop thread only.
     std::thread([loop = loop_->shared_from_this(), weak = weak_from_this(), host = request_.host, port = request_.port]() {
+      pthread_setname_np(pthread_self(), "swarm.resolve");
       addrinfo hints{};
       hints.ai_family = AF_UNSPEC;
       hints.ai_socktype = SOCK_STREAM;
@@ -330,7 +333,6 @@ class PeerOp : public std::enable_shared_from_this<PeerOp> {
 
 FanOut::FanOut(std::shared_ptr<HostResolver> resolver) : loop_(std::make_shared<Loop>()) {
   loop_->resolver = std::move(resolver);
-  loop_->thread = std::thread([loop = loop_.get()] { loop->io.run(); });
 }
 
 FanOut::~FanOut() { stop(); }
@@ -341,9 +343,7 @@ void FanOut::stop() noexcept {
     std::lock_guard lock(loop_->mutex);
     loop_->alive = false;
   }
-  loop_->work.reset();
-  loop_->io.stop();
-  if (loop_->thread.joinable()) loop_->thread.join();
+  loop_->worker.stop();  // what is in flight is abandoned, never answered
 }
 
 void FanOut::run(std::vector<PeerRequest> requests, std::chrono::milliseconds timeout, Done done) {

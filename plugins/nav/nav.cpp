@@ -51,9 +51,16 @@ Nav::Nav(sdk::PluginContext& ctx, Sleeper sleeper)
       wake_cv_.wait_for(lock, slice, woken);
     };
   }
-  if (ctx_.obstacles() != nullptr && !min_obstacle_cm_)
+  if (sdk::find<sdk::ObstacleSource>(ctx_) != nullptr && !min_obstacle_cm_)
     ctx_.log().warn("an obstacle source is present but neither agent.min_obstacle_m nor safety.obstacle_stop_cm is set: "
                     "nav will not stop for obstacles");
+}
+
+// Offered once nav can answer; the kernel withdraws both before shutdown(). Refused only when another instance
+// offers them already (a second nav-like capability), which the kernel logs.
+void Nav::start() {
+  sdk::offer<sdk::PoseSource>(ctx_, *this);
+  sdk::offer<sdk::TripEstimator>(ctx_, trips_);
 }
 
 std::vector<sdk::Route> Nav::routes() {
@@ -311,7 +318,7 @@ Nav::End Nav::wait_until(std::int64_t deadline_us, std::uint64_t estop_events) {
 
 std::optional<std::string> Nav::obstacle_stop() {
   last_obstacle_check_us_ = ctx_.clock().now_us();
-  const sdk::ObstacleSource* source = ctx_.obstacles();
+  const sdk::ObstacleSource* source = sdk::find<sdk::ObstacleSource>(ctx_);
   if (source == nullptr || !min_obstacle_cm_) return std::nullopt;
   const sdk::ObstacleReading reading = source->obstacles();
   if (!reading.available || !std::isfinite(reading.nearest_cm)) return std::nullopt;  // no data is not an obstacle
@@ -422,6 +429,13 @@ sdk::Json Nav::status() const {
     doc["driver"] = job_->driver;
   }
   return doc;
+}
+
+sdk::PoseReading Nav::read() const noexcept {
+  const std::int64_t now = ctx_.clock().now_us();
+  std::lock_guard lock(mutex_);
+  const Pose pose = live_pose(now);
+  return {true, {pose.x_m, pose.y_m, pose.heading_deg}, running_};
 }
 
 void Nav::on_estop() noexcept {

@@ -7,6 +7,7 @@
 #pragma once
 
 #include <rcand/sdk/plugin.hpp>
+#include <rcand/sdk/pose_source.hpp>
 
 #include <atomic>
 #include <condition_variable>
@@ -26,7 +27,9 @@ namespace rcand::plugins::nav {
 // variable (notified by cancel and on_estop); unit tests on the fake host pass one that advances the manual clock.
 using Sleeper = std::function<void(std::chrono::microseconds slice, const std::function<bool()>& wake)>;
 
-class Nav final : public sdk::Capability {
+// Offers two services (rcand/sdk/services.hpp) while it runs: itself as the robot's PoseSource (the dead-reckoned pose,
+// busy while a job runs) and its TripTiming as the TripEstimator.
+class Nav final : public sdk::Capability, public sdk::PoseSource {
  public:
   static constexpr std::chrono::milliseconds kObstaclePeriod{50};  // 20 Hz while a job runs (§10.5 asks >= 10 Hz)
   static constexpr std::chrono::milliseconds kCancelWait{1000};    // cancel waits this long for the job to end
@@ -36,10 +39,13 @@ class Nav final : public sdk::Capability {
   // threshold (agent.min_obstacle_m, else safety.obstacle_stop_cm). `sleeper` null: the condition-variable one.
   explicit Nav(sdk::PluginContext& ctx, Sleeper sleeper = nullptr);
 
+  void start() override;
   std::vector<sdk::Route> routes() override;
   sdk::Json status() const override;
   void on_estop() noexcept override;
   void shutdown() noexcept override;
+  // PoseSource: the live pose (with the running phase's progress) and whether a job runs. Any thread.
+  sdk::PoseReading read() const noexcept override;
 
  private:
   enum class End { Elapsed, Cancelled, Estop, Obstacle, Shutdown };
@@ -86,6 +92,7 @@ class Nav final : public sdk::Capability {
   sdk::PluginContext& ctx_;
   sdk::Worker& worker_;
   const Physics physics_;
+  const TripTiming trips_{physics_};
   const std::optional<std::string> configured_driver_;
   const std::int64_t max_job_us_;
   const std::optional<double> min_obstacle_cm_;

@@ -5,8 +5,10 @@
 #include <rcand/sdk/testing/fake_host.hpp>
 #include <rcand/sdk/testing/recording_drive.hpp>
 
+#include <cmath>
 #include <fstream>
 #include <limits>
+#include <numbers>
 
 #include "nav.hpp"
 
@@ -345,4 +347,77 @@ TEST_CASE("no physics: the capability refuses to start, naming the key") {
   host.add_driver_instance<RecordingDrive>("base", host.clock());
   host.load(RCAND_ENTRY_FUNCTION, manifest());
   CHECK_THROWS_WITH_AS(host.add_capability("nav"), doctest::Contains("physics.wheel_circumference_m"), HostError);
+}
+
+// ---- the services nav offers (rcand/sdk/services.hpp) ------------------------------------------------------------
+
+namespace {
+
+// An obstacle source that, each time the job checks it (every 50 ms), records what nav's PoseSource says then.
+struct PoseProbe final : rcand::sdk::ObstacleSource {
+  const FakeHost& host;
+  mutable std::vector<rcand::sdk::PoseReading> seen;
+  explicit PoseProbe(const FakeHost& h) : host(h) {}
+  rcand::sdk::ObstacleReading obstacles() const noexcept override {
+    if (const auto* pose = rcand::sdk::find<rcand::sdk::PoseSource>(host)) seen.push_back(pose->read());
+    return {true, 500, 500, 500, 500, 0};
+  }
+};
+
+}  // namespace
+
+TEST_CASE("nav offers its PoseSource: the live pose, busy while a job runs, equal to its status") {
+  Fixture f(robot({{"safety", {{"obstacle_stop_cm", 5}}}}));
+  const auto* pose = rcand::sdk::find<rcand::sdk::PoseSource>(f.host);
+  REQUIRE(pose != nullptr);
+  CHECK(pose == &f.host.capability<Nav>("nav"));  // nav itself, as its PoseSource base
+  auto idle = pose->read();
+  CHECK(idle.available);
+  CHECK_FALSE(idle.busy);
+  CHECK(idle.pose.x_m == 0.0);
+
+  PoseProbe probe(f.host);
+  f.host.set_obstacle_source(&probe);
+  REQUIRE(f.waypoint(wp(0.21, 90, 0.5)).status == 200);  // turn 1.44 s, drive 2 s, all inside the call
+  REQUIRE(probe.seen.size() >= 60);
+  CHECK_FALSE(probe.seen.front().busy);  // the handler's check, before the job starts
+  double heading = -1.0;
+  for (std::size_t i = 1; i < probe.seen.size(); ++i) {
+    const auto& reading = probe.seen[i];
+    CHECK(reading.busy);
+    CHECK(reading.pose.heading_deg >= heading);  // turning left towards 90, then driving: never back
+    heading = reading.pose.heading_deg;
+  }
+  CHECK(probe.seen[probe.seen.size() / 4].pose.heading_deg > 0.0);  // mid-turn: moving, not the committed pose
+
+  const auto done = pose->read();
+  CHECK_FALSE(done.busy);
+  const json status = f.status();
+  CHECK(done.pose.x_m == status["pose"]["x_m"].get<double>());
+  CHECK(done.pose.y_m == status["pose"]["y_m"].get<double>());
+  CHECK(done.pose.heading_deg == status["pose"]["heading_deg"].get<double>());
+}
+
+TEST_CASE("nav offers its TripEstimator: a trip costs what the equivalent waypoint would take") {
+  Fixture f;
+  const auto* trips = rcand::sdk::find<rcand::sdk::TripEstimator>(f.host);
+  REQUIRE(trips != nullptr);
+  const Physics physics{0.21, 0.008, 1.0};  // robot()'s
+  auto waypoint_s = [&](double distance, double heading, double speed) {
+    const auto plan = std::get<Plan>(plan_waypoint(wp(distance, heading, speed), physics, 600'000'000));
+    return static_cast<double>(plan.turn_us + plan.drive_us) / 1e6;
+  };
+  // (0,0) facing 0 -> (3,4): turn 53.13 deg left, drive 5 m.
+  CHECK(*trips->trip_seconds({0, 0, 0}, 3, 4, 0.5) == doctest::Approx(waypoint_s(5, 53.130102354, 0.5)).epsilon(1e-6));
+  // Already facing it: drive only. The shorter way round: from 170 deg to a point at -170 deg is a 20 deg turn.
+  CHECK(*trips->trip_seconds({1, 1, 90}, 1, 3, 1.0) == doctest::Approx(waypoint_s(2, 0, 1.0)).epsilon(1e-6));
+  const double at = -170.0 * std::numbers::pi / 180.0;
+  CHECK(*trips->trip_seconds({0, 0, 170}, std::cos(at), std::sin(at), 0.5) ==
+        doctest::Approx(waypoint_s(1, 20, 0.5)).epsilon(1e-6));
+  CHECK(*trips->trip_seconds({2, 2, 45}, 2, 2, 0.5) == 0.0);  // already there
+  // No job-length limit (a waypoint that long would be refused), and a speed a waypoint would refuse gives nothing.
+  CHECK(*trips->trip_seconds({0, 0, 0}, 1e6, 0, 0.5) > 600'000.0);
+  CHECK_FALSE(trips->trip_seconds({0, 0, 0}, 1, 0, 0.0));
+  CHECK_FALSE(trips->trip_seconds({0, 0, 0}, 1, 0, 1.5));
+  CHECK_FALSE(trips->trip_seconds({0, 0, 0}, std::numeric_limits<double>::infinity(), 0, 0.5));
 }

@@ -1,6 +1,7 @@
 #include "waypoint_plan.hpp"
 
 #include <cmath>
+#include <numbers>
 #include <string>
 
 namespace rcand::plugins::nav {
@@ -39,6 +40,23 @@ std::int64_t to_us(double seconds) { return static_cast<std::int64_t>(std::llrou
 
 }  // namespace
 
+PhaseSeconds phase_seconds(const Waypoint& waypoint, const Physics& physics) noexcept {
+  return {std::abs(waypoint.heading_deg) * physics.turn_time_per_deg_s / waypoint.speed,
+          std::abs(waypoint.distance_m) / physics.metres_per_s(waypoint.speed)};
+}
+
+std::optional<double> TripTiming::trip_seconds(const sdk::Pose2d& from, double to_x_m, double to_y_m,
+                                               double speed) const noexcept {
+  if (!(speed > 0.0 && speed <= 1.0)) return std::nullopt;  // as a waypoint's speed
+  const double dx = to_x_m - from.x_m, dy = to_y_m - from.y_m;
+  const double distance = std::hypot(dx, dy);
+  const double turn =
+      distance > 0 ? std::remainder(std::atan2(dy, dx) * 180.0 / std::numbers::pi - from.heading_deg, 360.0) : 0.0;
+  const auto [turn_s, drive_s] = phase_seconds({distance, turn, speed}, physics_);
+  if (!std::isfinite(turn_s + drive_s)) return std::nullopt;
+  return turn_s + drive_s;
+}
+
 Physics Physics::from(const sdk::ConfigView& robot_config) {
   Physics p;
   p.wheel_circumference_m = positive_physics(robot_config, "wheel_circumference_m", std::nullopt);
@@ -59,8 +77,7 @@ std::variant<Plan, sdk::Response> plan_waypoint(const sdk::Json& body, const Phy
 
   Plan plan;
   plan.waypoint = {*distance, *heading, speed.value_or(0.5)};
-  const double turn_s = std::abs(*heading) * physics.turn_time_per_deg_s / plan.waypoint.speed;
-  const double drive_s = std::abs(*distance) / physics.metres_per_s(plan.waypoint.speed);
+  const auto [turn_s, drive_s] = phase_seconds(plan.waypoint, physics);
   const double max_s = static_cast<double>(max_job_us) / 1e6;
   // Checked in seconds before converting, so a huge value cannot overflow the microsecond count.
   if (turn_s + drive_s > max_s) {

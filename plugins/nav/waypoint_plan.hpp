@@ -3,6 +3,7 @@
 #pragma once
 
 #include <rcand/sdk/plugin.hpp>
+#include <rcand/sdk/trip_estimator.hpp>
 
 #include <cstdint>
 #include <optional>
@@ -40,9 +41,27 @@ struct Plan {
   double drive_wheels() const noexcept { return waypoint.distance_m < 0 ? -waypoint.speed : waypoint.speed; }
 };
 
+// The two phases' durations in seconds at the waypoint's speed: |heading| * turn_time_per_deg_s / speed, and
+// |distance| / (circumference * max_wheel_rps * speed). What a plan and a trip estimate both time.
+struct PhaseSeconds {
+  double turn_s = 0.0, drive_s = 0.0;
+};
+PhaseSeconds phase_seconds(const Waypoint& waypoint, const Physics& physics) noexcept;
+
 // The request body checked field by field (docs/protocol.md §8): distance_m and heading_deg required finite numbers; speed
 // optional (default 0.5), a finite number in (0, 1]. A plan longer than max_job_us is refused too. Returns the plan
 // or the 400 answer naming the field. Never touches a motor.
 std::variant<Plan, sdk::Response> plan_waypoint(const sdk::Json& body, const Physics& physics, std::int64_t max_job_us);
+
+// nav's trip timing as a service (the R2R bid cost, a fleet plugin): turn to face the point the shorter way, then
+// drive straight there, timed as that one waypoint would be. No job-length limit.
+class TripTiming final : public sdk::TripEstimator {
+ public:
+  explicit TripTiming(const Physics& physics) : physics_(physics) {}
+  std::optional<double> trip_seconds(const sdk::Pose2d& from, double to_x_m, double to_y_m, double speed) const noexcept override;
+
+ private:
+  const Physics physics_;
+};
 
 }  // namespace rcand::plugins::nav

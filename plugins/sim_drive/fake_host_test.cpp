@@ -4,10 +4,13 @@
 #include <doctest/doctest.h>
 
 #include <rcand/sdk/plugin.hpp>
+#include <rcand/sdk/pose_source.hpp>
 #include <rcand/sdk/testing/fake_host.hpp>
 #include <rcand/sdk/testing/recording_drive.hpp>
+#include <rcand/sdk/trip_estimator.hpp>
 
 #include <chrono>
+#include <optional>
 #include <string>
 #include <thread>
 #include <vector>
@@ -45,7 +48,7 @@ const rcand_plugin_descriptor* abi_minor_newer() {
   static const auto d = tweaked([](rcand_plugin_descriptor& x) { x.abi_minor = RCAND_ABI_MINOR + 1; });
   return &d;
 }
-const rcand_plugin_descriptor* abi_minor_previous() {  // built against ABI 1.0, before publish_status
+const rcand_plugin_descriptor* abi_minor_previous() {  // built against the minor before the host's
   static const auto d = tweaked([](rcand_plugin_descriptor& x) { x.abi_minor = RCAND_ABI_MINOR - 1; });
   return &d;
 }
@@ -425,4 +428,96 @@ TEST_CASE("capability settings come from runtime.capabilities.<name> unless give
   CHECK(host.context("nav").robot_config().get<int>("runtime.capabilities.nav.answer") == 42);
   CHECK(host.context("nav").plugin_id() == "org.test.probe");
   CHECK(host.context("nav").instance_id() == "nav");
+}
+
+// ---- services (PluginContext::offer_service / service; rcand/sdk/services.hpp) ------------------------------------
+
+namespace {
+
+struct FakePose final : PoseSource {
+  PoseReading read() const noexcept override { return {true, {1.0, 2.0, 45.0}, true}; }
+};
+struct FakeTrips final : TripEstimator {
+  std::optional<double> trip_seconds(const Pose2d&, double, double, double) const noexcept override { return 12.5; }
+};
+struct FakeObstacles final : ObstacleSource {
+  ObstacleReading obstacles() const noexcept override { return {true, 30, 30, 30, 30, 0}; }
+};
+
+// A hand-made driver that offers a TripEstimator through its context and notes, in its shutdown(), whether the
+// service could still be found then.
+struct OfferingDriver final : Driver, TripEstimator {
+  explicit OfferingDriver(std::optional<bool>& found_at_shutdown) : found_at_shutdown(found_at_shutdown) {}
+  std::optional<double> trip_seconds(const Pose2d&, double, double, double) const noexcept override { return 1.0; }
+  void shutdown() noexcept override { found_at_shutdown = rcand::sdk::find<TripEstimator>(*ctx) != nullptr; }
+  std::optional<bool>& found_at_shutdown;
+  PluginContext* ctx = nullptr;
+};
+
+bool logged(const FakeHost& host, const std::string& text) {
+  for (const auto& line : host.log_lines())
+    if (line.find(text) != std::string::npos) return true;
+  return false;
+}
+
+}  // namespace
+
+TEST_CASE("services: a test offers a fake PoseSource that instances find; one provider per id, as in rcand") {
+  FakeHost host;
+  host.add_driver_instance<RecordingDrive>("wheels", host.clock());
+  host.add_driver_instance<RecordingDrive>("arm", host.clock());
+  PluginContext& wheels = host.context("wheels");
+  PluginContext& arm = host.context("arm");
+  CHECK(rcand::sdk::find<PoseSource>(wheels) == nullptr);  // nothing offers it: null, never an error
+
+  FakePose pose;
+  REQUIRE(rcand::sdk::offer<PoseSource>(host, pose));
+  REQUIRE(rcand::sdk::find<PoseSource>(wheels) == &pose);
+  CHECK(rcand::sdk::find<PoseSource>(wheels)->read().pose.heading_deg == 45.0);
+  FakePose another;
+  CHECK_FALSE(rcand::sdk::offer<PoseSource>(arm, another));  // taken by the test's
+  CHECK(logged(host, "instance 'arm': offer of service 'rcand.pose_source/1' refused: already offered"));
+
+  FakeTrips trips;
+  REQUIRE(rcand::sdk::offer<TripEstimator>(arm, trips));  // an instance's offer, found by the others and by the test
+  CHECK(*rcand::sdk::find<TripEstimator>(wheels)->trip_seconds({}, 1, 1, 0.5) == 12.5);
+  CHECK(rcand::sdk::find<TripEstimator>(host) == &trips);
+  CHECK(host.service("rcand.trip_estimator/2") == nullptr);  // another version is another service
+
+  // obstacles(), the deprecated shim, is the ObstacleSource service; set_obstacle_source() replaces it.
+  FakeObstacles near;
+  host.set_obstacle_source(&near);
+  CHECK(wheels.obstacles() == &near);
+  CHECK(rcand::sdk::find<ObstacleSource>(arm) == &near);
+  host.set_obstacle_source(nullptr);
+  CHECK(wheels.obstacles() == nullptr);
+}
+
+TEST_CASE("services: a failed instance's offers are not found; offers are withdrawn before shutdown()") {
+  std::optional<bool> found_at_shutdown;
+  {
+    FakeHost host;
+    auto& wheels = host.add_driver_instance<RecordingDrive>("wheels", host.clock());
+    FakeTrips trips;
+    REQUIRE(rcand::sdk::offer<TripEstimator>(host.context("wheels"), trips));
+    CHECK(rcand::sdk::find<TripEstimator>(host) == &trips);
+    wheels.fail_next();
+    auto move = [](ActuatorDriver& d) { static_cast<DifferentialDrive&>(d).set_wheel_speeds(0.1, 0.1); };
+    CHECK(host.motion().actuate("wheels", move) == GateStatus::ActuatorFailed);
+    CHECK(rcand::sdk::find<TripEstimator>(host) == nullptr);
+
+    auto& planner = host.add_driver_instance<OfferingDriver>("planner", found_at_shutdown);
+    planner.ctx = &host.context("planner");
+    CHECK_FALSE(rcand::sdk::offer<TripEstimator>(*planner.ctx, planner));  // the failed one still holds the id
+  }
+  {
+    FakeHost host;
+    auto& planner = host.add_driver_instance<OfferingDriver>("planner", found_at_shutdown);
+    planner.ctx = &host.context("planner");
+    REQUIRE(rcand::sdk::offer<TripEstimator>(*planner.ctx, planner));
+    CHECK(rcand::sdk::find<TripEstimator>(host) == &planner);
+    found_at_shutdown.reset();
+  }
+  REQUIRE(found_at_shutdown.has_value());
+  CHECK_FALSE(*found_at_shutdown);  // the host withdrew it before calling shutdown()
 }

@@ -40,14 +40,14 @@ std::string limit_text(double limit) {
   return text.str();
 }
 
-// A required finite number in [-limit, limit]; nullopt and `out` set, or the 400 naming the field. Out of range is
-// refused, never clamped: a client that asks for 5x full speed has a bug, and driving it at full speed hides it.
+// A finite number in [-limit, limit]; nullopt and `out` set (left as it is when absent), or the 400 naming the field.
+// Out of range is refused, never clamped: a client that asks for 5x full speed has a bug, and driving it at full speed
+// hides it.
 std::optional<Response> read_number(const Json& body, const char* field, double limit, const char* limit_source,
                                     double& out) {
   const std::string range = limit_text(limit);
   const auto it = body.find(field);
-  if (it == body.end() || it->is_null())
-    return Response::bad_request(field, std::string(field) + " is required: a number in " + range);
+  if (it == body.end()) return std::nullopt;
   if (!it->is_number())
     return Response::bad_request(field, std::string(field) + " must be a number in " + range + ", found " + it->type_name());
   out = it->get<double>();
@@ -60,7 +60,7 @@ std::optional<Response> read_number(const Json& body, const char* field, double 
 // Optional duration_ms: an integer in [1, 60000].
 std::optional<Response> read_duration(const Json& body, std::optional<int>& out) {
   const auto it = body.find("duration_ms");
-  if (it == body.end() || it->is_null()) return std::nullopt;
+  if (it == body.end()) return std::nullopt;
   const std::string expected = "duration_ms must be an integer in [1, " + std::to_string(Teleop::kMaxDurationMs) + "]";
   if (!it->is_number_integer()) return Response::bad_request("duration_ms", expected + ", found " + it->type_name());
   const double ms = it->get<double>();  // as double: no wrap-around for huge unsigned values
@@ -103,6 +103,10 @@ std::optional<std::string> Teleop::resolve_driver() const {
 
 Response Teleop::move(const sdk::Request& request) {
   if (!request.body.is_object()) return Response::bad_request("body", "the body must be a JSON object");
+  // A move names linear, angular or both; the one left out is 0 (a pure turn, a straight line).
+  if (!request.body.contains("linear") && !request.body.contains("angular"))
+    return Response::bad_request("linear", "a move needs linear or angular (the missing one is 0): numbers in " +
+                                               limit_text(max_linear_) + " and " + limit_text(1.0));
   double linear = 0.0, angular = 0.0;
   std::optional<int> duration_ms;
   const char* linear_source = max_linear_ < 1.0 ? " (safety.max_linear_speed)" : "";

@@ -124,13 +124,13 @@ TEST_CASE("each bad field answers 400 naming it, and the driver receives nothing
   const double nan = std::numeric_limits<double>::quiet_NaN();
   const double inf = std::numeric_limits<double>::infinity();
   const std::vector<std::pair<json, std::string>> cases = {
-      {{{"type", "move"}, {"angular", 0.0}}, "linear"},
+      {{{"type", "move"}}, "linear"},
       {{{"type", "move"}, {"linear", nullptr}, {"angular", 0.0}}, "linear"},
       {{{"type", "move"}, {"linear", "fast"}, {"angular", 0.0}}, "linear"},
       {{{"type", "move"}, {"linear", true}, {"angular", 0.0}}, "linear"},
       {{{"type", "move"}, {"linear", nan}, {"angular", 0.0}}, "linear"},
       {{{"type", "move"}, {"linear", inf}, {"angular", 0.0}}, "linear"},
-      {{{"type", "move"}, {"linear", 0.5}}, "angular"},
+      {{{"type", "move"}, {"linear", 0.5}, {"angular", nullptr}}, "angular"},
       {{{"type", "move"}, {"linear", 0.5}, {"angular", "left"}}, "angular"},
       {{{"type", "move"}, {"linear", 0.5}, {"angular", -inf}}, "angular"},
       {{{"type", "move"}, {"linear", 0.5}, {"angular", json::array({1})}}, "angular"},
@@ -153,6 +153,20 @@ TEST_CASE("each bad field answers 400 naming it, and the driver receives nothing
   }
   CHECK(f.drive.events().empty());
   CHECK(f.host.pending_tasks() == 0);
+}
+
+TEST_CASE("a move names linear, angular or both: the one left out is 0") {
+  Fixture f;
+  auto r = f.post({{"type", "move"}, {"linear", 0.5}});
+  CHECK(r.status == 200);
+  CHECK(r.body["angular"] == 0.0);
+  CHECK(f.drive.left() == doctest::Approx(0.5));
+  CHECK(f.drive.right() == doctest::Approx(0.5));
+  r = f.post({{"type", "move"}, {"angular", 0.25}});
+  CHECK(r.status == 200);
+  CHECK(r.body["linear"] == 0.0);
+  CHECK(f.drive.left() == doctest::Approx(-0.25));
+  CHECK(f.drive.right() == doctest::Approx(0.25));
 }
 
 TEST_CASE("duration_ms stops the motion at exactly that time") {

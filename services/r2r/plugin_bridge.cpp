@@ -41,7 +41,6 @@ void PluginBridge::attach(R2rNode& node) {
   std::lock_guard lock(mutex_);
   node_ = &node;
   node_subscriptions_ = std::move(ids);
-  if (cost_) node_->set_cost_function(wrapped_cost());
 }
 
 void PluginBridge::detach() noexcept {
@@ -112,48 +111,57 @@ void PluginBridge::unsubscribe(std::uint64_t id) noexcept {
   }
 }
 
-CostFunction PluginBridge::wrapped_cost() const {
-  return [cost = cost_](const CostInput& input) -> std::optional<double> {
-    sdk::Json task{{"task_id", input.task.task_id},
-                   {"description", input.task.description},
-                   {"required_capabilities", input.task.required_capabilities}};
-    if (input.task.deadline) task["deadline"] = *input.task.deadline;
-    if (input.task.location) task["location"] = {{"x", input.task.location->x}, {"y", input.task.location->y}};
-    std::optional<sdk::R2rPose> pose;
-    if (input.position) pose = sdk::R2rPose{input.position->x, input.position->y, input.position->heading_deg};
-    try {
-      return cost(task, pose, input.queue_length);
-    } catch (const std::exception& e) {
-      spdlog::warn("r2r: a plugin's cost function threw ({}); not bidding", e.what());
-    } catch (...) {
-      spdlog::warn("r2r: a plugin's cost function threw; not bidding");
-    }
-    return std::nullopt;
-  };
+void PluginBridge::set_cost(const Link* owner, sdk::R2rCostFunction cost) {
+  {
+    std::lock_guard lock(mutex_);
+    cost_owner_ = cost ? owner : nullptr;
+    cost_ = std::move(cost);
+    ++cost_generation_;
+  }
+  sync_cost();
 }
 
-void PluginBridge::set_cost(const Link* owner, sdk::R2rCostFunction cost) {
-  std::lock_guard lock(mutex_);
-  cost_owner_ = cost ? owner : nullptr;
-  cost_ = std::move(cost);
-  if (node_ != nullptr) node_->set_cost_function(cost_ ? wrapped_cost() : CostFunction{});
+void PluginBridge::sync_cost() noexcept {
+  try {
+    std::lock_guard sync(sync_mutex_);
+    const sdk::FleetAuctions* fleet = fleet_ ? fleet_() : nullptr;
+    if (fleet == nullptr) return;  // handed on once the fleet plugin offers its service
+    sdk::R2rCostFunction cost;
+    std::uint64_t generation = 0;
+    {
+      std::lock_guard lock(mutex_);
+      cost = cost_;
+      generation = cost_generation_;
+    }
+    if (fleet == synced_fleet_ && generation == synced_generation_) return;
+    fleet->set_cost_override(std::move(cost));
+    synced_fleet_ = fleet;
+    synced_generation_ = generation;
+  } catch (const std::exception& e) {
+    spdlog::warn("r2r: a plugin's bid price could not be handed to the fleet plugin: {}", e.what());
+  }
 }
 
 void PluginBridge::forget(const Link* owner) noexcept {
-  std::lock_guard lock(mutex_);
-  for (auto it = subscriptions_.begin(); it != subscriptions_.end();) {
-    if (it->second.first == owner) {
-      *it->second.second.live = false;
-      it = subscriptions_.erase(it);
-    } else {
-      ++it;
+  bool price_gone = false;
+  {
+    std::lock_guard lock(mutex_);
+    for (auto it = subscriptions_.begin(); it != subscriptions_.end();) {
+      if (it->second.first == owner) {
+        *it->second.second.live = false;
+        it = subscriptions_.erase(it);
+      } else {
+        ++it;
+      }
+    }
+    if (cost_owner_ == owner) {  // the instance is going away: its cost function must not be called again
+      cost_owner_ = nullptr;
+      cost_ = nullptr;
+      ++cost_generation_;
+      price_gone = true;
     }
   }
-  if (cost_owner_ == owner) {  // the instance is going away: its cost function must not be called again
-    cost_owner_ = nullptr;
-    cost_ = nullptr;
-    if (node_ != nullptr) node_->set_cost_function({});
-  }
+  if (price_gone) sync_cost();
 }
 
 }  // namespace rcand::kernel::r2r

@@ -1,7 +1,8 @@
 // Plugins' side of R2R: one bridge per kernel, one sdk::R2rLink per plugin instance. The bridge exists before any
 // plugin starts, so a plugin may subscribe in its constructor or start(); the node is attached once R2R runs (after
 // the plugins), and detached first at shutdown. Callbacks are posted to the instance's worker, never run on a
-// transport thread, and only ever see messages the node validated and authorized.
+// transport thread, and only ever see messages the node validated and authorized. A price set with
+// R2rLink::set_cost_function is handed on to the fleet plugin, which runs the auctions (sdk::FleetAuctions).
 #pragma once
 
 #include <cstdint>
@@ -11,6 +12,7 @@
 #include <string>
 #include <vector>
 
+#include "rcand/sdk/fleet_auctions.hpp"
 #include "rcand/sdk/r2r.hpp"
 #include "rcand/sdk/worker.hpp"
 #include "services/r2r/r2r_node.hpp"
@@ -19,12 +21,14 @@ namespace rcand::kernel::r2r {
 
 class PluginBridge {
  public:
-  PluginBridge() = default;
+  using FleetLookup = std::function<const sdk::FleetAuctions*()>;
+  // `fleet`: where bid prices go (sdk::find<sdk::FleetAuctions> over the plugins' services); empty: nowhere.
+  explicit PluginBridge(FleetLookup fleet = {}) : fleet_(std::move(fleet)) {}
   ~PluginBridge();  // detach()
   PluginBridge(const PluginBridge&) = delete;
   PluginBridge& operator=(const PluginBridge&) = delete;
 
-  // Starts relaying `node`'s messages to plugin subscribers and installs a plugin's cost function if one is set.
+  // Starts relaying `node`'s messages to plugin subscribers.
   void attach(R2rNode& node);
   // Stops relaying; sends fail with "R2R is not running" afterwards. Idempotent. Call before the node is destroyed.
   void detach() noexcept;
@@ -32,6 +36,10 @@ class PluginBridge {
   // The link for one plugin instance: its callbacks run on `worker`; `owner` names it in logs. The link must be
   // destroyed before the bridge (the kernel destroys plugin instances first).
   std::unique_ptr<sdk::R2rLink> make_link(sdk::Worker& worker, std::string owner);
+  // Hands the price a plugin set (or none) to the fleet plugin, unless that one has it already. Also done at every
+  // set_cost_function and when the link that set it goes; the R2R service calls it as it starts, after every plugin
+  // started, for a price set before the fleet plugin offered its service. Any thread.
+  void sync_cost() noexcept;
 
  private:
   class Link;
@@ -47,7 +55,11 @@ class PluginBridge {
   void unsubscribe(std::uint64_t id) noexcept;
   void set_cost(const Link* owner, sdk::R2rCostFunction cost);
   void forget(const Link* owner) noexcept;
-  CostFunction wrapped_cost() const;  // requires mutex_
+
+  const FleetLookup fleet_;
+  std::mutex sync_mutex_;  // serializes sync_cost(); taken before mutex_, never inside it
+  const sdk::FleetAuctions* synced_fleet_ = nullptr;
+  std::uint64_t synced_generation_ = 0;
 
   mutable std::mutex mutex_;
   R2rNode* node_ = nullptr;
@@ -56,6 +68,7 @@ class PluginBridge {
   std::uint64_t next_id_ = 1;
   const Link* cost_owner_ = nullptr;
   sdk::R2rCostFunction cost_;
+  std::uint64_t cost_generation_ = 0;  // grows with every change of cost_
 };
 
 }  // namespace rcand::kernel::r2r

@@ -1,5 +1,6 @@
 #include "services/r2r/r2r_module.hpp"
 
+#include "rcand/sdk/fleet_auctions.hpp"
 #include "services/r2r/plugin_bridge.hpp"
 #include "services/r2r/r2r_routes.hpp"
 #include "services/r2r/r2r_service.hpp"
@@ -24,14 +25,14 @@ class BridgeLinks final : public R2rLinkFactory {
 
 class R2rModule final : public Service {
  public:
-  explicit R2rModule(ServiceHost& host) : host_(host) {
+  explicit R2rModule(ServiceHost& host) : host_(host), bridge_(fleet_lookup(host)) {
     service_ = R2rService::from_config(
         {host.config, host.auth,
          [api = &host.api](const Principal& principal, nlohmann::json body, std::function<void(int, nlohmann::json)> done) {
            api->execute_action(principal, std::move(body), std::move(done));
          },
-         host.status_document, host.estop, host.clock, host.swarm_at_start, host.registry.identity().ruri,
-         host.registry.names()});
+         host.status_document, host.estop, host.clock, host.swarm_at_start, host.registry.identity().ruri, host.registry.names(),
+         fleet_lookup(host)});
     if (!service_) return;
     bridge_.attach(service_->node());
     host.offer_r2r_links(&links_);
@@ -42,7 +43,9 @@ class R2rModule final : public Service {
   void add_routes(Router& router) override { add_r2r_routes(router, service_.get(), host_.audit); }
   http::UpgradeHandler upgrade() override { return service_ ? service_->upgrade_handler() : http::UpgradeHandler{}; }
   void start(std::uint16_t http_port) override {
-    if (service_) service_->start(http_port);  // throws StartupError naming the runtime.r2r setting at fault
+    if (!service_) return;
+    bridge_.sync_cost();         // every plugin started: a price set before the fleet plugin offered reaches it now
+    service_->start(http_port);  // throws StartupError naming the runtime.r2r setting at fault
   }
   void stop() noexcept override {
     if (service_) service_->stop();  // no R2R message is handled or sent after this
@@ -50,6 +53,11 @@ class R2rModule final : public Service {
   }
 
  private:
+  // The fleet plugin's auctions, looked up at each use: plugins start after this service is made, and may fail.
+  static r2r::PluginBridge::FleetLookup fleet_lookup(ServiceHost& host) {
+    return [directory = &host.plugin_services] { return sdk::find<sdk::FleetAuctions>(*directory); };
+  }
+
   ServiceHost& host_;
   r2r::PluginBridge bridge_;  // before service_: destroyed after it
   BridgeLinks links_{bridge_};

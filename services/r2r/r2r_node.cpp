@@ -74,30 +74,11 @@ json r2r_bounded_peer_status(const json& p) {
   return out;
 }
 
-std::optional<FleetPoint> point_of(const json& payload, const char* key) {
-  const auto it = payload.find(key);
-  if (it == payload.end() || !it->is_object()) return std::nullopt;
-  return FleetPoint{(*it)["x"].get<double>(), (*it)["y"].get<double>()};
-}
-
-TaskSpec task_from(const json& p) {
-  TaskSpec task;
-  task.task_id = p["task_id"].get<std::string>();
-  task.description = p.value("description", "");
-  if (p.contains("deadline")) task.deadline = p["deadline"].get<double>();
-  if (p.contains("required_capabilities"))
-    task.required_capabilities = p["required_capabilities"].get<std::vector<std::string>>();
-  task.location = point_of(p, "location");
-  return task;
-}
-
 }  // namespace
 
 struct R2rNode::Impl {
   explicit Impl(R2rNodeDeps&& d)
       : deps(std::move(d)), auth(deps.authenticator, deps.settings.auth), log(deps.log ? deps.log : spdlog::default_logger()) {
-    default_cost = nav_time_cost({deps.physics, 0.5, deps.settings.seconds_per_task});
-    cost = deps.cost_function ? deps.cost_function : default_cost;
     if (const RuriParse parsed = parse_ruri(deps.identity.ruri); parsed.ruri) own_ruri = parsed.ruri;
     started_s = now_s();
   }
@@ -112,9 +93,6 @@ struct R2rNode::Impl {
 
   mutable std::mutex mutex;  // everything below
   ReplayGuard replays{deps.settings.auth.replay_window_s + deps.settings.auth.future_skew_s};
-  Auctioneer auctioneer{deps.settings.auctioneer};
-  Bidder bidder{deps.settings.bidder};
-  CostFunction cost, default_cost;
   std::map<std::uint64_t, std::pair<MessageType, Subscriber>> subscribers;
   std::uint64_t next_subscriber = 1;
   struct Peer {
@@ -128,7 +106,6 @@ struct R2rNode::Impl {
   std::int64_t last_status_us = 0;
   bool status_sent = false;
   NodeCounters counters;
-  std::uint64_t task_counter = 0;
   std::mutex transports_mutex;  // guards transports and started (never held with `mutex`)
   std::vector<Transport*> transports;
   bool started = false;
@@ -153,11 +130,11 @@ struct R2rNode::Impl {
     return message.dump(-1, ' ', false, json::error_handler_t::replace);
   }
 
-  Wire wire(const Outgoing& out, Route reply = {}) const {
+  Wire wire(MessageType type, const json& payload, const std::optional<std::string>& target, Route reply = {}) const {
     const double timestamp = now_s();
-    std::string open = build(out.type, out.payload, out.target, timestamp, false);
-    std::string full = deps.settings.outbound_token ? build(out.type, out.payload, out.target, timestamp, true) : open;
-    return {std::move(full), std::move(open), out.target, std::move(reply)};
+    std::string open = build(type, payload, target, timestamp, false);
+    std::string full = deps.settings.outbound_token ? build(type, payload, target, timestamp, true) : open;
+    return {std::move(full), std::move(open), target, std::move(reply)};
   }
 
   // Sends outside `mutex`. A direct answer goes back on the connection it came from when it can; otherwise every
@@ -224,30 +201,26 @@ struct R2rNode::Impl {
                    const Route& reply, std::optional<json> extra = std::nullopt) const {
     json payload = make_error_payload(code, std::move(message), ref);
     if (extra) payload.update(*extra);
-    return wire({MessageType::Error, std::move(payload), source}, reply);
+    return wire(MessageType::Error, payload, source, reply);
   }
 
   json status_payload_locked(const LocalStatus& local) const {
     json position;
     if (local.pose) {
-      const FleetPose fleet = to_fleet_frame(*local.pose, deps.settings.origin);
-      position = {{"x", fleet.x}, {"y", fleet.y}, {"heading_deg", fleet.heading_deg}};
+      const sdk::Pose2d fleet = sdk::compose(deps.settings.origin, *local.pose);
+      position = {{"x", fleet.x_m}, {"y", fleet.y_m}, {"heading_deg", fleet.heading_deg}};
     }
-    return {{"battery", local.battery ? json(*local.battery) : json()},
-            {"position", position},
-            {"task_progress", local.task_progress ? json(*local.task_progress) : json()},
-            {"state", local.state},
-            {"estopped", local.estopped},
-            {"capabilities", deps.identity.capabilities},
-            {"tasks_held", bidder.queue_length()}};  // rcand extension: the bidder's queue
+    json payload{{"battery", local.battery ? json(*local.battery) : json()},
+                 {"position", position},
+                 {"task_progress", local.task_progress ? json(*local.task_progress) : json()},
+                 {"state", local.state},
+                 {"estopped", local.estopped},
+                 {"capabilities", deps.identity.capabilities}};
+    if (local.tasks_held) payload["tasks_held"] = *local.tasks_held;  // rcand extension: the fleet plugin's queue
+    return payload;
   }
 
   LocalStatus local_status() const { return deps.status_source ? deps.status_source() : LocalStatus{}; }
-
-  std::optional<FleetPose> fleet_position(const LocalStatus& local) const {
-    if (!local.pose) return std::nullopt;
-    return to_fleet_frame(*local.pose, deps.settings.origin);
-  }
 };
 
 R2rNode::R2rNode(R2rNodeDeps deps) : identity_(deps.identity), impl_(std::make_shared<Impl>(std::move(deps))) {
@@ -288,7 +261,6 @@ void R2rNode::stop() noexcept {
 void R2rNode::receive(InboundMessage message) {
   Impl& s = *impl_;
   const Route reply{message.reply, transport_may_carry_secrets(message.transport) && message.trusted_with_secrets};
-  std::vector<Wire> out;
   {
     std::lock_guard lock(s.mutex);
     ++s.counters.received;
@@ -378,10 +350,6 @@ void R2rNode::receive(InboundMessage message) {
     return;
   }
 
-  // Facts gathered outside the lock (the status source may look at plugins).
-  std::optional<FleetPose> position;
-  if (envelope.type == MessageType::TaskRequest) position = s.fleet_position(s.local_status());
-
   std::vector<Subscriber> to_notify;
   bool run_command = false;
   {
@@ -392,57 +360,22 @@ void R2rNode::receive(InboundMessage message) {
     peer.transport = message.transport;
     if (reply) peer.reply = reply;
     const json& p = envelope.payload;
-    const Bidder::Context context{s.deps.identity.capabilities, s.cost, position, now};
-
+    // Task requests, negotiations and task responses are the fleet plugin's (it subscribes): the auction runs there.
     switch (envelope.type) {
       case MessageType::Status: peer.status = r2r_bounded_peer_status(p); break;
-      case MessageType::TaskRequest: {
-        const TaskSpec task = task_from(p);
-        if (p.contains("bid_deadline")) {
-          if (auto bid = s.bidder.on_task_request(source, task, p["bid_deadline"].get<double>(), context))
-            out.push_back(s.wire(*bid, reply));
-        } else {
-          out.push_back(s.wire(s.bidder.on_direct_request(source, task, clean_ref, context), reply));
-        }
-        break;
-      }
-      case MessageType::Negotiation: {
-        const std::string task_id = p["task_id"].get<std::string>();
-        const std::string action = p["action"].get<std::string>();
-        if (action == "bid") {
-          Bid bid{source, p["cost"].get<double>(), p.value("capabilities", std::vector<std::string>{}), now};
-          s.auctioneer.on_bid(task_id, std::move(bid));
-        } else if (action == "award") {
-          out.push_back(s.wire(s.bidder.on_award(source, task_id, clean_ref, now), reply));
-        } else {
-          s.bidder.on_withdraw(source, task_id);
-        }
-        break;
-      }
-      case MessageType::TaskResponse: {
-        std::optional<double> estimate;
-        if (p.contains("estimated_time") && p["estimated_time"].is_number()) estimate = p["estimated_time"].get<double>();
-        for (const Outgoing& next :
-             s.auctioneer.on_task_response(source, p["task_id"].get<std::string>(), p["accepted"].get<bool>(), estimate, now))
-          out.push_back(s.wire(next));
-        break;
-      }
       case MessageType::Error: {
         const int code = p["code"].get<int>();
-        if (const auto task = p.find("task_id"); task != p.end() && task->is_string()) {
-          if (code == static_cast<int>(ErrorCode::TaskAssigned))
-            for (const Outgoing& next : s.auctioneer.on_error(source, task->get<std::string>(), now)) out.push_back(s.wire(next));
-          if (code == static_cast<int>(ErrorCode::NetworkTimeout)) s.bidder.on_withdraw(source, task->get<std::string>());
-        }
         s.log->info("r2r: error {} ({}) from '{}': {}", code, error_code_name(code), source, p["message"].get<std::string>());
         break;
       }
       case MessageType::Command: run_command = true; break;
+      case MessageType::TaskRequest:
+      case MessageType::TaskResponse:
+      case MessageType::Negotiation: break;
     }
     for (const auto& [id, entry] : s.subscribers)
       if (entry.first == envelope.type) to_notify.push_back(entry.second);
   }
-  s.transmit(std::move(out));
 
   if (run_command) {
     if (!s.deps.command_executor) {
@@ -491,14 +424,11 @@ void R2rNode::tick() {
     const bool due = !s.status_sent || since >= std::chrono::microseconds(s.deps.settings.status_interval).count();
     const bool changed = s.status_sent && status != s.last_status && since >= kMinStatusGapUs;
     if (due || changed) {
-      out.push_back(s.wire({MessageType::Status, status, std::nullopt}));
+      out.push_back(s.wire(MessageType::Status, status, std::nullopt));
       s.last_status = std::move(status);
       s.last_status_us = now_us;
       s.status_sent = true;
     }
-    const double now = s.now_s();
-    for (const Outgoing& next : s.auctioneer.tick(now)) out.push_back(s.wire(next));
-    s.bidder.prune(now);
     s.prune_peers_locked(s.deps.clock.wall_ms());
   }
   s.transmit(std::move(out));
@@ -521,7 +451,7 @@ std::variant<SendOutcome, R2rError> R2rNode::send_message(MessageType type, json
   if (!payload.is_object()) return invalid("/payload", "payload must be an object");
   if (auto fault = check_payload(type, payload)) return invalid(fault->field, fault->message);
   if (target && target->empty()) return invalid("/header/target_id", "target_id must not be empty");
-  Wire w = impl_->wire({type, std::move(payload), target});
+  Wire w = impl_->wire(type, payload, target);
   const std::size_t size = std::max(w.bytes.size(), w.open_bytes.size());
   if (size > kMaxMessageBytes)
     return invalid(
@@ -530,49 +460,6 @@ std::variant<SendOutcome, R2rError> R2rNode::send_message(MessageType type, json
   outcome.bytes = w.open_bytes;
   outcome.queued_on = std::move(impl_->transmit({std::move(w)}).front());
   return outcome;
-}
-
-std::variant<std::string, R2rError> R2rNode::open_auction(TaskSpec task) {
-  Impl& s = *impl_;
-  std::vector<Wire> out;
-  {
-    std::lock_guard lock(s.mutex);
-    if (task.task_id.empty())
-      task.task_id = s.deps.identity.name + "-" + std::to_string(s.deps.clock.wall_ms()) + "-" + std::to_string(++s.task_counter);
-    const double window = static_cast<double>(s.deps.settings.bid_window.count()) / 1000.0;
-    for (const Outgoing& next : s.auctioneer.open(task, window, s.now_s())) {
-      if (auto fault = check_payload(next.type, next.payload)) {
-        R2rError error;
-        error.field = fault->field;
-        error.message = fault->message;
-        return error;
-      }
-      out.push_back(s.wire(next));
-    }
-  }
-  s.transmit(std::move(out));
-  return task.task_id;
-}
-
-std::optional<json> R2rNode::auction_result(const std::string& task_id) const {
-  std::lock_guard lock(impl_->mutex);
-  return impl_->auctioneer.result(task_id);
-}
-
-json R2rNode::held_tasks() const {
-  std::lock_guard lock(impl_->mutex);
-  json tasks = json::array();
-  for (const auto& [task_id, held] : impl_->bidder.held())
-    tasks.push_back({{"task_id", task_id},
-                     {"requester", held.requester},
-                     {"estimated_time", held.estimated_time},
-                     {"accepted_s", held.accepted_s}});
-  return tasks;
-}
-
-bool R2rNode::complete_task(const std::string& task_id) {
-  std::lock_guard lock(impl_->mutex);
-  return impl_->bidder.release(task_id);
 }
 
 std::uint64_t R2rNode::subscribe(MessageType type, Subscriber callback) {
@@ -585,11 +472,6 @@ std::uint64_t R2rNode::subscribe(MessageType type, Subscriber callback) {
 void R2rNode::unsubscribe(std::uint64_t id) {
   std::lock_guard lock(impl_->mutex);
   impl_->subscribers.erase(id);
-}
-
-void R2rNode::set_cost_function(CostFunction cost) {
-  std::lock_guard lock(impl_->mutex);
-  impl_->cost = cost ? std::move(cost) : impl_->default_cost;
 }
 
 json R2rNode::peers() const {

@@ -1,9 +1,10 @@
 // One robot's R2R endpoint (seed 004, docs/protocol.md §11). Parses every inbound message, authenticates it, checks its
-// target, dispatches it per type and answers with `error` messages as the rulings say; sends `status` periodically and
-// on change; runs auctions (as requester) and bids on others' (as bidder); keeps a peer table; hands validated
-// messages to subscribers (plugins). No thread of its own: transports call receive() on their threads, the owner
-// calls tick() periodically (every ~50-100 ms) on any thread. Every public method is thread-safe and never blocks
-// on I/O; messages are sent outside the node's lock, so a transport may deliver synchronously.
+// target, dispatches it per type and answers with `error` messages as the rulings say; runs commands through the
+// action path; sends `status` periodically and on change; keeps a peer table; hands validated messages to
+// subscribers (plugins: the fleet plugin runs the auctions, §11.7-§11.9, on what it receives and sends here). No
+// thread of its own: transports call receive() on their threads, the owner calls tick() periodically (every ~50-100
+// ms) on any thread. Every public method is thread-safe and never blocks on I/O; messages are sent outside the
+// node's lock, so a transport may deliver synchronously.
 #pragma once
 
 #include <nlohmann/json.hpp>
@@ -22,8 +23,7 @@
 
 #include "kernel/auth/authenticator.hpp"
 #include "rcand/sdk/clock.hpp"
-#include "services/r2r/auction.hpp"
-#include "services/r2r/cost_function.hpp"
+#include "rcand/sdk/pose_source.hpp"
 #include "services/r2r/envelope.hpp"
 #include "services/r2r/message_auth.hpp"
 #include "services/r2r/r2r_settings.hpp"
@@ -37,16 +37,17 @@ struct NodeIdentity {
   std::vector<std::string> capabilities;  // the registry's names (what this robot may bid with)
 };
 
-// What the robot reports in `status` (docs/protocol.md §11). pose is in the robot's own dead-reckoned frame (nav's pose); the
-// node adds runtime.r2r.origin.
+// What the robot reports in `status` (docs/protocol.md §11.6). pose is in the robot's own dead-reckoned frame (nav's
+// pose); the node places it in the fleet frame by runtime.r2r.origin (sdk::compose).
 struct LocalStatus {
   std::optional<double> battery;        // 0..100
-  std::optional<FleetPose> pose;        // nullopt: unknown (nav not running)
-  std::optional<double> task_progress;  // 0..1; nullopt: the node reports its own (held tasks) or null
+  std::optional<sdk::Pose2d> pose;      // nullopt: unknown (nav not running)
+  std::optional<double> task_progress;  // 0..1; nullopt: null
   std::string state = "idle";           // idle | running | error | estop
   bool estopped = false;
+  std::optional<std::size_t> tasks_held;  // the rcand extension `tasks_held` (the fleet plugin's); nullopt: left out
 };
-// Any thread; must not block (the kernel reads nav's status and the e-stop latch).
+// Any thread; must not block (the R2R service reads the status snapshot, the e-stop latch and the fleet plugin).
 using StatusSource = std::function<LocalStatus()>;
 
 // Runs a `command` payload exactly as POST /api/action with that body, as `principal` (scope check, the 423 e-stop
@@ -69,8 +70,6 @@ struct R2rNodeDeps {
   R2rSettings settings;
   StatusSource status_source;           // may be empty: status says unknown everywhere
   CommandExecutor command_executor;     // may be empty: every command is refused (code 103, "commands disabled")
-  CostFunction cost_function;           // empty: nav_time_cost(physics below)
-  DrivePhysics physics;                 // for the default cost function
   std::vector<Transport*> transports;   // not owned; outlive the node. Also add_transport() later.
   std::shared_ptr<spdlog::logger> log;  // null: spdlog's default logger
 };
@@ -103,7 +102,7 @@ class R2rNode {
 
   // The Deliver callback: any transport thread, never blocks.
   void receive(InboundMessage message);
-  // Periodic work against the clock: status every status_interval and on change, auction deadlines.
+  // Periodic work against the clock: status every status_interval and on change, peer expiry.
   void tick();
 
   // Sends a message of `type` with `payload` to `target` (nullopt: broadcast) on every transport that accepts it,
@@ -114,21 +113,10 @@ class R2rNode {
   std::variant<SendOutcome, R2rError> send_message(MessageType type, nlohmann::json payload,
                                                    const std::optional<std::string>& target);
 
-  // Opens an auction for `task` (task_request broadcast with bid_deadline = now + bid_window). task_id may be
-  // empty: one is generated. Returns the task id, or an R2rError when the task is invalid.
-  std::variant<std::string, R2rError> open_auction(TaskSpec task);
-  // The auction's state and all bids, or nullopt when this node never opened it.
-  std::optional<nlohmann::json> auction_result(const std::string& task_id) const;
-  // Tasks this robot holds (won), and releasing one when done.
-  nlohmann::json held_tasks() const;
-  bool complete_task(const std::string& task_id);
-
   // Subscribers get every validated, authorized message of `type` (any transport). The callback runs on the
   // thread that delivered the message: wrap it to post elsewhere (the plugin link posts to the plugin's worker).
   std::uint64_t subscribe(MessageType type, Subscriber callback);
   void unsubscribe(std::uint64_t id);
-  // Replaces the cost function (a plugin's); empty restores the default.
-  void set_cost_function(CostFunction cost);
 
   // {"peers":[{"name","last_seen_ms","transport","status":{...}}]}: the last status (its ruled fields, bounded) of
   // every robot heard from within runtime.r2r.peer_expiry_s, at most runtime.r2r.max_peers of them.

@@ -2,8 +2,6 @@
 
 #include <nlohmann/json.hpp>
 
-#include <cmath>
-
 #include "kernel/api/answers.hpp"
 #include "libs/base/json_body.hpp"
 #include "services/r2r/r2r_service.hpp"
@@ -14,8 +12,7 @@ namespace {
 using nlohmann::json;
 
 constexpr std::string_view kAuctionPrefix = "/api/r2r/auction/";
-constexpr std::chrono::milliseconds kDefaultAuctionWait{30'000};
-constexpr std::chrono::milliseconds kMaxAuctionWait{120'000};
+constexpr std::string_view kFleetPlugin = "org.rcand.fleet";  // runs the auctions (sdk::FleetAuctions)
 
 http::Response answer(int status, const json& body) { return json_response(status, body); }
 
@@ -23,39 +20,36 @@ http::Response failure(int status, std::string code, std::string message, std::s
   return error_response(status, code, std::move(message), field.empty() ? json::object() : json{{"field", std::move(field)}});
 }
 
-// The task of POST /api/r2r/auction; an error names the field.
-std::variant<r2r::TaskSpec, http::Response> read_task(const json& body) {
-  r2r::TaskSpec task;
-  auto bad = [](const std::string& field, const std::string& message) { return failure(400, "BAD_REQUEST", message, field); };
-  if (!body.is_object()) return bad("body", "body must be a JSON object");
-  if (body.contains("task_id")) {
-    if (!body["task_id"].is_string()) return bad("task_id", "task_id must be a string");
-    task.task_id = body["task_id"].get<std::string>();
+// Auctions run in the fleet plugin; without it they are unavailable, not missing.
+http::Response fleet_missing() {
+  return error_response(503, "UNAVAILABLE",
+                        "R2R auctions need the fleet plugin " + std::string(kFleetPlugin) +
+                            ", which is not running on this robot (install rcand-plugins-core: it is declared by itself "
+                            "when runtime.r2r.enabled is true, or list it in rcan_protocol.capabilities)",
+                        json{{"plugin", std::string(kFleetPlugin)}});
+}
+
+// POST /api/r2r/auction and GET /api/r2r/auction/<task_id>, answered by the fleet plugin; the audit entry of a POST
+// is finished with its answer.
+void handle_auction(R2rService& service, AuditLog& audit, Call& call, const Reply& respond, const json& body) {
+  const sdk::FleetAuctions* fleet = service.fleet();
+  if (fleet == nullptr) {
+    if (call.audit_seq != 0) audit.finish(call.audit_seq, "failed", "no fleet plugin");
+    return respond(fleet_missing());
   }
-  if (body.contains("description")) {
-    if (!body["description"].is_string()) return bad("description", "description must be a string");
-    task.description = body["description"].get<std::string>();
+  if (call.request.method == "GET") {
+    const sdk::Response result = fleet->result(call.request.path.substr(kAuctionPrefix.size()));
+    return respond(answer(result.status, result.body));
   }
-  if (body.contains("deadline") && !body["deadline"].is_null()) {
-    if (!body["deadline"].is_number()) return bad("deadline", "deadline must be Unix seconds");
-    task.deadline = body["deadline"].get<double>();
-  }
-  if (body.contains("required_capabilities")) {
-    const auto& caps = body["required_capabilities"];
-    if (!caps.is_array()) return bad("required_capabilities", "required_capabilities must be an array of strings");
-    for (const auto& cap : caps) {
-      if (!cap.is_string()) return bad("required_capabilities", "required_capabilities must be an array of strings");
-      task.required_capabilities.push_back(cap.get<std::string>());
-    }
-  }
-  if (body.contains("location") && !body["location"].is_null()) {
-    const auto& location = body["location"];
-    if (!location.is_object() || !location.contains("x") || !location.contains("y") || !location["x"].is_number() ||
-        !location["y"].is_number() || !std::isfinite(location["x"].get<double>()) || !std::isfinite(location["y"].get<double>()))
-      return bad("location", "location must be {\"x\": number, \"y\": number} in the fleet frame");
-    task.location = r2r::FleetPoint{location["x"].get<double>(), location["y"].get<double>()};
-  }
-  return task;
+  service.request_auction(*fleet, body, [&audit, seq = call.audit_seq, respond](const sdk::Response& result) {
+    const bool ok = result.status >= 200 && result.status < 300;
+    auto text = [&result](const char* key) {
+      const auto it = result.body.is_object() ? result.body.find(key) : result.body.end();
+      return it != result.body.end() && it->is_string() ? it->get<std::string>() : std::string();
+    };
+    audit.finish(seq, ok ? "ok" : result.status < 500 ? "blocked" : "failed", ok ? "auction " + text("task_id") : text("error"));
+    respond(answer(result.status, result.body));
+  });
 }
 
 void handle(R2rService* service, AuditLog& audit, Call& call, const Reply& respond) {
@@ -69,12 +63,7 @@ void handle(R2rService* service, AuditLog& audit, Call& call, const Reply& respo
     respond(answer(200, service->peers()));
     return;
   }
-  if (request.method == "GET") {
-    const std::string task_id = request.path.substr(kAuctionPrefix.size());
-    if (auto result = service->node().auction_result(task_id)) respond(answer(200, *result));
-    else respond(failure(404, "NOT_FOUND", "this robot never opened an auction '" + task_id + "'"));
-    return;
-  }
+  if (request.method == "GET") return handle_auction(*service, audit, call, respond, json());
 
   const std::uint64_t seq = call.audit_seq;  // POST rows are audited by the middleware
   auto refuse = [&](http::Response response, const std::string& why) {
@@ -120,32 +109,7 @@ void handle(R2rService* service, AuditLog& audit, Call& call, const Reply& respo
     return;
   }
 
-  // POST /api/r2r/auction
-  auto task = read_task(body.value);
-  if (auto* bad = std::get_if<http::Response>(&task)) return refuse(std::move(*bad), "invalid task");
-  bool wait = true;
-  std::chrono::milliseconds timeout = kDefaultAuctionWait;
-  if (body.value.contains("wait")) {
-    if (!body.value["wait"].is_boolean())
-      return refuse(failure(400, "BAD_REQUEST", "wait must be true or false", "wait"), "bad wait");
-    wait = body.value["wait"].get<bool>();
-  }
-  if (body.value.contains("timeout_ms")) {
-    const auto& value = body.value["timeout_ms"];
-    if (!value.is_number_integer() || value.get<long long>() < 1 || value.get<long long>() > kMaxAuctionWait.count())
-      return refuse(failure(400, "BAD_REQUEST", "timeout_ms must be an integer from 1 to 120000", "timeout_ms"), "bad timeout");
-    timeout = std::chrono::milliseconds(value.get<long long>());
-  }
-  auto opened = service->node().open_auction(std::get<r2r::TaskSpec>(std::move(task)));
-  if (auto* error = std::get_if<r2r::R2rError>(&opened))
-    return refuse(failure(400, "BAD_REQUEST", error->message, error->field.empty() ? "body" : error->field), "invalid task");
-  const std::string task_id = std::get<std::string>(opened);
-  audit.finish(seq, "ok", "auction " + task_id);
-  if (!wait) {
-    respond(answer(202, {{"task_id", task_id}, {"state", "bidding"}}));
-    return;
-  }
-  service->answer_when_decided(task_id, timeout, std::move(respond));
+  handle_auction(*service, audit, call, respond, body.value);  // POST /api/r2r/auction
 }
 
 }  // namespace

@@ -1,6 +1,8 @@
 // The operators' R2R endpoints (README "R2R"): GET /api/r2r/peers (status), POST /api/r2r/send (control: send one
 // message as this robot), POST /api/r2r/auction (control: run an auction here, answered when decided), GET
-// /api/r2r/auction/<task_id> (status). 404 R2R_DISABLED when runtime.r2r.enabled is off.
+// /api/r2r/auction/<task_id> (status). 404 R2R_DISABLED when runtime.r2r.enabled is off. The two auction rows are
+// answered by the fleet plugin (sdk::FleetAuctions, found at each request): 503 UNAVAILABLE naming org.rcand.fleet
+// when it is not running.
 #pragma once
 
 #include "kernel/api/router.hpp"

@@ -3,13 +3,12 @@
 #include <boost/asio/ip/address.hpp>
 
 #include <algorithm>
-#include <condition_variable>
 #include <mutex>
 #include <stdexcept>
-#include <thread>
 
 #include "kernel/kernel.hpp"
 #include "libs/base/logging.hpp"
+#include "libs/base/worker_thread.hpp"
 #include "libs/rcan/loopback.hpp"
 #include "services/r2r/r2r_settings.hpp"
 #include "services/r2r/transports/mqtt_transport.hpp"
@@ -17,22 +16,46 @@
 #include "services/r2r/transports/websocket_transport.hpp"
 
 namespace rcand::kernel {
+
+// Named, not anonymous: R2rService::Impl (external linkage) keeps these.
+namespace r2r_service_detail {
+
+// One forwarded auction request: answered once, by the fleet plugin or by stop(), whichever comes first.
+class PendingAnswer {
+ public:
+  explicit PendingAnswer(std::function<void(const sdk::Response&)> done) : done_(std::move(done)) {}
+  void answer(const sdk::Response& response) {
+    std::function<void(const sdk::Response&)> done;
+    {
+      std::lock_guard lock(mutex_);
+      done.swap(done_);
+    }
+    if (done) done(response);
+  }
+  bool answered() {
+    std::lock_guard lock(mutex_);
+    return !done_;
+  }
+
+ private:
+  std::mutex mutex_;
+  std::function<void(const sdk::Response&)> done_;
+};
+
+}  // namespace r2r_service_detail
+
+using r2r_service_detail::PendingAnswer;
+
 namespace {
 
 using nlohmann::json;
-using SteadyTime = std::chrono::steady_clock::time_point;
 
-// The node's clock work runs this often; status intervals and bid deadlines are far coarser.
+// The node's clock work runs this often; status intervals are far coarser.
 constexpr std::chrono::milliseconds kTickPeriod{20};
 // The status source reads every plugin's status; a tick does not need it fresher than this.
 constexpr std::int64_t kStatusCacheUs = 100'000;
 
-http::Response json_answer(int status, const json& body) {
-  http::Response response;
-  response.status = status;
-  response.body = body.dump(-1, ' ', false, json::error_handler_t::replace);
-  return response;
-}
+sdk::Response shutting_down() { return sdk::Response::error(503, "UNAVAILABLE", "rcand is shutting down"); }
 
 }  // namespace
 
@@ -56,18 +79,12 @@ struct R2rService::Impl {
   bool cached = false;
 
   std::mutex mutex;  // below
-  std::condition_variable wake;
   bool started = false, stopping = false;
-  struct Waiter {
-    std::string task_id;
-    SteadyTime started, deadline;
-    http::Respond respond;
-  };
-  std::vector<Waiter> waiters;
-  std::thread clock_thread;
+  std::vector<std::shared_ptr<PendingAnswer>> pending;  // auction requests the fleet plugin has not answered yet
+  std::unique_ptr<WorkerThread> ticker;                 // "r2r.clock": one tick every kTickPeriod, from start() to stop()
 
-  // What `status` reports: the Api's state, the e-stop latch and nav's dead-reckoned pose. A robot without nav stays
-  // where its runtime.r2r.origin puts it.
+  // What `status` reports: the Api's state, the e-stop latch, nav's dead-reckoned pose (a robot without nav stays
+  // where its runtime.r2r.origin puts it) and the tasks the fleet plugin holds.
   r2r::LocalStatus local_status() {
     const std::int64_t now = deps.clock.now_us();
     std::lock_guard lock(status_mutex);
@@ -85,51 +102,28 @@ struct R2rService::Impl {
     const auto pose = doc.find("pose");
     if (pose != doc.end() && pose->is_object() && (*pose)["x_m"].is_number() && (*pose)["y_m"].is_number()) {
       const double heading = (*pose)["heading_deg"].is_number() ? (*pose)["heading_deg"].get<double>() : 0.0;
-      status.pose = r2r::FleetPose{(*pose)["x_m"].get<double>(), (*pose)["y_m"].get<double>(), heading};
+      status.pose = sdk::Pose2d{(*pose)["x_m"].get<double>(), (*pose)["y_m"].get<double>(), heading};
     } else if (std::find(deps.capabilities.begin(), deps.capabilities.end(), "nav") == deps.capabilities.end()) {
-      status.pose = r2r::FleetPose{};
+      status.pose = sdk::Pose2d{};
     }
+    if (const sdk::FleetAuctions* fleet = deps.fleet ? deps.fleet() : nullptr) status.tasks_held = fleet->tasks_held();
     cached_status = status;
     cached_at_us = now;
     cached = true;
     return status;
   }
 
-  void run_clock() {
-    std::unique_lock lock(mutex);
-    while (!stopping) {
-      lock.unlock();
-      try {
-        node->tick();
-        answer_decided();
-      } catch (const std::exception& e) {
-        log->error("r2r clock: {}", e.what());
-      }
-      lock.lock();
-      wake.wait_for(lock, kTickPeriod, [this] { return stopping; });
+  // One tick, then the next one kTickPeriod later, until stop().
+  void tick() {
+    try {
+      node->tick();
+    } catch (const std::exception& e) {
+      log->error("r2r clock: {}", e.what());
+    } catch (...) {
+      log->error("r2r clock: a non-standard exception");
     }
-  }
-
-  void answer_decided() {
-    std::vector<std::pair<Waiter, json>> ready;
-    {
-      std::lock_guard lock(mutex);
-      const auto now = std::chrono::steady_clock::now();
-      for (auto it = waiters.begin(); it != waiters.end();) {
-        auto result = node->auction_result(it->task_id).value_or(json::object());
-        const std::string state = result.value("state", "");
-        const bool decided = state == "assigned" || state == "no_bids";
-        if (!decided && now < it->deadline) {
-          ++it;
-          continue;
-        }
-        result["decided"] = decided;
-        result["elapsed_ms"] = std::chrono::duration<double, std::milli>(now - it->started).count();
-        ready.emplace_back(std::move(*it), std::move(result));
-        it = waiters.erase(it);
-      }
-    }
-    for (auto& [waiter, result] : ready) waiter.respond(json_answer(200, result));
+    std::lock_guard lock(mutex);
+    if (!stopping) ticker->schedule(kTickPeriod, [this] { tick(); });
   }
 };
 
@@ -192,8 +186,6 @@ std::unique_ptr<R2rService> R2rService::from_config(R2rServiceDeps deps) {
       .command_executor = [execute = s.deps.execute_action](
                               const Principal& principal, json body,
                               r2r::CommandDone done) { execute(principal, std::move(body), std::move(done)); },
-      .cost_function = {},
-      .physics = {cfg.wheel_circumference_m.value_or(0.0), cfg.turn_time_per_deg_s.value_or(0.0), cfg.max_wheel_rps},
       .transports = {s.ws.get()},
       .log = s.log,
   };
@@ -243,7 +235,8 @@ void R2rService::start(std::uint16_t http_port) {
     std::lock_guard lock(s.mutex);
     s.started = true;
   }
-  s.clock_thread = std::thread([&s] { s.run_clock(); });
+  s.ticker = std::make_unique<WorkerThread>("r2r.clock", nullptr);
+  s.ticker->post([&s] { s.tick(); });
   s.log->info("r2r: {} speaks R2R on ws://{}:{}{}{}{}", cfg.robot_name, cfg.runtime.listen_address, http_port,
               r2r::kWebSocketPath, s.udp ? ", udp " + std::to_string(s.udp->bound_port()) : std::string(),
               s.mqtt ? ", mqtt" : "");
@@ -251,25 +244,26 @@ void R2rService::start(std::uint16_t http_port) {
 
 void R2rService::stop() noexcept {
   Impl& s = *impl_;
-  std::vector<Impl::Waiter> abandoned;
+  std::vector<std::shared_ptr<PendingAnswer>> abandoned;
   {
     std::lock_guard lock(s.mutex);
     if (s.stopping) return;
     s.stopping = true;
-    abandoned.swap(s.waiters);
+    abandoned.swap(s.pending);
   }
-  s.wake.notify_all();
-  if (s.clock_thread.joinable()) s.clock_thread.join();
+  if (s.ticker) s.ticker->join();  // a tick under way ends, and schedules no other once `stopping` is set
   s.node->stop();
-  for (auto& waiter : abandoned) {
+  for (auto& request : abandoned) {
     try {
-      waiter.respond(http::error_response(503, "UNAVAILABLE", "rcand is shutting down"));
+      request->answer(shutting_down());
     } catch (...) {
     }
   }
 }
 
 r2r::R2rNode& R2rService::node() noexcept { return *impl_->node; }
+
+const sdk::FleetAuctions* R2rService::fleet() const { return impl_->deps.fleet ? impl_->deps.fleet() : nullptr; }
 
 json R2rService::peers() const {
   const Impl& s = *impl_;
@@ -293,21 +287,26 @@ json R2rService::peers() const {
                      {"rejected", counters.rejected},
                      {"sent", counters.sent},
                      {"send_failed", counters.send_failed}};
-  doc["held_tasks"] = s.node->held_tasks();
+  const sdk::FleetAuctions* auctions = fleet();
+  doc["held_tasks"] = auctions != nullptr ? auctions->held_tasks() : json::array();
   return doc;
 }
 
-void R2rService::answer_when_decided(const std::string& task_id, std::chrono::milliseconds timeout, http::Respond respond) {
+void R2rService::request_auction(const sdk::FleetAuctions& fleet, const json& body,
+                                 std::function<void(const sdk::Response&)> done) {
   Impl& s = *impl_;
+  auto request = std::make_shared<PendingAnswer>(std::move(done));
+  bool stopping = false;
   {
     std::lock_guard lock(s.mutex);
-    if (!s.stopping) {
-      const auto now = std::chrono::steady_clock::now();
-      s.waiters.push_back({task_id, now, now + timeout, std::move(respond)});
-      return;
+    stopping = s.stopping;
+    if (!stopping) {
+      std::erase_if(s.pending, [](const auto& earlier) { return earlier->answered(); });
+      s.pending.push_back(request);
     }
   }
-  respond(http::error_response(503, "UNAVAILABLE", "rcand is shutting down"));
+  if (stopping) return request->answer(shutting_down());
+  fleet.open(body, [request](const sdk::Response& response) { request->answer(response); });
 }
 
 }  // namespace rcand::kernel

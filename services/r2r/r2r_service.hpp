@@ -1,6 +1,7 @@
 // R2R (seed 004, docs/protocol.md §11) assembled for the kernel: the transports runtime.r2r asks for (WebSocket on the HTTP
-// port, UDP status, MQTT), part 1's R2rNode fed with the robot's status and the Api's action path, and the thread
-// that drives the node's clock work (status every interval, auction deadlines). Off unless runtime.r2r.enabled.
+// port, UDP status, MQTT), the R2rNode fed with the robot's status and the Api's action path, and the thread that
+// drives the node's clock work (status every interval). Off unless runtime.r2r.enabled. The auctions are the fleet
+// plugin's (sdk::FleetAuctions): this service forwards /api/r2r/auction to it and reports its held tasks.
 #pragma once
 
 #include <nlohmann/json.hpp>
@@ -19,6 +20,7 @@
 #include "libs/http/server_options.hpp"
 #include "libs/swarm/swarm_registry.hpp"
 #include "rcand/sdk/clock.hpp"
+#include "rcand/sdk/fleet_auctions.hpp"
 #include "services/r2r/r2r_node.hpp"
 
 namespace rcand::kernel {
@@ -34,6 +36,9 @@ struct R2rServiceDeps {
   const swarm::SwarmRegistry& swarm;
   std::string ruri;
   std::vector<std::string> capabilities;
+  // The fleet plugin's auctions (sdk::find<sdk::FleetAuctions> over the plugins' services), looked up at each use:
+  // null while nothing offers them (the plugin is not installed, not started yet, or failed).
+  std::function<const sdk::FleetAuctions*()> fleet;
 };
 
 class R2rService {
@@ -51,11 +56,14 @@ class R2rService {
   void stop() noexcept;
 
   r2r::R2rNode& node() noexcept;
-  // {"name","peers":[...],"transports":{...},"counters":{...}}: GET /api/r2r/peers.
+  // The fleet plugin's auctions now, or null.
+  const sdk::FleetAuctions* fleet() const;
+  // {"name","peers":[...],"transports":{...},"counters":{...},"held_tasks":[...]}: GET /api/r2r/peers.
   nlohmann::json peers() const;
-  // Answers `respond` with the auction's result once it is decided (assigned or no_bids) or `timeout` passed. Never
-  // blocks: checked on the service's clock thread.
-  void answer_when_decided(const std::string& task_id, std::chrono::milliseconds timeout, http::Respond respond);
+  // Hands POST /api/r2r/auction's `body` to `fleet`; its answer reaches `done` once, from any thread. stop() answers
+  // every request still waiting 503 (rcand is shutting down) while HTTP still serves; fleet's later answer goes nowhere.
+  void request_auction(const sdk::FleetAuctions& fleet, const nlohmann::json& body,
+                       std::function<void(const sdk::Response&)> done);
 
   struct Impl;
 

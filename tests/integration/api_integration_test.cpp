@@ -118,8 +118,8 @@ TEST_CASE("bad input gets a clear error naming the field, and nothing moves") {
   int status = 0;
   for (const auto& entry : std::vector<std::pair<std::string, std::string>>{
            {R"({"type":"move","linear":"fast","angular":0})", "linear"},
-           {R"({"type":"move","angular":0})", "linear"},
-           {R"({"type":"move","linear":0.5})", "angular"},
+           {R"({"type":"move"})", "linear"},
+           {R"({"type":"move","linear":0.5,"angular":null})", "angular"},
            {R"({"type":"move","linear":0.5,"angular":0,"duration_ms":-5})", "duration_ms"},
            {R"({"type":"move","linear":0.5,"angular":0,"duration_ms":"soon"})", "duration_ms"},
            {R"({"type":"dance"})", "type"},

@@ -45,6 +45,8 @@ TEST_CASE("--check-config accepts the bundled sim config and a minimal one") {
                                            "--plugin-path", plugin_dir().string()});
   CHECK(bundled.exit_code == 0);
   CHECK(bundled.out.find("OK") != std::string::npos);
+  for (const char* capability : {"teleop", "nav", "com.acme.gripper"})  // the sim robot shows them all
+    CHECK_MESSAGE(bundled.out.find(capability) != std::string::npos, capability);
   auto minimal = check(kValid);
   CHECK(minimal.exit_code == 0);
   CHECK(minimal.out.find("status, teleop") != std::string::npos);
@@ -65,18 +67,20 @@ TEST_CASE("a wrong type names the key, the position and what was expected") {
   CHECK(result.err.find("number") != std::string::npos);
 }
 
-TEST_CASE("an unknown key warns with the closest known key and still validates") {
-  auto result = check(replace(kValid, "physics:", "phisics_extra: 1\nphysics:"));
-  CHECK(result.exit_code == 0);
-  CHECK(result.err.find("warning") != std::string::npos);
-  CHECK(result.err.find("phisics_extra") != std::string::npos);
+TEST_CASE("a misspelled section is an error with the suggestion; another runtime's key only warns") {
+  auto misspelled = check(replace(kValid, "rcan_protocol:", "rcan_protocl:"));
+  CHECK(misspelled.exit_code == 1);
+  CHECK(misspelled.err.find("error: unknown key 'rcan_protocl'; did you mean 'rcan_protocol'?") != std::string::npos);
+  auto foreign = check(replace(kValid, "physics:", "brain_backend_url: http://x\nphysics:"));
+  CHECK(foreign.exit_code == 0);
+  CHECK(foreign.err.find("warning: unknown key 'brain_backend_url'") != std::string::npos);
 }
 
 TEST_CASE("an explicitly listed capability that no installed plugin provides stops startup naming the plugin") {
-  auto result = check(replace(kValid, "[status, teleop]", "[status, teleop, vision]"));
+  auto result = check(replace(kValid, "[status, teleop]", "[status, teleop, chat]"));
   CHECK(result.exit_code == 1);
   CHECK(result.err.find("rcan_protocol.capabilities[2]") != std::string::npos);
-  CHECK(result.err.find("org.rcand.vision") != std::string::npos);
+  CHECK(result.err.find("org.rcand.chat") != std::string::npos);
   CHECK(result.err.find(":14:") != std::string::npos);
 }
 
@@ -101,6 +105,53 @@ TEST_CASE("plugin settings are validated against the manifest schema with the co
   CHECK(result.exit_code == 1);
   CHECK(result.err.find("drivers[0]") != std::string::npos);
   CHECK(result.err.find("halt_delay_ms") != std::string::npos);
+  CHECK(result.err.find("robot.rcan.yaml:13:5") != std::string::npos);  // the key's own position
+}
+
+TEST_CASE("--check-config fails on a driver or capability the installed plugins cannot serve") {
+  auto misspelled = check(replace(kValid, "protocol: sim_diff_drive", "protocol: sim_dif_drive"));
+  CHECK(misspelled.exit_code == 1);
+  CHECK(misspelled.err.find("drivers[0].protocol: no installed plugin provides driver protocol 'sim_dif_drive'; "
+                            "did you mean 'sim_diff_drive'?") != std::string::npos);
+  auto missing = check(replace(kValid, "protocol: sim_diff_drive", "protocol: pca9685"));
+  CHECK(missing.exit_code == 1);
+  CHECK(missing.err.find("no installed plugin provides driver protocol 'pca9685'") != std::string::npos);
+  // teleop needs a differential_drive actuator: with no driver it could only answer 503.
+  auto no_drive = check(replace(kValid, "drivers:\n  - id: drive0\n    protocol: sim_diff_drive\n", "drivers: []\n"));
+  CHECK(no_drive.exit_code == 1);
+  CHECK(no_drive.err.find("capability teleop requires a differential_drive actuator") != std::string::npos);
+}
+
+TEST_CASE("--check-config starts no driver and writes no file") {
+  TempDir dir;
+  const std::string yaml = replace(kValid, "runtime:\n", "runtime:\n  state_dir: state\n  audit_file: audit.jsonl\n");
+  const auto file = dir.write("robot.rcan.yaml", yaml);
+  const auto result = run_tool(rcand_binary(), {"--check-config", file.string(), "--plugin-path", plugin_dir().string()});
+  INFO(result.err);
+  CHECK(result.exit_code == 0);
+  CHECK(result.out.find("OK") != std::string::npos);
+  CHECK(result.err.find("started") == std::string::npos);  // no "driver drive0 ... started"
+  CHECK_FALSE(std::filesystem::exists(dir.path() / "state"));
+  CHECK_FALSE(std::filesystem::exists(dir.path() / "audit.jsonl"));
+  CHECK(std::distance(std::filesystem::directory_iterator(dir.path()), std::filesystem::directory_iterator()) == 1);
+}
+
+TEST_CASE("--check-config --as-user checks that the service's user can open every path the config names") {
+  TempDir dir;  // mkdtemp: 0700, so only its owner (and root) can enter it
+  const auto file = dir.write("robot.rcan.yaml", replace(kValid, "    protocol: sim_diff_drive\n",
+                                                         "    protocol: sim_diff_drive\n    port: /dev/ttyRCAND-TEST0\n"));
+  const std::vector<std::string> base{"--check-config", file.string(), "--plugin-path", plugin_dir().string()};
+  auto as = [&](const std::string& user) {
+    auto args = base;
+    args.insert(args.end(), {"--as-user", user});
+    return run_tool(rcand_binary(), args);
+  };
+  const auto nobody = as("nobody");
+  INFO(nobody.err);
+  CHECK(nobody.exit_code == 1);
+  CHECK(nobody.err.find("rcand: --as-user nobody: " + dir.path().string() + ": not searchable by nobody") != std::string::npos);
+  CHECK(nobody.err.find("/dev/ttyRCAND-TEST0: does not exist") != std::string::npos);
+  CHECK(as("no-such-user-rcand").exit_code == 2);
 }
 
 TEST_CASE("rcand --version and bad arguments") {

@@ -148,7 +148,8 @@ TEST_CASE("the kernel, SDK and core plugin packages are built, and the core set 
   const std::string abi = std::string("rcand-plugin-abi-") + RCAND_ABI_MAJOR_TEXT;
   CHECK(p.field("rcand", "Provides").find(abi) != std::string::npos);
   CHECK(p.field("rcand-plugins-core", "Depends").find(abi) != std::string::npos);
-  for (const auto& [name, deb] : p.debs) {
+  for (const auto& entry : p.debs) {  // not a structured binding: CHECK_MESSAGE makes a lambda (clang 14)
+    const std::string& name = entry.first;
     if (name.find("vision") != std::string::npos) continue;
     CHECK_MESSAGE(p.field(name, "Depends").find("opencv") == std::string::npos, name);
   }
@@ -159,7 +160,8 @@ TEST_CASE("the unpacked tree has the Debian layout, the systemd unit and the con
   CHECK(fs::is_regular_file(p.root / "usr/sbin/rcand"));
   CHECK(fs::is_regular_file(p.root / "usr/bin/rcanctl"));
   CHECK(fs::is_regular_file(p.root / "etc/rcand/robot.rcan.yaml"));
-  for (const char* file : {"rcand_teleop.so", "teleop.json", "rcand_nav.so", "nav.json", "rcand_sim_drive.so", "sim_drive.json"})
+  for (const char* file : {"rcand_teleop.so", "teleop.json", "rcand_nav.so", "nav.json", "rcand_fleet.so", "fleet.json",
+                           "rcand_sim_drive.so", "sim_drive.json"})
     CHECK_MESSAGE(fs::is_regular_file(p.plugin_dir / file), file);
   CHECK_FALSE(fs::exists(p.plugin_dir / "acme_gripper.so"));
   const std::string pc = slurp(p.root / "usr/lib" / RCAND_LIBRARY_ARCHITECTURE / "pkgconfig/rcand-sdk.pc");
@@ -189,8 +191,24 @@ TEST_CASE("the unpacked rcand loads every packaged plugin and the vendor plugin"
                                                                  "--plugin-path", p.vendor_plugins.string()});
   INFO(r.out, r.err);
   CHECK(r.exit_code == 0);
-  for (const char* id : {"org.rcand.teleop", "org.rcand.nav", "org.rcand.sim_drive", "com.acme.gripper"})
+  for (const char* id : {"org.rcand.teleop", "org.rcand.nav", "org.rcand.fleet", "org.rcand.sim_drive", "com.acme.gripper"})
     CHECK_MESSAGE(r.out.find(id) != std::string::npos, id);
+}
+
+TEST_CASE("the vision plugin is a package of its own, the only one that depends on OpenCV, and it loads") {
+  REQUIRE_PACKAGES(p);
+  REQUIRE(p.debs.count("rcand-plugins-vision") == 1);
+  const std::string abi = std::string("rcand-plugin-abi-") + RCAND_ABI_MAJOR_TEXT;
+  const std::string depends = p.field("rcand-plugins-vision", "Depends");
+  CHECK(depends.find(abi) != std::string::npos);
+  for (const char* library : {"libopencv-core", "libopencv-imgproc", "libopencv-imgcodecs", "libopencv-videoio"})
+    CHECK_MESSAGE(depends.find(library) != std::string::npos, library);
+  CHECK(fs::is_regular_file(p.plugin_dir / "rcand_vision.so"));
+  CHECK(fs::is_regular_file(p.plugin_dir / "vision.json"));
+  const auto r = run_tool((p.root / "usr/sbin/rcand").string(), {"--check-plugins", "--plugin-path", p.plugin_dir.string()});
+  INFO(r.out, r.err);
+  CHECK(r.exit_code == 0);
+  CHECK(r.out.find("org.rcand.vision") != std::string::npos);
 }
 
 TEST_CASE("the shipped /etc/rcand config is valid against the core plugin set") {
@@ -230,11 +248,59 @@ TEST_CASE("lintian reports no errors on the packages") {
     MESSAGE("SKIPPED: lintian not found (apt-get install lintian to run this check)");
     return;
   }
-  for (const auto& [name, deb] : p.debs) {
-    const auto r = run_tool(*lintian, {"--fail-on", "error", deb.string()});
+  for (const auto& entry : p.debs) {  // not a structured binding: INFO makes a lambda (clang 14)
+    const std::string& name = entry.first;
+    const auto r = run_tool(*lintian, {"--fail-on", "error", entry.second.string()});
     INFO(name, ":\n", r.out, r.err);
     CHECK(r.out.find("\nE: ") == std::string::npos);
     CHECK(r.out.rfind("E: ", 0) != 0);
     CHECK(r.exit_code == 0);
   }
+}
+
+TEST_CASE("the systemd unit is valid, supervised (notify, watchdog, reload) and hardened to exposure <= 3.0") {
+  REQUIRE_PACKAGES(p);
+  const std::string unit = slurp(p.root / "lib/systemd/system/rcand.service");
+  for (const char* line : {"Type=notify", "WatchdogSec=", "WatchdogSignal=SIGTERM", "ExecReload=/bin/kill -HUP $MAINPID",
+                           "DevicePolicy=closed", "DeviceAllow=char-gpiochip rw", "DeviceAllow=char-i2c rw", "LimitRTPRIO=10"})
+    CHECK_MESSAGE(unit.find(line) != std::string::npos, line);
+  const auto analyze = which("systemd-analyze");
+  if (!analyze) {
+    MESSAGE("SKIPPED: systemd-analyze not found (apt-get install systemd to run this check)");
+    return;
+  }
+  // verify needs ExecStart to exist: a copy pointing at the unpacked rcand. Any line it prints is a fault.
+  rcand::test::TempDir dir;
+  std::string copy = unit;
+  copy.replace(copy.find("/usr/sbin/rcand"), std::string("/usr/sbin/rcand").size(), (p.root / "usr/sbin/rcand").string());
+  const auto copied = dir.write("rcand.service", copy);
+  const auto verified = run_tool(*analyze, {"verify", "--man=no", copied.string()});
+  INFO(verified.out, verified.err);
+  CHECK(verified.exit_code == 0);
+  CHECK(verified.err.empty());
+  const auto security = run_tool(*analyze, {"security", "--offline=true", copied.string()});
+  const auto at = security.out.find("Overall exposure level for rcand.service: ");
+  REQUIRE_MESSAGE(at != std::string::npos, security.out << security.err);
+  const double exposure = std::stod(security.out.substr(at + std::string("Overall exposure level for rcand.service: ").size()));
+  MESSAGE("systemd-analyze security: exposure " << exposure);
+  CHECK(exposure <= 3.0);
+}
+
+TEST_CASE("the packaged binaries carry Debian's hardening: full RELRO, BIND_NOW, stack protector, fortified calls") {
+  REQUIRE_PACKAGES(p);
+  const auto readelf = which("readelf");
+  if (!readelf) {
+    MESSAGE("SKIPPED: readelf not found (binutils)");
+    return;
+  }
+  for (const auto& binary : {p.root / "usr/sbin/rcand", p.root / "usr/bin/rcanctl", p.plugin_dir / "rcand_nav.so"}) {
+    INFO(binary.string());
+    const auto dynamic = run_tool(*readelf, {"--dynamic", "--wide", binary.string()}).out;
+    CHECK(dynamic.find("BIND_NOW") != std::string::npos);
+    CHECK(run_tool(*readelf, {"--program-headers", "--wide", binary.string()}).out.find("GNU_RELRO") != std::string::npos);
+    const auto symbols = run_tool(*readelf, {"--dyn-syms", "--wide", binary.string()}).out;
+    CHECK(symbols.find("__stack_chk_fail") != std::string::npos);
+  }
+  const auto symbols = run_tool(*readelf, {"--dyn-syms", "--wide", (p.root / "usr/sbin/rcand").string()}).out;
+  CHECK(symbols.find("_chk@") != std::string::npos);  // at least one fortified libc call (e.g. __memcpy_chk)
 }

@@ -23,6 +23,8 @@ namespace rcand::test {
 inline nlohmann::json r2r_robot_config(const std::string& name, const std::filesystem::path& token_file, double x = 0,
                                        double y = 0, const std::filesystem::path& swarm_file = {}) {
   auto config = swarm_robot_config(name, swarm_file);
+  // nav offers the TripEstimator the default bid cost times a located task with; without it a robot declines those.
+  config["rcan_protocol"]["capabilities"].push_back("nav");
   config["runtime"]["r2r"] = {{"enabled", true},
                               {"udp_enabled", false},
                               {"token_file", token_file.string()},

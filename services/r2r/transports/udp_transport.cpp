@@ -1,19 +1,15 @@
 #include "services/r2r/transports/udp_transport.hpp"
 
-#include "services/r2r/transports/io_loop.hpp"
-
 #include <spdlog/spdlog.h>
-#include <boost/asio/executor_work_guard.hpp>
-#include <boost/asio/io_context.hpp>
 #include <boost/asio/ip/udp.hpp>
-#include <boost/asio/post.hpp>
 
 #include <atomic>
 #include <mutex>
+#include <optional>
 #include <shared_mutex>
 #include <stdexcept>
-#include <thread>
 
+#include "libs/base/worker_thread.hpp"
 #include "services/r2r/transports/message_peek.hpp"
 
 namespace rcand::kernel::r2r {
@@ -56,10 +52,10 @@ struct UdpTransport::State {
 
   const UdpOptions options;
   const std::shared_ptr<spdlog::logger> log;
-  net::io_context ioc{1};
-  udp::socket socket{ioc};
+  // The thread "r2r.udp", from start() on; declared before the socket, which must close before its io_context goes.
+  std::unique_ptr<WorkerThread> loop;
+  std::optional<udp::socket> socket;  // set before `running`, never reset while the State lives
   std::vector<udp::endpoint> destinations;
-  std::thread thread;
   std::atomic<bool> running{false};
   std::atomic<std::uint16_t> port{0};
   std::string buffer = std::string(64 * 1024 + 1, '\0');  // one more than the largest message: detects oversize
@@ -73,7 +69,7 @@ struct UdpTransport::State {
   UdpCounters counters;
 
   void receive() {
-    socket.async_receive_from(net::buffer(buffer), sender, [this](boost::system::error_code ec, std::size_t bytes) {
+    socket->async_receive_from(net::buffer(buffer), sender, [this](boost::system::error_code ec, std::size_t bytes) {
       if (ec == net::error::operation_aborted || !running) return;
       if (!ec) {
         {
@@ -107,14 +103,16 @@ void UdpTransport::start(Deliver deliver) {
   const auto address = net::ip::make_address(s.options.bind_address, ec);
   if (ec) throw std::runtime_error("runtime.r2r.udp_bind: '" + s.options.bind_address + "' is not an IP address");
   const udp::endpoint local{address, s.options.port};
-  s.socket.open(local.protocol(), ec);
-  if (!ec) s.socket.set_option(udp::socket::reuse_address(true), ec);
-  if (!ec) s.socket.set_option(net::socket_base::broadcast(true), ec);
-  if (!ec) s.socket.bind(local, ec);
+  if (!s.loop) s.loop = std::make_unique<WorkerThread>("r2r.udp", nullptr);
+  if (!s.socket) s.socket.emplace(s.loop->context());
+  s.socket->open(local.protocol(), ec);
+  if (!ec) s.socket->set_option(udp::socket::reuse_address(true), ec);
+  if (!ec) s.socket->set_option(net::socket_base::broadcast(true), ec);
+  if (!ec) s.socket->bind(local, ec);
   if (ec)
     throw std::runtime_error("runtime.r2r.udp_port: cannot bind UDP " + s.options.bind_address + ":" +
                              std::to_string(s.options.port) + ": " + ec.message());
-  s.port = s.socket.local_endpoint().port();
+  s.port = s.socket->local_endpoint().port();
   for (const auto& destination : s.options.destinations)
     s.destinations.emplace_back(net::ip::make_address(destination.host), destination.port ? destination.port : s.port.load());
   {
@@ -122,8 +120,7 @@ void UdpTransport::start(Deliver deliver) {
     s.deliver = std::move(deliver);
   }
   s.running = true;
-  s.receive();
-  s.thread = start_io_loop(s.ioc, s.log, "r2r udp loop");
+  s.receive();  // the loop thread runs the receive from here on
   s.log->info("r2r udp: status on port {} to {} destination(s)", s.port.load(), s.destinations.size());
 }
 
@@ -135,10 +132,10 @@ bool UdpTransport::send(const std::string& bytes, const std::optional<std::strin
   // Synchronous sends of one datagram are non-blocking in practice (UDP) and thread-safe on distinct calls.
   bool any = false;
   std::lock_guard send_lock(s.send_mutex);
-  if (!s.socket.is_open()) return false;
+  if (!s.socket->is_open()) return false;
   for (const auto& destination : s.destinations) {
     boost::system::error_code ec;
-    s.socket.send_to(net::buffer(bytes), destination, 0, ec);
+    s.socket->send_to(net::buffer(bytes), destination, 0, ec);
     std::lock_guard lock(s.counters_mutex);
     if (ec) {
       ++s.counters.send_failed;
@@ -158,16 +155,14 @@ void UdpTransport::stop() noexcept {
   }
   if (!s.running.exchange(false)) return;
   try {
-    net::post(s.ioc, [&s] {
+    s.loop->post([&s] {
       boost::system::error_code ec;
       std::lock_guard lock(s.send_mutex);
-      s.socket.close(ec);
-      s.ioc.stop();
+      s.socket->close(ec);
     });
-  } catch (...) {
-    s.ioc.stop();
+  } catch (...) {  // no memory to post the close: the socket closes with the State
   }
-  if (s.thread.joinable()) s.thread.join();
+  s.loop->stop_after_queued();
 }
 
 std::uint16_t UdpTransport::bound_port() const noexcept { return state_->port; }

@@ -1,9 +1,6 @@
 #include "services/r2r/transports/websocket_transport.hpp"
 
-#include "services/r2r/transports/io_loop.hpp"
-
 #include <spdlog/spdlog.h>
-#include <boost/asio/executor_work_guard.hpp>
 #include <boost/asio/ip/tcp.hpp>
 #include <boost/asio/post.hpp>
 #include <boost/asio/steady_timer.hpp>
@@ -18,9 +15,9 @@
 #include <mutex>
 #include <set>
 #include <shared_mutex>
-#include <thread>
 
 #include "libs/base/bounded_text.hpp"
+#include "libs/base/worker_thread.hpp"
 #include "libs/http/upgrade.hpp"
 #include "services/r2r/transports/message_peek.hpp"
 
@@ -68,10 +65,9 @@ struct WebSocketTransport::Hub : std::enable_shared_from_this<Hub> {
   std::map<std::string, std::size_t> inbound_by_principal;  // capped principals only (below OWNER)
   WebSocketCounters counters;
 
-  // Dialed connections run here, never on the HTTP server's I/O threads.
-  net::io_context client_ioc{1};
-  std::optional<net::executor_work_guard<net::io_context::executor_type>> client_work;
-  std::thread client_thread;
+  // Dialed connections run here, never on the HTTP server's I/O threads: the thread "r2r.ws.dial", started with
+  // the transport when it has peers to dial (under `mutex`; never reset while the Hub lives).
+  std::unique_ptr<WorkerThread> dialer;
 
   void deliver_message(InboundMessage message) {
     std::shared_lock lock(deliver_mutex);
@@ -455,14 +451,14 @@ void Hub::closed(const std::shared_ptr<Connection>& connection, bool dial_failed
 }
 
 std::shared_ptr<Connection> Hub::dial_locked(const swarm::SwarmNode& node) {
-  auto connection = std::make_shared<Connection>(weak_from_this(), Stream(client_ioc), Connection::Direction::Outbound,
+  auto connection = std::make_shared<Connection>(weak_from_this(), Stream(dialer->context()), Connection::Direction::Outbound,
                                                  node.address(), std::nullopt, options);
   connection->name_ = node.name;
   connections.insert(connection);
   by_name[node.name] = connection;
   ++counters.dialed;
   log->debug("r2r ws: dialing {} at {}", node.name, node.address());
-  net::post(client_ioc, [connection, node] { connection->dial(node); });
+  net::post(dialer->context(), [connection, node] { connection->dial(node); });
   return connection;
 }
 
@@ -576,10 +572,7 @@ void WebSocketTransport::start(Deliver deliver) {
   std::lock_guard lock(hub.mutex);
   if (hub.started) return;
   hub.started = true;
-  if (!hub.options.dial_peers.empty()) {
-    hub.client_work.emplace(hub.client_ioc.get_executor());
-    hub.client_thread = start_io_loop(hub.client_ioc, hub.log, "r2r ws client loop");
-  }
+  if (!hub.options.dial_peers.empty()) hub.dialer = std::make_unique<WorkerThread>("r2r.ws.dial", nullptr);
 }
 
 bool WebSocketTransport::send(const std::string& bytes, const std::optional<std::string>& target_id) {
@@ -642,12 +635,8 @@ void WebSocketTransport::stop() noexcept {
     } catch (...) {  // posting failed (loop gone): the connection dies with its loop
     }
   }
-  if (hub.client_thread.joinable()) {
-    // Queued after the closes, so they run first; what they leave pending is destroyed with the loop.
-    net::post(hub.client_ioc, [&hub] { hub.client_ioc.stop(); });
-    hub.client_work.reset();
-    hub.client_thread.join();
-  }
+  // The closes are queued, so they run first; what they leave pending is destroyed with the dialer.
+  if (hub.dialer) hub.dialer->stop_after_queued();
 }
 
 nlohmann::json WebSocketTransport::connections() const {

@@ -98,6 +98,21 @@ TEST_CASE("mdns: a robot is found from another namespace with the registry's TXT
   CHECK(table.out.find("NAME") != std::string::npos);
   CHECK(table.out.find(name) != std::string::npos);
 
+  // rcanctl reaches it by its "*.local" name through avahi-daemon (no libnss-mdns on this machine).
+  const std::string local_name = lab.host_name(1) + ".local", port = std::to_string(robot->port());
+  const auto by_name =
+      lab.run(2, rcanctl_binary(), {"status", "--host", local_name, "--port", port, "--token", "guest-token", "--json"});
+  CHECK_MESSAGE(by_name.exit_code == 0, by_name.out << by_name.err);
+  CHECK(json::parse(by_name.out, nullptr, false).value("state", "") == "idle");
+  const auto estop = lab.run(2, rcanctl_binary(), {"estop", "--host", local_name, "--port", port, "--token", "guest-token"});
+  CHECK_MESSAGE(estop.exit_code == 0, estop.out << estop.err);
+  CHECK(estop.out == "not latched\n");
+  const auto nobody = lab.run(2, rcanctl_binary(),
+                              {"estop", "--host", "nobody-" + std::to_string(::getpid()) + ".local", "--port", port, "--token",
+                               "guest-token", "--timeout", "1000"});
+  CHECK(nobody.exit_code == 1);
+  CHECK(nobody.err.find(".local: ") != std::string::npos);
+
   // An e-stop shows in TXT status within 5 s (docs/protocol.md §5).
   int status = 0;
   robot->json("POST", "/api/stop", "guest-token", "{}", &status);

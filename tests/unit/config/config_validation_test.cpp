@@ -50,7 +50,6 @@ TEST_CASE("each required key missing is an error at its parent mapping") {
       {"rcan_version", {1}, 0, "", 1, 1},
       {"metadata", {2, 3, 4, 5, 6}, 0, "", 1, 1},
       {"metadata.robot_name", {3}, 0, "", 2, 1},
-      {"metadata.robot_uuid", {4}, 0, "", 2, 1},
       {"metadata.manufacturer", {5}, 0, "", 2, 1},
       {"metadata.model", {6}, 0, "", 2, 1},
       {"drivers[0].id", {9}, 8, "  - protocol: sim", 8, 5},
@@ -177,19 +176,20 @@ TEST_CASE("a token hash is never echoed, even when a plain token was pasted in i
   }
 }
 
-TEST_CASE("an unknown key warns with the closest known key") {
+TEST_CASE("an unknown key that is a near miss of a known one is an error naming it") {
   auto lines = minimal_lines();
   lines.push_back("phisics:");
   lines.push_back("  wheel_circumference_m: 0.2");
-  const auto loaded = parse_ok(join(lines));
-  REQUIRE(loaded.warnings.size() == 1);
-  const auto& w = loaded.warnings[0];
-  CHECK(w.severity == ConfigDiagnostic::Severity::Warning);
-  CHECK(w.format() == "test.rcan.yaml:7:1: warning: unknown key 'phisics'; did you mean 'physics'?");
-  CHECK_FALSE(loaded.config.wheel_circumference_m.has_value());  // the misspelt block is ignored, not guessed
+  try {
+    parse_robot_config(join(lines), "test.rcan.yaml", "/srv/robot");
+    FAIL("expected a ConfigError");
+  } catch (const ConfigError& e) {
+    REQUIRE(e.diagnostics().size() == 1);
+    CHECK(e.diagnostics()[0].format() == "test.rcan.yaml:7:1: error: unknown key 'phisics'; did you mean 'physics'?");
+  }
 }
 
-TEST_CASE("unknown keys in nested blocks, and without a close match") {
+TEST_CASE("unknown keys in nested blocks: near misses are errors, keys with no close match warnings") {
   auto lines = minimal_lines();
   lines.push_back("physics:");                         // 7
   lines.push_back("  wheel_circumfrence_m: 0.2");      // 8
@@ -202,16 +202,24 @@ TEST_CASE("unknown keys in nested blocks, and without a close match") {
   lines.push_back("        role: OWNER");              // 15
   lines.push_back("        sha256: " + kHash);         // 16
   lines.push_back("        rol: USER");                // 17
-  const auto warnings = parse_ok(join(lines)).warnings;
-  REQUIRE(warnings.size() == 4);
-  CHECK(warnings[0].format() ==
-        "test.rcan.yaml:8:3: warning: physics: unknown key 'wheel_circumfrence_m'; did you mean 'wheel_circumference_m'?");
-  CHECK(warnings[1].mark.line == 9);
-  CHECK(contains(warnings[1].message, "unknown key 'colour'; allowed keys here: rcan_version, metadata, agent"));
-  CHECK(warnings[2].mark.line == 10);
-  CHECK(contains(warnings[2].message, "did you mean 'runtime.plugin_paths'?"));
-  CHECK(warnings[3].key_path == "runtime.auth.tokens[0]");
-  CHECK(contains(warnings[3].message, "did you mean 'role'?"));
+  try {
+    parse_robot_config(join(lines), "test.rcan.yaml", "/srv/robot");
+    FAIL("expected a ConfigError");
+  } catch (const ConfigError& e) {
+    const auto& d = e.diagnostics();
+    REQUIRE(d.size() == 4);
+    CHECK(d[0].format() ==
+          "test.rcan.yaml:8:3: error: physics: unknown key 'wheel_circumfrence_m'; did you mean 'wheel_circumference_m'?");
+    CHECK(d[1].severity == ConfigDiagnostic::Severity::Warning);
+    CHECK(d[1].mark.line == 9);
+    CHECK(contains(d[1].message, "unknown key 'colour'; allowed keys here: rcan_version, metadata, agent"));
+    CHECK(d[2].severity == ConfigDiagnostic::Severity::Warning);  // a real key, in another block
+    CHECK(d[2].mark.line == 10);
+    CHECK(contains(d[2].message, "did you mean 'runtime.plugin_paths'?"));
+    CHECK(d[3].severity == ConfigDiagnostic::Severity::Error);
+    CHECK(d[3].key_path == "runtime.auth.tokens[0]");
+    CHECK(contains(d[3].message, "did you mean 'role'?"));
+  }
 }
 
 TEST_CASE("free-form places accept any key without a warning") {
@@ -260,21 +268,20 @@ rcan_protocol:
     FAIL("expected a ConfigError");
   } catch (const ConfigError& e) {
     const auto& d = e.diagnostics();
-    REQUIRE(d.size() == 6);
-    CHECK(d[0].key_path == "metadata.robot_uuid");
-    CHECK(d[1].key_path == "metadata.model");
+    REQUIRE(d.size() == 5);
+    CHECK(d[0].key_path == "metadata.model");
     CHECK(d[0].mark.line == 2);
-    CHECK(d[2].key_path == "physics.wheel_circumference_m");
-    CHECK(d[3].key_path == "safety.watchdog_ms");
-    CHECK(d[4].key_path == "rcan_protocol.port");
-    CHECK(d[5].severity == ConfigDiagnostic::Severity::Warning);
-    CHECK(contains(d[5].message, "did you mean 'enable_mdns'?"));
+    CHECK(d[1].key_path == "physics.wheel_circumference_m");
+    CHECK(d[2].key_path == "safety.watchdog_ms");
+    CHECK(d[3].key_path == "rcan_protocol.port");
+    CHECK(d[4].severity == ConfigDiagnostic::Severity::Error);  // a near miss
+    CHECK(contains(d[4].message, "did you mean 'enable_mdns'?"));
     CHECK(errors_only(d).size() == 5);
     // what() is every diagnostic, one per line.
     const std::string what = e.what();
-    CHECK(std::count(what.begin(), what.end(), '\n') == 5);
+    CHECK(std::count(what.begin(), what.end(), '\n') == 4);
     CHECK(contains(what, "multi.rcan.yaml:6:3: error: physics.wheel_circumference_m: expected a number"));
-    CHECK(contains(what, "multi.rcan.yaml:11:3: warning: rcan_protocol: unknown key 'enable_mdsn'"));
+    CHECK(contains(what, "multi.rcan.yaml:11:3: error: rcan_protocol: unknown key 'enable_mdsn'"));
   }
 }
 

@@ -2,6 +2,8 @@
 #include "config_test_support.hpp"
 
 #include "kernel/config/config_reference.hpp"
+#include "libs/rcan/machine_identity.hpp"
+#include "temp_dir.hpp"
 
 #include <doctest/doctest.h>
 
@@ -210,6 +212,37 @@ TEST_CASE("robot_uuid may be left out when ruri is given") {
   const auto c = parse_ok(join(lines)).config;
   CHECK(c.robot_uuid.empty());
   CHECK(c.ruri == "rcan://acme.rover.abcd1234");
+}
+
+TEST_CASE("robot_uuid left out, or the all-zero placeholder, is derived from /etc/machine-id") {
+  const auto derived = rcand::robot_uuid_from_machine_id();
+  if (!derived) {
+    MESSAGE("SKIPPED: no /etc/machine-id on this machine");
+    return;
+  }
+  auto lines = minimal_lines();
+  lines.erase(lines.begin() + 3);  // robot_uuid
+  CHECK(parse_ok(join(lines)).config.robot_uuid == *derived);
+  lines.insert(lines.begin() + 3, "  robot_uuid: 00000000-0000-4000-8000-000000000000");
+  CHECK(parse_ok(join(lines)).config.robot_uuid == *derived);
+}
+
+TEST_CASE("the derived robot_uuid is UUID-shaped, app-specific and stable; a bad machine id gives none") {
+  rcand::test::TempDir dir;
+  const auto a = rcand::robot_uuid_from_machine_id(dir.write("a", "3d1219c7c4c5404aaa1f6d2a48adfda4\n"));
+  const auto b = rcand::robot_uuid_from_machine_id(dir.write("b", "0123456789abcdef0123456789abcdef\n"));
+  REQUIRE(a.has_value());
+  REQUIRE(b.has_value());
+  CHECK(a == rcand::robot_uuid_from_machine_id(dir.path() / "a"));  // stable
+  CHECK(*a != *b);
+  CHECK(a->size() == 36);
+  CHECK(a->at(14) == '4');                                          // version 4 shape
+  CHECK(std::string("89ab").find(a->at(19)) != std::string::npos);  // RFC 4122 variant
+  CHECK(a->find("3d1219c7") == std::string::npos);                  // the machine id itself is not exposed
+  CHECK_FALSE(rcand::robot_uuid_from_machine_id(dir.write("short", "3d1219c7\n")).has_value());
+  CHECK_FALSE(rcand::robot_uuid_from_machine_id(dir.path() / "missing").has_value());
+  CHECK(rcand::is_placeholder_uuid("00000000-0000-0000-0000-000000000000"));
+  CHECK_FALSE(rcand::is_placeholder_uuid("4f3c2a1b-0000-4000-8000-000000000001"));
 }
 
 TEST_CASE("safety.obstacle_stop_cm is an alias of agent.min_obstacle_m") {

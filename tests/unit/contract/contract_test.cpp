@@ -1,14 +1,17 @@
 // One contract, two hosts: the same table of requests runs against the SDK's fake host (with the teleop plugin
 // compiled in) and against a real rcand on loopback (the same plugin, loaded from the build tree), and both must
 // answer each one with the same status, error code and field. A vendor test that passes on the fake host then
-// holds on the robot (sdk/include/rcand/sdk/contract/requests.hpp has the rules both hosts call).
+// holds on the robot (sdk/include/rcand/sdk/contract/requests.hpp has the rules both hosts call). The same holds for a
+// plugin's settings and its manifest's "config" schema (sdk/include/rcand/sdk/contract/settings.hpp).
 #include <doctest/doctest.h>
 
 #include <rcand/sdk/testing/fake_host.hpp>
 #include <rcand/sdk/testing/recording_drive.hpp>
 
+#include <filesystem>
 #include <fstream>
 #include <functional>
+#include <stdexcept>
 #include <string>
 #include <vector>
 
@@ -119,4 +122,158 @@ TEST_CASE("contract: a real rcand answers the same request table the same way") 
     if (c.latched) REQUIRE(robot.request("POST", "/api/estop/clear", "owner-token").status == 200);
     check(c, {status, body}, "rcand");
   }
+}
+
+// ---- plugin settings and the manifest's "config" schema (rcand/sdk/contract/settings.hpp) ----------------------
+
+namespace {
+
+namespace contract = rcand::sdk::contract;
+namespace fs = std::filesystem;
+
+// Teleop's settings as the config gives them (runtime.capabilities.teleop), and the refusal both hosts must give: the
+// setting at fault and what is wrong with it, as the contract words it. An empty `key` means the settings are taken.
+struct SettingsCase {
+  std::string name;
+  json settings;
+  std::string key, problem;
+};
+
+const std::vector<SettingsCase>& settings_cases() {
+  static const std::vector<SettingsCase> table{
+      {"a wrong type", {{"watchdog_ms", "soon"}}, "watchdog_ms", "expected integer in [1, 60000], found string"},
+      {"a value out of range", {{"watchdog_ms", 0}}, "watchdog_ms", "expected integer in [1, 60000], found 0"},
+      {"an unknown key, with the allowed ones and a did-you-mean",
+       {{"watchdog", 300}},
+       "watchdog",
+       "unknown key; expected one of: driver, watchdog_ms; did you mean 'watchdog_ms'?"},
+      {"good settings", {{"watchdog_ms", 300}, {"driver", "drive0"}}, "", ""},
+  };
+  return table;
+}
+
+// The refusal as the contract itself gives it: "" when the settings are taken.
+std::string contract_refusal(const json& schema, const json& settings) {
+  try {
+    contract::apply_settings(schema, settings);
+  } catch (const contract::SettingsError& e) {
+    return e.key() + ": " + e.problem();
+  }
+  return "";
+}
+
+void check_refusal(const SettingsCase& c, const std::string& error, const char* host) {
+  INFO(host << ": " << c.name << " (" << c.settings.dump() << ") gave: " << error);
+  if (c.key.empty()) {
+    CHECK(error.empty());
+    return;
+  }
+  CHECK(error.find(c.key) != std::string::npos);
+  CHECK(error.find(c.problem) != std::string::npos);
+}
+
+json robot_with_teleop() {
+  json config = rcand::test::sim_config();
+  config["drivers"] = json::array({{{"id", "drive0"}, {"protocol", "sim_diff_drive"}}});
+  config["rcan_protocol"]["capabilities"] = {"status", "teleop"};
+  return config;
+}
+
+// A plugin folder as a vendor's would be: the sim drive, and teleop with its manifest as `edit` leaves it (the
+// libraries are the build tree's, linked in).
+void write_plugin_folder(const rcand::test::TempDir& dir, const std::function<void(json&)>& edit) {
+  for (const std::string name : {"sim_drive", "teleop"}) {
+    std::ifstream in(rcand::test::plugin_dir() / (name + ".json"));
+    REQUIRE(in.good());
+    json manifest = json::parse(in);
+    if (name == "teleop") edit(manifest);
+    dir.write(name + ".json", manifest.dump(2));
+    const std::string library = manifest["library"].get<std::string>();
+    fs::create_symlink(rcand::test::plugin_dir() / library, dir.path() / library);
+  }
+}
+
+// Teleop's dead-man timeout defaults to 250 ms in this manifest: the move's answer shows it was filled in.
+void default_watchdog(json& manifest) { manifest["config"]["watchdog_ms"]["default"] = 250; }
+// "minumum": a typo in the schema, which the manifest check refuses.
+void misspelt_schema(json& manifest) { manifest["config"]["watchdog_ms"]["minumum"] = 1; }
+
+const json kMove{{"type", "move"}, {"linear", 0.1}, {"angular", 0.0}};
+
+}  // namespace
+
+TEST_CASE("contract: the settings table is the contract's own answer") {
+  for (const auto& c : settings_cases()) {
+    INFO(c.name);
+    CHECK(contract_refusal(teleop_manifest()["config"], c.settings) == (c.key.empty() ? "" : c.key + ": " + c.problem));
+  }
+  // A driver entry keeps its RCAN fields (id, protocol, port, ...) beside the plugin's settings; anything else is refused.
+  const json schema{{"speed", {{"type", "number"}, {"default", 0.5}}}};
+  const json entry =
+      contract::apply_settings(schema, {{"id", "d"}, {"protocol", "p"}, {"port", "/dev/ttyS0"}}, contract::kDriverEntryKeys);
+  CHECK(entry == json{{"id", "d"}, {"protocol", "p"}, {"port", "/dev/ttyS0"}, {"speed", 0.5}});
+  CHECK_THROWS_WITH_AS(contract::apply_settings(schema, {{"id", "d"}, {"sped", 1}}, contract::kDriverEntryKeys),
+                       "sped: unknown key; expected one of: speed; did you mean 'speed'?", contract::SettingsError);
+}
+
+TEST_CASE("contract: the fake host validates plugin settings as the contract says") {
+  for (const auto& c : settings_cases()) {
+    rcand::sdk::testing::FakeHost host({{"runtime", {{"capabilities", {{"teleop", c.settings}}}}}});
+    host.add_driver_instance<rcand::sdk::testing::RecordingDrive>("drive0", host.clock());
+    host.load(RCAND_ENTRY_FUNCTION, teleop_manifest());
+    std::string error;
+    try {
+      host.add_capability("teleop");
+    } catch (const rcand::sdk::testing::HostError& e) {
+      error = e.what();
+    }
+    check_refusal(c, error, "fake host");
+  }
+}
+
+TEST_CASE("contract: a real rcand validates plugin settings the same way") {
+  for (const auto& c : settings_cases()) {
+    json config = robot_with_teleop();
+    config["runtime"]["capabilities"]["teleop"] = c.settings;
+    std::string error;
+    try {
+      rcand::test::RcandProcess robot(config);
+    } catch (const std::runtime_error& e) {
+      error = e.what();
+    }
+    check_refusal(c, error, "rcand");
+  }
+}
+
+TEST_CASE("contract: a default from the manifest is filled in on both hosts") {
+  json manifest = teleop_manifest();
+  default_watchdog(manifest);
+  rcand::sdk::testing::FakeHost host;
+  host.add_driver_instance<rcand::sdk::testing::RecordingDrive>("drive0", host.clock());
+  host.load(RCAND_ENTRY_FUNCTION, manifest);
+  host.add_capability("teleop");
+  CHECK(host.call("POST", "/api/action", kMove).body["deadman_ms"] == 250);
+
+  rcand::test::TempDir plugins{"rcand-contract-plugins"};
+  write_plugin_folder(plugins, default_watchdog);
+  rcand::test::RcandProcess robot(robot_with_teleop(), {plugins.path()});
+  CHECK(robot.json("POST", "/api/action", "owner-token", kMove.dump())["deadman_ms"] == 250);
+}
+
+TEST_CASE("contract: a malformed config schema is refused at load on both hosts") {
+  json manifest = teleop_manifest();
+  misspelt_schema(manifest);
+  const std::string expected = "config.watchdog_ms.minumum: unknown key";
+  CHECK_THROWS_WITH_AS(rcand::sdk::testing::FakeHost().load(RCAND_ENTRY_FUNCTION, manifest),
+                       doctest::Contains("invalid-manifest: config.watchdog_ms.minumum: unknown key"),
+                       rcand::sdk::testing::LoadError);
+
+  rcand::test::TempDir plugins{"rcand-contract-plugins"};
+  write_plugin_folder(plugins, misspelt_schema);
+  const auto table =
+      rcand::test::run_tool(rcand::test::rcand_binary(), {"--check-plugins", "--plugin-path", plugins.path().string()});
+  INFO(table.out);
+  CHECK(table.exit_code == 1);
+  CHECK(table.out.find("invalid-manifest") != std::string::npos);
+  CHECK(table.out.find(expected) != std::string::npos);
 }

@@ -132,6 +132,37 @@ TEST_CASE("auto-detection follows §9.3 only when the list is omitted") {
   }
 }
 
+TEST_CASE("a capability a plugin declares by itself joins the plan when its config key is true") {
+  auto config = base_config();
+  config.drivers.push_back({"d0", "sim_diff_drive", {}});
+  ProviderLookup lookup = installed_everything();
+  lookup.declared_when = [] {
+    return std::vector<std::pair<std::string, std::string>>{{"org.rcand.fleet", "runtime.r2r.enabled"}};
+  };
+  SUBCASE("auto-detected list") {
+    config.doc = {{"runtime", {{"r2r", {{"enabled", true}}}}}};
+    const auto plan = plan_capabilities(config, lookup);
+    CHECK(plan.names == std::vector<std::string>{"status", "teleop", "org.rcand.fleet"});
+    bool noted = false;
+    for (auto& note : plan.notes) noted = noted || note.find("runtime.r2r.enabled is true") != std::string::npos;
+    CHECK(noted);
+  }
+  SUBCASE("explicit list, and listed as well: declared once") {
+    config.doc = {{"runtime", {{"r2r", {{"enabled", true}}}}}};
+    config.capabilities = std::vector<std::string>{"teleop"};
+    CHECK(plan_capabilities(config, lookup).names == std::vector<std::string>{"status", "teleop", "org.rcand.fleet"});
+    config.capabilities = std::vector<std::string>{"org.rcand.fleet", "teleop"};
+    CHECK(plan_capabilities(config, lookup).names == std::vector<std::string>{"status", "org.rcand.fleet", "teleop"});
+  }
+  SUBCASE("the key false, absent or not a boolean: not declared") {
+    for (const auto& doc : {nlohmann::json{{"runtime", {{"r2r", {{"enabled", false}}}}}}, nlohmann::json::object(),
+                            nlohmann::json{{"runtime", {{"r2r", {{"enabled", "yes"}}}}}}, nlohmann::json{{"runtime", 1}}}) {
+      config.doc = doc;
+      CHECK(plan_capabilities(config, lookup).names == std::vector<std::string>{"status", "teleop"});
+    }
+  }
+}
+
 TEST_CASE("explicit lists are validated with the config position") {
   auto config = base_config();
   config.marks["rcan_protocol.capabilities[1]"] = {"robot.rcan.yaml", 12, 7};

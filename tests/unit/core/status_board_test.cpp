@@ -17,6 +17,7 @@
 #include "kernel/safety/estop.hpp"
 #include "kernel/safety/kernel_motion_gate.hpp"
 #include "kernel/status/status_board.hpp"
+#include "rcand/sdk/pose_source.hpp"
 
 using namespace rcand;
 using namespace rcand::kernel;
@@ -26,6 +27,22 @@ using nlohmann::json;
 namespace {
 
 constexpr auto kWait = 10s;  // generous: a loaded CI machine, never a sleep
+
+// nav's PoseSource service as the test sets it: the board reads "pose" and "nav_running" from it at each rebuild.
+struct FakePose final : sdk::PoseSource {
+  mutable std::mutex mutex;
+  sdk::PoseReading reading{true, {0.0, 0.0, 0.0}, false};
+  mutable std::atomic<int> reads{0};
+  sdk::PoseReading read() const noexcept override {
+    ++reads;
+    std::lock_guard lock(mutex);
+    return reading;
+  }
+  void set(sdk::Pose2d pose, bool busy) {
+    std::lock_guard lock(mutex);
+    reading = {true, pose, busy};
+  }
+};
 
 // A status() stand-in: counts calls, answers what the test set (nullopt: as one that throws or hangs).
 struct Poll {
@@ -56,10 +73,13 @@ struct Rig {
   InstanceContext nav{"org.rcand.nav", "nav", services, json::object(), nav_health};
   InstanceContext drive_context{"org.rcand.sim_drive", "drive0", services, json::object(), drive_health};
   Poll nav_poll, teleop_poll, gripper_poll, drive_poll;
+  FakePose pose;
   std::unique_ptr<StatusBoard> board;
 
-  Rig() {
+  // `with_pose`: nav offers its PoseSource, as it does in rcand once started.
+  explicit Rig(bool with_pose = true) {
     clock.set_us(5'000'000);
+    if (with_pose) REQUIRE(sdk::offer<sdk::PoseSource>(nav, pose));
     nav_poll.set(json{{"running", false}, {"pose", {{"x_m", 0.0}, {"y_m", 0.0}, {"heading_deg", 0.0}}}});
     teleop_poll.set(json{{"moving", false}});
     gripper_poll.set(std::nullopt);  // answers nothing, never publishes
@@ -135,12 +155,13 @@ TEST_CASE("the document has exactly the keys GET /api/status always had, and ask
   CHECK(rig.board->robot_state() == "idle");
 }
 
-TEST_CASE("a published status is served without any status() call; nav's running and pose come from it") {
+TEST_CASE("a published status is served without any status() call; nav's running and pose come from its PoseSource") {
   Rig rig;
   rig.board->start();
   const int asked = rig.polls();
   const json pose{{"x_m", 1.5}, {"y_m", -0.25}, {"heading_deg", 30.0}};
-  rig.nav.publish_status({{"running", true}, {"state", "driving"}, {"pose", pose}});
+  rig.pose.set({1.5, -0.25, 30.0}, true);
+  rig.nav.publish_status({{"running", true}, {"state", "driving"}});
 
   const json doc = rig.current();  // answered by the rebuild the publish asked for
   CHECK(doc["capabilities"]["nav"]["status"]["state"] == "driving");
@@ -153,7 +174,8 @@ TEST_CASE("a published status is served without any status() call; nav's running
   // Nine seconds later: nav kept publishing, so it is never asked; the silent ones are asked once a second.
   for (int step = 1; step <= 10; ++step) {
     rig.clock.advance(900ms);
-    rig.nav.publish_status({{"running", step < 10}, {"pose", pose}, {"step", step}});
+    rig.pose.set({1.5, -0.25, 30.0}, step < 10);
+    rig.nav.publish_status({{"running", step < 10}, {"step", step}});
     rig.board->refresh();
   }
   CHECK(rig.nav_poll.calls == 1);     // only the first round at start
@@ -163,6 +185,62 @@ TEST_CASE("a published status is served without any status() call; nav's running
   CHECK(later["nav_running"] == false);
   CHECK(later["state"] == "idle");
   CHECK(later["uptime_s"] == 9);
+  CHECK(later["pose"] == pose);
+}
+
+TEST_CASE("the pose is read from the PoseSource at each rebuild, never per request") {
+  Rig rig;
+  rig.board->start();
+  rig.board->stop();  // no rebuilds from here on (no tick either)
+  const int reads = rig.pose.reads;
+  CHECK(reads >= 1);  // the documents built so far
+  for (int i = 0; i < 1000; ++i) (void)rig.board->body();
+  (void)rig.current();
+  (void)rig.board->document();
+  (void)rig.board->robot_state();
+  CHECK(rig.pose.reads == reads);  // serving reads nothing
+}
+
+TEST_CASE("nav's status JSON is not read for the top level; a failed nav's PoseSource is not found") {
+  Rig rig;
+  rig.board->start();
+  const int reads = rig.pose.reads;
+  // A status that says otherwise changes nothing at the top level: only the service counts.
+  rig.nav.publish_status({{"running", true}, {"pose", {{"x_m", 9.0}, {"y_m", 9.0}, {"heading_deg", 9.0}}}});
+  const json doc = rig.current();
+  CHECK(doc["capabilities"]["nav"]["status"]["running"] == true);
+  CHECK(doc["nav_running"] == false);
+  CHECK(doc["pose"] == json{{"x_m", 0.0}, {"y_m", 0.0}, {"heading_deg", 0.0}});
+  CHECK(rig.pose.reads > reads);  // the rebuild the publish asked for read it once more
+
+  // nav failing hides its service: no pose and not running, as before the service existed.
+  rig.pose.set({1.0, 2.0, 3.0}, true);
+  rig.nav_health.mark_failed("handler threw");
+  const json failed = rig.current();
+  CHECK_FALSE(failed.contains("pose"));
+  CHECK(failed["nav_running"] == false);
+  CHECK(failed["state"] == "error");
+}
+
+TEST_CASE("without a PoseSource (no nav) the document has no pose and is never running") {
+  Rig rig(false);
+  rig.board->start();
+  rig.nav.publish_status({{"running", true}, {"pose", {{"x_m", 1.0}, {"y_m", 0.0}, {"heading_deg", 0.0}}}});
+  const json doc = rig.current();
+  CHECK_FALSE(doc.contains("pose"));
+  CHECK(doc["nav_running"] == false);
+  CHECK(doc["state"] == "idle");
+  CHECK(rig.board->robot_state() == "idle");
+
+  // Offered later (nav started after the board, or a plugin found late): picked up at the next rebuild.
+  rig.pose.set({0.5, 0.0, 0.0}, true);
+  REQUIRE(sdk::offer<sdk::PoseSource>(rig.nav, rig.pose));
+  rig.board->notify();
+  rig.board->refresh();
+  const json later = rig.body();
+  CHECK(later["pose"] == json{{"x_m", 0.5}, {"y_m", 0.0}, {"heading_deg", 0.0}});
+  CHECK(later["nav_running"] == true);
+  CHECK(later["state"] == "running");
 }
 
 TEST_CASE("a silent instance is asked once a second on the status thread, not per read") {

@@ -1,6 +1,10 @@
 #include <doctest/doctest.h>
 
+#include <pthread.h>
+#include <boost/asio/post.hpp>
+
 #include <future>
+#include <thread>
 
 #include "kernel/audit/audit_log.hpp"
 #include "libs/base/json_body.hpp"
@@ -62,4 +66,60 @@ TEST_CASE("worker: tasks in order, timers fire, cancelled timers never run, exce
   CHECK(*seen == std::vector<int>{1, 2, 3});
   worker.join();
   worker.join();  // idempotent
+}
+
+TEST_CASE("worker: a named thread that survives a throwing I/O handler, and the three ways to end") {
+  std::promise<std::string> error;
+  WorkerThread worker("test.executor.long-name", [&](const std::string& why) { error.set_value(why); });
+  std::promise<std::string> name;
+  worker.post([&] {
+    char text[16] = {};
+    pthread_getname_np(pthread_self(), text, sizeof text);
+    name.set_value(text);
+  });
+  CHECK(name.get_future().get() == "test.executor.l");  // Linux keeps 15 characters
+  // A handler given straight to the io_context (as a socket's completion is) throws: logged, reported, loop goes on.
+  boost::asio::post(worker.context(), [] { throw std::runtime_error("bad datagram"); });
+  CHECK(error.get_future().get() == "bad datagram");
+  std::promise<void> alive;
+  worker.post([&] { alive.set_value(); });
+  alive.get_future().wait();
+
+  // stop_after_queued(): what was queued before runs; stop(): nothing queued runs any more.
+  auto ran = std::make_shared<std::vector<int>>();
+  {
+    WorkerThread transport("test.transport", nullptr);
+    std::promise<void> release;
+    auto held = release.get_future().share();
+    transport.post([held] { held.wait(); });
+    transport.post([ran] { ran->push_back(1); });
+    std::thread releaser([&release] {
+      std::this_thread::sleep_for(std::chrono::milliseconds(20));
+      release.set_value();
+    });
+    transport.stop_after_queued();
+    releaser.join();
+    CHECK(*ran == std::vector<int>{1});
+    transport.post([ran] { ran->push_back(2); });  // after the end: never runs
+  }
+  CHECK(*ran == std::vector<int>{1});
+  {
+    WorkerThread fan_out("test.fanout", nullptr);
+    std::promise<void> started, release;
+    auto held = release.get_future().share();
+    fan_out.post([&started, held] {
+      started.set_value();
+      held.wait();
+    });
+    fan_out.post([ran] { ran->push_back(3); });
+    started.get_future().wait();
+    std::thread releaser([&release] {
+      std::this_thread::sleep_for(std::chrono::milliseconds(20));
+      release.set_value();
+    });
+    fan_out.stop();  // the running task finishes; the queued one is abandoned
+    releaser.join();
+    fan_out.join();  // already ended: a no-op
+  }
+  CHECK(*ran == std::vector<int>{1});
 }

@@ -1,3 +1,4 @@
+#include "kernel/config/robot_config.hpp"
 #include "kernel/plugins/settings_schema.hpp"
 
 #include <doctest/doctest.h>
@@ -103,4 +104,57 @@ TEST_CASE("apply_config_schema rejects a malformed schema instead of crashing") 
                        ConfigSchemaError);
   CHECK_THROWS_AS(apply_config_schema(json{{"x", {{"type", "integer"}, {"minimum", "1"}}}}, json::object(), false),
                   ConfigSchemaError);
+}
+
+TEST_CASE("a driver entry keeps its RCAN fields; other keys its plugin does not declare are refused") {
+  const json entry = apply_config_schema(
+      kSchema,
+      json{{"id", "left"}, {"protocol", "sim"}, {"port", "p"}, {"baud_rate", 9600}, {"address", 64}, {"channels", {{"left", 0}}}},
+      true);
+  CHECK(entry["baud_rate"] == 9600);
+  CHECK(entry["channels"]["left"] == 0);
+  CHECK(schema_error_of({{"id", "left"}, {"protocol", "sim"}, {"port", "p"}, {"wachdog_ms", 5}}, true)
+            .find("wachdog_ms: unknown key; expected one of: ") == 0);
+}
+
+TEST_CASE("plugin_settings: a refused setting is a config error at the file:line:column of its key") {
+  const auto loaded = rcand::kernel::parse_robot_config(R"(rcan_version: "1.3"
+metadata:
+  robot_name: r
+  robot_uuid: "abcd1234"
+  manufacturer: acme
+  model: m
+drivers:
+  - id: left
+    protocol: sim
+    port: /dev/ttyS0
+    watchdog: 5
+  - id: right
+    protocol: sim
+runtime:
+  capabilities:
+    teleop: {watchdog_ms: 0}
+)",
+                                                        "robot.rcan.yaml", "/srv");
+  const auto& config = loaded.config;
+  const auto error_of = [&](const json& schema, const json& settings, bool driver_entry, const std::string& path) {
+    try {
+      rcand::kernel::plugin_settings(config, "org.example.x", schema, settings, driver_entry, path);
+    } catch (const rcand::kernel::ConfigError& e) {
+      return std::string(e.what());
+    }
+    return std::string();
+  };
+  CHECK(error_of(kSchema, config.drivers[0].settings, true, "drivers[0]") ==
+        "robot.rcan.yaml:11:5: error: drivers[0].watchdog: unknown key; expected one of: api_key, driver, limits, mode, port, "
+        "speed, verbose, watchdog_ms, waypoints; did you mean 'watchdog_ms'? (settings of plugin org.example.x)");
+  // A required key that is not written: the position of the entry that should hold it.
+  CHECK(error_of(kSchema, config.drivers[1].settings, true, "drivers[1]") ==
+        "robot.rcan.yaml:12:5: error: drivers[1].port: required (string: serial device) (settings of plugin org.example.x)");
+  const json teleop = json::parse(R"({"watchdog_ms": {"type": "integer", "minimum": 1}})");
+  CHECK(error_of(teleop, config.runtime.capabilities["teleop"], false, "runtime.capabilities.teleop") ==
+        "robot.rcan.yaml:16:14: error: runtime.capabilities.teleop.watchdog_ms: expected integer >= 1, found 0 (settings of "
+        "plugin org.example.x)");
+  CHECK(rcand::kernel::plugin_settings(config, "org.example.x", teleop, json{{"watchdog_ms", 5}}, false, "x") ==
+        json{{"watchdog_ms", 5}});
 }

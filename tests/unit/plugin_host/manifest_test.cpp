@@ -73,6 +73,23 @@ TEST_CASE("parse_manifest: optional fields default") {
   CHECK(m.library.is_absolute());  // relative manifest paths resolve against the working directory
 }
 
+TEST_CASE("parse_manifest: a capability declared by a config key (\"declared_when\")") {
+  json doc = teleop_manifest();
+  doc["provides"] = json::parse(R"([{"kind": "capability", "name": "org.rcand.fleet", "declared_when": "runtime.r2r.enabled"}])");
+  const auto m = parse_manifest(doc, "fleet.json");
+  REQUIRE(m.declared_when.size() == 1);
+  CHECK(m.declared_when[0] == rcand::kernel::DeclaredWhen{"org.rcand.fleet", "runtime.r2r.enabled"});
+  CHECK(m.provides[0] == ProvidedItem{"capability", "org.rcand.fleet", false, ""});  // registration compares as before
+  CHECK(parse_manifest(teleop_manifest(), "teleop.json").declared_when.empty());
+
+  doc["provides"][0]["declared_when"] = "runtime..r2r";
+  CHECK(manifest_error_of(doc).find("provides[0].declared_when: expected a dotted config key") != std::string::npos);
+  doc["provides"][0]["declared_when"] = true;
+  CHECK(manifest_error_of(doc).find("provides[0].declared_when: expected string") != std::string::npos);
+  doc["provides"] = json::parse(R"([{"kind": "driver", "name": "d", "declared_when": "runtime.r2r.enabled"}])");
+  CHECK(manifest_error_of(doc).find("only a capability is declared by a config key") != std::string::npos);
+}
+
 TEST_CASE("parse_manifest errors name the file and the field") {
   json doc = teleop_manifest();
   SUBCASE("not an object") { CHECK(manifest_error_of(json::array()).find("expected a JSON object, found array") != std::string::npos); }

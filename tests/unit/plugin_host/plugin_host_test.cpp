@@ -99,7 +99,10 @@ TEST_CASE("every fixture plugin ends in its exact state with a reason and a hint
       {"throws_in_handler.json", {PluginState::Loaded, "", ""}},
       {"driver.json", {PluginState::Loaded, "", ""}},
       {"abi_major.json", {PluginState::IncompatibleAbi, "built for ABI 2, kernel speaks 1", "rebuild against rcand-sdk 1.x"}},
-      {"newer_minor.json", {PluginState::IncompatibleAbi, "built for ABI 1.2, kernel speaks 1.1", "upgrade rcand"}},
+      {"newer_minor.json",
+       {PluginState::IncompatibleAbi,
+        "built for ABI 1." + std::to_string(RCAND_ABI_MINOR + 1) + ", kernel speaks 1." + std::to_string(RCAND_ABI_MINOR),
+        "upgrade rcand"}},
       {"no_entry.json", {PluginState::FailedToOpen, "no entry symbol rcand_plugin_entry_v1", "build it with RCAND_PLUGIN"}},
       {"mismatch.json",
        {PluginState::ManifestMismatch, "registered capability 'org.rcand.test.mismatch_extra' not in manifest", "\"provides\""}},
@@ -228,6 +231,19 @@ TEST_CASE("a plugin built for the previous ABI minor (1.0, before publish_status
   auto capability = make_capability(older, "org.rcand.test.older_minor");
   CHECK(call_route(*capability, "/ping").body == json{{"ok", true}});
   CHECK(capability->status() == json::object());  // it never publishes: the status board asks status() instead
+}
+
+TEST_CASE("a plugin built for the previous ABI minor (1.1: publish_status, before services) loads and serves") {
+  static_assert(RCAND_ABI_MINOR == 2, "the fixture's minor 1 must be the one before the kernel's");
+  PluginHost host;
+  host.scan({kFixtures / "minor_one"});
+  host.load_needed({"org.rcand.test.minor_one"}, {});
+  const auto& previous = by_manifest(host, "minor_one.json");
+  CHECK(to_string(previous.state) == to_string(PluginState::Loaded));
+  CHECK(previous.reason.empty());
+  auto capability = make_capability(previous, "org.rcand.test.minor_one");
+  CHECK(call_route(*capability, "/ping").body == json{{"ok", true}});
+  CHECK(capability->status() == json{{"built_for", "1.1"}});
 }
 
 TEST_CASE("providers are found from manifests alone") {

@@ -61,12 +61,12 @@ TEST_CASE("task_request / task_response / negotiation / error round-trip, and su
   REQUIRE(responses.size() == 1);
   CHECK(responses[0].message["payload"]["accepted"] == true);
   CHECK(responses[0].message["payload"]["estimated_time"] == 0.0);
-  CHECK(bob.node->held_tasks().size() == 1);
+  CHECK(bob.fleet->held_tasks().size() == 1);  // the fleet plugin's bidder answered
 
   alex.node->send(MessageType::Negotiation, {{"task_id", "T1"}, {"action", "withdraw"}}, "bob");
   bob.node->send(MessageType::Error, {{"code", 104}, {"message", "late"}}, "alex");
   fleet.settle();
-  CHECK(bob.node->held_tasks().empty());  // withdrawn by its requester
+  CHECK(bob.fleet->held_tasks().empty());  // withdrawn by its requester
   REQUIRE(alex_saw.size() == 2);
   CHECK(alex_saw[0].envelope.type == MessageType::TaskResponse);
   CHECK(alex_saw[1].envelope.type == MessageType::Error);
@@ -179,13 +179,13 @@ TEST_CASE("auction: the nearest capable robot wins; one without the capability d
   task.task_id = "fetch-1";
   task.required_capabilities = {"nav", "arm"};
   task.location = FleetPoint{5.0, 0.0};
-  REQUIRE(std::get<std::string>(alex.node->open_auction(task)) == "fetch-1");
+  REQUIRE(std::get<std::string>(alex.fleet->open_auction(task)) == "fetch-1");
   fleet.settle();
   CHECK(fleet.net.sent("negotiation", "dave").empty());
-  CHECK((*alex.node->auction_result("fetch-1"))["state"] == "bidding");
+  CHECK((*alex.fleet->auction_result("fetch-1"))["state"] == "bidding");
 
   fleet.advance(1000ms);  // the bid deadline
-  const json result = *alex.node->auction_result("fetch-1");
+  const json result = *alex.fleet->auction_result("fetch-1");
   CHECK(result["state"] == "assigned");
   CHECK(result["winner"] == "bob");
   REQUIRE(result["bids"].size() == 2);
@@ -194,12 +194,12 @@ TEST_CASE("auction: the nearest capable robot wins; one without the capability d
   CHECK(bob_cost == doctest::Approx(1.0 / 0.25));  // 1 m at 0.25 m/s, no turn
   CHECK(carol_cost > bob_cost);
   CHECK(result["estimated_time"].get<double>() == doctest::Approx(bob_cost));
-  CHECK(fleet["bob"].node->held_tasks()[0]["task_id"] == "fetch-1");
-  CHECK(fleet["carol"].node->held_tasks().empty());
+  CHECK(fleet["bob"].fleet->held_tasks()[0]["task_id"] == "fetch-1");
+  CHECK(fleet["carol"].fleet->held_tasks().empty());
 
   // Generated task ids are unique.
-  const auto first = std::get<std::string>(alex.node->open_auction(TaskSpec{}));
-  const auto second = std::get<std::string>(alex.node->open_auction(TaskSpec{}));
+  const auto first = std::get<std::string>(alex.fleet->open_auction(TaskSpec{}));
+  const auto second = std::get<std::string>(alex.fleet->open_auction(TaskSpec{}));
   CHECK(first != second);
 }
 
@@ -211,8 +211,8 @@ TEST_CASE("auction: a second award for a task already held from another requeste
   TaskSpec task;
   task.task_id = "shared-id";
   task.required_capabilities = {"arm"};
-  alex.node->open_auction(task);
-  zed.node->open_auction(task);
+  alex.fleet->open_auction(task);
+  zed.fleet->open_auction(task);
   fleet.settle();
   fleet.advance(1000ms);
 
@@ -223,12 +223,12 @@ TEST_CASE("auction: a second award for a task already held from another requeste
   const auto& refusal = refusals.empty() ? to_alex[0] : refusals[0];
   CHECK(refusal.message["payload"]["code"] == 102);
   CHECK(refusal.message["payload"]["task_id"] == "shared-id");
-  CHECK(bob.node->held_tasks().size() == 1);
+  CHECK(bob.fleet->held_tasks().size() == 1);
   Robot& loser = refusals.empty() ? alex : zed;
   Robot& winner = refusals.empty() ? zed : alex;
-  CHECK((*winner.node->auction_result("shared-id"))["state"] == "assigned");
+  CHECK((*winner.fleet->auction_result("shared-id"))["state"] == "assigned");
   fleet.advance(1000ms);  // the loser re-opened; bob holds the task elsewhere and does not bid again
-  CHECK((*loser.node->auction_result("shared-id"))["state"] == "no_bids");
+  CHECK((*loser.fleet->auction_result("shared-id"))["state"] == "no_bids");
 }
 
 TEST_CASE("auction: a winner silent past bid_deadline + 2 s gets 104 and the task is re-awarded") {
@@ -240,12 +240,12 @@ TEST_CASE("auction: a winner silent past bid_deadline + 2 s gets 104 and the tas
   task.task_id = "T-silent";
   task.required_capabilities = {"arm"};
   task.location = FleetPoint{0.0, 0.0};
-  alex.node->open_auction(task);
+  alex.fleet->open_auction(task);
   fleet.settle();  // bids are in
   fleet.net.endpoint("bob").muted = true;  // bob goes silent before the award
   fleet.advance(1000ms);
-  CHECK((*alex.node->auction_result("T-silent"))["state"] == "awarded");
-  CHECK((*alex.node->auction_result("T-silent"))["winner"] == "bob");
+  CHECK((*alex.fleet->auction_result("T-silent"))["state"] == "awarded");
+  CHECK((*alex.fleet->auction_result("T-silent"))["winner"] == "bob");
 
   fleet.advance(2000ms);  // exactly bid_deadline + 2 s: still waiting
   CHECK(fleet.net.sent("error", "alex", "bob").empty());
@@ -253,36 +253,38 @@ TEST_CASE("auction: a winner silent past bid_deadline + 2 s gets 104 and the tas
   const auto timeouts = fleet.net.sent("error", "alex", "bob");
   REQUIRE(timeouts.size() == 1);
   CHECK(timeouts[0].message["payload"]["code"] == 104);
-  CHECK(bob.node->held_tasks().empty());  // bob heard the 104 and let the task go
+  CHECK(bob.fleet->held_tasks().empty());  // bob heard the 104 and let the task go
 
   fleet.advance(1000ms);  // the second round's deadline
-  const json result = *alex.node->auction_result("T-silent");
+  const json result = *alex.fleet->auction_result("T-silent");
   CHECK(result["state"] == "assigned");
   CHECK(result["winner"] == "carol");
   CHECK(result["round"] == 2);
   CHECK(result["excluded"] == json({"bob"}));
-  CHECK(carol.node->held_tasks().size() == 1);
+  CHECK(carol.fleet->held_tasks().size() == 1);
 }
 
-TEST_CASE("a plugin's cost function replaces the default") {
+TEST_CASE("a plugin's cost function replaces the default (R2rLink::set_cost_function, handed on to the fleet plugin)") {
   Fleet fleet;
   Robot& alex = fleet.add("alex", {"nav"}, FleetPose{});
   Robot& bob = fleet.add("bob", {"nav"}, FleetPose{});
   fleet.add("carol", {"nav"}, FleetPose{});
-  bob.node->set_cost_function([](const CostInput&) { return 0.5; });
+  // Another plugin on bob prices bids through its own link, as a vendor plugin would.
+  auto vendor = bob.bridge->make_link(*bob.worker, "com.acme.pricing (pricing)");
+  vendor->set_cost_function([](const json&, const std::optional<rcand::sdk::R2rPose>&, std::size_t) { return 0.5; });
   TaskSpec task;
   task.task_id = "T";
   task.location = FleetPoint{5.0, 0.0};  // 20 s away for everyone by the default
-  alex.node->open_auction(task);
+  alex.fleet->open_auction(task);
   fleet.settle();
   fleet.advance(1000ms);
-  CHECK((*alex.node->auction_result("T"))["winner"] == "bob");
-  bob.node->set_cost_function({});  // back to the default: bob's queue (one task) now costs 30 s more
+  CHECK((*alex.fleet->auction_result("T"))["winner"] == "bob");
+  vendor->set_cost_function({});  // back to the default: bob's queue (one task) now costs 30 s more
   task.task_id = "T2";
-  alex.node->open_auction(task);
+  alex.fleet->open_auction(task);
   fleet.settle();
   fleet.advance(1000ms);
-  CHECK((*alex.node->auction_result("T2"))["winner"] == "carol");
+  CHECK((*alex.fleet->auction_result("T2"))["winner"] == "carol");
 }
 
 TEST_CASE("signed fleet: signed messages flow; unsigned, unknown-key and replayed ones get 103") {

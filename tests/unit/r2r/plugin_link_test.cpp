@@ -19,8 +19,7 @@ namespace {
 // A vendor-style capability: answers every direct task_request with task_response, and prices bids by queue only.
 class Dispatcher final : public rcand::sdk::Capability {
  public:
-  explicit Dispatcher(rcand::sdk::PluginContext& ctx) : ctx_(ctx) {
-    link_ = ctx.r2r();
+  explicit Dispatcher(rcand::sdk::PluginContext& ctx) : link_(ctx.r2r()) {
     if (link_ == nullptr) return;  // this kernel has no R2R: the capability still works locally
     link_->subscribe("task_request", [this](const R2rMessage& m) {
       ++handled;
@@ -34,9 +33,6 @@ class Dispatcher final : public rcand::sdk::Capability {
   std::vector<rcand::sdk::Route> routes() override { return {}; }
   rcand::sdk::R2rLink* link_ = nullptr;
   int handled = 0;
-
- private:
-  rcand::sdk::PluginContext& ctx_;
 };
 
 void register_dispatcher(rcand::sdk::Registrar& r) {
@@ -88,7 +84,8 @@ TEST_CASE("kernel bridge: plugin callbacks run on the plugin worker with validat
   rcand::sdk::testing::FakeScheduler scheduler(worker_clock);
   rcand::sdk::testing::FakeWorker worker(scheduler, worker_clock, "plugin.r2r");
 
-  PluginBridge bridge;
+  // Like rcand's: prices set on this bridge's links go to bob's fleet plugin.
+  PluginBridge bridge([&bob] { return &bob.fleet->service(); });
   auto link = bridge.make_link(worker, "com.test.dispatch (dispatch)");
   std::vector<R2rMessage> seen;
   const auto id = link->subscribe("task_request", [&](const R2rMessage& m) { seen.push_back(m); });
@@ -115,15 +112,16 @@ TEST_CASE("kernel bridge: plugin callbacks run on the plugin worker with validat
   CHECK_FALSE(bad.ok);
   CHECK(bad.field == "/payload/accepted");
 
-  // The plugin's cost function prices bids; when its link goes away the default returns.
+  // The plugin's cost function prices bob's bids (the fleet plugin calls it); when its link goes away the default
+  // returns.
   link->set_cost_function([](const Json& task, const std::optional<rcand::sdk::R2rPose>&, std::size_t) {
     return std::optional<double>(task["task_id"] == "A1" ? 42.0 : 1.0);
   });
   TaskSpec task;
   task.task_id = "A1";
-  alex.node->open_auction(task);
+  alex.fleet->open_auction(task);
   fleet.settle();
-  CHECK((*alex.node->auction_result("A1"))["bids"][0]["cost"] == 42.0);
+  CHECK((*alex.fleet->auction_result("A1"))["bids"][0]["cost"] == 42.0);
 
   link->unsubscribe(id);
   alex.node->send(MessageType::TaskRequest, {{"task_id", "T2"}}, "bob");
@@ -133,9 +131,9 @@ TEST_CASE("kernel bridge: plugin callbacks run on the plugin worker with validat
 
   link.reset();
   task.task_id = "A2";
-  alex.node->open_auction(task);
+  alex.fleet->open_auction(task);
   fleet.settle();
   // The default again: no location, so only the queue counts (bob holds T1 and T2: 2 x 30 s).
-  CHECK((*alex.node->auction_result("A2"))["bids"][0]["cost"] == 60.0);
+  CHECK((*alex.fleet->auction_result("A2"))["bids"][0]["cost"] == 60.0);
   bridge.detach();
 }

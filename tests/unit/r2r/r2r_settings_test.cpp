@@ -4,6 +4,7 @@
 #include <fstream>
 
 #include "kernel/config/robot_config.hpp"
+#include "plugins/fleet/fleet_settings.hpp"
 #include "services/r2r/r2r_settings.hpp"
 #include "temp_dir.hpp"
 
@@ -11,8 +12,14 @@ using namespace rcand;
 using namespace rcand::kernel;
 using namespace rcand::kernel::r2r;
 using nlohmann::json;
+using rcand::plugins::fleet::read_fleet_settings;
 
 namespace {
+
+// The auction's keys as the fleet plugin reads them from the robot config (the R2R table checks them first).
+rcand::plugins::fleet::FleetSettings fleet_settings(const json& r2r_block) {
+  return read_fleet_settings(rcand::sdk::ConfigView(json{{"runtime", {{"r2r", r2r_block}}}}));
+}
 
 std::string invalid_argument(const json& block, const std::filesystem::path& base) {
   try {
@@ -32,7 +39,8 @@ const char* kHeader = "rcan_version: \"1.3\"\nmetadata:\n  robot_name: rover-1\n
 TEST_CASE("runtime.r2r: defaults, and every key read with files relative to the config") {
   const R2rSettings defaults = load_r2r_settings(json::object(), "/");
   CHECK(defaults.status_interval == std::chrono::milliseconds(1000));
-  CHECK(defaults.bid_window == std::chrono::milliseconds(1000));
+  CHECK(fleet_settings(json::object()).bid_window_s == 1.0);
+  CHECK(fleet_settings(json::object()).cost.seconds_per_task == 30.0);
   CHECK_FALSE(defaults.auth.require_signatures);
   CHECK_FALSE(defaults.private_key);
   CHECK_FALSE(defaults.outbound_token);
@@ -55,12 +63,15 @@ TEST_CASE("runtime.r2r: defaults, and every key read with files relative to the 
                               {{"name", "carol"}, {"public_key", peer.public_base64()}}}},
                    {"udp_port", 9100}};  // a transport's key: not this module's business
   const R2rSettings s = load_r2r_settings(block, dir.path());
-  CHECK(s.origin.x == 1.5);
-  CHECK(s.origin.y == -2);
+  CHECK(s.origin.x_m == 1.5);
+  CHECK(s.origin.y_m == -2);
   CHECK(s.origin.heading_deg == 90);
   CHECK(s.status_interval == std::chrono::milliseconds(250));
-  CHECK(s.bid_window == std::chrono::milliseconds(1500));
-  CHECK(s.seconds_per_task == 12);
+  const auto fleet = fleet_settings(block);
+  CHECK(fleet.bid_window_s == 1.5);
+  CHECK(fleet.cost.seconds_per_task == 12);
+  CHECK(fleet.origin.x_m == 1.5);
+  CHECK(fleet.origin.heading_deg == 90);
   CHECK(s.auth.require_signatures);
   CHECK(s.auth.replay_window_s == 10);
   CHECK(s.outbound_token == "fleet-token");
@@ -115,5 +126,27 @@ TEST_CASE("runtime.r2r keys are in the config schema: wrong types stop startup w
   const auto loaded = parse_robot_config(std::string(kHeader) + "    origin: {x: 1, y: 2}\n    bid_window_ms: 500\n",
                                          "robot.rcan.yaml", "/srv");
   CHECK(loaded.warnings.empty());
-  CHECK(load_r2r_settings(loaded.config.runtime.r2r, "/srv").bid_window == std::chrono::milliseconds(500));
+  CHECK(load_r2r_settings(loaded.config.runtime.r2r, "/srv").origin.y_m == 2);
+  CHECK(fleet_settings(loaded.config.runtime.r2r).bid_window_s == 0.5);
+}
+
+TEST_CASE("runtime.r2r rules across keys are the table's too: refused with file:line:column before R2R starts") {
+  const std::string yaml = std::string(kHeader) +
+                           "    require_signatures: true\n"                                     // line 9
+                           "    peers:\n"                                                       // line 10
+                           "      - {name: bob, public_key: abc, public_key_file: bob.pem}\n";  // line 11
+  try {
+    parse_robot_config(yaml, "robot.rcan.yaml", "/srv");
+    FAIL("accepted");
+  } catch (const ConfigError& e) {
+    const std::string text = e.what();
+    CAPTURE(text);
+    CHECK(text.find("robot.rcan.yaml:8:3: error: runtime.r2r.private_key_file: required key 'private_key_file' is missing "
+                    "(require_signatures is true, so private_key_file must be set)") != std::string::npos);
+    CHECK(text.find("robot.rcan.yaml:11:") != std::string::npos);
+    CHECK(text.find("error: runtime.r2r.peers[0]: give exactly one of public_key_file and public_key") != std::string::npos);
+  }
+  // The same rows check a block handed to the reader directly, with the same words.
+  CHECK(invalid_argument({{"require_signatures", true}}, "/").find("runtime.r2r.private_key_file: required key") == 0);
+  CHECK(invalid_argument({{"max_peers", 0}}, "/") == "runtime.r2r.max_peers: must be between 1 and 1000000, found the integer 0");
 }

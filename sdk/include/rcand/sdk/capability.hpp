@@ -9,6 +9,7 @@
 #include "rcand/sdk/export.hpp"
 #include "rcand/sdk/http.hpp"
 #include "rcand/sdk/scope.hpp"
+#include "rcand/sdk/stream.hpp"
 
 namespace rcand::sdk {
 
@@ -42,6 +43,10 @@ class RCAND_INTERFACE Capability {
   // A kernel thread, once, at shutdown (in parallel with other capabilities'). Stop jobs and return; the kernel joins
   // the workers afterwards. One still running after 2 s is left behind.
   virtual void shutdown() noexcept {}
+  // ABI 1.2, appended last: routes that answer with a stream or binary body (rcand/sdk/stream.hpp). Main thread, once,
+  // after routes(). The kernel calls it only for plugins whose descriptor declares minor 2 or later (older ones have
+  // no such slot in their vtable); their JSON routes are unchanged.
+  virtual std::vector<StreamRoute> stream_routes() { return {}; }
 };
 
 }  // namespace rcand::sdk

@@ -1,5 +1,14 @@
 // What the kernel hands a plugin instance. The context outlives the instance; references it returns stay
 // valid for the instance's life.
+//
+// ABI minors: what each one appended to PluginContext (never pure, so a plugin built for an older minor loads
+// unchanged; a plugin built with a newer SDK declares the newer minor, which an older kernel refuses, because its
+// contexts lack the methods the plugin may call).
+//   1.0  everything up to worker(), obstacles(), r2r()
+//   1.1  publish_status()
+//   1.2  service() and offer_service(): typed services between plugins (rcand/sdk/services.hpp); obstacles() became
+//        find<ObstacleSource>(), and it and r2r() are kept as deprecated shims until ABI 2; also
+//        Capability::stream_routes() (rcand/sdk/stream.hpp): binary and streaming answers, called only for 1.2 plugins
 #pragma once
 
 #include <string_view>
@@ -12,6 +21,7 @@
 #include "rcand/sdk/motion_gate.hpp"
 #include "rcand/sdk/obstacle_source.hpp"
 #include "rcand/sdk/r2r.hpp"
+#include "rcand/sdk/services.hpp"
 #include "rcand/sdk/worker.hpp"
 
 namespace rcand::sdk {
@@ -29,15 +39,16 @@ class RCAND_INTERFACE PluginContext {
   // This instance's own settings, validated against the manifest's "config" schema with defaults filled in:
   // a driver's `drivers[]` entry, or a capability's `runtime.capabilities.<name>` block.
   virtual const ConfigView& config() const noexcept = 0;
-  // The whole robot config (.rcan.yaml) as JSON, without the `runtime.auth` secrets.
+  // The whole robot config (.rcan.yaml) as JSON, without the `runtime.auth` secrets; in rcand its
+  // rcan_protocol.capabilities lists what the robot declares (auto-detected and self-declared ones included).
   virtual const ConfigView& robot_config() const noexcept = 0;
   // A named worker thread ("<instance>.<name>"), created on first use, joined by the kernel at shutdown.
   virtual Worker& worker(std::string_view name) = 0;
-  // The robot's obstacle source (a driver or capability implementing ObstacleSource, e.g. vision's depth
-  // zones), or null when none is configured. Appended last and not pure, so older plugins and hosts still link.
+  // Deprecated since 1.2: find<ObstacleSource>(ctx), which this returns in rcand (null when nothing offers one).
   virtual const ObstacleSource* obstacles() const noexcept { return nullptr; }
-  // Robot-to-robot messages (docs/protocol.md §11) through the kernel's R2R transports, or null when this kernel has no R2R.
-  // Appended last and not pure, so older plugins and hosts still link (ABI 1.x).
+  // Robot-to-robot messages (docs/protocol.md §11) through the kernel's R2R transports, or null when this kernel has
+  // no R2R. The fleet plugin (org.rcand.fleet) runs the auctions on its link and prices bids with the TripEstimator
+  // it finds. Deprecated since 1.2: kept until ABI 2.
   virtual R2rLink* r2r() noexcept { return nullptr; }
   // ABI 1.1: hands the kernel this instance's status - the value status() would return now - so GET /api/status
   // serves it from a snapshot instead of calling status() per request. Publish on change: after each state change,
@@ -47,6 +58,21 @@ class RCAND_INTERFACE PluginContext {
   // stale. Any thread, never blocks beyond a copy and a brief lock. Appended last and not pure: older plugins still
   // load; a plugin built with it declares minor 1, which a 1.0 kernel (whose contexts lack it) refuses to load.
   virtual void publish_status(const Json& status) noexcept { (void)status; }
+  // ABI 1.2, typed services between plugins; use them through find<T>() and offer<T>() in rcand/sdk/services.hpp,
+  // which also states the rules. The object offered as `interface_id`, or null: nothing offers it (a 1.1 host's
+  // answer too). Any thread, never blocks (lock-free in rcand).
+  virtual const void* service(std::string_view interface_id) const noexcept {
+    (void)interface_id;
+    return nullptr;
+  }
+  // Offers `service`, an object of the interface `interface_id` that this instance owns, to every plugin and to
+  // rcand. false: refused (another instance offers the id, or the id is empty or the object null; logged). Any
+  // thread, never blocks beyond a brief lock.
+  virtual bool offer_service(std::string_view interface_id, const void* service) noexcept {
+    (void)interface_id;
+    (void)service;
+    return false;
+  }
 };
 
 }  // namespace rcand::sdk

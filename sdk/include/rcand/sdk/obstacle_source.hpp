@@ -1,12 +1,15 @@
-// Obstacle zones (§12, docs/protocol.md §7 GET /api/depth/obstacles) as a plugin-to-plugin interface: the vision plugin's
-// depth pipeline (or a test double) implements it on a driver or capability object; the kernel finds it and hands
-// it to every plugin through PluginContext::obstacles(), so nav can check the zones before and during a job.
+// Obstacle zones (§12, docs/protocol.md §7 GET /api/depth/obstacles) as a service (rcand/sdk/services.hpp): the
+// vision plugin's depth pipeline (or a test double) offers it, and nav finds it to check the zones before and during
+// a job. For plugins built before ABI 1.2, the kernel also offers the first driver or capability object that
+// implements it (found with dynamic_cast), and PluginContext::obstacles() is find<ObstacleSource>().
 #pragma once
 
 #include <cstdint>
 #include <optional>
+#include <string_view>
 
 #include "rcand/sdk/export.hpp"
+#include "rcand/sdk/services.hpp"
 
 namespace rcand::sdk {
 
@@ -22,6 +25,7 @@ struct ObstacleReading {
 
 class RCAND_INTERFACE ObstacleSource {
  public:
+  static constexpr std::string_view kServiceId = "rcand.obstacle_source/1";
   virtual ~ObstacleSource() = default;
   // Any thread, thread-safe, never blocks (returns the latest reading it has). Must not throw.
   virtual ObstacleReading obstacles() const noexcept = 0;

@@ -145,8 +145,6 @@ TEST_CASE("an R2R command to an e-stopped robot is answered 105 by the node, thr
                                                  .settings = settings,
                                                  .status_source = {},
                                                  .command_executor = std::move(executor),
-                                                 .cost_function = {},
-                                                 .physics = {},
                                                  .transports = {&net.endpoint(name)},
                                                  .log = nullptr});
   };

@@ -26,6 +26,7 @@
 #include <mutex>
 #include <optional>
 #include <set>
+#include <span>
 #include <stdexcept>
 #include <string>
 #include <string_view>
@@ -36,8 +37,10 @@
 #include "rcand/sdk/capability.hpp"
 #include "rcand/sdk/context.hpp"
 #include "rcand/sdk/contract/requests.hpp"
+#include "rcand/sdk/contract/settings.hpp"
 #include "rcand/sdk/driver.hpp"
 #include "rcand/sdk/registrar.hpp"
+#include "rcand/sdk/services.hpp"
 #include "rcand/sdk/testing/fake_scheduler.hpp"
 #include "rcand/sdk/testing/manual_clock.hpp"
 #include "rcand/sdk/testing/recording_logger.hpp"
@@ -78,8 +81,13 @@ class FakeHost {
   // The kernel's shutdown order: capabilities stop, actuators halt, drivers shut down; queued tasks are
   // dropped before any plugin object is destroyed (they may point at it); contexts outlive their instances.
   ~FakeHost() {
-    for (auto it = capabilities_.rbegin(); it != capabilities_.rend(); ++it) (*it)->instance->shutdown();
+    // As the kernel: an instance's service offers are withdrawn before its shutdown().
+    for (auto it = capabilities_.rbegin(); it != capabilities_.rend(); ++it) {
+      withdraw_offers((*it)->name);
+      (*it)->instance->shutdown();
+    }
     for (auto it = drivers_.rbegin(); it != drivers_.rend(); ++it) {
+      withdraw_offers((*it)->id);
       if ((*it)->actuator) (*it)->actuator->halt();
       (*it)->instance->shutdown();
     }
@@ -95,8 +103,9 @@ class FakeHost {
   void load(rcand_plugin_entry_fn entry) { load_impl(entry, nullptr); }
 
   // As load(entry), and also checks the plugin against its manifest as the kernel does: id and version equal,
-  // registrations equal to "provides"; instance settings are then validated against the "config" schema, with
-  // defaults filled in, before each factory runs.
+  // registrations equal to "provides", a well-formed "config" schema; instance settings are then validated against
+  // that schema (none: the plugin takes no settings), with defaults filled in, before each factory runs. The config
+  // rules are the kernel's own (rcand/sdk/contract/settings.hpp).
   void load(rcand_plugin_entry_fn entry, const nlohmann::json& manifest) { load_impl(entry, &manifest); }
 
   // ---- instances -------------------------------------------------------------------------------------------
@@ -111,7 +120,7 @@ class FakeHost {
     if (!settings.is_object()) throw HostError("drivers[" + id + "]: settings must be an object");
     settings["id"] = id;
     settings["protocol"] = protocol;
-    settings = apply_schema(reg->second.plugin_id, std::move(settings), "drivers[" + id + "]", {"id", "protocol"});
+    settings = apply_schema(reg->second.plugin_id, std::move(settings), "drivers[" + id + "]", contract::kDriverEntryKeys);
 
     auto slot = std::make_unique<DriverSlot>();
     slot->id = id;
@@ -119,6 +128,7 @@ class FakeHost {
     try {
       slot->instance = reg->second.factory(*slot->context);
     } catch (const std::exception& e) {
+      withdraw_offers(id);
       throw HostError("driver '" + id + "': factory threw: " + e.what());
     }
     if (!slot->instance) throw HostError("driver '" + id + "': factory returned null");
@@ -133,6 +143,7 @@ class FakeHost {
     try {
       slot->instance->start();
     } catch (const std::exception& e) {
+      withdraw_offers(id);
       throw HostError("driver '" + id + "': start() threw: " + e.what());
     }
     drivers_.push_back(std::move(slot));
@@ -178,6 +189,7 @@ class FakeHost {
       slot->instance->start();
       slot->routes = slot->instance->routes();
     } catch (const std::exception& e) {
+      withdraw_offers(name);
       throw HostError("capability '" + name + "': " + e.what());
     }
     check_routes(*slot);
@@ -244,8 +256,26 @@ class FakeHost {
   const std::vector<std::string>& log_lines() const noexcept { return sink_.lines(); }
   MotionGate& motion() noexcept { return gate_; }
   EstopView& estop() noexcept { return estop_; }
-  // What PluginContext::obstacles() returns to every instance (null: no obstacle source). Not owned.
-  void set_obstacle_source(const ObstacleSource* source) noexcept { obstacles_ = source; }
+  // ---- services (PluginContext::offer_service and service(); the rules are in rcand/sdk/services.hpp) ----------
+
+  // The test offers a service itself, say a fake PoseSource: sdk::offer<PoseSource>(host, fake). Refused (false,
+  // logged) like an instance's offer when the id is taken. Not owned: it must outlive the host.
+  bool offer_service(std::string_view interface_id, const void* service) noexcept { return offer_as("", interface_id, service); }
+  // What find<T>() answers every instance, so sdk::find<PoseSource>(host) checks what a plugin offered. Null when
+  // nothing offers the id, or its instance failed.
+  const void* service(std::string_view interface_id) const noexcept {
+    std::lock_guard lock(services_mutex_);
+    const auto it = services_.find(interface_id);
+    if (it == services_.end() || instance_failed(it->second.owner)) return nullptr;
+    return it->second.object;
+  }
+  // What find<ObstacleSource>() and PluginContext::obstacles() return (null: none), replacing any earlier offer of
+  // it, the test's or an instance's. Not owned.
+  void set_obstacle_source(const ObstacleSource* source) noexcept {
+    std::lock_guard lock(services_mutex_);
+    if (const auto it = services_.find(ObstacleSource::kServiceId); it != services_.end()) services_.erase(it);
+    if (source) services_.emplace(std::string(ObstacleSource::kServiceId), ServiceOffer{source, ""});
+  }
 
   // ---- R2R (PluginContext::r2r()) ------------------------------------------------------------------------------
 
@@ -489,7 +519,7 @@ class FakeHost {
     const ConfigView& config() const noexcept override { return config_; }
     const ConfigView& robot_config() const noexcept override { return host_.robot_config_; }
     Worker& worker(std::string_view name) override { return host_.worker_for(instance_id_, name); }
-    const ObstacleSource* obstacles() const noexcept override { return host_.obstacles_; }
+    const ObstacleSource* obstacles() const noexcept override { return find<ObstacleSource>(host_); }
     R2rLink* r2r() noexcept override {
       if (!host_.r2r_enabled_) return nullptr;
       if (!r2r_) r2r_ = std::make_unique<R2rFake>(host_, instance_id_);
@@ -502,6 +532,10 @@ class FakeHost {
         host_.published_[instance_id_].push_back(status);
       } catch (...) {
       }
+    }
+    const void* service(std::string_view interface_id) const noexcept override { return host_.service(interface_id); }
+    bool offer_service(std::string_view interface_id, const void* service) noexcept override {
+      return host_.offer_as(instance_id_, interface_id, service);
     }
 
    private:
@@ -573,6 +607,13 @@ class FakeHost {
     const std::string id = d->plugin_id;
     if (loaded_.count(id)) throw LoadError("duplicate plugin id '" + id + "'");
     if (manifest) check_manifest_identity(*manifest, id, d->version);
+    if (manifest && manifest->contains("config")) {  // the kernel's manifest check, from the same contract
+      try {
+        contract::check_settings_schema(manifest->at("config"), "config.");
+      } catch (const contract::SettingsError& e) {
+        throw LoadError(std::string("invalid-manifest: ") + e.what());
+      }
+    }
 
     Recorder recorder(*this, id);
     try {
@@ -586,7 +627,7 @@ class FakeHost {
     if (manifest) check_provides(*manifest, id, recorder);
 
     loaded_.insert(id);
-    if (manifest && manifest->contains("config")) schemas_[id] = manifest->at("config");
+    if (manifest) schemas_[id] = manifest->value("config", nlohmann::json::object());  // none: takes no settings
     for (auto& [name, reg] : recorder.capabilities) capability_registrations_.emplace(name, std::move(reg));
     for (auto& [protocol, reg] : recorder.drivers) driver_registrations_.emplace(protocol, std::move(reg));
   }
@@ -628,40 +669,18 @@ class FakeHost {
     }
   }
 
-  // fluent-bit style: unknown keys refused with the allowed list, types and bounds checked, defaults filled.
+  // The kernel's settings rule (rcand/sdk/contract/settings.hpp): types, bounds, enums and required keys checked,
+  // defaults filled in, unknown keys refused naming the allowed ones. `where` names the instance in the error.
   nlohmann::json apply_schema(const std::string& plugin_id, nlohmann::json settings, const std::string& where,
-                              const std::set<std::string>& reserved) const {
+                              std::span<const std::string_view> also_allowed) const {
     const auto it = schemas_.find(plugin_id);
-    if (it == schemas_.end() || !it->second.is_object()) return settings;
-    const nlohmann::json& schema = it->second;
-    for (const auto& [key, value] : settings.items()) {
-      if (reserved.count(key) || schema.contains(key)) continue;
-      std::string allowed;
-      for (const auto& [k, v] : schema.items()) allowed += (allowed.empty() ? "" : ", ") + k;
-      throw HostError(where + "." + key + ": unknown key (allowed: " + (allowed.empty() ? "none" : allowed) + ")");
+    if (it == schemas_.end()) return settings;  // loaded without a manifest: nothing to check against
+    try {
+      return contract::apply_settings(it->second, settings, also_allowed);
+    } catch (const contract::SettingsError& e) {
+      const std::string key_path = e.key().empty() ? where : where + "." + e.key();
+      throw HostError(key_path + ": " + e.problem() + " (settings of plugin " + plugin_id + ")");
     }
-    for (const auto& [key, rule] : schema.items()) {
-      const std::string path = where + "." + key;
-      if (!settings.contains(key) || settings[key].is_null()) {
-        if (rule.contains("default")) settings[key] = rule["default"];
-        else if (rule.value("required", false)) throw HostError(path + ": required");
-        continue;
-      }
-      const nlohmann::json& v = settings[key];
-      const std::string type = rule.value("type", std::string());
-      const bool ok = type.empty() || (type == "string" && v.is_string()) || (type == "number" && v.is_number()) ||
-                      (type == "integer" && v.is_number_integer()) || (type == "boolean" && v.is_boolean()) ||
-                      (type == "array" && v.is_array()) || (type == "object" && v.is_object());
-      if (!ok) throw HostError(path + ": expected " + type + ", found " + v.type_name());
-      if (v.is_number() && rule.contains("minimum") && v.get<double>() < rule["minimum"].get<double>())
-        throw HostError(path + ": " + v.dump() + " is below the minimum " + rule["minimum"].dump());
-      if (v.is_number() && rule.contains("maximum") && v.get<double>() > rule["maximum"].get<double>())
-        throw HostError(path + ": " + v.dump() + " is above the maximum " + rule["maximum"].dump());
-      if (rule.contains("enum") && rule["enum"].is_array() &&
-          std::find(rule["enum"].begin(), rule["enum"].end(), v) == rule["enum"].end())
-        throw HostError(path + ": " + v.dump() + " is not one of " + rule["enum"].dump());
-    }
-    return settings;
   }
 
   template <class Map> static std::string known(const Map& map) {
@@ -784,6 +803,37 @@ class FakeHost {
     return contract::handler_threw(slot->name);
   }
 
+  // ---- services ----------------------------------------------------------------------------------------------
+
+  // `owner`: the offering instance (driver id or capability name), "" for the test.
+  bool offer_as(const std::string& owner, std::string_view interface_id, const void* service) noexcept {
+    try {
+      const std::string who = owner.empty() ? std::string("the test") : "instance '" + owner + "'";
+      if (interface_id.empty() || !service) {
+        kernel_log_.error(who, ": offer of service '", interface_id,
+                          "' refused: ", interface_id.empty() ? "empty id" : "null object");
+        return false;
+      }
+      std::lock_guard lock(services_mutex_);
+      if (!services_.emplace(std::string(interface_id), ServiceOffer{service, owner}).second) {
+        kernel_log_.error(who, ": offer of service '", interface_id, "' refused: already offered (one provider per service)");
+        return false;
+      }
+      return true;
+    } catch (...) {
+      return false;
+    }
+  }
+  void withdraw_offers(const std::string& owner) noexcept {
+    std::lock_guard lock(services_mutex_);
+    std::erase_if(services_, [&owner](const auto& entry) { return entry.second.owner == owner; });
+  }
+  bool instance_failed(const std::string& owner) const noexcept {
+    if (const DriverSlot* d = owner.empty() ? nullptr : find_driver(owner)) return d->failed.load();
+    if (const CapabilitySlot* c = owner.empty() ? nullptr : find_capability(owner)) return c->failed;
+    return false;
+  }
+
   // ---- lookups ---------------------------------------------------------------------------------------------
 
   DriverSlot* find_driver(std::string_view id) const {
@@ -817,7 +867,12 @@ class FakeHost {
 
   // Declaration order matters: services before the instances that use them.
   ConfigView robot_config_;
-  const ObstacleSource* obstacles_ = nullptr;
+  struct ServiceOffer {
+    const void* object = nullptr;
+    std::string owner;  // the offering instance; "" for the test
+  };
+  mutable std::mutex services_mutex_;  // offers and finds may come from any thread
+  std::map<std::string, ServiceOffer, std::less<>> services_;
   struct R2rSubscription {
     std::string instance;
     std::string type;

@@ -1,11 +1,11 @@
-#include "services/r2r/auction.hpp"
+#include "auction.hpp"
 
 #include <algorithm>
 
-namespace rcand::kernel::r2r {
+namespace rcand::plugins::fleet {
 namespace {
 
-using nlohmann::json;
+using json = Json;
 
 constexpr double kForgetBidAfterS = 60.0;
 
@@ -15,7 +15,7 @@ bool has_all(const std::vector<std::string>& have, const std::vector<std::string
 }
 
 Outgoing negotiation(const std::string& task_id, const char* action, const std::string& target) {
-  return {MessageType::Negotiation, json{{"task_id", task_id}, {"action", action}}, target};
+  return {std::string(kNegotiation), json{{"task_id", task_id}, {"action", action}}, target};
 }
 
 Outgoing task_response(const std::string& task_id, bool accepted, std::optional<double> estimated_time, const std::string& target,
@@ -23,7 +23,7 @@ Outgoing task_response(const std::string& task_id, bool accepted, std::optional<
   json payload{{"task_id", task_id}, {"accepted", accepted}};
   payload["estimated_time"] = estimated_time ? json(*estimated_time) : json();
   if (!reason.empty()) payload["reason"] = std::move(reason);
-  return {MessageType::TaskResponse, std::move(payload), target};
+  return {std::string(kTaskResponse), std::move(payload), target};
 }
 
 }  // namespace
@@ -41,12 +41,8 @@ std::string_view Auctioneer::state_name(State state) noexcept {
 }
 
 json Auctioneer::request_payload(const Auction& a) {
-  json payload{{"task_id", a.task.task_id},
-               {"description", a.task.description},
-               {"required_capabilities", a.task.required_capabilities},
-               {"bid_deadline", a.bid_deadline}};
-  if (a.task.deadline) payload["deadline"] = *a.task.deadline;
-  if (a.task.location) payload["location"] = {{"x", a.task.location->x}, {"y", a.task.location->y}};
+  json payload = task_fields(a.task);
+  payload["bid_deadline"] = a.bid_deadline;
   return payload;
 }
 
@@ -57,7 +53,7 @@ std::vector<Outgoing> Auctioneer::open(const TaskSpec& task, double bid_window_s
   a.opened_s = now_s;
   a.bid_window_s = bid_window_s;
   a.bid_deadline = now_s + bid_window_s;
-  std::vector<Outgoing> out{{MessageType::TaskRequest, request_payload(a), std::nullopt}};
+  std::vector<Outgoing> out{{std::string(kTaskRequest), request_payload(a), std::nullopt}};
   evict_beyond_limit(task.task_id);
   return out;
 }
@@ -121,7 +117,7 @@ std::vector<Outgoing> Auctioneer::reopen(Auction& a, double now_s) {
   a.winner.reset();
   a.state = State::Bidding;
   a.bid_deadline = now_s + a.bid_window_s;
-  return {{MessageType::TaskRequest, request_payload(a), std::nullopt}};
+  return {{std::string(kTaskRequest), request_payload(a), std::nullopt}};
 }
 
 std::vector<Outgoing> Auctioneer::on_task_response(const std::string& from, const std::string& task_id, bool accepted,
@@ -152,11 +148,11 @@ std::vector<Outgoing> Auctioneer::tick(double now_s) {
     } else if (a.state == State::Awarded && now_s > a.award_deadline) {
       const std::string silent = *a.winner;
       a.excluded.insert(silent);
-      json error{{"code", static_cast<int>(ErrorCode::NetworkTimeout)},
+      json error{{"code", kNetworkTimeout},
                  {"message", "no task_response to the award of task '" + task_id + "' within " + json(kWinnerGraceS).dump() +
                                  " s of the bid deadline; re-auctioned without you"},
                  {"task_id", task_id}};
-      step.push_back({MessageType::Error, std::move(error), silent});
+      step.push_back({std::string(kError), std::move(error), silent});
       auto reopened = reopen(a, now_s);
       step.insert(step.end(), reopened.begin(), reopened.end());
     }
@@ -210,15 +206,15 @@ std::optional<Outgoing> Bidder::on_task_request(const std::string& requester, co
   }
   bids_[key] = {*cost, std::max(bid_deadline, context.now_s) + kForgetBidAfterS, task.deadline};
   json payload{{"task_id", task.task_id}, {"action", "bid"}, {"cost", *cost}, {"capabilities", context.capabilities}};
-  return Outgoing{MessageType::Negotiation, std::move(payload), requester};
+  return Outgoing{std::string(kNegotiation), std::move(payload), requester};
 }
 
 Outgoing Bidder::assigned_elsewhere(const std::string& requester, const std::string& task_id, const json& header) const {
-  json error{{"code", static_cast<int>(ErrorCode::TaskAssigned)},
+  json error{{"code", kTaskAssigned},
              {"message", "task '" + task_id + "' is already assigned to this robot by another requester"},
              {"ref", header},
              {"task_id", task_id}};
-  return {MessageType::Error, std::move(error), requester};
+  return {std::string(kError), std::move(error), requester};
 }
 
 Outgoing Bidder::on_direct_request(const std::string& requester, const TaskSpec& task, const json& request_header,
@@ -270,4 +266,4 @@ double Bidder::held_expiry(std::optional<double> deadline, double now_s) const {
   return deadline && *deadline > now_s ? std::min(*deadline, ttl) : ttl;
 }
 
-}  // namespace rcand::kernel::r2r
+}  // namespace rcand::plugins::fleet

@@ -1,11 +1,15 @@
+// The auction's pure logic (moved here with it from services/r2r): requester and bidder sides, the default price
+// (nav's trip time through its TripEstimator), the fleet frame, and the memory bounds.
 #include <doctest/doctest.h>
 
 #include <cmath>
+#include <set>
 
-#include "services/r2r/auction.hpp"
+#include "../nav/waypoint_plan.hpp"  // nav's TripEstimator: the numbers bids are priced with
+#include "auction.hpp"
 
-using namespace rcand::kernel::r2r;
-using nlohmann::json;
+using namespace rcand::plugins::fleet;
+using json = rcand::sdk::Json;
 
 namespace {
 
@@ -28,7 +32,7 @@ TEST_CASE("auctioneer: the lowest capable bid wins at bid_deadline; ties go to t
   Auctioneer auctioneer;
   const auto opened = auctioneer.open(fetch_task(), 1.0, 100.0);
   REQUIRE(opened.size() == 1);
-  CHECK(opened[0].type == MessageType::TaskRequest);
+  CHECK(opened[0].type == "task_request");
   CHECK_FALSE(opened[0].target);
   CHECK(opened[0].payload["bid_deadline"] == 101.0);
   CHECK(opened[0].payload["required_capabilities"] == json({"nav", "arm"}));
@@ -38,11 +42,11 @@ TEST_CASE("auctioneer: the lowest capable bid wins at bid_deadline; ties go to t
   auctioneer.on_bid("T1", bid("bob", 5.0));
   auctioneer.on_bid("T1", bid("dave", 1.0, {"nav"}));  // lacks arm: not a valid bid
   auctioneer.on_bid("T9", bid("erin", 0.5));           // another task: ignored
-  CHECK(auctioneer.tick(100.9).empty());                // still bidding
+  CHECK(auctioneer.tick(100.9).empty());               // still bidding
 
   const auto awarded = auctioneer.tick(101.0);
   REQUIRE(awarded.size() == 1);
-  CHECK(awarded[0].type == MessageType::Negotiation);
+  CHECK(awarded[0].type == "negotiation");
   CHECK(awarded[0].payload["action"] == "award");
   CHECK(awarded[0].target == "bob");
   auctioneer.on_bid("T1", bid("frank", 0.1));  // too late
@@ -64,11 +68,11 @@ TEST_CASE("auctioneer: a silent winner gets 104 after bid_deadline + 2 s and the
 
   const auto timed_out = auctioneer.tick(101.0 + kWinnerGraceS + 0.1);
   REQUIRE(timed_out.size() == 2);
-  CHECK(timed_out[0].type == MessageType::Error);
+  CHECK(timed_out[0].type == "error");
   CHECK(timed_out[0].target == "bob");
   CHECK(timed_out[0].payload["code"] == 104);
   CHECK(timed_out[0].payload["task_id"] == "T1");
-  CHECK(timed_out[1].type == MessageType::TaskRequest);
+  CHECK(timed_out[1].type == "task_request");
   const double second_deadline = timed_out[1].payload["bid_deadline"].get<double>();
   CHECK(second_deadline == doctest::Approx(104.1));
 
@@ -126,14 +130,14 @@ TEST_CASE("bidder: bids only with every required capability; accepts its award; 
 
   const json header{{"source_id", "alex"}};
   const Outgoing accept = bidder.on_award("alex", "T1", header, 51.0);
-  CHECK(accept.type == MessageType::TaskResponse);
+  CHECK(accept.type == "task_response");
   CHECK(accept.payload["accepted"] == true);
   CHECK(accept.payload["estimated_time"] == 10.0);
   CHECK(bidder.queue_length() == 1);
   CHECK(bidder.on_award("alex", "T1", header, 51.5).payload["accepted"] == true);  // repeated: same answer
 
   const Outgoing second = bidder.on_award("zed", "T1", json{{"source_id", "zed"}}, 52.0);
-  CHECK(second.type == MessageType::Error);
+  CHECK(second.type == "error");
   CHECK(second.payload["code"] == 102);
   CHECK(second.payload["ref"]["source_id"] == "zed");
   CHECK(second.target == "zed");
@@ -159,12 +163,9 @@ TEST_CASE("bidder: a cost function that declines, or returns NaN, means no bid")
   CHECK_FALSE(bidder.on_task_request("alex", fetch_task(), 1.0, {caps, nan, nowhere, 0.0}));
 }
 
-TEST_CASE("the default cost is nav's waypoint time from the fleet pose plus the queue") {
-  NavCostSettings settings;
-  settings.physics = {0.5, 0.01, 1.0};  // 0.5 m/s at full speed, 10 ms per degree at full speed
-  settings.speed = 0.5;
-  settings.seconds_per_task = 30.0;
-  const CostFunction cost = nav_time_cost(settings);
+TEST_CASE("the default cost is nav's trip time (its TripEstimator service) from the fleet pose plus the queue") {
+  const rcand::plugins::nav::TripTiming nav_trips({0.5, 0.01, 1.0});  // 0.5 m/s at full speed, 10 ms per degree at full speed
+  const CostFunction cost = trip_time_cost([&nav_trips] { return &nav_trips; }, {0.5, 30.0});
   const TaskSpec task = fetch_task();  // at (3, 4): 5 m away from the origin, heading atan2(4,3) = 53.13 deg
 
   const double expected_turn = 53.130102354 * 0.01 / 0.5;
@@ -179,14 +180,86 @@ TEST_CASE("the default cost is nav's waypoint time from the fleet pose plus the 
   TaskSpec anywhere = task;
   anywhere.location.reset();
   CHECK(*cost(CostInput{anywhere, std::nullopt, 1}) == 30.0);
-  NavCostSettings uncalibrated;
-  CHECK_FALSE(nav_time_cost(uncalibrated)(CostInput{task, FleetPose{}, 0}));
+
+  // Nothing offers an estimator (no nav on this robot): a located task gets no bid, the rest is priced by the queue.
+  for (const TripEstimatorLookup& none : {TripEstimatorLookup{}, TripEstimatorLookup([] { return nullptr; })}) {
+    const CostFunction without = trip_time_cost(none, {0.5, 30.0});
+    CHECK_FALSE(without(CostInput{task, FleetPose{}, 0}));
+    CHECK(*without(CostInput{anywhere, std::nullopt, 1}) == 30.0);
+  }
+  // An estimator that cannot say (here: a speed out of range) declines too.
+  CHECK_FALSE(trip_time_cost([&nav_trips] { return &nav_trips; }, {1.5, 30.0})(CostInput{task, FleetPose{}, 0}));
 }
 
-TEST_CASE("fleet frame: the pose is rotated and moved by the origin") {
-  const FleetPose p = to_fleet_frame(FleetPose{1.0, 0.0, 0.0}, FleetPose{10.0, 5.0, 90.0});
-  CHECK(p.x == doctest::Approx(10.0));
-  CHECK(p.y == doctest::Approx(6.0));
+TEST_CASE("fleet frame: the pose is rotated and moved by the origin (sdk::compose)") {
+  const FleetPose p = rcand::sdk::compose(FleetPose{10.0, 5.0, 90.0}, FleetPose{1.0, 0.0, 0.0});
+  CHECK(p.x_m == doctest::Approx(10.0));
+  CHECK(p.y_m == doctest::Approx(6.0));
   CHECK(p.heading_deg == doctest::Approx(90.0));
-  CHECK(to_fleet_frame(FleetPose{0, 0, 170}, FleetPose{0, 0, 20}).heading_deg == doctest::Approx(-170.0));
+  CHECK(rcand::sdk::compose(FleetPose{0, 0, 20}, FleetPose{0, 0, 170}).heading_deg == doctest::Approx(-170.0));
+}
+
+// Issue 13 #14: every table a peer can grow is bounded, with expiry.
+TEST_CASE("bidder: held tasks bounded and released at expiry; far-off bids refused; pending bids bounded") {
+  Bidder::Limits limits;
+  limits.max_held_tasks = 3;
+  limits.held_task_ttl_s = 100;
+  limits.max_pending_bids = 4;
+  limits.max_bid_horizon_s = 60;
+  Bidder bidder(limits);
+  const std::vector<std::string> caps{"teleop"};
+  const CostFunction cost = [](const CostInput&) { return std::optional<double>(1.0); };
+  const std::optional<FleetPose> pose;
+  const Bidder::Context at_0{caps, cost, pose, 0.0};
+
+  for (int i = 0; i < 10; ++i) {
+    TaskSpec task;
+    task.task_id = "D" + std::to_string(i);
+    bidder.on_direct_request("flooder", task, json::object(), at_0);
+  }
+  CHECK(bidder.queue_length() == 3);
+  TaskSpec with_deadline;
+  with_deadline.task_id = "late";
+  with_deadline.deadline = 50.0;
+  const Outgoing declined = bidder.on_direct_request("req", with_deadline, json::object(), at_0);
+  CHECK(declined.payload["accepted"] == false);
+  bidder.prune(101.0);  // past the ttl: released
+  CHECK(bidder.queue_length() == 0);
+  CHECK(bidder.on_direct_request("req", with_deadline, json::object(), {caps, cost, pose, 101.0}).payload["accepted"] == true);
+  bidder.release("late");
+
+  // A bid_deadline further than the horizon gets no bid; the pending bids stay bounded under a flood.
+  TaskSpec far;
+  far.task_id = "far";
+  CHECK_FALSE(bidder.on_task_request("req", far, 1e12, at_0));
+  for (int i = 0; i < 100; ++i) {
+    TaskSpec task;
+    task.task_id = "B" + std::to_string(i);
+    CHECK(bidder.on_task_request("flooder", task, 30.0, at_0));
+  }
+  CHECK(bidder.pending_bids() == 4);
+  bidder.prune(30.0 + 61.0);  // bid_deadline + a minute
+  CHECK(bidder.pending_bids() == 0);
+}
+
+TEST_CASE("auctioneer: auctions, bidders per auction and bid history are bounded") {
+  Auctioneer::Limits limits;
+  limits.max_auctions = 5;
+  limits.max_bids_per_auction = 3;
+  limits.max_history = 10;
+  Auctioneer auctioneer(limits);
+  for (int i = 0; i < 20; ++i) {
+    TaskSpec task;
+    task.task_id = "A" + std::to_string(i);
+    auctioneer.open(task, 1.0, static_cast<double>(i));
+  }
+  CHECK(auctioneer.size() == 5);
+  CHECK(auctioneer.knows("A19"));
+  CHECK_FALSE(auctioneer.knows("A0"));
+  for (int i = 0; i < 50; ++i) auctioneer.on_bid("A19", Bid{"bidder-" + std::to_string(i % 7), 1.0 + i, {}, 19.0});
+  const json result = *auctioneer.result("A19");
+  CHECK(result["bids"].size() == 10);
+  std::set<std::string> bidders;
+  for (const auto& bid : result["bids"]) bidders.insert(bid["bidder"].get<std::string>());
+  CHECK(bidders.size() == 3);
 }

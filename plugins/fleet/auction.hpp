@@ -1,25 +1,34 @@
-// Auction-style task allocation (docs/protocol.md §11) as pure logic: no threads, no I/O, no clock of its own. The node feeds
-// it messages and the wall time and sends what it returns. Any robot can be a requester; every robot is a bidder.
+// Auction-style task allocation (docs/protocol.md §11.7-§11.9) as pure logic: no threads, no I/O, no clock of its own.
+// The fleet plugin's Auctions feeds it messages and the wall time and sends what it returns. Any robot can be a
+// requester; every robot is a bidder.
 #pragma once
 
-#include <nlohmann/json.hpp>
-
+#include <cstddef>
 #include <cstdint>
 #include <map>
 #include <optional>
 #include <set>
 #include <string>
+#include <string_view>
 #include <vector>
 
-#include "services/r2r/cost_function.hpp"
-#include "services/r2r/envelope.hpp"
+#include "cost_function.hpp"
 
-namespace rcand::kernel::r2r {
+namespace rcand::plugins::fleet {
+
+// The R2R message types the auction speaks, spelled as R2rLink::send takes them.
+inline constexpr std::string_view kTaskRequest = "task_request";
+inline constexpr std::string_view kTaskResponse = "task_response";
+inline constexpr std::string_view kNegotiation = "negotiation";
+inline constexpr std::string_view kError = "error";
+// docs/protocol.md §11.3: the error codes the auction sends and reacts to.
+inline constexpr int kTaskAssigned = 102;
+inline constexpr int kNetworkTimeout = 104;
 
 // A message the engine wants sent: type + payload to a target (nullopt: broadcast).
 struct Outgoing {
-  MessageType type = MessageType::Status;
-  nlohmann::json payload;
+  std::string type;
+  Json payload;
   std::optional<std::string> target;
 };
 
@@ -55,7 +64,6 @@ class Auctioneer {
   // The winner's task_response. Accepted: assigned. Declined: the next lowest bid is awarded (or re-opened).
   std::vector<Outgoing> on_task_response(const std::string& from, const std::string& task_id, bool accepted,
                                          std::optional<double> estimated_time, double now_s);
-  // An `error` about the task from its awardee (102 already assigned elsewhere): treated as a decline.
   // An `error` about the task from its awardee (102: assigned elsewhere) is a decline. `task_id` comes from the
   // error payload's rcand extension field "task_id".
   std::vector<Outgoing> on_error(const std::string& from, const std::string& task_id, double now_s);
@@ -65,8 +73,8 @@ class Auctioneer {
   bool knows(const std::string& task_id) const { return auctions_.contains(task_id); }
   std::size_t size() const noexcept { return auctions_.size(); }
   // {"task_id","state","round","bid_deadline","winner","estimated_time","excluded":[],"bids":[{bidder,cost,...}]}
-  std::optional<nlohmann::json> result(const std::string& task_id) const;
-  nlohmann::json results() const;
+  std::optional<Json> result(const std::string& task_id) const;
+  Json results() const;
   static std::string_view state_name(State state) noexcept;
 
  private:
@@ -77,8 +85,8 @@ class Auctioneer {
     double bid_deadline = 0.0;
     State state = State::Bidding;
     int round = 1;
-    std::map<std::string, Bid> bids;      // this round's, by bidder
-    std::vector<nlohmann::json> history;  // every bid of every round, for the result
+    std::map<std::string, Bid> bids;  // this round's, by bidder
+    std::vector<Json> history;        // every bid of every round, for the result
     double award_deadline = 0.0;
     std::set<std::string> excluded;  // silent or declining winners
     std::optional<std::string> winner;
@@ -86,7 +94,7 @@ class Auctioneer {
   };
   std::vector<Outgoing> award_next(Auction& auction, double now_s);
   std::vector<Outgoing> reopen(Auction& auction, double now_s);
-  static nlohmann::json request_payload(const Auction& auction);
+  static Json request_payload(const Auction& auction);
   void evict_beyond_limit(const std::string& keep);
 
   Limits limits_;
@@ -120,17 +128,16 @@ class Bidder {
 
   // An auction's task_request from `requester`: the bid (negotiation to the requester) when every required
   // capability is among ours, the task is not held from another requester, and the cost function gives a cost;
-  // nothing otherwise. Remembered until bid_deadline +
-  // a minute, so the award can be accepted.
+  // nothing otherwise. Remembered until bid_deadline + a minute, so the award can be accepted.
   std::optional<Outgoing> on_task_request(const std::string& requester, const TaskSpec& task, double bid_deadline,
                                           const Context& context);
   // A task_request without bid_deadline (a direct request): task_response accepted with estimated_time (and the
   // task held) when capable, declined with a reason otherwise; error 102 when held from another requester.
-  Outgoing on_direct_request(const std::string& requester, const TaskSpec& task, const nlohmann::json& request_header,
+  Outgoing on_direct_request(const std::string& requester, const TaskSpec& task, const Json& request_header,
                              const Context& context);
   // An award: task_response accepted with estimated_time; the same award again is answered the same way; an award
   // for a task held from another requester gets error 102; an award for a task never bid on is declined.
-  Outgoing on_award(const std::string& requester, const std::string& task_id, const nlohmann::json& award_header, double now_s);
+  Outgoing on_award(const std::string& requester, const std::string& task_id, const Json& award_header, double now_s);
   // The requester withdrew, or timed us out (104): forget the bid; a task held from that requester is released.
   void on_withdraw(const std::string& requester, const std::string& task_id);
   // The local robot finished (or gave up) a held task. False when it did not hold it.
@@ -143,7 +150,7 @@ class Bidder {
   const std::map<std::string, Held>& held() const { return held_; }
 
  private:
-  Outgoing assigned_elsewhere(const std::string& requester, const std::string& task_id, const nlohmann::json& header) const;
+  Outgoing assigned_elsewhere(const std::string& requester, const std::string& task_id, const Json& header) const;
   struct PendingBid {
     double cost = 0.0;
     double forget_after_s = 0.0;
@@ -155,4 +162,4 @@ class Bidder {
   std::map<std::string, Held> held_;                                // by task_id
 };
 
-}  // namespace rcand::kernel::r2r
+}  // namespace rcand::plugins::fleet

@@ -1,0 +1,205 @@
+// The vision benchmark (issue 15): an rcand with the bundled sim robot's synthetic camera (640x480 at 30 fps) streams
+// GET /api/stream/mjpeg to N local viewers (default 20), each a thread reading the multipart stream like a browser.
+// Reported:
+//  - each viewer's frame rate over the window;
+//  - rcand's CPU (utime + stime from /proc/<pid>/stat) as % of one core, idle (nobody watching) and streaming;
+//  - capture -> client latency: the part's X-Timestamp-Us (rcand's steady clock when the frame was captured) to the
+//    moment the viewer holds the whole part (this machine's steady clock: the same CLOCK_MONOTONIC). It includes the
+//    encode, the socket and the viewer thread's own wake-up, so it bounds capture -> socket from above;
+//  - frames encoded per second against frames captured (encode once: equal, whatever the number of viewers);
+//  - POST /api/stop round trips (each latches, then is cleared), with nobody watching and then while the viewers
+//    stream, after the measuring window (the e-stop path must not notice the streams).
+//   bench_vision [--viewers N] [--seconds S] [--idle-seconds S] [--width W] [--height H] [--fps F]
+#include <nlohmann/json.hpp>
+
+#include <unistd.h>
+
+#include <algorithm>
+#include <atomic>
+#include <cstdio>
+#include <fstream>
+#include <mutex>
+#include <sstream>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "mjpeg_client.hpp"
+#include "rcand_process.hpp"
+
+namespace {
+
+using nlohmann::json;
+using Clock = std::chrono::steady_clock;
+
+double percentile(std::vector<double> values, double p) {
+  if (values.empty()) return 0.0;
+  std::sort(values.begin(), values.end());
+  return values[static_cast<std::size_t>(p * static_cast<double>(values.size() - 1))];
+}
+
+// utime + stime of `pid`, in clock ticks.
+long cpu_ticks(pid_t pid) {
+  std::ifstream in("/proc/" + std::to_string(pid) + "/stat");
+  std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  std::istringstream fields(text.substr(text.rfind(')') + 2));
+  std::string field;
+  long utime = 0, stime = 0;
+  for (int i = 3; fields >> field; ++i) {
+    if (i == 14) utime = std::stol(field);
+    if (i == 15) {
+      stime = std::stol(field);
+      break;
+    }
+  }
+  return utime + stime;
+}
+
+// rcand's CPU over `seconds`, in % of one core.
+double cpu_percent(pid_t pid, double seconds) {
+  const long before = cpu_ticks(pid);
+  const auto started = Clock::now();
+  std::this_thread::sleep_for(std::chrono::duration<double>(seconds));
+  const double elapsed = std::chrono::duration<double>(Clock::now() - started).count();
+  return 100.0 * static_cast<double>(cpu_ticks(pid) - before) / static_cast<double>(::sysconf(_SC_CLK_TCK)) / elapsed;
+}
+
+struct Viewer {
+  std::atomic<long> frames{0};
+  long frames_at_start = 0, frames_at_end = 0;
+  std::vector<double> latency_ms;  // only inside the window
+  std::mutex mutex;
+  bool failed = false;
+};
+
+// POST /api/stop round trips for `seconds`, one every 50 ms, each latching (and cleared again).
+std::vector<double> stop_round_trips(std::uint16_t port, double seconds) {
+  std::vector<double> ms;
+  rcand::http::Client client("127.0.0.1", port);
+  const std::map<std::string, std::string> owner{{"Authorization", "Bearer owner-token"}};
+  const auto started = Clock::now();
+  while (Clock::now() - started < std::chrono::duration<double>(seconds)) {
+    const auto before = Clock::now();
+    const auto answer = client.request("POST", "/api/stop", "", owner);
+    ms.push_back(std::chrono::duration<double, std::milli>(Clock::now() - before).count());
+    if (answer.status != 200) throw std::runtime_error("POST /api/stop answered " + std::to_string(answer.status));
+    client.request("POST", "/api/estop/clear", "", owner);
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  }
+  return ms;
+}
+
+struct Options {
+  int viewers = 20;
+  double seconds = 20, idle_seconds = 5;
+  int width = 640, height = 480;
+  double fps = 30;
+};
+
+Options parse(int argc, char** argv) {
+  Options o;
+  for (int i = 1; i + 1 < argc; i += 2) {
+    const std::string key = argv[i];
+    const double value = std::stod(argv[i + 1]);
+    if (key == "--viewers") o.viewers = static_cast<int>(value);
+    else if (key == "--seconds") o.seconds = value;
+    else if (key == "--idle-seconds") o.idle_seconds = value;
+    else if (key == "--width") o.width = static_cast<int>(value);
+    else if (key == "--height") o.height = static_cast<int>(value);
+    else if (key == "--fps") o.fps = value;
+    else throw std::runtime_error("unknown option " + key);
+  }
+  return o;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) try {
+  const Options o = parse(argc, argv);
+  auto config = rcand::test::sim_config();
+  config["camera"] = {{"type", "synthetic"}, {"resolution", {o.width, o.height}}, {"fps", o.fps}};
+  config["rcan_protocol"]["capabilities"] = {"status", "teleop", "vision", "com.acme.gripper"};
+  config["runtime"]["capabilities"]["vision"] = {{"max_viewers", std::max(32, o.viewers)}};
+  config["runtime"]["logging"]["level"] = "warn";
+  rcand::test::RcandProcess rcand(config);
+  std::printf("rcand pid %d on port %u: synthetic %dx%d at %.0f fps, %d viewers, %.0f s\n", rcand.pid(), rcand.port(), o.width,
+              o.height, o.fps, o.viewers, o.seconds);
+
+  std::this_thread::sleep_for(std::chrono::seconds(1));  // startup settled
+  const double idle_cpu = cpu_percent(rcand.pid(), o.idle_seconds);
+  const auto idle_stops = stop_round_trips(rcand.port(), o.idle_seconds);
+
+  std::vector<std::unique_ptr<Viewer>> viewers;
+  std::vector<std::thread> threads;
+  std::atomic<bool> measuring{false}, stopping{false};
+  for (int i = 0; i < o.viewers; ++i) {
+    auto& viewer = *viewers.emplace_back(std::make_unique<Viewer>());
+    threads.emplace_back([&, port = rcand.port()] {
+      rcand::test::MjpegClient client(port);
+      if (client.open("/api/stream/mjpeg?token=guest-token") != 200) {
+        viewer.failed = true;
+        return;
+      }
+      while (!stopping) {
+        auto part = client.next_part(std::chrono::seconds(5));
+        if (!part) {
+          viewer.failed = true;
+          return;
+        }
+        ++viewer.frames;
+        if (!measuring) continue;
+        const auto captured_us = std::stoll(part->headers.at("x-timestamp-us"));
+        const auto received_us = std::chrono::duration_cast<std::chrono::microseconds>(part->received.time_since_epoch()).count();
+        std::lock_guard lock(viewer.mutex);
+        viewer.latency_ms.push_back(static_cast<double>(received_us - captured_us) / 1000.0);
+      }
+    });
+  }
+  std::this_thread::sleep_for(std::chrono::seconds(2));  // every viewer connected and streaming
+
+  auto vision_status = [&] { return rcand.json("GET", "/api/status", "guest-token")["capabilities"]["vision"]["status"]; };
+  const json status_before = vision_status();
+  for (auto& viewer : viewers) viewer->frames_at_start = viewer->frames;
+  measuring = true;
+  const auto window_start = Clock::now();
+  const long ticks_before = cpu_ticks(rcand.pid());
+
+  std::this_thread::sleep_for(std::chrono::duration<double>(o.seconds));
+  const long ticks_after = cpu_ticks(rcand.pid());
+  measuring = false;
+  const double window = std::chrono::duration<double>(Clock::now() - window_start).count();
+  for (auto& viewer : viewers) viewer->frames_at_end = viewer->frames;
+  const json status_after = vision_status();
+  const auto streaming_stops = stop_round_trips(rcand.port(), o.idle_seconds);
+  stopping = true;
+  for (auto& thread : threads) thread.join();
+
+  const double stream_cpu =
+      100.0 * static_cast<double>(ticks_after - ticks_before) / static_cast<double>(::sysconf(_SC_CLK_TCK)) / window;
+  std::vector<double> fps, latency;
+  int failed = 0;
+  for (auto& viewer : viewers) {
+    failed += viewer->failed ? 1 : 0;
+    fps.push_back(static_cast<double>(viewer->frames_at_end - viewer->frames_at_start) / window);
+    latency.insert(latency.end(), viewer->latency_ms.begin(), viewer->latency_ms.end());
+  }
+  const double captured =
+      (status_after["frames_captured"].get<double>() - status_before["frames_captured"].get<double>()) / window;
+  const double encoded = (status_after["frames_encoded"].get<double>() - status_before["frames_encoded"].get<double>()) / window;
+
+  std::printf("viewers failed:                 %d of %d\n", failed, o.viewers);
+  std::printf("viewer fps:                     min %.1f  median %.1f  max %.1f\n", percentile(fps, 0), percentile(fps, 0.5),
+              percentile(fps, 1));
+  std::printf("rcand CPU (%% of one core):      idle %.1f  streaming %.1f  (streaming - idle: %.1f)\n", idle_cpu, stream_cpu,
+              stream_cpu - idle_cpu);
+  std::printf("captured / encoded per second:  %.1f / %.1f\n", captured, encoded);
+  std::printf("capture -> client (ms):         p50 %.2f  p99 %.2f  max %.2f  (n=%zu)\n", percentile(latency, 0.5),
+              percentile(latency, 0.99), percentile(latency, 1), latency.size());
+  for (const auto& [what, ms] : {std::pair{"nobody watching", &idle_stops}, std::pair{"while streaming", &streaming_stops}})
+    std::printf("POST /api/stop, %-16s p50 %.3f  p99 %.3f  max %.3f ms  (n=%zu)\n", what, percentile(*ms, 0.5),
+                percentile(*ms, 0.99), percentile(*ms, 1), ms->size());
+  return failed == 0 ? 0 : 1;
+} catch (const std::exception& e) {
+  std::fprintf(stderr, "bench_vision: %s\n", e.what());
+  return 2;
+}

@@ -1,0 +1,64 @@
+#include "fleet.hpp"
+
+#include <algorithm>
+
+namespace rcand::plugins::fleet {
+
+Fleet::~Fleet() { shutdown(); }
+
+void Fleet::start() {
+  sdk::R2rLink* link = ctx_.r2r();
+  if (link == nullptr) {
+    ctx_.log().info("no R2R on this robot (runtime.r2r.enabled is off): no auctions");
+    return;
+  }
+  settings_ = read_fleet_settings(ctx_.robot_config());
+  auctions_ = std::make_unique<Auctions>(Auctions::Deps{
+      .link = *link,
+      .clock = ctx_.clock(),
+      .settings = settings_,
+      .position = [this] { return position(); },
+      .trips = [this] { return sdk::find<sdk::TripEstimator>(ctx_); },
+      .log = &ctx_.log(),
+  });
+  auctions_->subscribe();
+  worker_ = &ctx_.worker("r2r");  // the link's callbacks run here too: ticks and messages never overlap
+  worker_->schedule(kTickPeriod, [this] { tick(); });
+  if (!sdk::offer<sdk::FleetAuctions>(ctx_, auctions_->service()))
+    ctx_.log().warn("another plugin already offers fleet auctions; /api/r2r/auction is served by that one");
+}
+
+void Fleet::tick() {
+  if (stopping_) return;
+  auctions_->tick();
+  sdk::Json now{{"tasks_held", auctions_->tasks_held()}, {"auctions", auctions_->auctions()}};
+  if (now != published_) {
+    ctx_.publish_status(now);
+    published_ = std::move(now);
+  }
+  worker_->schedule(kTickPeriod, [this] { tick(); });
+}
+
+std::optional<FleetPose> Fleet::position() const {
+  if (const auto* source = sdk::find<sdk::PoseSource>(ctx_)) {
+    const sdk::PoseReading reading = source->read();
+    if (!reading.available) return std::nullopt;
+    return sdk::compose(settings_.origin, reading.pose);
+  }
+  const auto& caps = settings_.capabilities;
+  if (std::find(caps.begin(), caps.end(), "nav") != caps.end()) return std::nullopt;
+  return settings_.origin;
+}
+
+sdk::Json Fleet::status() const {
+  if (!auctions_) return {{"r2r", false}};
+  return {{"tasks_held", auctions_->tasks_held()}, {"auctions", auctions_->auctions()}};
+}
+
+void Fleet::shutdown() noexcept {
+  if (stopping_.exchange(true) || !auctions_) return;
+  auctions_->unsubscribe();      // no message reaches the auctions from here on
+  auctions_->abandon_waiting();  // rcand's R2R service answered them already when it stopped; this is the backstop
+}
+
+}  // namespace rcand::plugins::fleet
