@@ -215,28 +215,37 @@ TEST_CASE("vision: each frame is encoded once, for 1 viewer and for 20, and not 
   auto first = rig.get("/api/stream/mjpeg");
   REQUIRE(first->status() == 200);
   CHECK(first->content_type() == "multipart/x-mixed-replace");
-  for (int i = 0; i < 10; ++i) {
-    script->push(i);
-    REQUIRE(rig.delivered(static_cast<std::uint64_t>(i + 1)));
+  // A new viewer may first get the newest frame captured before it came (whether the delivery thread had already
+  // passed it is timing); a sync frame pins where the counted frames start.
+  script->push(99);
+  REQUIRE(first->wait_until([](const auto& parts) { return !parts.empty() && header(parts.back(), "X-Frame") == "6"; }, 2s));
+  const auto calls = [&] { return static_cast<std::size_t>(counting.calls->load()); };
+  const std::size_t calls_before = calls();
+  const std::size_t parts_before = first->parts().size();
+  CHECK(calls_before == parts_before);    // one encode per part so far
+  for (std::size_t i = 0; i < 10; ++i) {  // each frame waited for, so none replaces another
+    script->push(static_cast<int>(i));
+    REQUIRE(first->wait_for_parts(parts_before + i + 1, 2s));
   }
-  CHECK(*counting.calls == 10);
-  CHECK(first->parts().size() == 10);
+  CHECK(calls() - calls_before == 10);
+  CHECK(first->parts().size() - parts_before == 10);
 
   std::vector<std::shared_ptr<RecordingStream>> more;
   for (int i = 0; i < 19; ++i) more.push_back(rig.get("/api/stream/mjpeg"));
-  for (int i = 0; i < 10; ++i) {
-    script->push(100 + i);
-    REQUIRE(rig.delivered(static_cast<std::uint64_t>(11 + i)));
+  for (std::size_t i = 0; i < 10; ++i) {
+    script->push(100 + static_cast<int>(i));
+    REQUIRE(first->wait_for_parts(parts_before + 11 + i, 2s));
+    for (const auto& viewer : more) REQUIRE(viewer->wait_for_parts(i + 1, 2s));
   }
-  CHECK(*counting.calls == 20);  // 20 viewers: still one encode per frame
-  CHECK(rig.hub().counts().encoded == 20);
+  CHECK(calls() - calls_before == 20);  // 20 viewers: still one encode per frame
+  CHECK(rig.hub().counts().encoded == calls());
   const auto reference = first->parts();
-  REQUIRE(reference.size() == 20);
+  REQUIRE(reference.size() == parts_before + 20);
   for (const auto& viewer : more) {
     const auto parts = viewer->parts();
     REQUIRE(parts.size() == 10);
     for (std::size_t i = 0; i < parts.size(); ++i)
-      CHECK(parts[i].data.get() == reference[10 + i].data.get());  // the same bytes, shared, not copied
+      CHECK(parts[i].data.get() == reference[parts_before + 10 + i].data.get());  // the same bytes, shared, not copied
   }
   CHECK(decode(reference.back()).cols == 64);
   CHECK(rig.vision->status()["viewers"].size() == 20);
