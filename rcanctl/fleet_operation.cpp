@@ -30,13 +30,6 @@ std::string_view operation_name(Operation op) {
   return op == Operation::Status ? "status" : op == Operation::Stop ? "stop" : "command";
 }
 
-std::optional<int> parse_int(std::string_view text, int low, int high) {
-  int value = 0;
-  const auto [end, ec] = std::from_chars(text.data(), text.data() + text.size(), value);
-  if (ec != std::errc{} || end != text.data() + text.size() || value < low || value > high) return std::nullopt;
-  return value;
-}
-
 // One node's row: the table's columns and the JSON object of --json.
 struct Row {
   json object;

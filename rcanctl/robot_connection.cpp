@@ -16,15 +16,14 @@ namespace {
 
 using nlohmann::json;
 
-template <class Number> bool parse_number(const std::string& text, Number low, Number high, Number& out) {
-  Number value{};
-  const auto [end, ec] = std::from_chars(text.data(), text.data() + text.size(), value);
-  if (ec != std::errc{} || end != text.data() + text.size() || value < low || value > high) return false;
-  out = value;
-  return true;
-}
-
 }  // namespace
+
+std::optional<int> parse_int(std::string_view text, int low, int high) {
+  int value = 0;
+  const auto [end, ec] = std::from_chars(text.data(), text.data() + text.size(), value);
+  if (ec != std::errc{} || end != text.data() + text.size() || value < low || value > high) return std::nullopt;
+  return value;
+}
 
 std::string read_token_file(const std::string& path) {
   std::ifstream in(path);
@@ -58,18 +57,20 @@ bool parse_robot_options(std::span<const std::string> args, std::string_view pre
       if (!next(options.host)) return false;
     } else if (arg == "--port") {
       if (!next(text)) return false;
-      if (!parse_number<std::uint16_t>(text, 1, 65535, options.port)) {
+      const auto port = parse_int(text, 1, 65535);
+      if (!port) {
         err << prefix << ": --port must be from 1 to 65535, got '" << text << "'\n";
         return false;
       }
+      options.port = static_cast<std::uint16_t>(*port);
     } else if (arg == "--timeout") {
-      int ms = 0;
       if (!next(text)) return false;
-      if (!parse_number(text, 1, 600000, ms)) {
+      const auto ms = parse_int(text, 1, 600000);
+      if (!ms) {
         err << prefix << ": --timeout must be milliseconds from 1 to 600000, got '" << text << "'\n";
         return false;
       }
-      options.timeout = std::chrono::milliseconds(ms);
+      options.timeout = std::chrono::milliseconds(*ms);
     } else if (arg == "--token") {
       if (!next(options.token)) return false;
     } else if (arg == "--token-file") {

@@ -8,6 +8,7 @@
 #include <cstdint>
 #include <functional>
 #include <iosfwd>
+#include <optional>
 #include <span>
 #include <string>
 #include <string_view>
@@ -26,6 +27,9 @@ struct RobotOptions {
 // Called for an option the common parser does not know: `next` yields its value (false after writing the error).
 // Returns false when the option is unknown to the subcommand too.
 using ExtraOption = std::function<bool(const std::string& option, const std::function<bool(std::string&)>& next)>;
+
+// `text` as a whole integer in [low, high] (option values: ports, milliseconds); nullopt otherwise.
+std::optional<int> parse_int(std::string_view text, int low, int high);
 
 // The token in `path` without its line end; "" when the file cannot be read or is empty.
 std::string read_token_file(const std::string& path);
