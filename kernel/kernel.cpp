@@ -9,6 +9,7 @@
 #include "kernel/api/api.hpp"
 #include "kernel/api/capability_routes.hpp"
 #include "kernel/api/kernel_routes.hpp"
+#include "kernel/api/request_dispatch.hpp"
 #include "kernel/audit/audit_log.hpp"
 #include "kernel/auth/authenticator.hpp"
 #include "kernel/plugins/plugin_runtime.hpp"
@@ -102,6 +103,7 @@ struct Kernel::State {
   std::vector<std::unique_ptr<swarm::SwarmRegistry>> retired_swarms;  // reloaded ones; never freed while serving
   std::atomic<const swarm::SwarmRegistry*> swarm_now{&swarm};
   std::unique_ptr<Api> api;
+  std::unique_ptr<KernelRequestDispatcher> dispatcher;  // offered to plugins: requests on a caller's behalf
   std::unique_ptr<ServiceHost> service_host;
   // Optional services: declared before the plugin runtime, so what they lend plugins (R2R links) outlives them.
   std::vector<std::unique_ptr<Service>> optional_services;
@@ -254,6 +256,9 @@ Kernel::Kernel(RobotConfig config, KernelOptions options) : state_(std::make_uni
   s.load_plugins(options);
   s.runtime = std::make_unique<PluginRuntime>(s.host, s.services, s.actuators);
   s.api = std::make_unique<Api>(cfg.runtime, *s.auth, s.audit, s.estop, s.clock);
+  s.dispatcher = std::make_unique<KernelRequestDispatcher>(*s.api);
+  s.services.directory.offer_service(sdk::RequestDispatcher::kServiceId,
+                                     static_cast<const sdk::RequestDispatcher*>(s.dispatcher.get()), nullptr, "rcand", nullptr);
   s.load_swarm();
   s.create_services(options);  // before the plugins: R2R offers them links
   s.start_plugins();
@@ -335,8 +340,14 @@ std::uint16_t Kernel::start() {
   options.priority = [](const http::Request& request) {
     return (request.method == "POST" && request.path == "/api/stop") || (request.method == "GET" && request.path == "/api/estop");
   };
-  for (auto& service : s.optional_services)  // WS /ws/r2r on the robot's own port
-    if (auto upgrade = service->upgrade()) options.upgrade = std::move(upgrade);
+  std::vector<http::UpgradeHandler> upgrades;  // WS /ws/r2r, /ws/telemetry on the robot's own port
+  for (auto& service : s.optional_services)
+    if (auto upgrade = service->upgrade()) upgrades.push_back(std::move(upgrade));
+  options.upgrade = [upgrades = std::move(upgrades)](const http::Request& request) {
+    for (const auto& upgrade : upgrades)  // each hook answers only for its own path: the first that does wins
+      if (auto verdict = upgrade(request); verdict.take || verdict.refuse) return verdict;
+    return http::UpgradeVerdict{};
+  };
   s.server = std::make_unique<http::Server>(options, [api = s.api.get()](http::Request&& request, http::Respond respond) {
     api->handle(std::move(request), std::move(respond));
   });

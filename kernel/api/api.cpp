@@ -72,10 +72,14 @@ void Api::execute_action(const Principal& principal, json body, std::function<vo
   request.body = body.dump(-1, ' ', false, json::error_handler_t::replace);
   request.remote = "r2r";
   request.headers["x-message-id"] = "r2r-" + std::to_string(clock_.wall_ms()) + "-" + std::to_string(++message_counter_);
-  serve(std::move(request), &principal, [done = std::move(done)](http::Response response) {
+  execute(principal, std::move(request), [done = std::move(done)](http::Response response) {
     json answer = json::parse(response.body, nullptr, false);
     done(response.status, answer.is_discarded() ? json::object() : std::move(answer));
   });
+}
+
+void Api::execute(const Principal& principal, http::Request request, http::Respond respond) {
+  serve(std::move(request), &principal, std::move(respond));
 }
 
 bool Api::admit_address(const http::Request& request, const Reply& reply) {

@@ -36,6 +36,9 @@ class Api {
   // node already authenticated: the same scope checks, 423 e-stop pre-check, audit entry and capability dispatch.
   // `done` is called once, from any thread, with the status and JSON body the request would have got. Never blocks.
   void execute_action(const Principal& principal, nlohmann::json body, std::function<void(int status, nlohmann::json body)> done);
+  // Any request from `principal`, already authenticated by the caller (an R2R node, a plugin's RequestDispatcher):
+  // everything after authentication runs as for HTTP. An invalid or missing x-message-id header gets one made.
+  void execute(const Principal& principal, http::Request request, http::Respond respond);
 
  private:
   void serve(http::Request&& request, const Principal* authenticated, http::Respond respond);

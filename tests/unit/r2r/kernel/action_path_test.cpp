@@ -5,9 +5,11 @@
 #include <chrono>
 #include <condition_variable>
 #include <mutex>
+#include <set>
 #include <thread>
 
 #include "kernel/api/api.hpp"
+#include "kernel/api/request_dispatch.hpp"
 #include "kernel/kernel.hpp"
 #include "libs/rcan/crypto.hpp"
 #include "libs/rcan/role_scopes.hpp"
@@ -39,7 +41,7 @@ runtime:
   auth:
     tokens:
       - {principal: owner, role: owner, sha256: )" +
-                         sha256_hex(kOwnerToken) + "}\n";
+                           sha256_hex(kOwnerToken) + "}\n";
   return parse_robot_config(yaml, "bob.rcan.yaml", "/").config;
 }
 
@@ -188,4 +190,60 @@ TEST_CASE("an R2R command to an e-stopped robot is answered 105 by the node, thr
   CHECK(drive_commands(api) == stopped_at);
   bob->stop();
   alex->stop();
+}
+
+// The dispatcher plugins find as sdk::RequestDispatcher (the chat capability's way to act): the caller's request runs
+// the kernel's own path, so the caller's role is checked, the e-stop pre-check applies and the audit names the caller
+// under the message id the plugin chose.
+TEST_CASE("KernelRequestDispatcher: a plugin's request on a caller's behalf runs as that caller's HTTP request") {
+  Kernel kernel(sim_rover());
+  Api& api = kernel.api();
+  const KernelRequestDispatcher dispatcher(api);
+  auto dispatch = [&](rcand::sdk::Request request) {
+    std::mutex mutex;
+    std::condition_variable cv;
+    std::optional<rcand::sdk::Response> answer;
+    dispatcher.dispatch(std::move(request), [&](rcand::sdk::Response response) {
+      std::lock_guard lock(mutex);
+      answer = std::move(response);
+      cv.notify_all();
+    });
+    std::unique_lock lock(mutex);
+    REQUIRE(cv.wait_for(lock, std::chrono::seconds(10), [&] { return answer.has_value(); }));
+    return *answer;
+  };
+  auto request = [](std::string method, std::string path, json body, Role role, std::string id) {
+    rcand::sdk::Request r;
+    r.method = std::move(method);
+    r.path = std::move(path);
+    r.body = std::move(body);
+    r.principal = "chat-user";
+    r.role = role;
+    r.message_id = std::move(id);
+    return r;
+  };
+
+  const int before = drive_commands(api);
+  CHECK(dispatch(request("POST", "/api/action", kMove, Role::User, "thought-1")).status == 200);
+  CHECK(drive_commands(api) > before);
+  const auto refused = dispatch(request("POST", "/api/action", kMove, Role::Guest, "thought-2"));
+  CHECK(refused.status == 403);
+  CHECK(refused.body["required_scope"] == "control");
+  CHECK(dispatch(request("GET", "/api/nowhere", nullptr, Role::User, "")).status == 404);
+  const auto status = dispatch(request("GET", "/api/status", nullptr, Role::Guest, ""));
+  CHECK(status.status == 200);
+  CHECK(status.body.contains("capabilities"));
+
+  CHECK(dispatch(request("POST", "/api/stop", json::object(), Role::Guest, "thought-3")).status == 200);
+  const int stopped_at = drive_commands(api);
+  const auto blocked = dispatch(request("POST", "/api/action", kMove, Role::User, "thought-4"));
+  CHECK(blocked.status == 423);
+  CHECK(drive_commands(api) == stopped_at);
+
+  const json audit = json::parse(call(api, "GET", "/api/audit").body)["entries"];
+  std::set<std::string> ids;
+  for (const auto& entry : audit)
+    if (entry["principal"] == "chat-user") ids.insert(entry.value("message_id", ""));
+  CHECK(ids.count("thought-1") == 1);
+  CHECK(ids.count("thought-4") == 1);
 }

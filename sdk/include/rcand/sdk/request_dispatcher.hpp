@@ -1,0 +1,31 @@
+// Requests on behalf of a caller (a service, rcand/sdk/services.hpp; offered by rcand itself). A plugin that turns
+// something else into robot commands - the chat capability turning an instruction into an action - hands the command
+// to rcand as the HTTP request it stands for, from the principal who asked. It then runs exactly as that HTTP request
+// would: the same route table, the scope check for that principal's role, the audit entry, the 423 e-stop pre-check,
+// and the capability's handler. A plugin therefore never reaches another plugin's driver, and has no way around the
+// motion gate that an HTTP client would not also have.
+//
+// Not for a capability's own routes from its own handler: its requests run one at a time on its worker, so a handler
+// waiting for a request to itself would wait for its own turn.
+#pragma once
+
+#include <functional>
+#include <string_view>
+
+#include "rcand/sdk/export.hpp"
+#include "rcand/sdk/http.hpp"
+
+namespace rcand::sdk {
+
+class RCAND_INTERFACE RequestDispatcher {
+ public:
+  static constexpr std::string_view kServiceId = "rcand.request_dispatcher/1";
+  virtual ~RequestDispatcher() = default;
+  // Runs `request` as an HTTP request from `request.principal` with the default scopes of `request.role`: method,
+  // path, query and body are used; `message_id` (empty: one is made) names it in the audit log. `done` is called
+  // exactly once, from any thread (possibly before dispatch returns), with the answer the HTTP client would have got.
+  // Any thread, never blocks.
+  virtual void dispatch(Request request, std::function<void(Response)> done) const noexcept = 0;
+};
+
+}  // namespace rcand::sdk
