@@ -218,8 +218,12 @@ void MqttTransport::start(Deliver deliver) {
 bool MqttTransport::send(const std::string& bytes, const std::optional<std::string>& target_id) {
   State& s = *state_;
   if (!s.running || s.client == nullptr) return false;
-  if (target_id && (target_id->empty() || target_id->find_first_of("+#/") != std::string::npos)) return false;
+  // Any id that is a legal topic suffix gets its messages on r2r/<id>: a RURI id ("rcan://host/acme/arm/u1") spans
+  // topic levels, which MQTT allows; wildcards and NUL never reach the broker.
+  if (target_id && (target_id->empty() || target_id->find_first_of(std::string_view("+#\0", 3)) != std::string::npos))
+    return false;
   const std::string topic = target_id ? s.options.topic_prefix + "/" + *target_id : s.broadcast_topic;
+  if (mosquitto_pub_topic_check(topic.c_str()) != MOSQ_ERR_SUCCESS) return false;
   const int qos = peek_message(bytes).type == "status" ? 0 : 1;
   const int rc = mosquitto_publish(s.client, nullptr, topic.c_str(), static_cast<int>(bytes.size()), bytes.data(), qos, false);
   // QoS 1 while disconnected is queued by libmosquitto and sent after the reconnect.

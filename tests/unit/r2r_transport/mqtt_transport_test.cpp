@@ -67,9 +67,30 @@ TEST_CASE("targeted messages reach r2r/<name> only; broadcasts reach everyone") 
   // robot-c never saw the command for robot-b (it arrived at robot-b before the later status reached robot-c).
   CHECK_FALSE(at_c.wait_until([](const InboundMessage& m) { return m.bytes == wire_message("command"); }, 0ms));
 
-  // Names cannot smuggle topic wildcards or levels.
+  // Names cannot smuggle topic wildcards or a NUL.
   CHECK_FALSE(a.send(wire_message("command"), std::string("robot-#")));
-  CHECK_FALSE(a.send(wire_message("command"), std::string("x/y")));
+  CHECK_FALSE(a.send(wire_message("command"), std::string("robot-+")));
+  CHECK_FALSE(a.send(wire_message("command"), std::string("robot\0b", 7)));
+  CHECK_FALSE(a.send(wire_message("command"), std::string()));
+}
+
+TEST_CASE("a peer whose id is a RURI gets its messages on r2r/<RURI> (topic levels are legal in an id)") {
+  rcand::test::MosquittoBroker broker;
+  const std::string ruri = "rcan://arm.local/acme/arm/4b1d";
+  MqttTransport a(options_for("robot-a", broker.port())), peer(options_for(ruri, broker.port()));
+  rcand::test::Inbox at_a, at_peer;
+  a.start(at_a.deliver());
+  peer.start(at_peer.deliver());
+  REQUIRE(eventually([&] { return a.connected() && peer.connected(); }));
+  // Subscriptions are acknowledged asynchronously: resend until the first one lands.
+  REQUIRE(eventually([&] {
+    REQUIRE(a.send(wire_message("command"), ruri));
+    return at_peer.size() > 0;
+  }));
+  const auto got = at_peer.wait_until([](const InboundMessage& m) { return m.bytes == wire_message("command"); }, 0ms);
+  REQUIRE(got);
+  CHECK(got->peer == "r2r/" + ruri);
+  CHECK(at_a.size() == 0);  // r2r/rcan:/... is not a's topic
 }
 
 TEST_CASE("a password-protected broker: right password connects, wrong one never does") {
