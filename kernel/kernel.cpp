@@ -278,7 +278,7 @@ Kernel::Kernel(RobotConfig config, KernelOptions options) : state_(std::make_uni
 
 Kernel::~Kernel() { shutdown(); }
 
-std::vector<std::string> Kernel::check(RobotConfig config, const KernelOptions& options) {
+Kernel::CheckReport Kernel::check(RobotConfig config, const KernelOptions& options) {
   State s;
   s.config = std::move(config);
   s.services.ruri = robot_ruri(s.config.ruri, s.config.manufacturer, s.config.model, s.config.robot_uuid);
@@ -288,7 +288,15 @@ std::vector<std::string> Kernel::check(RobotConfig config, const KernelOptions& 
   PluginRuntime runtime(s.host, s.services, s.actuators);
   auto problems = runtime.check(s.config, s.registry->names());
   if (!problems.empty()) throw ConfigError(std::move(problems));
-  return s.registry->names();
+  CheckReport report{s.registry->names(), {}};
+  for (const auto& driver : s.config.drivers)
+    for (const auto& record : s.host.records())
+      for (const auto& item : record->manifest ? record->manifest->provides : std::vector<ProvidedItem>{})
+        if (item.kind == "driver" && item.name == driver.protocol && item.actuates)
+          report.fail_safes.push_back(
+              driver.id + " (" + driver.protocol +
+              "): " + (item.fail_safe.empty() ? "WARNING: " + record->id + " states no hardware fail-safe" : item.fail_safe));
+  return report;
 }
 
 // runtime.state_dir (one rcand per state dir): the e-stop starts latched when the last run ended without a clean

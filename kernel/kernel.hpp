@@ -50,8 +50,13 @@ class Kernel {
 
   // rcand --check-config: loads the plugins the config needs and checks every driver, capability and setting against
   // them (PluginRuntime::check) without starting anything: no plugin instance, no device opened, no file written, no
-  // socket. Returns the capability names; throws ConfigError with every problem found, or StartupError.
-  static std::vector<std::string> check(RobotConfig config, const KernelOptions& options);
+  // socket. Returns the capability names and, per actuating driver, the hardware fail-safe its manifest states (or a
+  // warning that it states none); throws ConfigError with every problem found, or StartupError.
+  struct CheckReport {
+    std::vector<std::string> capabilities;
+    std::vector<std::string> fail_safes;  // "drive0 (sim_diff_drive): <fail-safe>"
+  };
+  static CheckReport check(RobotConfig config, const KernelOptions& options);
 
   // Binds and serves; returns the bound port.
   std::uint16_t start();

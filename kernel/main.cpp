@@ -236,10 +236,11 @@ int main(int argc, char** argv) {
       if (!problems.empty()) return 1;
     }
     // Everything short of serving, and nothing it would touch: plugins checked against the config, none started.
-    const auto names = Kernel::check(std::move(loaded.config), kernel_options(options));
+    const auto report = Kernel::check(std::move(loaded.config), kernel_options(options));
     std::cout << options.config << ": OK (capabilities: ";
-    for (std::size_t i = 0; i < names.size(); ++i) std::cout << (i ? ", " : "") << names[i];
+    for (std::size_t i = 0; i < report.capabilities.size(); ++i) std::cout << (i ? ", " : "") << report.capabilities[i];
     std::cout << ")\n";
+    for (const auto& line : report.fail_safes) std::cout << "  fail-safe of " << line << "\n";
     return 0;
   } catch (const ConfigError& e) {
     for (const auto& diagnostic : e.diagnostics()) std::cerr << diagnostic.format() << "\n";

@@ -12,6 +12,9 @@ packages=(
   libmosquitto-dev mosquitto mosquitto-clients  # R2R over MQTT; a real broker in the R2R tests
   libopencv-core-dev libopencv-imgproc-dev libopencv-imgcodecs-dev libopencv-videoio-dev  # the vision plugin
   curl                                      # README examples
+  libgpiod-dev                              # the gpio H-bridge plugin (libgpiod 1.6 C API)
+  chromium                                  # the dashboard test: headless Chromium driven by playwright-core
+  prometheus                                # promtool: GET /metrics checked with `promtool check metrics`
   systemd                                   # systemd-analyze: the packaged unit's verify and security checks
 )
 # --checks: also what the test suite's code checks need (tests/check_kernel_shape.py, tests/check_style.sh).
@@ -20,6 +23,9 @@ if [ "${1:-}" = "--checks" ]; then
 fi
 missing=()
 for p in "${packages[@]}"; do dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "ok installed" || missing+=("$p"); done
+# Node.js and npm (they run playwright-core for the dashboard test): Debian's, unless a Node.js is already there (a
+# NodeSource nodejs bundles npm and conflicts with Debian's npm package).
+command -v npm > /dev/null || missing+=(nodejs npm)
 [ ${#missing[@]} -eq 0 ] && exit 0
 sudo=""; [ "$(id -u)" -eq 0 ] || sudo="sudo"
 export DEBIAN_FRONTEND=noninteractive

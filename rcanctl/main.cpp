@@ -14,6 +14,7 @@
 #include "robot_commands.hpp"
 #include "swarm_command.hpp"
 #include "token_command.hpp"
+#include "watch_command.hpp"
 
 namespace {
 
@@ -39,6 +40,7 @@ constexpr Subcommand kSubcommands[] = {
      rcand::rcanctl::run_discover},
     {"r2r", "robot-to-robot: send one message and print the answers, watch traffic, run an auction (r2r --help)",
      rcand::rcanctl::run_r2r},
+    {"watch", "live telemetry (WS /ws/telemetry): a refreshing table, or JSON lines with --json", rcand::rcanctl::run_watch},
 };
 
 void print_usage(std::ostream& out) {

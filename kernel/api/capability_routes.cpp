@@ -86,12 +86,22 @@ class CapabilityRoutes {
   void serve_stream(const std::string& name, const sdk::StreamRoute& route, Call& call, const Reply& reply) const {
     CapabilityInstance* instance = available(name, call, reply);
     if (instance == nullptr) return;
-    auto request = make_request(call, json());
+    JsonBody body = parse_json_body(call.request.body);
+    if (!body.error.empty())
+      return refuse(call, reply, error_response(400, "BAD_REQUEST", body.error, {{"field", "body"}}), "blocked", "bad body");
+    auto request = make_request(call, std::move(body.value));
     auto pending = std::make_shared<Pending>();
     Finish finish = arm(*instance, call, reply, pending);
     auto writer = http::make_stream_writer([finish, timers = &d_.timers, pending](http::Response response) {
       const int status = response.status;
-      if (!finish(std::move(response), status < 300 ? "ok" : "error", status < 300 ? "" : std::to_string(status))) return false;
+      std::string detail;  // as for JSON routes: the error body's code, else the status
+      if (status >= 300) {
+        const json error = response.content_type == "application/json" ? json::parse(response.body, nullptr, false) : json();
+        detail = error.is_object() && error.contains("code") && error["code"].is_string() ? error["code"].get<std::string>()
+                                                                                          : std::to_string(status);
+      }
+      const char* outcome = status < 300 ? "ok" : status == 423 ? "blocked" : "error";
+      if (!finish(std::move(response), outcome, detail)) return false;
       timers->cancel(pending->timer);
       return true;
     });
@@ -266,7 +276,8 @@ void add_capability_routes(Router& router, const CapabilityRouteDeps& deps) {
   // Fallbacks: reads need status, anything else control; the capability decides the rest once it is known.
   auto fallback = [&](const std::string& mount, std::string name) {
     for (auto [method, scope] : {std::pair{"GET", Scope::Status}, std::pair{"*", Scope::Control}}) {
-      if (router.match(method, mount).route != nullptr && !mount.ends_with('*')) continue;  // the capability serves it
+      const Route* served = router.match(method, mount).route;  // a prefix mount is served only by that very row
+      if (served != nullptr && (!mount.ends_with('*') || (served->spec.path == mount && served->spec.method == method))) continue;
       router.add({method, mount, scope, scope == Scope::Control},
                  [routes, name](Call& call, Reply reply) { routes->unrouted(name, call, reply); });
     }

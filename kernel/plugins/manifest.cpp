@@ -79,6 +79,7 @@ ProvidedItem parse_provided(const Fields& f, const json& entry, const std::strin
   } else if (item.kind == "driver" && item.actuates) {
     f.fail(field + ".interface", "required for an actuating driver (for example \"differential_drive\")");
   }
+  if (const auto it = entry.find("fail_safe"); it != entry.end()) item.fail_safe = f.string(*it, field + ".fail_safe");
   return item;
 }
 

@@ -16,7 +16,11 @@ struct ProvidedItem {
   std::string name;  // capability name, or driver protocol
   bool actuates = false;
   std::string interface;  // actuating drivers only: the ActuatorDriver interface they implement
-  bool operator==(const ProvidedItem&) const = default;
+  std::string fail_safe;  // drivers: what the hardware does by itself when rcand stops or dies ("fail_safe")
+  // What a plugin registers must equal its manifest; the fail-safe statement is the manifest's alone.
+  bool operator==(const ProvidedItem& o) const {
+    return kind == o.kind && name == o.name && actuates == o.actuates && interface == o.interface;
+  }
 };
 
 // A capability the plugin declares by itself when a config key is true (a "provides" entry's "declared_when"): the

@@ -37,15 +37,17 @@ void add_unique(std::vector<std::string>& names, std::string name) {
   if (std::find(names.begin(), names.end(), name) == names.end()) names.push_back(std::move(name));
 }
 
-// §9.3, plus: any driver implementing differential_drive implies teleop (and nav when physics allows).
+// §9.3 (with the names other runtimes write for the same hardware), plus: any driver implementing differential_drive
+// implies teleop (and nav when physics allows), any implementing joint_arm implies arm.
 std::vector<std::string> auto_detect(const RobotConfig& config, const ProviderLookup& lookup, std::vector<std::string>& notes) {
   std::vector<std::string> found{"status"};
   bool drive = false, arm = false;
   for (const auto& driver : config.drivers) {
-    const bool table_drive = driver.protocol == "pca9685" || driver.protocol == "dynamixel";
-    const auto interface = lookup.driver_interface ? lookup.driver_interface(driver.protocol) : std::nullopt;
-    if (table_drive || interface == "differential_drive") drive = true;
-    if (driver.protocol == "dynamixel" && config.has_kinematics) arm = true;
+    const std::string& p = driver.protocol;
+    const bool dynamixel = p == "dynamixel" || p == "dynamixel_v2";
+    const auto interface = lookup.driver_interface ? lookup.driver_interface(p) : std::nullopt;
+    if (dynamixel || p == "pca9685" || p == "pca9685_i2c" || interface == "differential_drive") drive = true;
+    if ((dynamixel && config.has_kinematics) || interface == "joint_arm") arm = true;
   }
   if (drive) {
     if (has_nav_physics(config)) add_unique(found, std::string(kNavCapability));

@@ -22,17 +22,6 @@ std::int64_t read_max_job_us(const sdk::PluginContext& ctx) {
   return ms * 1000;
 }
 
-// docs/protocol.md §8: agent.min_obstacle_m (spec), safety.obstacle_stop_cm accepted as an alias; none: no obstacle stop.
-std::optional<double> read_min_obstacle_cm(const sdk::PluginContext& ctx) {
-  std::optional<double> cm;
-  std::string key = "agent.min_obstacle_m";
-  if (auto m = ctx.robot_config().get<double>(key)) cm = *m * 100.0;
-  else if (auto alias = ctx.robot_config().get<double>(key = "safety.obstacle_stop_cm")) cm = *alias;
-  if (cm && (!std::isfinite(*cm) || *cm < 0.0))
-    throw sdk::ConfigError(key + ": expected a number >= 0, found " + std::to_string(*cm));
-  return cm;
-}
-
 Json or_null(const std::optional<std::string>& value) { return value ? Json(*value) : Json(nullptr); }
 
 }  // namespace
@@ -43,7 +32,7 @@ Nav::Nav(sdk::PluginContext& ctx, Sleeper sleeper)
       physics_(Physics::from(ctx.robot_config())),
       configured_driver_(ctx.config().get<std::string>("driver")),
       max_job_us_(read_max_job_us(ctx)),
-      min_obstacle_cm_(read_min_obstacle_cm(ctx)),
+      obstacles_(ctx),
       sleeper_(std::move(sleeper)) {
   if (!sleeper_) {
     sleeper_ = [this](std::chrono::microseconds slice, const std::function<bool()>& woken) {
@@ -51,7 +40,7 @@ Nav::Nav(sdk::PluginContext& ctx, Sleeper sleeper)
       wake_cv_.wait_for(lock, slice, woken);
     };
   }
-  if (sdk::find<sdk::ObstacleSource>(ctx_) != nullptr && !min_obstacle_cm_)
+  if (sdk::find<sdk::ObstacleSource>(ctx_) != nullptr && !obstacles_.min_cm())
     ctx_.log().warn("an obstacle source is present but neither agent.min_obstacle_m nor safety.obstacle_stop_cm is set: "
                     "nav will not stop for obstacles");
 }
@@ -103,8 +92,15 @@ Response Nav::waypoint(const sdk::Request& request) {
   if (ctx_.estop().latched()) return sdk::gate_refusal(sdk::GateStatus::EstopActive, *driver);
   const auto health = ctx_.motion().inspect(*driver, [](const sdk::ActuatorDriver&) {});
   if (health != sdk::GateStatus::Ok) return sdk::gate_refusal(health, *driver);
-  if (auto why = obstacle_stop())
-    return Response::error(423, "ESTOP_ACTIVE", "nav: " + *why + "; the e-stop is latched", {{"reason", "obstacle"}});
+  if (auto stop = obstacle_stop(false)) {
+    if (stop->kind == obstacle::Verdict::Kind::Obstacle)
+      return Response::error(423, "ESTOP_ACTIVE", "nav: " + stop->why + "; the e-stop is latched", {{"reason", "obstacle"}});
+    // Depth that cannot be read refuses the job but latches nothing: the robot stands still, which is safe, and
+    // the cause is usually passing (the depth camera warming up or reconnecting). 503, not 423: 423 says the
+    // e-stop is latched (docs/protocol.md §6.6), and it is not.
+    return Response::error(503, "UNAVAILABLE", "nav: " + stop->why + "; the job was not started",
+                           {{"reason", "depth_unavailable"}});
+  }
 
   const std::uint64_t estop_events = estop_events_.load();
   cancel_requested_ = false;
@@ -257,7 +253,8 @@ void Nav::run_job(std::uint64_t estop_events) noexcept {
       const std::int64_t length = turning ? plan.turn_us : plan.drive_us;
       const End end = wait_until(phase_start + length, estop_events);
       if (end == End::Obstacle) {
-        abort("obstacle", obstacle_reason_ + "; the e-stop is latched");
+        const bool blocked = obstacle_stopped_.kind == obstacle::Verdict::Kind::Obstacle;
+        abort(blocked ? "obstacle" : "depth_unavailable", obstacle_stopped_.why + "; the e-stop is latched");
         return;
       }
       if (end != End::Elapsed) {
@@ -296,7 +293,7 @@ void Nav::run_job(std::uint64_t estop_events) noexcept {
 
 Nav::End Nav::wait_until(std::int64_t deadline_us, std::uint64_t estop_events) {
   const auto period_us = std::chrono::duration_cast<std::chrono::microseconds>(kObstaclePeriod).count();
-  std::int64_t& last_check = last_obstacle_check_us_;  // carried across phases: checks stay <= 50 ms apart
+  std::int64_t& last_check = last_obstacle_check_us_;  // carried across phases: checks stay <= kObstaclePeriod apart
   auto woken = [this, estop_events] { return cancel_requested_ || shutting_down_ || interrupted(estop_events); };
   for (;;) {
     if (shutting_down_) return End::Shutdown;
@@ -305,8 +302,8 @@ Nav::End Nav::wait_until(std::int64_t deadline_us, std::uint64_t estop_events) {
     const std::int64_t now = ctx_.clock().now_us();
     if (now >= deadline_us) return End::Elapsed;
     if (now - last_check >= period_us) {
-      if (auto why = obstacle_stop()) {
-        obstacle_reason_ = *why;
+      if (auto stop = obstacle_stop(true)) {
+        obstacle_stopped_ = std::move(*stop);
         return End::Obstacle;
       }
     }
@@ -316,18 +313,13 @@ Nav::End Nav::wait_until(std::int64_t deadline_us, std::uint64_t estop_events) {
   }
 }
 
-std::optional<std::string> Nav::obstacle_stop() {
+std::optional<obstacle::Verdict> Nav::obstacle_stop(bool moving) {
   last_obstacle_check_us_ = ctx_.clock().now_us();
-  const sdk::ObstacleSource* source = sdk::find<sdk::ObstacleSource>(ctx_);
-  if (source == nullptr || !min_obstacle_cm_) return std::nullopt;
-  const sdk::ObstacleReading reading = source->obstacles();
-  if (!reading.available || !std::isfinite(reading.nearest_cm)) return std::nullopt;  // no data is not an obstacle
-  if (reading.nearest_cm >= *min_obstacle_cm_) return std::nullopt;
-  char text[160];
-  std::snprintf(text, sizeof text, "obstacle at %.1f cm, below the minimum %.1f cm", reading.nearest_cm, *min_obstacle_cm_);
-  ctx_.log().warn(text, ": requesting the e-stop");
-  ctx_.estop().request_estop(std::string("nav: ") + text);  // latches as POST /api/stop; the kernel audits it
-  return std::string(text);
+  obstacle::Verdict verdict = obstacles_.check(ctx_);
+  if (verdict.clear()) return std::nullopt;
+  if (moving || verdict.kind == obstacle::Verdict::Kind::Obstacle) obstacle::Guard::latch(ctx_, "nav", verdict, moving);
+  else ctx_.log().warn(verdict.why, ": the job is refused");
+  return verdict;
 }
 
 bool Nav::interrupted(std::uint64_t estop_events) const noexcept {

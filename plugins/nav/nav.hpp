@@ -18,6 +18,7 @@
 #include <string>
 #include <vector>
 
+#include "obstacle_guard.hpp"
 #include "pose.hpp"
 #include "waypoint_plan.hpp"
 
@@ -31,7 +32,7 @@ using Sleeper = std::function<void(std::chrono::microseconds slice, const std::f
 // busy while a job runs) and its TripTiming as the TripEstimator.
 class Nav final : public sdk::Capability, public sdk::PoseSource {
  public:
-  static constexpr std::chrono::milliseconds kObstaclePeriod{50};  // 20 Hz while a job runs (§10.5 asks >= 10 Hz)
+  static constexpr std::chrono::milliseconds kObstaclePeriod = obstacle::kCheckPeriod;  // 40 Hz while a job runs
   static constexpr std::chrono::milliseconds kCancelWait{1000};    // cancel waits this long for the job to end
   static constexpr std::chrono::milliseconds kPublishPeriod{100};  // the moving pose is published at most 10 Hz
 
@@ -70,10 +71,12 @@ class Nav final : public sdk::Capability, public sdk::PoseSource {
 
   // Runs on the "job" worker: waits out the phase the handler started, then the next, then stops.
   void run_job(std::uint64_t estop_events) noexcept;
-  // Waits until `deadline_us` on the plugin clock; returns early on cancel, e-stop, shutdown or an obstacle.
+  // Waits until `deadline_us` on the plugin clock; returns early on cancel, e-stop, shutdown, an obstacle or
+  // unavailable depth (both End::Obstacle, the verdict in obstacle_stopped_).
   End wait_until(std::int64_t deadline_us, std::uint64_t estop_events);
-  // The obstacle check (§10.5): latches the e-stop and returns the reason when nearest_cm is below the minimum.
-  std::optional<std::string> obstacle_stop();
+  // The obstacle check (§10.5, obstacle_guard.hpp): not clear while `moving` latches the e-stop; before the job
+  // only an obstacle does (unavailable depth then refuses the job without latching). Returns what was not clear.
+  std::optional<obstacle::Verdict> obstacle_stop(bool moving);
   // Sends a phase's wheel command unless the job was cancelled or stopped; OK, or why not.
   std::optional<Refusal> command(const std::string& driver, double left, double right, std::uint64_t estop_events);
   void wake() noexcept;
@@ -95,7 +98,7 @@ class Nav final : public sdk::Capability, public sdk::PoseSource {
   const TripTiming trips_{physics_};
   const std::optional<std::string> configured_driver_;
   const std::int64_t max_job_us_;
-  const std::optional<double> min_obstacle_cm_;
+  const obstacle::Guard obstacles_;
   Sleeper sleeper_;
 
   // Orders a phase's wheel command against cancel's halt, so a cancelled job can never start a new phase.
@@ -113,7 +116,7 @@ class Nav final : public sdk::Capability, public sdk::PoseSource {
   std::optional<Job> job_;  // the running job, or the last one
   Pose pose_;               // committed: every finished phase
   std::uint64_t job_counter_ = 0;
-  std::string obstacle_reason_;  // job worker only: why wait_until returned End::Obstacle
+  obstacle::Verdict obstacle_stopped_;  // job worker only: why wait_until returned End::Obstacle
   // The last obstacle check: set by the handler's check before the job, then by the job's waits (one job at a time,
   // and the handler hands over to the job worker through post(), so no two threads use it at once).
   std::int64_t last_obstacle_check_us_ = 0;

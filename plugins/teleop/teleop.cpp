@@ -87,7 +87,8 @@ Teleop::Teleop(sdk::PluginContext& ctx)
       worker_(ctx.worker("motion")),
       watchdog_ms_(read_watchdog_ms(ctx)),
       max_linear_(read_max_linear(ctx)),
-      configured_driver_(ctx.config().get<std::string>("driver")) {}
+      configured_driver_(ctx.config().get<std::string>("driver")),
+      obstacles_(ctx) {}
 
 std::vector<sdk::Route> Teleop::routes() {
   return {
@@ -118,12 +119,37 @@ Response Teleop::move(const sdk::Request& request) {
   const auto driver = resolve_driver();
   if (!driver) return no_driver();
 
+  // Forward only (see teleop.hpp). As nav: an obstacle latches the e-stop; depth that cannot be read latches when
+  // the robot is already moving (a refreshed dead-man), and otherwise refuses the move without latching (503: the
+  // robot stands still, and 423 would claim a latch that is not there).
+  const bool forward = linear > 0.0;
+  if (forward) {
+    const obstacle::Verdict verdict = obstacles_.check(ctx_);
+    if (!verdict.clear()) {
+      bool moving = false;
+      {
+        std::lock_guard state(state_mutex_);
+        moving = moving_;
+      }
+      if (verdict.kind == obstacle::Verdict::Kind::Obstacle || moving) {
+        obstacle::Guard::latch(ctx_, "teleop", verdict, moving);
+        const bool blocked = verdict.kind == obstacle::Verdict::Kind::Obstacle;
+        return Response::error(423, "ESTOP_ACTIVE", "teleop: " + verdict.why + "; the e-stop is latched",
+                               {{"reason", blocked ? "obstacle" : "depth_unavailable"}});
+      }
+      return Response::error(503, "UNAVAILABLE", "teleop: " + verdict.why + "; the move was not made",
+                             {{"reason", "depth_unavailable"}});
+    }
+  }
+
   std::lock_guard motion(motion_mutex_);
   const std::uint64_t generation = ++generation_;
   {
     std::lock_guard state(state_mutex_);
     if (timer_) worker_.cancel(*timer_);  // if this loses the race, the generation check stops the old timer
     timer_.reset();
+    if (watch_timer_) worker_.cancel(*watch_timer_);
+    watch_timer_.reset();
   }
   const sdk::GateStatus gate = ctx_.motion().actuate_as<sdk::DifferentialDrive>(
       *driver, [&](sdk::DifferentialDrive& drive) { drive.set_wheel_speeds(wheels.left, wheels.right); });
@@ -141,13 +167,18 @@ Response Teleop::move(const sdk::Request& request) {
   const int stop_after_ms = duration_ms.value_or(watchdog_ms_);
   const sdk::TimerId timer = worker_.schedule(std::chrono::milliseconds(stop_after_ms),
                                               [this, generation, id = *driver] { expire(generation, id); });
+  std::optional<sdk::TimerId> watch_timer;
+  if (forward && obstacles_.min_cm())
+    watch_timer = worker_.schedule(obstacle::kCheckPeriod, [this, generation] { watch(generation); });
   {
     std::lock_guard state(state_mutex_);
     if (generation_ == generation) {
       timer_ = timer;
+      watch_timer_ = watch_timer;
       moving_ = true;
-    } else {  // on_estop ran in between; the timer is stale anyway
+    } else {  // on_estop ran in between; the timers are stale anyway
       worker_.cancel(timer);
+      if (watch_timer) worker_.cancel(*watch_timer);
     }
     last_command_us_ = ctx_.clock().now_us();
     last_driver_ = *driver;
@@ -179,10 +210,41 @@ void Teleop::expire(std::uint64_t generation, const std::string& driver) noexcep
     std::lock_guard state(state_mutex_);
     if (generation_ == generation) {
       timer_.reset();
+      if (watch_timer_) worker_.cancel(*watch_timer_);
+      watch_timer_.reset();
       moving_ = false;
     }
   }
   publish();
+}
+
+// A forward move's obstacle check. It never takes motion_mutex_: the e-stop it may request halts the drivers, and
+// must not queue behind a move in progress.
+void Teleop::watch(std::uint64_t generation) noexcept {
+  {
+    std::lock_guard state(state_mutex_);
+    // A newer move, a stop or the e-stop owns the wheels now, or the move ended: a still robot is not checked.
+    if (generation_ != generation || !moving_) return;
+  }
+  obstacle::Verdict verdict;
+  bool clear = false;
+  try {
+    verdict = obstacles_.check(ctx_);
+    clear = verdict.clear();
+  } catch (...) {  // no memory for the verdict's words: cannot tell, so not clear
+  }
+  if (!clear) {
+    obstacle::Guard::latch(ctx_, "teleop", verdict, true);  // on_estop() disarms the move and this watch
+    return;
+  }
+  try {
+    const sdk::TimerId next = worker_.schedule(obstacle::kCheckPeriod, [this, generation] { watch(generation); });
+    std::lock_guard state(state_mutex_);
+    if (generation_ == generation) watch_timer_ = next;
+    else worker_.cancel(next);
+  } catch (...) {  // cannot keep watching a moving robot: stop it rather than drive on unchecked
+    ctx_.estop().request_estop("teleop: the obstacle check could not be rescheduled while moving");
+  }
 }
 
 void Teleop::disarm() noexcept {
@@ -191,6 +253,8 @@ void Teleop::disarm() noexcept {
     std::lock_guard state(state_mutex_);
     if (timer_) worker_.cancel(*timer_);
     timer_.reset();
+    if (watch_timer_) worker_.cancel(*watch_timer_);
+    watch_timer_.reset();
     moving_ = false;
   }
   publish();

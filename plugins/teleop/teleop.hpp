@@ -1,6 +1,11 @@
 // The teleop capability: POST /api/action "move" and "stop" drive a differential_drive actuator through the
 // kernel's motion gate. Motion without duration_ms is a dead-man command (§6.2): it stops unless refreshed
 // within watchdog_ms.
+//
+// Depth obstacles (issue 15; the rule is nav's, plugins/nav/obstacle_guard.hpp): a move with linear > 0 is checked
+// before it runs and every obstacle::kCheckPeriod (25 ms) while it runs. Only forward moves: the depth camera looks
+// forward, so it says nothing about the path of a reverse move, and backing away or turning in place (linear <= 0)
+// is how a robot stopped in front of an obstacle gets clear of it once an owner has released the e-stop.
 #pragma once
 
 #include <rcand/sdk/plugin.hpp>
@@ -11,6 +16,8 @@
 #include <optional>
 #include <string>
 #include <vector>
+
+#include "obstacle_guard.hpp"
 
 namespace rcand::plugins::teleop {
 
@@ -43,6 +50,8 @@ class Teleop final : public sdk::Capability {
   void disarm() noexcept;
   // Runs on the "motion" worker when a move's duration or dead-man window ends.
   void expire(std::uint64_t generation, const std::string& driver) noexcept;
+  // Runs on the "motion" worker every obstacle::kCheckPeriod while a forward move runs: anything but clear latches.
+  void watch(std::uint64_t generation) noexcept;
   // Hands the kernel status() as it is now (PluginContext::publish_status), after every change of moving_. Never
   // with state_mutex_ held.
   void publish() noexcept;
@@ -52,6 +61,7 @@ class Teleop final : public sdk::Capability {
   const int watchdog_ms_;
   const double max_linear_;
   const std::optional<std::string> configured_driver_;
+  const obstacle::Guard obstacles_;
 
   // Orders a move's actuate against a timer's halt, so a stop decided for an older generation can never land
   // after a newer command. on_estop() and stop never take it (they must not wait behind a command).
@@ -65,6 +75,7 @@ class Teleop final : public sdk::Capability {
 
   mutable std::mutex state_mutex_;  // the fields below; never held while calling into the gate
   std::optional<sdk::TimerId> timer_;
+  std::optional<sdk::TimerId> watch_timer_;  // the next obstacle check of a forward move
   bool moving_ = false;
   std::optional<std::int64_t> last_command_us_;
   std::string last_driver_;

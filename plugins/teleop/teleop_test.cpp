@@ -6,6 +6,7 @@
 
 #include <chrono>
 #include <fstream>
+#include <functional>
 #include <limits>
 
 #include "teleop.hpp"
@@ -361,4 +362,153 @@ TEST_CASE("teleop publishes its status after every change: move, the dead-man's 
   f.host.latch_estop("test");
   CHECK(f.host.published_statuses("teleop").size() == before + 1);
   CHECK(moving() == false);
+}
+
+// ---- depth obstacles (issue 15; the rule: plugins/nav/obstacle_guard.hpp) ----------------------------------------
+
+namespace {
+
+using rcand::sdk::ObstacleReading;
+
+// Answers what `script` says at the manual clock's time, and records when it was read.
+struct ObstacleScript final : rcand::sdk::ObstacleSource {
+  const rcand::sdk::Clock& clock;
+  std::function<ObstacleReading(std::int64_t now_us)> script;
+  mutable std::vector<std::int64_t> read_times;
+  ObstacleScript(const rcand::sdk::Clock& c, std::function<ObstacleReading(std::int64_t)> s) : clock(c), script(std::move(s)) {}
+  ObstacleReading obstacles() const noexcept override {
+    read_times.push_back(clock.now_us());
+    return script(clock.now_us());
+  }
+};
+
+ObstacleReading at_cm(double cm) { return {true, cm, cm, cm, cm, 1'700'000'000'000}; }
+// `far_cm` before `near_at_us` on the manual clock, `near_cm` from then on.
+std::function<ObstacleReading(std::int64_t)> appearing(double far_cm, double near_cm, std::int64_t near_at_us) {
+  return [=](std::int64_t now) { return at_cm(now >= near_at_us ? near_cm : far_cm); };
+}
+
+json min_30cm() { return {{"agent", {{"min_obstacle_m", 0.3}}}}; }
+
+std::string estop_reason(const FakeHost& host) {
+  for (const auto& line : host.log_lines())
+    if (const auto at = line.find("e-stop latched: "); at != std::string::npos) return line.substr(at + 16);
+  return {};
+}
+
+}  // namespace
+
+TEST_CASE("teleop: forward towards an obstacle below the minimum is 423 and latches; reversing and turning are not checked") {
+  for (const json& config : {min_30cm(), json{{"safety", {{"obstacle_stop_cm", 30}}}}}) {
+    CAPTURE(config.dump());
+    Fixture f(config);
+    ObstacleScript near(f.host.clock(), appearing(20, 20, 0));
+    f.host.set_obstacle_source(&near);
+    const auto r = f.post(move(0.3, 0.2));
+    CHECK(r.status == 423);
+    CHECK(r.body["code"] == "ESTOP_ACTIVE");
+    CHECK(r.body["reason"] == "obstacle");
+    CHECK(r.body["error"].get<std::string>().find("obstacle at 20.0 cm, below the minimum 30.0 cm") != std::string::npos);
+    CHECK(f.host.estopped());
+    CHECK(f.drive.commands().empty());
+    CHECK(estop_reason(f.host) ==
+          "teleop: obstacle at 20.0 cm, below the minimum 30.0 cm [depth available=true left_cm=20.0 center_cm=20.0 "
+          "right_cm=20.0 nearest_cm=20.0 timestamp_ms=1700000000000 min_cm=30.0]");
+
+    // Released by an owner with the obstacle still there: the way out is backwards or round, and those run unwatched.
+    f.host.clear_estop();
+    const std::size_t reads = near.read_times.size();
+    CHECK(f.post(move_for(-0.3, 0.0, 200)).status == 200);
+    CHECK(f.post(move_for(0.0, 0.5, 200)).status == 200);
+    f.host.advance(300ms);
+    CHECK_FALSE(f.host.estopped());
+    CHECK(near.read_times.size() == reads);
+    CHECK(f.drive.commands().size() == 2);
+  }
+}
+
+TEST_CASE("teleop: forward with depth unavailable is 503 standing still (nothing latched), 423 and a latch when already moving") {
+  Fixture f(min_30cm());
+  bool available = false;
+  ObstacleScript depth(f.host.clock(), [&](std::int64_t) { return available ? at_cm(200) : ObstacleReading{}; });
+  f.host.set_obstacle_source(&depth);
+  auto r = f.post(move(0.3, 0.0));
+  CHECK(r.status == 503);
+  CHECK(r.body["code"] == "UNAVAILABLE");
+  CHECK(r.body["reason"] == "depth_unavailable");
+  CHECK_FALSE(f.host.estopped());
+  CHECK(f.drive.commands().empty());
+
+  available = true;
+  REQUIRE(f.post(move(0.3, 0.0)).status == 200);
+  f.host.advance(20ms);
+  available = false;
+  r = f.post(move(0.3, 0.0));  // the dead-man refresh of a moving robot
+  CHECK(r.status == 423);
+  CHECK(r.body["reason"] == "depth_unavailable");
+  CHECK(f.host.estopped());
+  CHECK_FALSE(f.drive.moving());
+  CHECK(estop_reason(f.host).rfind("teleop: depth unavailable (no depth reading) while moving [depth available=false", 0) == 0);
+}
+
+TEST_CASE("teleop: camera.depth declared with no source refuses forward moves") {
+  Fixture f({{"agent", {{"min_obstacle_m", 0.3}}}, {"camera", {{"depth", "synthetic"}}}});
+  CHECK(f.post(move(0.3, 0.0)).status == 503);
+  CHECK(f.post(move(-0.3, 0.0)).status == 200);
+}
+
+TEST_CASE("teleop: an obstacle appearing during a held forward move latches within 25 ms; checks every 25 ms") {
+  Fixture f(min_30cm());
+  ObstacleScript source(f.host.clock(), appearing(150, 25, 230'000));
+  f.host.set_obstacle_source(&source);
+  REQUIRE(f.post(move(0.5, 0.0)).status == 200);  // the dead-man: 500 ms
+  f.host.advance(200ms);
+  REQUIRE(f.post(move(0.5, 0.0)).status == 200);  // refreshed at 200 ms: the checks go on
+  f.host.advance(100ms);
+  CHECK(f.host.estopped());
+  CHECK_FALSE(f.drive.moving());
+  const auto events = f.drive.events();
+  CHECK(events.back().halt);
+  CHECK(events.back().t_us >= 230'000);
+  CHECK(events.back().t_us <= 255'000);
+  for (std::size_t i = 1; i < source.read_times.size(); ++i) CHECK(source.read_times[i] - source.read_times[i - 1] <= 25'000);
+  CHECK(estop_reason(f.host).rfind("teleop: obstacle at 25.0 cm, below the minimum 30.0 cm while moving [depth "
+                                   "available=true left_cm=25.0",
+                                   0) == 0);
+  CHECK(f.host.pending_tasks() == 0);  // on_estop disarmed the dead-man and the watch
+}
+
+TEST_CASE("teleop: depth going unavailable during a held forward move latches") {
+  Fixture f(min_30cm());
+  ObstacleScript source(f.host.clock(), [](std::int64_t now) {
+    if (now < 120'000) return at_cm(150);
+    ObstacleReading stale = at_cm(150);
+    stale.available = false;  // vision still dates the last frame it had
+    stale.timestamp_ms = 1'700'000'000'100;
+    return stale;
+  });
+  f.host.set_obstacle_source(&source);
+  REQUIRE(f.post(move_for(0.4, 0.0, 1000)).status == 200);
+  f.host.advance(200ms);
+  CHECK(f.host.estopped());
+  CHECK(f.drive.events().back().t_us == 125'000);  // the first check after 120 ms
+  CHECK(estop_reason(f.host).rfind("teleop: depth unavailable (stale: the last depth frame is 25 ms old) while moving", 0) == 0);
+}
+
+TEST_CASE("teleop: the watch ends with the move; nothing is checked while the robot stands") {
+  Fixture f(min_30cm());
+  ObstacleScript source(f.host.clock(), appearing(150, 10, 400'000));
+  f.host.set_obstacle_source(&source);
+  REQUIRE(f.post(move_for(0.4, 0.0, 300)).status == 200);
+  f.host.advance(1s);  // the obstacle comes at 400 ms, after the move ended at 300 ms
+  CHECK_FALSE(f.host.estopped());
+  CHECK(f.host.pending_tasks() == 0);
+  CHECK(source.read_times.back() < 300'000);
+  // A stop ends the watch too (the obstacle went away again: the move may start).
+  ObstacleScript clear(f.host.clock(), appearing(150, 150, 0));
+  f.host.set_obstacle_source(&clear);
+  REQUIRE(f.post(move(0.4, 0.0)).status == 200);
+  CHECK(f.host.pending_tasks() == 2);  // the dead-man and the watch
+  CHECK(f.post({{"type", "stop"}}).status == 200);
+  CHECK(f.host.pending_tasks() == 0);
 }

@@ -25,8 +25,11 @@ struct Capture::Shared {
     std::lock_guard lock(mutex);
     return stopping;
   }
+  // Under the mutex and never once stopping: a thread left behind in a hanging open() or read() comes back after
+  // stop() returned, when `report` (which logs through the plugin's context) may point at freed memory.
   void tell(bool fault, const std::string& text) {
-    if (report) report(fault, text);
+    std::lock_guard lock(mutex);
+    if (report && !stopping) report(fault, text);
   }
 
   // Reads until the source fails (returns why) or stop() (returns empty).

@@ -8,7 +8,6 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
-#include <numbers>
 #include <vector>
 
 namespace rcand::plugins::vision {
@@ -66,23 +65,6 @@ Zones compute_zones(const cv::Mat& depth, const ZoneOptions& o, std::int64_t tim
   return z;
 }
 
-cv::Mat synthetic_depth(int width, int height, double seconds) {
-  cv::Mat depth(height, width, CV_16UC1, cv::Scalar(3500));
-  struct Swing {
-    double near_m, far_m, period_s;
-  };
-  // Left and right keep their distance; the centre one comes to 25 cm every 12 s.
-  static constexpr std::array<Swing, 3> kObjects{{{0.6, 3.0, 9.0}, {0.25, 3.0, 12.0}, {0.9, 3.2, 7.0}}};
-  for (int i = 0; i < 3; ++i) {
-    const auto& o = kObjects[static_cast<std::size_t>(i)];
-    const double phase = 0.5 + 0.5 * std::cos(2 * std::numbers::pi * seconds / o.period_s);  // 1 far .. 0 near
-    const double metres = o.near_m + (o.far_m - o.near_m) * phase;
-    const cv::Rect box(i * width / 3 + width / 12, height / 3, width / 6, height / 3);
-    depth(box).setTo(cv::Scalar(metres * 1000.0));
-  }
-  return depth;
-}
-
 sdk::SharedBytes depth_jpeg(const cv::Mat& depth, const ZoneOptions& o, int quality) {
   const double span = std::max(1, o.max_range_mm - o.min_range_mm);
   cv::Mat scaled, colour;
@@ -117,18 +99,22 @@ void DepthFeed::stop() noexcept {
 
 void DepthFeed::run() {
   using Clock = std::chrono::steady_clock;
-  const auto started = Clock::now();
   const auto period = std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(1.0 / settings_.fps));
-  auto due = started;
+  auto due = Clock::now();
   std::unique_lock lock(mutex_);
   while (!stopping_) {
     lock.unlock();
-    const double seconds = std::chrono::duration<double>(Clock::now() - started).count();
-    feed(synthetic_depth(settings_.width, settings_.height, seconds), depth_wall_ms());
+    refresh();
     lock.lock();
     due += period;
     wake_.wait_until(lock, due, [&] { return stopping_; });
   }
+}
+
+void DepthFeed::refresh() {
+  std::lock_guard order(refresh_mutex_);
+  const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - epoch_).count();
+  feed(scene_.render(settings_.width, settings_.height, seconds), depth_wall_ms());
 }
 
 void DepthFeed::feed(const cv::Mat& depth, std::int64_t timestamp_ms) {
@@ -155,8 +141,9 @@ Zones DepthFeed::zones() const {
 sdk::ObstacleReading DepthFeed::obstacles() const noexcept {
   try {
     const Zones z = zones();
-    if (!z.available) return {};
-    return {true, z.left_cm, z.center_cm, z.right_cm, z.nearest_cm, z.timestamp_ms};
+    // Dated only while it is a real reading or a stale one: a frame that gave no zones has no reading to date.
+    const bool dated = z.available || z.reason.rfind("stale", 0) == 0;
+    return {z.available, z.left_cm, z.center_cm, z.right_cm, z.nearest_cm, dated ? z.timestamp_ms : 0};
   } catch (...) {  // out of memory copying the reason: report no reading, which is not "clear"
     return {};
   }

@@ -7,8 +7,8 @@
 //    the robot while a 5 cm object at 30 cm (hundreds of pixels) does;
 //  - a row band (roi_top..roi_bottom, fractions of the height) leaves out the floor;
 //  - a reading older than max_age is unavailable.
-// DepthFeed runs one synthetic depth scene (objects approaching and receding) on its own thread, keeps the latest
-// zones, and is the robot's sdk::ObstacleSource.
+// DepthFeed runs the synthetic depth scene (synthetic_scene.hpp) on its own thread, keeps the latest zones, and is
+// the robot's sdk::ObstacleSource.
 #pragma once
 
 #include <rcand/sdk/obstacle_source.hpp>
@@ -23,6 +23,8 @@
 #include <mutex>
 #include <string>
 #include <thread>
+
+#include "synthetic_scene.hpp"
 
 namespace rcand::plugins::vision {
 
@@ -41,10 +43,6 @@ struct Zones {
 
 // The zones of one depth frame (CV_16UC1, millimetres).
 Zones compute_zones(const cv::Mat& depth_mm, const ZoneOptions& options, std::int64_t timestamp_ms);
-
-// The synthetic scene at `seconds`: a wall at 3.5 m, a floor rising towards the camera in the bottom rows, and one
-// object per third whose distance swings between near and far (each at its own period).
-cv::Mat synthetic_depth(int width, int height, double seconds);
 
 // A depth frame as a colour-mapped JPEG (near red, far blue, no reading black).
 sdk::SharedBytes depth_jpeg(const cv::Mat& depth_mm, const ZoneOptions& options, int quality);
@@ -68,18 +66,26 @@ class DepthFeed final : public sdk::ObstacleSource {
   void stop() noexcept;
   // The latest zones, unavailable (reason "stale") when older than max_age. Any thread, never blocks beyond a copy.
   Zones zones() const;
-  // sdk::ObstacleSource.
+  // sdk::ObstacleSource. Unavailable readings still carry the last frame's zones and timestamp_ms (0 before the
+  // first frame), so a reader can say how stale the depth is.
   sdk::ObstacleReading obstacles() const noexcept override;
   // The latest depth frame (null before the first), for GET /api/depth/frame.
   std::shared_ptr<const cv::Mat> latest() const;
   const DepthSettings& settings() const noexcept { return settings_; }
   // Feeds one frame as the thread would (tests drive the scene themselves).
   void feed(const cv::Mat& depth_mm, std::int64_t timestamp_ms);
+  // Renders the scene now and feeds it: what the thread does each period, and what a placement does at once.
+  // Serialized, so a frame rendered before a placement is never fed after one that shows it. Any thread.
+  void refresh();
+  SyntheticScene& scene() noexcept { return scene_; }
 
  private:
   void run();
 
   const DepthSettings settings_;
+  const std::chrono::steady_clock::time_point epoch_ = std::chrono::steady_clock::now();  // the scene's time 0
+  SyntheticScene scene_;
+  std::mutex refresh_mutex_;
   mutable std::mutex mutex_;
   std::condition_variable wake_;
   bool stopping_ = false;

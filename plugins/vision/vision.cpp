@@ -196,12 +196,13 @@ void Vision::mjpeg(const sdk::Request& request, const std::shared_ptr<sdk::Strea
 void Vision::snapshot(const sdk::Request&, const std::shared_ptr<sdk::StreamWriter>& writer) { hub_->add_snapshot(writer); }
 
 std::vector<sdk::Route> Vision::routes() {
-  sdk::Route route;
-  route.method = "GET";
-  route.path = "/api/depth/obstacles";
-  route.scope = sdk::Scope::Status;
-  route.handler = [this](const sdk::Request& request) { return obstacles(request); };
-  return {route};
+  std::vector<sdk::Route> routes{
+      {"GET", "/api/depth/obstacles", sdk::Scope::Status, false, "", [this](const sdk::Request& r) { return obstacles(r); }}};
+  // Only the synthetic scene can be told what to show; a real depth camera never gets this route.
+  if (depth_)
+    routes.push_back({"POST", "/api/depth/sim_obstacle", sdk::Scope::Control, false, "",
+                      [this](const sdk::Request& r) { return sim_obstacle(r); }});
+  return routes;
 }
 
 std::vector<sdk::StreamRoute> Vision::stream_routes() {
@@ -224,6 +225,36 @@ sdk::Response Vision::obstacles(const sdk::Request&) const {
                             {"right_cm", z.right_cm},
                             {"nearest_cm", z.nearest_cm},
                             {"timestamp_ms", z.timestamp_ms}});
+}
+
+// {"zone": "left" | "center" | "right", "distance_m": metres, or null to remove}. The object stays until removed. A
+// frame showing it is fed before the answer, so the answer's zones are what nav and teleop read from then on, and
+// fed_us (plugin clock, the one the sim drive's timeline uses) is when that frame was rendered: bench/ measures an
+// obstacle stop from it.
+sdk::Response Vision::sim_obstacle(const sdk::Request& request) {
+  const auto& body = request.body;
+  if (!body.is_object()) return sdk::Response::bad_request("body", "the body must be a JSON object");
+  const auto zone_it = body.find("zone");
+  const auto& zones = SyntheticScene::kZones;
+  const auto zone = zone_it != body.end() && zone_it->is_string()
+                        ? std::find(zones.begin(), zones.end(), zone_it->get<std::string>()) - zones.begin()
+                        : static_cast<std::ptrdiff_t>(zones.size());
+  if (zone == static_cast<std::ptrdiff_t>(zones.size()))
+    return sdk::Response::bad_request("zone", "zone must be \"left\", \"center\" or \"right\"");
+  const auto distance = body.find("distance_m");
+  const bool removing = distance != body.end() && distance->is_null();
+  if (!removing && (distance == body.end() || !distance->is_number() || !std::isfinite(distance->get<double>()) ||
+                    distance->get<double>() < 0.0 || distance->get<double>() > 20.0))
+    return sdk::Response::bad_request("distance_m", "distance_m must be a number of metres in [0, 20], or null to remove");
+  depth_->scene().place(static_cast<int>(zone), removing ? std::nullopt : std::optional<double>(distance->get<double>()));
+  const std::int64_t fed_us = ctx_.clock().now_us();
+  depth_->refresh();
+  ctx_.log().info("sim depth: ", zones[static_cast<std::size_t>(zone)],
+                  removing ? " object removed" : " object placed at " + std::to_string(distance->get<double>()) + " m");
+  sdk::Json placed = sdk::Json::object();
+  const auto now = depth_->scene().placed();
+  for (std::size_t i = 0; i < zones.size(); ++i) placed[std::string(zones[i])] = now[i] ? sdk::Json(*now[i]) : sdk::Json(nullptr);
+  return sdk::Response::ok({{"ok", true}, {"placed", placed}, {"fed_us", fed_us}, {"obstacles", obstacles(request).body}});
 }
 
 // The latest depth frame, colour-mapped, encoded here on the capability's worker (no request thread, no capture).

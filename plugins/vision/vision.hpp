@@ -3,8 +3,9 @@
 //   GET /api/stream/snapshot  one image/jpeg
 //   GET /api/depth/obstacles  the obstacle zones (docs/protocol.md §7.9), from the latest depth frame
 //   GET /api/depth/frame      the latest depth frame, colour-mapped, as one image/jpeg
+//   POST /api/depth/sim_obstacle  sim only (camera.depth: synthetic): places or removes an object in the scene
 // With `camera.depth: synthetic` a synthetic depth scene feeds the zones, and the capability offers them as the robot's
-// sdk::ObstacleSource (rcand/sdk/services.hpp), which nav finds. The stream and frame routes are stream routes
+// sdk::ObstacleSource (rcand/sdk/services.hpp), which nav and teleop find. The stream and frame routes are stream routes
 // (rcand/sdk/stream.hpp, SDK ABI 1.2): handlers only register the viewer and return; the camera's capture thread and the hub's
 // delivery thread do the rest. Request threads never touch the camera.
 #pragma once
@@ -62,6 +63,7 @@ class Vision final : public sdk::Capability {
   void mjpeg(const sdk::Request& request, const std::shared_ptr<sdk::StreamWriter>& writer);
   void snapshot(const sdk::Request& request, const std::shared_ptr<sdk::StreamWriter>& writer);
   sdk::Response obstacles(const sdk::Request& request) const;
+  sdk::Response sim_obstacle(const sdk::Request& request);
   void depth_frame(const sdk::Request& request, const std::shared_ptr<sdk::StreamWriter>& writer) const;
 
   sdk::PluginContext& ctx_;

@@ -12,6 +12,11 @@
 #include <opencv2/imgproc.hpp>
 #include <opencv2/videoio.hpp>
 
+#include <arpa/inet.h>
+#include <netinet/in.h>
+#include <sys/socket.h>
+#include <unistd.h>
+
 #include <atomic>
 #include <deque>
 #include <filesystem>
@@ -199,6 +204,17 @@ void write_avi(const std::filesystem::path& file, int frames) {
 }
 
 json scripted_camera() { return {{"type", "synthetic"}}; }  // replaced by the scripted source
+
+// For what only time brings (a reading going stale, the depth thread's first frame, a
+// camera's fault): polls every millisecond, bounded.
+template <class Pred> bool eventually(Pred done, std::chrono::milliseconds limit) {
+  const auto deadline = std::chrono::steady_clock::now() + limit;
+  while (!done()) {
+    if (std::chrono::steady_clock::now() > deadline) return false;
+    std::this_thread::sleep_for(1ms);
+  }
+  return true;
+}
 
 }  // namespace
 
@@ -411,6 +427,59 @@ TEST_CASE("vision: bad sources are named faults, never a silent test pattern") {
   }
 }
 
+namespace {
+
+// A camera that hangs: a TCP server on 127.0.0.1 whose connections complete (the kernel accepts them into the
+// backlog) and never see a byte, neither an HTTP status line nor an RTSP reply.
+struct SilentServer {
+  int fd = ::socket(AF_INET, SOCK_STREAM, 0);
+  int port = 0;
+  SilentServer() {
+    REQUIRE(fd >= 0);
+    sockaddr_in address{};
+    address.sin_family = AF_INET;
+    address.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+    REQUIRE(::bind(fd, reinterpret_cast<sockaddr*>(&address), sizeof address) == 0);
+    REQUIRE(::listen(fd, 16) == 0);
+    socklen_t length = sizeof address;
+    REQUIRE(::getsockname(fd, reinterpret_cast<sockaddr*>(&address), &length) == 0);
+    port = ntohs(address.sin_port);
+  }
+  ~SilentServer() { ::close(fd); }
+};
+
+}  // namespace
+
+TEST_CASE("vision: a URL camera that accepts and never answers hangs neither startup nor the stop path") {
+  using Clock = std::chrono::steady_clock;
+  for (const std::string scheme : {"http", "rtsp"}) {
+    // 500 ms: open() gives up and names the fault. 20 s: the capture thread is still inside open() at shutdown.
+    for (const int open_timeout_ms : {500, 20'000}) {
+      CAPTURE(scheme);
+      CAPTURE(open_timeout_ms);
+      SilentServer camera;
+      const std::string url = scheme + "://127.0.0.1:" + std::to_string(camera.port) + "/stream";
+      Clock::time_point stopping;
+      {
+        const auto starting = Clock::now();
+        Rig rig({{"type", scheme}, {"url", url}}, {{"open_timeout_ms", open_timeout_ms}, {"read_timeout_ms", 500}});
+        CHECK(Clock::now() - starting < 500ms);  // start() hands the camera to its thread and returns
+        {
+          auto viewer = rig.get("/api/stream/mjpeg");
+          REQUIRE(viewer->wait_until(signal_none, 3s));  // a live stream of NO SIGNAL frames meanwhile
+          CHECK(rig.camera_status()["state"] == "no_signal");
+          if (open_timeout_ms == 500) {
+            REQUIRE(eventually([&] { return rig.camera_status()["fault"].is_string(); }, 2s));
+            CHECK(rig.camera_status()["fault"] == "camera URL " + url + " did not open within 500 ms, or is not a video stream");
+          }
+        }
+        stopping = Clock::now();  // the rig shuts down next, with its capture thread in open() or between two tries
+      }
+      CHECK(Clock::now() - stopping < 2s);  // at most the capture thread's grace (1.5 s), then it is left behind
+    }
+  }
+}
+
 TEST_CASE("vision: config errors name the key") {
   auto error_of = [](json camera) {
     try {
@@ -463,16 +532,6 @@ using rcand::plugins::vision::DepthSettings;
 using rcand::plugins::vision::ZoneOptions;
 
 cv::Mat wall(std::uint16_t mm) { return cv::Mat(400, 640, CV_16UC1, cv::Scalar(mm)); }
-
-// For what only time brings (a reading going stale, the depth thread's first frame): polls every millisecond, bounded.
-template <class Pred> bool eventually(Pred done, std::chrono::milliseconds limit) {
-  const auto deadline = std::chrono::steady_clock::now() + limit;
-  while (!done()) {
-    if (std::chrono::steady_clock::now() > deadline) return false;
-    std::this_thread::sleep_for(1ms);
-  }
-  return true;
-}
 
 }  // namespace
 
@@ -530,15 +589,28 @@ TEST_CASE("depth zones fail safe: no reading and too near count as blocked; beyo
   SUBCASE("not a depth frame") { CHECK_FALSE(compute_zones(cv::Mat(10, 10, CV_8UC3), options, 0).available); }
 }
 
-TEST_CASE("depth: the synthetic scene's centre object approaches to 25 cm and recedes") {
+TEST_CASE("depth: the synthetic scene's objects approach and recede but never come nearer than 1 m; a placed one does") {
   const ZoneOptions options;
-  const auto far = compute_zones(rcand::plugins::vision::synthetic_depth(640, 400, 0.0), options, 0);
-  const auto near = compute_zones(rcand::plugins::vision::synthetic_depth(640, 400, 6.0), options, 0);
-  const auto back = compute_zones(rcand::plugins::vision::synthetic_depth(640, 400, 12.0), options, 0);
+  rcand::plugins::vision::SyntheticScene scene;
+  const auto far = compute_zones(scene.render(640, 400, 0.0), options, 0);
+  const auto near = compute_zones(scene.render(640, 400, 6.0), options, 0);
+  const auto back = compute_zones(scene.render(640, 400, 12.0), options, 0);
   CHECK(far.center_cm == 300);
-  CHECK(near.center_cm == 25);
+  CHECK(near.center_cm == 100);
   CHECK(back.center_cm == 300);
-  CHECK(near.left_cm > 60);
+  CHECK(near.left_cm > 100);
+  double nearest = 1e9;
+  for (double t = 0; t < 252; t += 0.25)
+    nearest = std::min(nearest, compute_zones(scene.render(160, 120, t), options, 0).nearest_cm);
+  CHECK(nearest == 100);  // the whole 252 s cycle of the three periods: 1 m at the nearest
+
+  scene.place(2, 0.25);
+  auto placed = compute_zones(scene.render(640, 400, 6.0), options, 0);
+  CHECK(placed.right_cm == 25);
+  CHECK(placed.center_cm == 100);
+  CHECK(placed.nearest_cm == 25);
+  scene.place(2, std::nullopt);
+  CHECK(compute_zones(scene.render(640, 400, 6.0), options, 0).right_cm > 100);
 }
 
 TEST_CASE("depth: a reading older than max_age is unavailable, for the route and for the ObstacleSource") {
@@ -546,6 +618,7 @@ TEST_CASE("depth: a reading older than max_age is unavailable, for the route and
   settings.max_age = 50ms;
   DepthFeed feed(settings);
   CHECK_FALSE(feed.obstacles().available);  // nothing yet: unavailable, never clear
+  CHECK(feed.obstacles().timestamp_ms == 0);
   feed.feed(wall(1000), 42);
   const auto fresh = feed.obstacles();
   REQUIRE(fresh.available);
@@ -556,6 +629,49 @@ TEST_CASE("depth: a reading older than max_age is unavailable, for the route and
   CHECK(std::chrono::steady_clock::now() - fed >= 50ms);
   CHECK(feed.zones().reason.rfind("stale", 0) == 0);
   CHECK_FALSE(feed.obstacles().available);
+  CHECK(feed.obstacles().timestamp_ms == 42);  // still dated, so a reader can say how stale
+  feed.feed(cv::Mat(10, 10, CV_8UC3), 43);     // a frame that gives no zones has no reading to date
+  CHECK_FALSE(feed.obstacles().available);
+  CHECK(feed.obstacles().timestamp_ms == 0);
+}
+
+TEST_CASE("depth: POST /api/depth/sim_obstacle places an object in the synthetic scene at once, and removes it") {
+  Rig rig({{"type", "synthetic"}, {"resolution", {160, 120}}, {"depth", "synthetic"}});
+  const auto* source = rcand::sdk::find<rcand::sdk::ObstacleSource>(rig.host);
+  REQUIRE(source != nullptr);
+  REQUIRE(eventually([&] { return source->obstacles().available; }, 2s));
+  CHECK(source->obstacles().nearest_cm >= 100);
+
+  auto placed =
+      rig.host.call("POST", "/api/depth/sim_obstacle", {{"zone", "center"}, {"distance_m", 0.2}}, rcand::sdk::Role::User);
+  REQUIRE(placed.status == 200);
+  CHECK(placed.body["placed"] == json{{"left", nullptr}, {"center", 0.2}, {"right", nullptr}});
+  CHECK(placed.body["obstacles"]["center_cm"] == 20);
+  CHECK(placed.body["fed_us"].is_number_integer());
+  CHECK(source->obstacles().center_cm == 20);  // fed before the answer: no waiting for the next frame
+  for (int i = 0; i < 5; ++i) {                // and every frame after it shows it too
+    rig.vision->depth()->refresh();
+    CHECK(source->obstacles().center_cm == 20);
+  }
+
+  auto removed = rig.host.call("POST", "/api/depth/sim_obstacle", {{"zone", "center"}, {"distance_m", nullptr}});
+  REQUIRE(removed.status == 200);
+  CHECK(removed.body["placed"]["center"].is_null());
+  CHECK(source->obstacles().nearest_cm >= 100);
+
+  for (const auto& [body, field] :
+       std::vector<std::pair<json, std::string>>{{json::array(), "body"},
+                                                 {{{"zone", "middle"}, {"distance_m", 1}}, "zone"},
+                                                 {{{"distance_m", 1}}, "zone"},
+                                                 {{{"zone", "left"}}, "distance_m"},
+                                                 {{{"zone", "left"}, {"distance_m", -1}}, "distance_m"},
+                                                 {{{"zone", "left"}, {"distance_m", "near"}}, "distance_m"}}) {
+    const auto r = rig.host.call("POST", "/api/depth/sim_obstacle", body);
+    CHECK(r.status == 400);
+    CHECK(r.body["field"] == field);
+  }
+  CHECK(rig.host.call("POST", "/api/depth/sim_obstacle", {{"zone", "left"}, {"distance_m", 1}}, rcand::sdk::Role::Guest).status ==
+        403);
 }
 
 TEST_CASE("vision with camera.depth offers the ObstacleSource and serves the zones and the depth frame") {
@@ -582,6 +698,7 @@ TEST_CASE("vision without camera.depth: no ObstacleSource, the zones unavailable
   const auto answer = rig.host.call("GET", "/api/depth/obstacles");
   CHECK(answer.body["available"] == false);
   CHECK(rig.get("/api/depth/frame")->status() == 503);
+  CHECK(rig.host.call("POST", "/api/depth/sim_obstacle", {{"zone", "left"}, {"distance_m", 1}}).status == 404);
   try {
     Rig bad({{"type", "usb"}, {"depth", true}});
     FAIL("camera.depth: true was accepted");

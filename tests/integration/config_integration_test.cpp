@@ -45,8 +45,12 @@ TEST_CASE("--check-config accepts the bundled sim config and a minimal one") {
                                            "--plugin-path", plugin_dir().string()});
   CHECK(bundled.exit_code == 0);
   CHECK(bundled.out.find("OK") != std::string::npos);
-  for (const char* capability : {"teleop", "nav", "com.acme.gripper"})  // the sim robot shows them all
+  for (const char* capability : {"teleop", "nav", "vision", "arm", "chat", "com.acme.gripper"})  // the sim robot shows them all
     CHECK_MESSAGE(bundled.out.find(capability) != std::string::npos, capability);
+  // Every actuating driver's hardware fail-safe, from its manifest (issue 17).
+  for (const char* driver :
+       {"fail-safe of drive0 (sim_diff_drive): ", "fail-safe of arm0 (sim_arm): ", "fail-safe of gripper0 (acme_gripper_sim): "})
+    CHECK_MESSAGE(bundled.out.find(driver) != std::string::npos, driver, bundled.out);
   auto minimal = check(kValid);
   CHECK(minimal.exit_code == 0);
   CHECK(minimal.out.find("status, teleop") != std::string::npos);
@@ -77,7 +81,14 @@ TEST_CASE("a misspelled section is an error with the suggestion; another runtime
 }
 
 TEST_CASE("an explicitly listed capability that no installed plugin provides stops startup naming the plugin") {
-  auto result = check(replace(kValid, "[status, teleop]", "[status, teleop, chat]"));
+  // An install with the drive plugins only (as rcand-plugins-core without chat would be).
+  TempDir dir;
+  const auto plugins = dir.path() / "plugins";
+  std::filesystem::create_directories(plugins);
+  for (const char* file : {"rcand_teleop.so", "teleop.json", "rcand_sim_drive.so", "sim_drive.json"})
+    std::filesystem::copy_file(plugin_dir() / file, plugins / file);
+  const auto config = dir.write("robot.rcan.yaml", replace(kValid, "[status, teleop]", "[status, teleop, chat]"));
+  auto result = run_tool(rcand_binary(), {"--check-config", config.string(), "--plugin-path", plugins.string()});
   CHECK(result.exit_code == 1);
   CHECK(result.err.find("rcan_protocol.capabilities[2]") != std::string::npos);
   CHECK(result.err.find("org.rcand.chat") != std::string::npos);
@@ -113,13 +124,32 @@ TEST_CASE("--check-config fails on a driver or capability the installed plugins 
   CHECK(misspelled.exit_code == 1);
   CHECK(misspelled.err.find("drivers[0].protocol: no installed plugin provides driver protocol 'sim_dif_drive'; "
                             "did you mean 'sim_diff_drive'?") != std::string::npos);
-  auto missing = check(replace(kValid, "protocol: sim_diff_drive", "protocol: pca9685"));
+  auto missing = check(replace(kValid, "protocol: sim_diff_drive", "protocol: roboclaw"));
   CHECK(missing.exit_code == 1);
-  CHECK(missing.err.find("no installed plugin provides driver protocol 'pca9685'") != std::string::npos);
+  CHECK(missing.err.find("no installed plugin provides driver protocol 'roboclaw'") != std::string::npos);
+  // A hardware driver passes without its hardware (nothing is opened) and says what its board does on its own.
+  auto hardware = check(replace(kValid, "protocol: sim_diff_drive", "protocol: pca9685_i2c"));
+  INFO(hardware.out, hardware.err);
+  CHECK(hardware.exit_code == 0);
+  CHECK(hardware.out.find("fail-safe of drive0 (pca9685_i2c): ") != std::string::npos);
   // teleop needs a differential_drive actuator: with no driver it could only answer 503.
   auto no_drive = check(replace(kValid, "drivers:\n  - id: drive0\n    protocol: sim_diff_drive\n", "drivers: []\n"));
   CHECK(no_drive.exit_code == 1);
   CHECK(no_drive.err.find("capability teleop requires a differential_drive actuator") != std::string::npos);
+}
+
+TEST_CASE("§9.3 from real driver blocks: a dynamixel with kinematics declares arm, a drive declares nav and teleop") {
+  std::string yaml = replace(kValid, "rcan_protocol:\n  capabilities: [status, teleop]\n", "");
+  yaml = replace(yaml, "  turn_time_per_deg_s: 0.008\n",
+                 "  turn_time_per_deg_s: 0.008\n  kinematics:\n    - {joint: shoulder, min_deg: -90, max_deg: 90}\n");
+  yaml = replace(yaml, "    protocol: sim_diff_drive\n",
+                 "    protocol: sim_diff_drive\n  - id: arm0\n    protocol: dynamixel_v2\n    port: /dev/ttyUSB0\n"
+                 "    servos: [{id: 1, joint: shoulder}]\n");
+  const auto result = check(yaml);
+  INFO(result.out, result.err);
+  CHECK(result.exit_code == 0);
+  CHECK(result.out.find("capabilities: status, nav, teleop, arm") != std::string::npos);
+  CHECK(result.out.find("fail-safe of arm0 (dynamixel_v2): the servos' Bus Watchdog") != std::string::npos);
 }
 
 TEST_CASE("--check-config starts no driver and writes no file") {

@@ -5,6 +5,7 @@
 // check is skipped where lintian is missing.
 #include <doctest/doctest.h>
 
+#include <algorithm>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
@@ -49,6 +50,8 @@ struct Packages {
   std::map<std::string, fs::path> debs;  // package name -> .deb
   fs::path plugin_dir;                  // <root>/usr/lib/<multiarch>/rcand/plugins
   fs::path vendor_plugins;              // the out-of-tree com.acme.gripper build's plugin directory
+  fs::path vendor_deb;                  // its Debian package, made by the template's CPack setup
+  fs::path twin_plugins;                // com.other.gripper: the template renamed, C++ names unchanged
   std::string vendor_sdk_dir;           // RcandSDK_DIR the vendor build used
   std::optional<std::string> dpkg_deb;
 
@@ -102,12 +105,40 @@ void build(Packages& p) {
   // The vendor's build: the template from the unpacked SDK package, the unpacked SDK and nothing else of rcand.
   const fs::path vendor = p.scratch.path() / "vendor-build";
   const fs::path sdk_dir = p.root / "usr/lib" / RCAND_LIBRARY_ARCHITECTURE / "cmake/RcandSDK";
-  require_ok(run_tool(RCAND_CMAKE_COMMAND, {"-S", (p.root / "usr/share/rcand-sdk/template").string(), "-B", vendor.string(),
-                                            "-G", RCAND_CMAKE_GENERATOR, "-DRcandSDK_DIR=" + sdk_dir.string(),
-                                            "-DCMAKE_PREFIX_PATH=" + (p.root / "usr").string()}),
-             "configuring the vendor plugin");
-  require_ok(run_tool(RCAND_CMAKE_COMMAND, {"--build", vendor.string(), "-j2"}), "building the vendor plugin");
+  const fs::path template_dir = p.root / "usr/share/rcand-sdk/template";
+  auto build_vendor = [&](const fs::path& source, const fs::path& build_dir) {
+    require_ok(run_tool(RCAND_CMAKE_COMMAND, {"-S", source.string(), "-B", build_dir.string(), "-G", RCAND_CMAKE_GENERATOR,
+                                              "-DRcandSDK_DIR=" + sdk_dir.string(),
+                                              "-DCMAKE_PREFIX_PATH=" + (p.root / "usr").string(), "-DCMAKE_INSTALL_PREFIX=/usr"}),
+               "configuring the vendor plugin from " + source.string());
+    require_ok(run_tool(RCAND_CMAKE_COMMAND, {"--build", build_dir.string(), "-j2"}), "building the vendor plugin");
+  };
+  build_vendor(template_dir, vendor);
   p.vendor_plugins = vendor / "plugins";
+  // The vendor's package, as the template builds it.
+  const fs::path vendor_debs = p.scratch.path() / "vendor-debs";
+  require_ok(run_tool(RCAND_CPACK_COMMAND, {"--config", (vendor / "CPackConfig.cmake").string(), "-B", vendor_debs.string()}),
+             "cpack of the vendor plugin");
+  for (const auto& entry : fs::directory_iterator(vendor_debs))
+    if (entry.path().extension() == ".deb") p.vendor_deb = entry.path();
+  if (p.vendor_deb.empty()) throw std::runtime_error("cpack made no vendor .deb in " + vendor_debs.string());
+  // A second vendor who started from the same template: ids, library and driver renamed as TEMPLATE.md says, every C++
+  // name (namespace acme::gripper, class Gripper and its statics) left as it was.
+  const fs::path twin = p.scratch.path() / "twin-source";
+  fs::create_directories(twin);
+  for (const auto& entry : fs::directory_iterator(template_dir)) {
+    if (!entry.is_regular_file()) continue;
+    std::string name = entry.path().filename().string(), text = slurp(entry.path());
+    for (auto* s : {&name, &text})
+      for (const auto& [from, to] : {std::pair<std::string, std::string>{"com.acme.gripper", "com.other.gripper"},
+                                     {"acme_gripper", "other_gripper"},
+                                     {"acme-gripper", "other-gripper"}})
+        for (auto at = s->find(from); at != std::string::npos; at = s->find(from, at + to.size()))
+          s->replace(at, from.size(), to);
+    std::ofstream(twin / name) << text;
+  }
+  build_vendor(twin, p.scratch.path() / "twin-build");
+  p.twin_plugins = p.scratch.path() / "twin-build/plugins";
   const std::string cache = slurp(vendor / "CMakeCache.txt");
   const auto at = cache.find("\nRcandSDK_DIR:");  // RcandSDK_DIR:<type>=<dir>
   if (at != std::string::npos) {
@@ -143,7 +174,8 @@ Packages& packages() {
 
 TEST_CASE("the kernel, SDK and core plugin packages are built, and the core set pulls nothing heavy") {
   REQUIRE_PACKAGES(p);
-  for (const char* name : {"rcand", "librcand-sdk-dev", "rcand-plugins-core"}) CHECK_MESSAGE(p.debs.count(name) == 1, name);
+  for (const char* name : {"rcand", "librcand-sdk-dev", "rcand-plugins-core", "rcand-plugins-hw"})
+    CHECK_MESSAGE(p.debs.count(name) == 1, name);
   CHECK_FALSE(p.debs.count("rcand-plugins-acme"));  // the vendor example is not a packaged plugin
   const std::string abi = std::string("rcand-plugin-abi-") + RCAND_ABI_MAJOR_TEXT;
   CHECK(p.field("rcand", "Provides").find(abi) != std::string::npos);
@@ -191,8 +223,57 @@ TEST_CASE("the unpacked rcand loads every packaged plugin and the vendor plugin"
                                                                  "--plugin-path", p.vendor_plugins.string()});
   INFO(r.out, r.err);
   CHECK(r.exit_code == 0);
-  for (const char* id : {"org.rcand.teleop", "org.rcand.nav", "org.rcand.fleet", "org.rcand.sim_drive", "com.acme.gripper"})
+  for (const char* id :
+       {"org.rcand.teleop", "org.rcand.nav", "org.rcand.fleet", "org.rcand.sim_drive", "org.rcand.arm", "org.rcand.chat",
+        "org.rcand.pca9685", "org.rcand.dynamixel", "org.rcand.gpio_motor", "com.acme.gripper"})
     CHECK_MESSAGE(r.out.find(id) != std::string::npos, id);
+}
+
+TEST_CASE("two plugins made from the template with identical C++ names load and serve side by side") {
+  REQUIRE_PACKAGES(p);
+  for (const fs::path& library : {p.vendor_plugins / "acme_gripper.so", p.twin_plugins / "other_gripper.so"}) {
+    const auto exports = run_tool("/usr/bin/nm", {"-D", "--defined-only", library.string()});
+    INFO(library.string(), ":\n", exports.out);
+    CHECK(exports.out.find("rcand_plugin_entry_v") != std::string::npos);
+    CHECK(std::count(exports.out.begin(), exports.out.end(), '\n') == 1);  // the entry symbol alone
+  }
+  const auto loaded =
+      run_tool((p.root / "usr/sbin/rcand").string(),
+               {"--check-plugins", "--plugin-path", p.vendor_plugins.string(), "--plugin-path", p.twin_plugins.string()});
+  INFO(loaded.out, loaded.err);
+  REQUIRE(loaded.exit_code == 0);
+  auto config = rcand::test::sim_config();
+  config["runtime"]["plugin_paths"] = {p.plugin_dir.string(), p.vendor_plugins.string(), p.twin_plugins.string()};
+  config["drivers"].push_back({{"id", "gripper1"}, {"protocol", "other_gripper_sim"}});
+  config["rcan_protocol"]["capabilities"].push_back("com.other.gripper");
+  ::setenv("RCAND_UNPACKED", (p.root / "usr/sbin/rcand").c_str(), 1);
+  rcand::test::RcandProcess process(config, {"/bin/sh", "-c", "exec \"$RCAND_UNPACKED\" \"$@\""}, "127.0.0.1");
+  for (const char* id : {"com.acme.gripper", "com.other.gripper"}) {
+    int status = 0;
+    const auto grip =
+        process.json("POST", std::string("/api/cap/") + id + "/grip", "owner-token", R"({"state":"close"})", &status);
+    INFO(id, ": ", grip.dump());
+    CHECK(status == 200);
+  }
+  const auto plugins = process.json("GET", "/api/plugins", "owner-token");
+  INFO(plugins.dump());
+  CHECK(plugins.dump().find("manifest-mismatch") == std::string::npos);
+}
+
+TEST_CASE("a vendor .deb from the template installs into the packaged plugin directory and depends on the ABI") {
+  REQUIRE_PACKAGES(p);
+  const auto depends = run_tool(*p.dpkg_deb, {"--field", p.vendor_deb.string(), "Depends"});
+  CHECK(depends.out.find(std::string("rcand-plugin-abi-") + RCAND_ABI_MAJOR_TEXT) != std::string::npos);
+  const fs::path vendor_root = p.scratch.path() / "vendor-root";
+  REQUIRE(run_tool(*p.dpkg_deb, {"-x", p.vendor_deb.string(), vendor_root.string()}).exit_code == 0);
+  const fs::path installed = vendor_root / "usr/lib" / RCAND_LIBRARY_ARCHITECTURE / "rcand/plugins";
+  CHECK(fs::is_regular_file(installed / "acme_gripper.so"));
+  CHECK(fs::is_regular_file(installed / "com.acme.gripper.json"));
+  const auto r = run_tool((p.root / "usr/sbin/rcand").string(),
+                          {"--check-plugins", "--plugin-path", p.plugin_dir.string(), "--plugin-path", installed.string()});
+  INFO(r.out, r.err);
+  CHECK(r.exit_code == 0);
+  CHECK(r.out.find("com.acme.gripper") != std::string::npos);
 }
 
 TEST_CASE("the vision plugin is a package of its own, the only one that depends on OpenCV, and it loads") {

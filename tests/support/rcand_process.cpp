@@ -180,7 +180,10 @@ void RcandProcess::launch(const nlohmann::json& config, std::vector<fs::path> pl
       !effective["runtime"].contains("state_dir"))
     effective["runtime"]["state_dir"] = (dir_.path() / "state").string();
   const auto config_file = dir_.write("robot.rcan.yaml", effective.dump(2));
-  if (plugin_paths.empty()) plugin_paths.push_back(plugin_dir());
+  // The build tree's plugins, unless the test names its own directories (as arguments or in the config).
+  const bool config_names_plugins = effective.is_object() && effective.contains("runtime") && effective["runtime"].is_object() &&
+                                    effective["runtime"].contains("plugin_paths");
+  if (plugin_paths.empty() && !config_names_plugins) plugin_paths.push_back(plugin_dir());
   std::vector<std::string> args{"--config", config_file.string(), "--port", "0"};
   for (const auto& path : plugin_paths) {
     args.emplace_back("--plugin-path");

@@ -24,6 +24,7 @@ ProviderLookup installed_everything() {
   ProviderLookup lookup;
   lookup.driver_interface = [](std::string_view protocol) -> std::optional<std::string> {
     if (protocol == "sim_diff_drive") return std::string("differential_drive");
+    if (protocol == "sim_arm") return std::string("joint_arm");
     return std::nullopt;
   };
   lookup.providers = [](std::string_view capability) -> std::vector<std::string> {
@@ -101,6 +102,17 @@ TEST_CASE("auto-detection follows §9.3 only when the list is omitted") {
     config.has_camera = config.has_agent = false;
     auto plan = plan_capabilities(config, installed_everything());
     CHECK(plan.names == std::vector<std::string>{"status", "teleop", "arm"});
+  }
+  SUBCASE("the names other runtimes write for the same hardware: pca9685_i2c, dynamixel_v2") {
+    config.drivers = {{"d0", "pca9685_i2c", {}}, {"d1", "dynamixel_v2", {}}};
+    config.has_kinematics = true;
+    config.has_camera = config.has_agent = false;
+    CHECK(plan_capabilities(config, installed_everything()).names == std::vector<std::string>{"status", "teleop", "arm"});
+  }
+  SUBCASE("a driver implementing joint_arm implies arm") {
+    config.drivers = {{"d0", "sim_arm", {}}};
+    config.has_camera = config.has_agent = false;
+    CHECK(plan_capabilities(config, installed_everything()).names == std::vector<std::string>{"status", "arm"});
   }
   SUBCASE("a driver implementing differential_drive implies teleop") {
     config.drivers = {{"d0", "sim_diff_drive", {}}};

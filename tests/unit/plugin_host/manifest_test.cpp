@@ -23,7 +23,8 @@ json teleop_manifest() {
     "abi": {"major": 1, "minor": 0},
     "description": "Direct real-time motor commands (RCAN §9 teleop)",
     "provides": [ {"kind": "capability", "name": "teleop", "actuates": true},
-                  {"kind": "driver", "name": "sim_diff_drive", "actuates": true, "interface": "differential_drive"} ],
+                  {"kind": "driver", "name": "sim_diff_drive", "actuates": true, "interface": "differential_drive",
+                   "fail_safe": "wheels stop"} ],
     "requires": ["differential_drive"],
     "config": { "watchdog_ms": {"type": "integer", "default": 500, "minimum": 1, "description": "dead-man timeout"},
                 "driver": {"type": "string", "description": "actuator id (default: the first differential_drive)"} } })json");
@@ -53,8 +54,9 @@ TEST_CASE("parse_manifest reads every field of a valid manifest") {
   CHECK(m.abi_major == 1);
   CHECK(m.abi_minor == 0);
   REQUIRE(m.provides.size() == 2);
-  CHECK(m.provides[0] == ProvidedItem{"capability", "teleop", true, ""});
-  CHECK(m.provides[1] == ProvidedItem{"driver", "sim_diff_drive", true, "differential_drive"});
+  CHECK(m.provides[0] == ProvidedItem{"capability", "teleop", true, "", ""});
+  CHECK(m.provides[1] == ProvidedItem{"driver", "sim_diff_drive", true, "differential_drive", ""});
+  CHECK(m.provides[1].fail_safe == "wheels stop");  // the manifest's own: a registration never carries it
   CHECK(m.requires_ == std::vector<std::string>{"differential_drive"});
   CHECK(m.config_schema["watchdog_ms"]["default"] == 500);
 }
@@ -79,7 +81,7 @@ TEST_CASE("parse_manifest: a capability declared by a config key (\"declared_whe
   const auto m = parse_manifest(doc, "fleet.json");
   REQUIRE(m.declared_when.size() == 1);
   CHECK(m.declared_when[0] == rcand::kernel::DeclaredWhen{"org.rcand.fleet", "runtime.r2r.enabled"});
-  CHECK(m.provides[0] == ProvidedItem{"capability", "org.rcand.fleet", false, ""});  // registration compares as before
+  CHECK(m.provides[0] == ProvidedItem{"capability", "org.rcand.fleet", false, "", ""});  // registration compares as before
   CHECK(parse_manifest(teleop_manifest(), "teleop.json").declared_when.empty());
 
   doc["provides"][0]["declared_when"] = "runtime..r2r";

@@ -34,7 +34,8 @@ struct StandardCapability {
 namespace detail {
 inline constexpr std::array kNavMounts{"/api/nav/*"sv};
 inline constexpr std::array kVisionMounts{"/api/stream/*"sv, "/api/depth/*"sv};
-inline constexpr std::array kChatMounts{"/api/command"sv};
+inline constexpr std::array kChatMounts{"/api/command"sv, "/api/thoughts/*"sv, "/api/hitl/*"sv};
+inline constexpr std::array kArmMounts{"/api/arm/*"sv};
 inline constexpr std::array kTeleopActions{"move"sv, "stop"sv};
 inline constexpr std::array kArmActions{"grip"sv, "arm_pose"sv};
 inline constexpr std::array<StandardCapability, 6> kStandard{{
@@ -43,7 +44,7 @@ inline constexpr std::array<StandardCapability, 6> kStandard{{
     {"teleop", Scope::Control, "POST /api/action", {}, kTeleopActions},
     {"vision", Scope::Status, "GET /api/stream/mjpeg", kVisionMounts, {}},
     {"chat", Scope::Control, "POST /api/command", kChatMounts, {}},
-    {"arm", Scope::Control, "POST /api/action", {}, kArmActions},
+    {"arm", Scope::Control, "POST /api/action", kArmMounts, kArmActions},
 }};
 }  // namespace detail
 

@@ -1,0 +1,196 @@
+#include "watch_command.hpp"
+
+#include <unistd.h>
+
+#include <boost/asio/io_context.hpp>
+#include <boost/asio/ip/tcp.hpp>
+#include <boost/beast/core/buffers_to_string.hpp>
+#include <boost/beast/core/tcp_stream.hpp>
+#include <boost/beast/websocket.hpp>
+#include <nlohmann/json.hpp>
+
+#include <atomic>
+#include <csignal>
+#include <iostream>
+#include <optional>
+
+#include "exit_codes.hpp"
+#include "robot_connection.hpp"
+#include "text_table.hpp"
+
+namespace rcand::rcanctl {
+namespace {
+
+namespace net = boost::asio;
+namespace beast = boost::beast;
+namespace websocket = boost::beast::websocket;
+using nlohmann::json;
+
+constexpr std::string_view kWatchUsage =
+    "usage: rcanctl watch [--host HOST] [--port PORT] (--token T | --token-file FILE) [--json] [--frames N] [--timeout MS]\n"
+    "  Live telemetry from WS /ws/telemetry (a frame every 200 ms, and at once on an e-stop): a table redrawn in place,\n"
+    "  one line per frame when the output is not a terminal, or each frame as one JSON line with --json.\n"
+    "  --frames N stops after N frames; otherwise it runs until Ctrl-C. --timeout: connecting, and the longest gap\n"
+    "  between frames before the connection counts as lost (default 5000). HOST default 127.0.0.1, PORT 8000,\n"
+    "  the token may also come from $RCAND_TOKEN (any role: telemetry needs the status scope).\n"
+    "  Exit: 0 after --frames N or Ctrl-C, 1 refused (401/403), unreachable or connection lost, 2 usage.\n";
+
+std::atomic<bool> watch_interrupted{false};
+extern "C" void on_watch_interrupt(int) { watch_interrupted.store(true); }
+
+std::string cell(const json& value) {
+  if (value.is_null()) return "-";
+  if (value.is_boolean()) return value.get<bool>() ? "yes" : "no";
+  return value.is_string() ? value.get<std::string>() : value.dump();
+}
+
+std::string states(const json& map) {
+  std::string text;
+  if (map.is_object())
+    for (const auto& [name, state] : map.items()) text += (text.empty() ? "" : " ") + name + "=" + cell(state);
+  return text.empty() ? "-" : text;
+}
+
+std::string pose_text(const json& pose) {
+  if (!pose.is_object()) return "-";
+  char buffer[96];
+  std::snprintf(buffer, sizeof buffer, "x %.2f m  y %.2f m  heading %.1f deg", pose.value("x_m", 0.0), pose.value("y_m", 0.0),
+                pose.value("heading_deg", 0.0));
+  return buffer;
+}
+
+// By value: operator[] on a copy yields null for a missing field (on a const json it would be undefined).
+void print_table(json frame, std::ostream& out) {
+  out << "\x1b[H\x1b[2J";  // home and clear: the table is redrawn in place
+  print_text_table({{"field", "value"},
+                    {"estopped", frame["estopped"] == true ? "YES" : "no"},
+                    {"state", cell(frame["state"])},
+                    {"nav_running", cell(frame["nav_running"])},
+                    {"pose", pose_text(frame["pose"])},
+                    {"obstacles", cell(frame["obstacles"])},
+                    {"battery_v", cell(frame["battery_v"])},
+                    {"capabilities", states(frame["capabilities"])},
+                    {"drivers", states(frame["drivers"])},
+                    {"uptime_s", cell(frame["uptime_s"])},
+                    {"seq / event", cell(frame["seq"]) + " / " + cell(frame["event"])}},
+                   out);
+  if (frame["estop"].is_object())
+    out << "\ne-stop: " << cell(frame["estop"]["reason"]) << " (by " << cell(frame["estop"]["source"]) << ")\n";
+  out << "\nCtrl-C to quit" << std::flush;
+}
+
+void print_line(json frame, std::ostream& out) {
+  out << "seq " << cell(frame["seq"]) << "  " << cell(frame["event"]) << "  estopped " << cell(frame["estopped"]) << "  state "
+      << cell(frame["state"]) << "  nav " << cell(frame["nav_running"]) << "  pose " << pose_text(frame["pose"]) << std::endl;
+}
+
+// Runs the io_context until `done` or `limit`; false when the limit passed first (or Ctrl-C).
+bool run_until(net::io_context& io, const bool& done, std::chrono::milliseconds limit) {
+  const auto until = std::chrono::steady_clock::now() + limit;
+  while (!done && !watch_interrupted.load() && std::chrono::steady_clock::now() < until) {
+    io.run_for(std::chrono::milliseconds(100));
+    if (io.stopped()) io.restart();
+  }
+  return done;
+}
+
+}  // namespace
+
+int run_watch(std::span<const std::string> args) {
+  RobotOptions options;
+  std::optional<int> frames_wanted;
+  const ExtraOption extra = [&](const std::string& option, const std::function<bool(std::string&)>& next) {
+    if (option != "--frames") return false;
+    std::string text;
+    if (!next(text)) return false;
+    frames_wanted = parse_int(text, 1, 1000000000);
+    if (!frames_wanted) std::cerr << "rcanctl watch: --frames must be a positive integer, got '" << text << "'\n";
+    return frames_wanted.has_value();
+  };
+  if (!parse_robot_options(args, "rcanctl watch", extra, options, std::cerr)) {
+    std::cerr << kWatchUsage;
+    return kExitUsage;
+  }
+  if (options.help) {
+    std::cout << kWatchUsage;
+    return kExitOk;
+  }
+  const std::string where = options.host + ":" + std::to_string(options.port);
+  net::io_context io;
+  websocket::stream<beast::tcp_stream> ws(io);
+  bool done = false;
+  beast::error_code result;
+  net::ip::tcp::resolver resolver(io);
+  resolver.async_resolve(options.host, std::to_string(options.port),
+                         [&](beast::error_code ec, net::ip::tcp::resolver::results_type found) {
+                           if (ec) {
+                             result = ec;
+                             done = true;
+                             return;
+                           }
+                           beast::get_lowest_layer(ws).async_connect(found, [&](beast::error_code connect_ec, const auto&) {
+                             result = connect_ec;
+                             done = true;
+                           });
+                         });
+  if (!run_until(io, done, options.timeout) || result) {
+    std::cerr << "rcanctl watch: cannot connect to " << where << ": " << (result ? result.message() : "timed out") << "\n";
+    return kExitFailure;
+  }
+  ws.set_option(websocket::stream_base::decorator([token = options.token](websocket::request_type& request) {
+    request.set(beast::http::field::authorization, "Bearer " + token);
+    request.set(beast::http::field::user_agent, "rcanctl");
+  }));
+  websocket::response_type response;
+  done = false;
+  ws.async_handshake(response, where, "/ws/telemetry", [&](beast::error_code ec) {
+    result = ec;
+    done = true;
+  });
+  if (!run_until(io, done, options.timeout) || result) {
+    const int status = static_cast<int>(response.result_int());
+    const json body = json::parse(response.body(), nullptr, false);
+    const std::string why = body.is_object() && body.contains("error") && body["error"].is_string()
+                                ? body["error"].get<std::string>()
+                                : (result ? result.message() : "timed out");
+    if (status == 401 || status == 403)
+      std::cerr << "rcanctl watch: authentication failed (HTTP " << status << "): " << why << "\n";
+    else if (status != 0)
+      std::cerr << "rcanctl watch: " << where << " refused /ws/telemetry (HTTP " << status << "): " << why << "\n";
+    else std::cerr << "rcanctl watch: upgrade to /ws/telemetry on " << where << " failed: " << why << "\n";
+    return kExitFailure;
+  }
+
+  std::signal(SIGINT, on_watch_interrupt);
+  const bool table = !options.json && ::isatty(STDOUT_FILENO) == 1;
+  beast::flat_buffer buffer;
+  int shown = 0;
+  while (!frames_wanted || shown < *frames_wanted) {
+    done = false;
+    ws.async_read(buffer, [&](beast::error_code ec, std::size_t) {
+      result = ec;
+      done = true;
+    });
+    if (!run_until(io, done, options.timeout) || result) {
+      if (watch_interrupted.load()) break;
+      std::cerr << (table ? "\n" : "") << "rcanctl watch: connection to " << where
+                << " lost: " << (result ? result.message() : "no frame for " + std::to_string(options.timeout.count()) + " ms")
+                << "\n";
+      return kExitFailure;
+    }
+    const std::string text = beast::buffers_to_string(buffer.data());
+    buffer.consume(buffer.size());
+    const json message = json::parse(text, nullptr, false);
+    if (!message.is_object() || message.value("type", "") != "telemetry") continue;
+    ++shown;
+    if (options.json) std::cout << message.dump() << std::endl;
+    else if (table) print_table(message, std::cout);
+    else print_line(message, std::cout);
+  }
+  if (table) std::cout << "\n";
+  beast::error_code ignored;
+  beast::get_lowest_layer(ws).socket().close(ignored);  // no close handshake to wait for: we are leaving
+  return kExitOk;
+}
+
+}  // namespace rcand::rcanctl

@@ -1,0 +1,338 @@
+// rcand's dashboard: plain JavaScript, no dependencies, served by rcand itself (works on an offline LAN).
+// State comes from WS /ws/telemetry (a frame every 200 ms, pushed at once on an e-stop); details from the HTTP API.
+'use strict';
+
+const $ = (id) => document.getElementById(id);
+const DRIVE_PERIOD_MS = 100;  // a held pad re-sends its move this often...
+const DRIVE_LEASE_MS = 300;   // ...and each move lasts this long: a lost link stops the robot within it
+
+let token = sessionStorage.getItem('rcand.token') || localStorage.getItem('rcand.token') || '';
+let session = null;      // GET /api/session: principal, role, scopes
+let declared = new Set();
+let socket = null;
+let retryTimer = null;
+let drive = null;        // the held pad direction: {linear, angular, timer, button}
+
+// ---- HTTP ----------------------------------------------------------------------------------------------------------
+async function api(method, path, body) {
+  const init = { method, headers: { Authorization: `Bearer ${token}` } };
+  if (body !== undefined) {
+    init.headers['Content-Type'] = 'application/json';
+    init.body = JSON.stringify(body);
+  }
+  const response = await fetch(path, init);
+  let json = null;
+  try { json = await response.json(); } catch (_) { /* an empty or non-JSON answer */ }
+  return { status: response.status, body: json || {} };
+}
+
+function toast(text) {
+  const el = $('toast');
+  el.textContent = text;
+  el.hidden = false;
+  clearTimeout(toast.timer);
+  toast.timer = setTimeout(() => { el.hidden = true; }, 4000);
+}
+
+function failure(what, answer) {
+  const body = answer.body || {};
+  toast(`${what}: ${answer.status} ${body.code || ''} ${body.error || ''}`.trim());
+}
+
+function cell(row, text) {
+  const td = document.createElement('td');
+  td.textContent = text === null || text === undefined ? '–' : String(text);
+  row.appendChild(td);
+}
+
+function table(el, headers, rows) {
+  el.replaceChildren();
+  const head = el.insertRow();
+  for (const h of headers) {
+    const th = document.createElement('th');
+    th.textContent = h;
+    head.appendChild(th);
+  }
+  for (const r of rows) {
+    const tr = el.insertRow();
+    for (const value of r) cell(tr, value);
+  }
+}
+
+// ---- login ---------------------------------------------------------------------------------------------------------
+async function login(candidate, remember) {
+  token = candidate;
+  let answer;
+  try {
+    answer = await api('GET', '/api/session');
+  } catch (e) {
+    $('login-error').textContent = `rcand cannot be reached: ${e.message}`;
+    return false;
+  }
+  if (answer.status !== 200) {
+    $('login-error').textContent = answer.body.error || `refused (${answer.status})`;
+    token = '';
+    return false;
+  }
+  session = answer.body;
+  (remember ? localStorage : sessionStorage).setItem('rcand.token', token);
+  $('login').hidden = true;
+  $('app').hidden = false;
+  $('who').textContent = `${session.principal} (${session.role})`;
+  $('clear').hidden = session.role !== 'OWNER' && session.role !== 'CREATOR';
+  await loadStatus();
+  connect();
+  refreshAudit();
+  refreshPeers();
+  return true;
+}
+
+function logout() {
+  stopDriving();
+  sessionStorage.removeItem('rcand.token');
+  localStorage.removeItem('rcand.token');
+  token = '';
+  if (socket) socket.close();
+  location.reload();
+}
+
+// ---- status --------------------------------------------------------------------------------------------------------
+async function loadStatus() {
+  const answer = await api('GET', '/api/status');
+  if (answer.status !== 200) return failure('status', answer);
+  const s = answer.body;
+  $('robot-name').textContent = s.name || 'robot';
+  document.title = `rcand · ${s.name || 'robot'}`;
+  declared = new Set(Object.keys(s.capabilities || {}));
+  const facts = $('facts');
+  facts.replaceChildren();
+  for (const [k, v] of [['RURI', s.ruri], ['rcand', s.version], ['RCAN', s.rcan_version]]) {
+    const dt = document.createElement('dt');
+    dt.textContent = k;
+    const dd = document.createElement('dd');
+    dd.textContent = v;
+    facts.append(dt, dd);
+  }
+  $('teleop-card').hidden = !declared.has('teleop');
+  $('nav-card').hidden = !declared.has('nav');
+  $('chat-card').hidden = !declared.has('chat');
+  $('arm-card').hidden = !declared.has('arm');
+  $('vision-card').hidden = !declared.has('vision');
+  // <img> cannot send headers: the stream takes ?token= (docs/protocol.md §3).
+  if (declared.has('vision')) $('camera').src = `/api/stream/mjpeg?token=${encodeURIComponent(token)}`;
+  if (declared.has('arm')) refreshArm();
+  showFrame({ estopped: s.estopped, state: s.state, pose: s.pose, nav_running: s.nav_running,
+              capabilities: Object.fromEntries(Object.entries(s.capabilities || {}).map(([k, v]) => [k, v.state])),
+              drivers: Object.fromEntries((s.drivers || []).map((d) => [d.id, d.state])) });
+}
+
+function chips(el, states) {
+  el.replaceChildren();
+  for (const [name, state] of Object.entries(states || {})) {
+    const li = document.createElement('li');
+    li.textContent = name;
+    li.className = state === 'ok' ? '' : state;
+    li.title = state;
+    el.appendChild(li);
+  }
+}
+
+function showFrame(f) {
+  const latched = !!f.estopped;
+  document.body.dataset.estopped = latched;
+  $('state').textContent = latched ? 'E-STOPPED' : (f.state || 'ok');
+  $('state').className = `badge ${latched ? 'latched' : ''}`;
+  $('estop').classList.toggle('latched', latched);
+  $('estop-reason').textContent = latched && f.estop && f.estop.reason ? f.estop.reason : '';
+  if (latched) stopDriving();
+  if (f.capabilities) chips($('capabilities'), f.capabilities);
+  if (f.drivers) chips($('drivers'), f.drivers);
+  if (f.pose) {
+    $('pose').textContent = `pose x ${f.pose.x_m.toFixed(2)} m, y ${f.pose.y_m.toFixed(2)} m, ` +
+                            `heading ${f.pose.heading_deg.toFixed(0)}°`;
+  }
+  if (f.nav_running || showFrame.navWasRunning) refreshNav();
+  showFrame.navWasRunning = !!f.nav_running;
+}
+
+// ---- live telemetry ------------------------------------------------------------------------------------------------
+function setLink(up) {
+  $('link').textContent = up ? 'live' : 'offline';
+  $('link').className = `badge ${up ? '' : 'off'}`;
+}
+
+function connect() {
+  clearTimeout(retryTimer);
+  const scheme = location.protocol === 'https:' ? 'wss' : 'ws';
+  socket = new WebSocket(`${scheme}://${location.host}/ws/telemetry?token=${encodeURIComponent(token)}`);
+  socket.onopen = () => setLink(true);
+  socket.onmessage = (event) => {
+    let frame;
+    try { frame = JSON.parse(event.data); } catch (_) { return; }
+    if (frame.type === 'telemetry') showFrame(frame);
+  };
+  socket.onclose = () => {
+    setLink(false);
+    stopDriving();  // no live link, no driving: the operator cannot see what the robot does
+    if (token) retryTimer = setTimeout(connect, 1000);
+  };
+}
+
+// ---- e-stop --------------------------------------------------------------------------------------------------------
+async function estop() {
+  stopDriving();
+  // The WebSocket is already open: a stop there skips the TCP and HTTP set-up. HTTP as well, in case it is not.
+  if (socket && socket.readyState === WebSocket.OPEN) socket.send(JSON.stringify({ cmd: 'stop' }));
+  const answer = await api('POST', '/api/stop', { reason: `dashboard (${session ? session.principal : '?'})` });
+  if (answer.status !== 200) failure('stop', answer);
+}
+
+async function clearEstop() {
+  const answer = await api('POST', '/api/estop/clear', {});
+  if (answer.status !== 200) failure('clear', answer);
+}
+
+// ---- teleop pad ----------------------------------------------------------------------------------------------------
+const DIRECTIONS = { forward: [1, 0], back: [-1, 0], left: [0, 1], right: [0, -1] };
+
+function sendMove(linear, angular, duration) {
+  return api('POST', '/api/action', { type: 'move', linear, angular, duration_ms: duration })
+    .then((answer) => { if (answer.status !== 200) { failure('move', answer); stopDriving(); } })
+    .catch(() => stopDriving());
+}
+
+function startDriving(direction, button) {
+  if (drive) stopDriving();
+  if (!socket || socket.readyState !== WebSocket.OPEN) return toast('no live link: not driving');
+  const speed = Number($('speed').value);
+  const [l, a] = DIRECTIONS[direction];
+  drive = { linear: l * speed, angular: a * speed, button };
+  if (button) button.classList.add('held');
+  sendMove(drive.linear, drive.angular, DRIVE_LEASE_MS);
+  drive.timer = setInterval(() => sendMove(drive.linear, drive.angular, DRIVE_LEASE_MS), DRIVE_PERIOD_MS);
+}
+
+function stopDriving() {
+  if (!drive) return;
+  clearInterval(drive.timer);
+  if (drive.button) drive.button.classList.remove('held');
+  drive = null;
+  sendMove(0, 0, 1);  // stop now rather than when the last lease runs out
+}
+
+function bindPad() {
+  for (const button of document.querySelectorAll('[data-drive]')) {
+    button.addEventListener('pointerdown', (e) => {
+      e.preventDefault();
+      button.setPointerCapture(e.pointerId);
+      startDriving(button.dataset.drive, button);
+    });
+    for (const end of ['pointerup', 'pointercancel', 'lostpointercapture']) button.addEventListener(end, stopDriving);
+  }
+  $('speed').addEventListener('input', () => { $('speed-value').textContent = $('speed').value; });
+  window.addEventListener('blur', stopDriving);
+  document.addEventListener('visibilitychange', () => { if (document.hidden) stopDriving(); });
+  window.addEventListener('offline', stopDriving);
+}
+
+// ---- keyboard: Space or Escape stops, arrows drive while held --------------------------------------------------------
+const KEYS = { ArrowUp: 'forward', ArrowDown: 'back', ArrowLeft: 'left', ArrowRight: 'right' };
+function bindKeys() {
+  document.addEventListener('keydown', (e) => {
+    if ($('app').hidden || e.target.tagName === 'INPUT') return;
+    if (e.key === ' ' || e.key === 'Escape') {
+      e.preventDefault();
+      estop();
+    } else if (KEYS[e.key] && !e.repeat && declared.has('teleop')) {
+      e.preventDefault();
+      startDriving(KEYS[e.key], null);
+    }
+  });
+  document.addEventListener('keyup', (e) => { if (KEYS[e.key]) stopDriving(); });
+}
+
+// ---- nav -----------------------------------------------------------------------------------------------------------
+async function refreshNav() {
+  const answer = await api('GET', '/api/nav/status');
+  if (answer.status !== 200) return;
+  const s = answer.body;
+  const progress = s.eta_ms ? Math.min(1, (s.elapsed_ms || 0) / s.eta_ms) : (s.state === 'done' ? 1 : 0);
+  $('nav-progress').value = progress;
+  const result = s.result ? ` — ${s.result.ok === false ? 'failed' : 'result'}: ${s.result.message || s.result.reason || ''}` : '';
+  $('nav-status').textContent = `job ${s.job_id || '–'}: ${s.state}${result}`;
+}
+
+async function submitNav(e) {
+  e.preventDefault();
+  const form = new FormData($('nav-form'));
+  const body = Object.fromEntries([...form.entries()].map(([k, v]) => [k, Number(v)]));
+  const answer = await api('POST', '/api/nav/waypoint', body);
+  if (answer.status !== 200) return failure('waypoint', answer);
+  refreshNav();
+}
+
+// ---- chat, arm, peers, audit ----------------------------------------------------------------------------------------
+async function submitChat(e) {
+  e.preventDefault();
+  const instruction = $('chat-input').value;
+  const li = document.createElement('li');
+  li.textContent = `> ${instruction}`;
+  $('chat-log').prepend(li);
+  const answer = await api('POST', '/api/command', { instruction });
+  const reply = document.createElement('li');
+  reply.textContent = answer.status === 200
+    ? `${answer.body.raw_text || ''} [${answer.body.brain || ''}]`
+    : `${answer.status} ${answer.body.error || ''}`;
+  $('chat-log').prepend(reply);
+  $('chat-input').value = '';
+}
+
+async function refreshArm() {
+  const answer = await api('GET', '/api/arm/joints');
+  if (answer.status !== 200) return;
+  const fixed = (x) => (typeof x === 'number' ? x.toFixed(1) : x);
+  const rows = (answer.body.joints || []).map((j) => [j.joint, fixed(j.position_deg), fixed(j.target_deg),
+                                                      j.limits ? `${j.limits.min_deg} … ${j.limits.max_deg}` : null]);
+  table($('arm-joints'), ['joint', 'position °', 'target °', 'limits °'], rows);
+}
+
+async function refreshPeers() {
+  const answer = await api('GET', '/api/r2r/peers');
+  if (answer.status !== 200) {
+    table($('peers'), ['R2R'], [[answer.body.error || `unavailable (${answer.status})`]]);
+    return;
+  }
+  const peers = answer.body.peers || [];
+  table($('peers'), ['peer', 'transport', 'last seen'],
+        peers.map((p) => [p.id || p.name, p.transport, p.last_seen_ms ? new Date(p.last_seen_ms).toLocaleTimeString() : null]));
+}
+
+async function refreshAudit() {
+  const answer = await api('GET', '/api/audit?limit=20');
+  if (answer.status !== 200) {
+    table($('audit'), ['audit'], [[answer.body.error || `unavailable (${answer.status})`]]);
+    return;
+  }
+  const entries = (answer.body.entries || []).slice().reverse();
+  table($('audit'), ['#', 'time', 'principal', 'event', 'outcome'],
+        entries.map((e) => [e.seq, e.timestamp_ms ? new Date(e.timestamp_ms).toLocaleTimeString() : e.ts, e.principal, e.event, e.outcome]));
+}
+
+// ---- start ---------------------------------------------------------------------------------------------------------
+document.addEventListener('DOMContentLoaded', () => {
+  $('login-form').addEventListener('submit', (e) => {
+    e.preventDefault();
+    login($('token').value.trim(), $('remember').checked);
+  });
+  $('logout').addEventListener('click', logout);
+  $('estop').addEventListener('click', estop);
+  $('clear').addEventListener('click', clearEstop);
+  $('nav-form').addEventListener('submit', submitNav);
+  $('nav-cancel').addEventListener('click', () => api('POST', '/api/nav/cancel', {}).then(refreshNav));
+  $('chat-form').addEventListener('submit', submitChat);
+  $('audit-refresh').addEventListener('click', refreshAudit);
+  bindPad();
+  bindKeys();
+  setInterval(() => { if (!$('app').hidden && !document.hidden) { refreshAudit(); refreshPeers(); if (declared.has('arm')) refreshArm(); } }, 5000);
+  if (token) login(token, !!localStorage.getItem('rcand.token'));
+});

@@ -1,0 +1,59 @@
+#include "services/telemetry/route_metrics.hpp"
+
+#include <chrono>
+#include <set>
+#include <utility>
+
+namespace rcand::services::telemetry {
+
+void RouteMetrics::instrument(kernel::Router& router) {
+  // Collected first: wrapping a row while walking the table would match against rows being changed.
+  std::vector<std::pair<std::string, std::string>> targets;
+  std::set<std::pair<const kernel::Route*, std::string>> seen;
+  for (const auto& route : router.routes()) {
+    const auto& spec = route.spec;
+    std::vector<std::string> methods;
+    if (spec.method == "*") methods = {"GET", "POST", "PUT", "PATCH", "DELETE"};
+    else methods = {spec.method};
+    for (auto& method : methods) {
+      // A "*" row's method may be served by a more specific row of the same path: wrap each row once per method.
+      const kernel::Route* serving = router.match(method, spec.path).route;
+      if (serving != &route || !seen.emplace(serving, method).second) continue;
+      targets.emplace_back(std::move(method), spec.path);
+    }
+  }
+  for (auto& [method, path] : targets) {
+    Row* row = &rows_.emplace_back(method, path);
+    router.wrap(method, path, [row](kernel::Call& call, kernel::Reply reply, const kernel::RouteHandler& next) {
+      const auto started = std::chrono::steady_clock::now();
+      next(call, [row, started, reply = std::move(reply)](http::Response response) {
+        row->latency.observe(std::chrono::steady_clock::now() - started);
+        const int status = response.status >= 100 && response.status < 600 ? response.status : 500;
+        row->by_status[static_cast<std::size_t>(status - 100)].fetch_add(1, std::memory_order_relaxed);
+        reply(std::move(response));
+      });
+    });
+  }
+}
+
+void RouteMetrics::write(MetricsText& out) const {
+  out.family("rcand_http_requests_total", "counter",
+             "HTTP requests answered by each route (after authentication and rate limits), by status code");
+  for (const Row& row : rows_)
+    for (std::size_t i = 0; i < row.by_status.size(); ++i)
+      if (const auto n = row.by_status[i].load(std::memory_order_relaxed); n > 0)
+        out.sample({{"method", row.method}, {"route", row.path}, {"code", std::to_string(i + 100)}}, static_cast<double>(n));
+  out.family("rcand_http_request_duration_seconds", "histogram",
+             "time from the route's handler being called to its answer, per route");
+  for (const Row& row : rows_) out.histogram({{"method", row.method}, {"route", row.path}}, row.latency.read());
+}
+
+std::uint64_t RouteMetrics::successes(std::string_view method, std::string_view path) const {
+  std::uint64_t total = 0;
+  for (const Row& row : rows_)
+    if (row.method == method && row.path == path)
+      for (std::size_t status = 200; status < 300; ++status) total += row.by_status[status - 100].load(std::memory_order_relaxed);
+  return total;
+}
+
+}  // namespace rcand::services::telemetry

@@ -1,0 +1,41 @@
+// HTTP requests per route: a count per status code and a latency histogram, recorded by a decorator on every row
+// of the route table (Router::wrap), so no kernel hook is needed. The clock starts when the decorator runs, which
+// is after route matching, authentication and the rate limits, and stops when the row answers: requests refused
+// before that (401, 403, 404, 405, 429) are not counted here, and the time excludes reading and writing the bytes.
+// Recording is a few relaxed atomic adds (no lock on the request path).
+#pragma once
+
+#include <array>
+#include <atomic>
+#include <cstdint>
+#include <deque>
+#include <string>
+#include <string_view>
+
+#include "kernel/api/router.hpp"
+#include "services/telemetry/latency_histogram.hpp"
+#include "services/telemetry/metrics_text.hpp"
+
+namespace rcand::services::telemetry {
+
+class RouteMetrics {
+ public:
+  // Startup only, before serving: wraps each row present now (a "*" row once per common method). Rows added
+  // afterwards would not be: telemetry is last in linked_services() so that every service's rows are in.
+  void instrument(kernel::Router& router);
+  // rcand_http_requests_total and rcand_http_request_duration_seconds.
+  void write(MetricsText& out) const;
+  // Answers 200..299 of one row (its pattern as added, e.g. "POST", "/api/nav/waypoint"); 0 when not instrumented.
+  std::uint64_t successes(std::string_view method, std::string_view path) const;
+
+ private:
+  struct Row {
+    Row(std::string m, std::string p) : method(std::move(m)), path(std::move(p)) {}
+    std::string method, path;
+    LatencyHistogram latency{kRequestBounds};
+    std::array<std::atomic<std::uint64_t>, 500> by_status{};  // index: status - 100
+  };
+  std::deque<Row> rows_;  // never moves an element: decorators hold their row's address
+};
+
+}  // namespace rcand::services::telemetry

@@ -1,0 +1,60 @@
+// The dashboard in Debian's headless Chromium against a real rcand: tests/dashboard/drive.mjs (playwright-core, pinned
+// in tests/dashboard/package-lock.json) logs in, drives with the pad, presses STOP, clears, and drops the link while
+// holding the pad; each step's screenshot lands in <build>/tests/dashboard-screenshots/. Chromium, Node.js and npm
+// come from packaging/install-deps.sh; playwright-core from the npm registry (`npm ci`, once per lock file).
+#include <doctest/doctest.h>
+
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+
+#include "rcand_process.hpp"
+
+namespace fs = std::filesystem;
+using rcand::test::run_tool;
+
+namespace {
+
+std::string slurp(const fs::path& file) {
+  std::ifstream in(file);
+  std::stringstream text;
+  text << in.rdbuf();
+  return text.str();
+}
+
+// <build>/tests/dashboard-node: the script beside its node_modules (Node resolves imports from the script's folder).
+fs::path prepared_node_dir() {
+  const fs::path source = fs::path(RCAND_SOURCE_DIR) / "tests/dashboard";
+  const fs::path dir = fs::path(RCAND_BINARY_DIR) / "tests/dashboard-node";
+  fs::create_directories(dir);
+  for (const char* name : {"package.json", "drive.mjs"})
+    fs::copy_file(source / name, dir / name, fs::copy_options::overwrite_existing);
+  const std::string lock = slurp(source / "package-lock.json");
+  if (!fs::exists(dir / "node_modules/playwright-core") || slurp(dir / "package-lock.json") != lock) {
+    fs::copy_file(source / "package-lock.json", dir / "package-lock.json", fs::copy_options::overwrite_existing);
+    const auto npm = run_tool("/bin/sh", {"-c", "cd \"$0\" && npm ci --no-audit --no-fund --ignore-scripts", dir.string()});
+    INFO(npm.out, npm.err);
+    REQUIRE_MESSAGE(npm.exit_code == 0, "npm ci of playwright-core failed (packaging/install-deps.sh installs npm)");
+  }
+  return dir;
+}
+
+}  // namespace
+
+TEST_CASE("the dashboard in a real browser: log in, drive, stop, clear, and a lost link stops the motors") {
+  for (const char* tool : {"/usr/bin/chromium", "/usr/bin/node"})
+    REQUIRE_MESSAGE(fs::exists(tool), tool << " is missing: run packaging/install-deps.sh");
+  const fs::path node_dir = prepared_node_dir();
+
+  auto config = rcand::test::sim_config();
+  config["rcan_protocol"]["capabilities"].push_back("nav");
+  rcand::test::RcandProcess rcand(config);
+  const std::string base = "http://127.0.0.1:" + std::to_string(rcand.port());
+  const fs::path shots = fs::path(RCAND_BINARY_DIR) / "tests/dashboard-screenshots";
+  const auto run = run_tool("/usr/bin/node", {(node_dir / "drive.mjs").string(), base, "owner-token", shots.string()});
+  INFO("drive.mjs:\n", run.out, run.err);
+  CHECK(run.exit_code == 0);
+  CHECK(run.out.find("ok - link lost while holding: the motors stop") != std::string::npos);
+  for (const char* shot : {"1-login.png", "2-dashboard.png", "3-driving.png", "4-estopped.png", "5-link-lost.png", "6-phone.png"})
+    CHECK_MESSAGE(fs::is_regular_file(shots / shot), shot);
+}
