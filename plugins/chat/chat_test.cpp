@@ -68,7 +68,9 @@ TEST_CASE("bad input answers 400 or 413 naming the field; nothing reaches a brai
       {{{"instruction", std::string(2001, 'x')}}, "instruction"},
       {{{"instruction", "go"}, {"image_b64", "@@@"}}, "image_b64"},
   };
-  for (const auto& [body, field] : cases) {
+  for (const auto& item : cases) {  // not a structured binding: CHECK_MESSAGE makes a lambda (clang 14)
+    const json& body = item.first;
+    const std::string& field = item.second;
     const auto w = f.post(body);
     CHECK_MESSAGE((w->status() == 400 || w->status() == 413), body.dump().substr(0, 80));
     CHECK(w->json()["field"] == field);
@@ -145,7 +147,9 @@ TEST_CASE("a brain's action is checked: undeclared capability, out of bounds, ch
       {{{"method", "POST"}, {"path", "/api/action"}, {"body", {{"type", "move"}, {"linear", 0.5}}}}, 422},    // no duration
       {"drive forward", 422},
   };
-  for (const auto& [action, status] : cases) {
+  for (const auto& item : cases) {  // not a structured binding: CHECK_MESSAGE makes a lambda (clang 14)
+    const json& action = item.first;
+    const int status = item.second;
     f.spy.answer = [action = action](const sdk::BrainRequest&, sdk::CancelToken) { return spy_says(action); };
     const auto w = f.say("do it");
     CHECK_MESSAGE(w->status() == status, action.dump());

@@ -176,7 +176,9 @@ TEST_CASE("bad answers are the brain failing: not JSON, off-schema, a confidence
       {model_says("drive forward"), "not a request"}, {model_says(json{{"path", "/api/stop"}}), "not a request"},
       {json::array({1, 2}), "not a JSON object"},     {json{{"reply", "hi"}}, "no action"},
   };
-  for (const auto& [answer, why] : cases) {
+  for (const auto& item : cases) {  // not a structured binding: CHECK_MESSAGE makes a lambda (clang 14)
+    const json& answer = item.first;
+    const std::string& why = item.second;
     server.always(ScriptedModelServer::answer(answer));
     const auto p = ask(brain);
     CHECK_MESSAGE(p.error.find(why) != std::string::npos, answer.dump() << " -> " << p.error);

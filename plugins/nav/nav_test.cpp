@@ -492,8 +492,8 @@ TEST_CASE("depth going stale mid-drive latches within 25 ms; the reason names it
   Fixture f(robot({{"agent", {{"min_obstacle_m", 0.3}}}}));
   // Fresh frames (dated now) until 1.5 s; from then on the source reports unavailable, still dating the frame it
   // last had (as vision's DepthFeed does).
-  const std::int64_t wall0 = rcand::sdk::testing::ManualClock::kWallEpochMs;
-  ObstacleScript stale(f.host.clock(), [wall0](std::int64_t now) {
+  constexpr std::int64_t wall0 = rcand::sdk::testing::ManualClock::kWallEpochMs;  // a constant: no capture needed
+  ObstacleScript stale(f.host.clock(), [](std::int64_t now) {
     if (now < 1'500'000) return reading(200, 150, 300, wall0 + now / 1000);
     ObstacleReading r = reading(200, 150, 300, wall0 + 1'480);
     r.available = false;
