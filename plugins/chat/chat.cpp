@@ -133,7 +133,7 @@ void Chat::answer(const Thought& thought, const std::string& state, Response res
   Json fields{{"state", state}, {"status", response.status}};
   if (response.status >= 300 && response.body.contains("code")) fields["code"] = response.body["code"];
   thoughts_.update(thought.id, fields);
-  thought.writer->respond(std::move(response), std::move(headers));
+  thought.writer->respond(response, std::move(headers));
   ctx_.publish_status(status());  // GET /api/status serves the snapshot; counters changed
 }
 
@@ -390,8 +390,7 @@ void Chat::hold(const std::shared_ptr<Thought>& thought, const Json& answer_body
     auto taken = hitl_.take(id);
     if (!taken) return;
     const std::string why = "no decision within " + std::to_string(timeout.count()) + " ms";
-    taken->decide(approve_on_timeout ? HitlQueue::Decision::Approve : HitlQueue::Decision::Timeout, approve_on_timeout ? "" : "",
-                  why, nullptr);
+    taken->decide(approve_on_timeout ? HitlQueue::Decision::Approve : HitlQueue::Decision::Timeout, "", why, nullptr);
   });
   if (!hitl_.set_timer(id, timer)) timer_.cancel(timer);
   thoughts_.update(id, {{"hitl", {{"state", "pending"}, {"reason", reason}, {"expires_at_ms", expires}}}});
@@ -407,7 +406,7 @@ void Chat::hold(const std::shared_ptr<Thought>& thought, const Json& answer_body
 }
 
 void Chat::authorize(const sdk::Request& request, const std::shared_ptr<sdk::StreamWriter>& writer) {
-  const auto refuse = [&writer](Response r) { writer->respond(std::move(r)); };
+  const auto refuse = [&writer](const Response& r) { writer->respond(r); };
   if (static_cast<int>(request.role) < static_cast<int>(sdk::Role::Owner))
     return refuse(Response::error(403, "FORBIDDEN", "approving a brain's action needs the OWNER role or higher"));
   const Json& body = request.body;
@@ -430,7 +429,7 @@ void Chat::authorize(const sdk::Request& request, const std::shared_ptr<sdk::Str
   }
   timer_.cancel(taken->timer);
   taken->decide(decision == "approve" ? HitlQueue::Decision::Approve : HitlQueue::Decision::Deny, request.principal,
-                body.value("reason", ""), [writer](Response r) { writer->respond(std::move(r)); });
+                body.value("reason", ""), [writer](const Response& r) { writer->respond(r); });
 }
 
 Response Chat::thought(const sdk::Request& request) const {

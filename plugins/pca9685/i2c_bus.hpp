@@ -17,7 +17,7 @@ class I2cError : public std::runtime_error {
     Timeout,  // the transfer did not finish: a wedged bus (SDA held low) or a stretched clock
     Io,       // anything else (the device file is missing, permission, ...)
   };
-  I2cError(Kind kind, std::string message) : std::runtime_error(std::move(message)), kind_(kind) {}
+  I2cError(Kind kind, const std::string& message) : std::runtime_error(message), kind_(kind) {}
   Kind kind() const noexcept { return kind_; }
 
  private:
