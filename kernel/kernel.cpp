@@ -290,12 +290,12 @@ Kernel::CheckReport Kernel::check(RobotConfig config, const KernelOptions& optio
   if (!problems.empty()) throw ConfigError(std::move(problems));
   CheckReport report{s.registry->names(), {}};
   for (const auto& driver : s.config.drivers)
-    for (const auto& record : s.host.records())
-      for (const auto& item : record->manifest ? record->manifest->provides : std::vector<ProvidedItem>{})
+    for (const auto* plugin : s.host.providers_of_driver(driver.protocol))
+      for (const auto& item : plugin->manifest->provides)
         if (item.kind == "driver" && item.name == driver.protocol && item.actuates)
           report.fail_safes.push_back(
               driver.id + " (" + driver.protocol +
-              "): " + (item.fail_safe.empty() ? "WARNING: " + record->id + " states no hardware fail-safe" : item.fail_safe));
+              "): " + (item.fail_safe.empty() ? "WARNING: " + plugin->id + " states no hardware fail-safe" : item.fail_safe));
   return report;
 }
 
