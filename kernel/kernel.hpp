@@ -11,7 +11,7 @@
 #include <string>
 #include <vector>
 
-#include "kernel/config/robot_config.hpp"
+#include "libs/config/robot_config.hpp"
 #include "kernel/plugins/plugin_host.hpp"
 #include "kernel/registry/capability_registry.hpp"
 

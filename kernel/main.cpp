@@ -13,7 +13,7 @@
 #include <thread>
 #include <vector>
 
-#include "kernel/config/robot_config.hpp"
+#include "libs/config/robot_config.hpp"
 #include "kernel/kernel.hpp"
 #include "kernel/service.hpp"
 #include "libs/base/logging.hpp"

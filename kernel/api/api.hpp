@@ -14,7 +14,7 @@
 #include "kernel/api/router.hpp"
 #include "kernel/audit/audit_log.hpp"
 #include "kernel/auth/authenticator.hpp"
-#include "kernel/config/robot_config.hpp"
+#include "libs/config/robot_config.hpp"
 #include "kernel/safety/estop.hpp"
 #include "libs/base/logging.hpp"
 #include "libs/base/rate_limiter.hpp"

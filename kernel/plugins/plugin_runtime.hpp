@@ -12,7 +12,7 @@
 #include <string>
 #include <vector>
 
-#include "kernel/config/robot_config.hpp"
+#include "libs/config/robot_config.hpp"
 #include "kernel/plugins/instance_context.hpp"
 #include "kernel/plugins/plugin_host.hpp"
 #include "kernel/plugins/status_reader.hpp"

@@ -7,7 +7,7 @@
 
 #include <string>
 
-#include "kernel/config/robot_config.hpp"
+#include "libs/config/robot_config.hpp"
 #include "rcand/sdk/contract/settings.hpp"
 
 namespace rcand::kernel {

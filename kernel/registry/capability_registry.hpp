@@ -13,7 +13,7 @@
 #include <utility>
 #include <vector>
 
-#include "kernel/config/robot_config.hpp"
+#include "libs/config/robot_config.hpp"
 #include "kernel/registry/standard_capabilities.hpp"
 #include "rcand/sdk/scope.hpp"
 

@@ -14,7 +14,7 @@
 #include <vector>
 
 #include "kernel/auth/authenticator.hpp"
-#include "kernel/config/robot_config.hpp"
+#include "libs/config/robot_config.hpp"
 #include "kernel/safety/estop.hpp"
 #include "libs/http/handler.hpp"
 #include "libs/http/server_options.hpp"

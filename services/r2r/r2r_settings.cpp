@@ -5,7 +5,7 @@
 #include <sstream>
 #include <stdexcept>
 
-#include "kernel/config/config_schema.hpp"
+#include "libs/config/config_schema.hpp"
 
 namespace rcand::kernel::r2r {
 namespace {
@@ -20,7 +20,7 @@ std::string check_one_key(const json& peer) {
   return "";
 }
 
-// runtime.r2r: this service's keys. They join the config's one table (kernel/config/config_schema.hpp), so the file
+// runtime.r2r: this service's keys. They join the config's one table (libs/config/config_schema.hpp), so the file
 // is checked with file:line:column before anything here runs; load_r2r_settings() runs the same check on a block it
 // is handed directly. A table, one key per row, kept in its hand layout.
 // clang-format off

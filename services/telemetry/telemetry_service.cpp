@@ -2,7 +2,7 @@
 
 #include <atomic>
 
-#include "kernel/config/config_schema.hpp"
+#include "libs/config/config_schema.hpp"
 #include "kernel/kernel.hpp"
 #include "libs/http/server.hpp"
 #include "rcand/sdk/obstacle_source.hpp"
@@ -19,7 +19,7 @@ namespace {
 using nlohmann::json;
 using namespace rcand::services::telemetry;
 
-// runtime.telemetry: this service's keys, joined to the config's one table (kernel/config/config_schema.hpp).
+// runtime.telemetry: this service's keys, joined to the config's one table (libs/config/config_schema.hpp).
 // clang-format off
 const kernel::ConfigFragment kTelemetryKeys({
     {.path = "runtime.telemetry", .type = kernel::ValueType::Mapping, .description = "WS /ws/telemetry and GET /metrics"},

@@ -12,7 +12,7 @@
 
 #include "fuzz_check.hpp"
 #include "kernel/api/api.hpp"
-#include "kernel/config/robot_config.hpp"
+#include "libs/config/robot_config.hpp"
 #include "kernel/kernel.hpp"
 #include "kernel/service.hpp"
 #include "libs/base/logging.hpp"

@@ -1,7 +1,7 @@
 // Shared helpers for the config tests: sample documents and "parse, expect failure, hand back the diagnostics".
 #pragma once
 
-#include "kernel/config/robot_config.hpp"
+#include "libs/config/robot_config.hpp"
 
 #include <filesystem>
 #include <string>

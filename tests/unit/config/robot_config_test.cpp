@@ -1,7 +1,7 @@
 // A valid file becomes the right RobotConfig: values, defaults, paths, marks.
 #include "config_test_support.hpp"
 
-#include "kernel/config/config_reference.hpp"
+#include "libs/config/config_reference.hpp"
 #include "libs/rcan/machine_identity.hpp"
 #include "temp_dir.hpp"
 

@@ -1,4 +1,4 @@
-#include "kernel/config/robot_config.hpp"
+#include "libs/config/robot_config.hpp"
 #include "kernel/plugins/settings_schema.hpp"
 
 #include <doctest/doctest.h>

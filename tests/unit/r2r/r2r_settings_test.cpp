@@ -3,7 +3,7 @@
 #include <filesystem>
 #include <fstream>
 
-#include "kernel/config/robot_config.hpp"
+#include "libs/config/robot_config.hpp"
 #include "plugins/fleet/fleet_settings.hpp"
 #include "services/r2r/r2r_settings.hpp"
 #include "temp_dir.hpp"

@@ -3,7 +3,7 @@
 // (ConfigFragment: runtime.r2r is services/r2r's), so every key is checked once, by one engine, with file:line:column.
 #pragma once
 
-#include "kernel/config/robot_config.hpp"
+#include "libs/config/robot_config.hpp"
 
 #include <nlohmann/json.hpp>
 

@@ -1,9 +1,9 @@
-#include "kernel/config/config_schema.hpp"
+#include "libs/config/config_schema.hpp"
 #include "libs/rcan/loopback.hpp"
 
 #include "libs/yaml/yaml_document.hpp"
 
-#include "kernel/config/config_reference.hpp"
+#include "libs/config/config_reference.hpp"
 
 #include <rcand/sdk/scope.hpp>
 

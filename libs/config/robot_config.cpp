@@ -1,6 +1,6 @@
-#include "kernel/config/robot_config.hpp"
+#include "libs/config/robot_config.hpp"
 
-#include "kernel/config/config_schema.hpp"
+#include "libs/config/config_schema.hpp"
 #include "libs/rcan/machine_identity.hpp"
 #include "libs/yaml/yaml_document.hpp"
 
