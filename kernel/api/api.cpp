@@ -78,8 +78,8 @@ void Api::execute_action(const Principal& principal, json body, std::function<vo
   });
 }
 
-void Api::execute(const Principal& principal, http::Request request, http::Respond respond) {
-  serve(std::move(request), &principal, std::move(respond));
+void Api::execute(const Principal& principal, http::Request request, http::Respond respond, json audit_note) {
+  serve(std::move(request), &principal, std::move(respond), std::move(audit_note));
 }
 
 bool Api::admit_address(const http::Request& request, const Reply& reply) {
@@ -126,8 +126,9 @@ bool Api::authenticate(Call& call, const Principal* authenticated, Scope scope, 
   return true;
 }
 
-void Api::serve(http::Request&& request, const Principal* authenticated, http::Respond respond) {
+void Api::serve(http::Request&& request, const Principal* authenticated, http::Respond respond, json audit_note) {
   Call call;
+  call.audit_note = std::move(audit_note);
   if (auto id = request.header("x-message-id"); id && valid_message_id(*id)) call.message_id = std::string(*id);
   else call.message_id = "m-" + std::to_string(clock_.wall_ms()) + "-" + std::to_string(++message_counter_);
   call.request = std::move(request);
@@ -163,7 +164,8 @@ void Api::serve(http::Request&& request, const Principal* authenticated, http::R
 
 void Api::dispatch(const Route& route, Call& call, Reply reply) {
   const RouteSpec& spec = route.spec;
-  if (spec.audited) call.audit_seq = audit_.begin(call.principal, call.message_id, call.request.method + " " + call.request.path);
+  if (spec.audited)
+    call.audit_seq = audit_.begin(call.principal, call.message_id, call.request.method + " " + call.request.path, call.audit_note);
   if (spec.motion && estop_.latched()) {
     if (spec.audited) audit_.finish(call.audit_seq, "blocked", "e-stop active");
     reply(error_response(423, "ESTOP_ACTIVE", "e-stop is latched; clear it with POST /api/estop/clear"));

@@ -38,10 +38,12 @@ class Api {
   void execute_action(const Principal& principal, nlohmann::json body, std::function<void(int status, nlohmann::json body)> done);
   // Any request from `principal`, already authenticated by the caller (an R2R node, a plugin's RequestDispatcher):
   // everything after authentication runs as for HTTP. An invalid or missing x-message-id header gets one made.
-  void execute(const Principal& principal, http::Request request, http::Respond respond);
+  // `audit_note` joins the request's audit entry (AuditEntry::note).
+  void execute(const Principal& principal, http::Request request, http::Respond respond, nlohmann::json audit_note = nullptr);
 
  private:
-  void serve(http::Request&& request, const Principal* authenticated, http::Respond respond);
+  void serve(http::Request&& request, const Principal* authenticated, http::Respond respond,
+             nlohmann::json audit_note = nullptr);
   // The audit entry, the e-stop pre-check and the handler (after the row's decorator, if any).
   void dispatch(const Route& route, Call& call, Reply reply);
   // The principal for `scope` (the R2R peer's own when `authenticated`), else answers 401/403 and returns false.

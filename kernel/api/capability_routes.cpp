@@ -160,7 +160,7 @@ class CapabilityRoutes {
     const std::string type = body.value["type"].get<std::string>();
     const StandardCapability* standard = capability_of_action(type);
     if (standard == nullptr) return reply(answer(contract::unknown_action_type(bounded_text(type), declared_types)));
-    call.audit_seq = d_.audit.begin(call.principal, call.message_id, "POST /api/action " + type);
+    call.audit_seq = d_.audit.begin(call.principal, call.message_id, "POST /api/action " + type, call.audit_note);
     CapabilityInstance* instance = available(std::string(standard->name), call, reply);
     if (instance == nullptr) return;
     const sdk::Route* route = nullptr;

@@ -1,11 +1,47 @@
 #include "kernel/api/request_dispatch.hpp"
 
+#include "libs/base/bounded_text.hpp"
+#include "libs/base/logging.hpp"
 #include "libs/rcan/role_scopes.hpp"
 
-namespace rcand::kernel {
+#include <algorithm>
+#include <array>
+#include <cctype>
 
-void KernelRequestDispatcher::dispatch(sdk::Request request, std::function<void(sdk::Response)> done) const noexcept {
+namespace rcand::kernel {
+namespace {
+
+// Why `note` breaks sdk::RequestDispatcher's rules for an audit note, or empty when it keeps them.
+std::string audit_note_fault(const nlohmann::json& note) {
+  if (note.is_null()) return {};
+  if (!note.is_object()) return "the audit note is not an object";
+  static constexpr std::array kEntryFields{"seq",          "principal", "ruri",   "message_id", "event",
+                                           "timestamp_ms", "outcome",   "detail", "kind"};
+  for (const auto& [key, value] : note.items()) {
+    const bool named = !key.empty() && key.size() <= 32 && std::islower(static_cast<unsigned char>(key[0])) &&
+                       key.find_first_not_of("abcdefghijklmnopqrstuvwxyz0123456789_") == std::string::npos;
+    if (!named) return "audit note key '" + bounded_text(key, 40) + "' is not a lowercase name";
+    if (std::find(kEntryFields.begin(), kEntryFields.end(), key) != kEntryFields.end())
+      return "audit note key '" + key + "' is one of the entry's own fields";
+  }
+  const auto size = note.dump(-1, ' ', false, nlohmann::json::error_handler_t::replace).size();
+  if (size > sdk::RequestDispatcher::kAuditNoteLimit)
+    return "audit note of " + std::to_string(size) + " bytes (limit " +
+           std::to_string(sdk::RequestDispatcher::kAuditNoteLimit) + ")";
+  return {};
+}
+
+}  // namespace
+
+void KernelRequestDispatcher::dispatch(sdk::Request request, sdk::Json audit_note,
+                                       std::function<void(sdk::Response)> done) const noexcept {
   try {
+    if (const auto fault = audit_note_fault(audit_note); !fault.empty()) {
+      logger("kernel.api")->error("a plugin's request {} {} was not run: {}", bounded_text(request.method, 16),
+                                  bounded_text(request.path, 200), fault);
+      done(sdk::Response::error(500, "INVALID_AUDIT_NOTE", "request not dispatched: " + fault));
+      return;
+    }
     const Principal principal{request.principal, request.role, default_scopes(request.role), "plugin"};
     http::Request http;
     http.method = std::move(request.method);
@@ -22,7 +58,7 @@ void KernelRequestDispatcher::dispatch(sdk::Request request, std::function<void(
       }
       auto body = nlohmann::json::parse(response.body, nullptr, false);
       done(sdk::Response{response.status, body.is_discarded() ? nlohmann::json::object() : std::move(body)});
-    });
+    }, std::move(audit_note));
   } catch (const std::exception& e) {  // no memory: the request never ran
     done(sdk::Response::error(500, "INTERNAL", std::string("request not dispatched: ") + e.what()));
   }

@@ -12,6 +12,7 @@
 #include <string_view>
 #include <vector>
 
+#include <nlohmann/json.hpp>
 #include <rcand/sdk/scope.hpp>
 
 #include "libs/http/handler.hpp"
@@ -27,6 +28,7 @@ struct Call {
   std::string message_id;
   std::vector<sdk::Scope> scopes;  // what the principal's credential grants
   std::uint64_t audit_seq = 0;     // 0: this row is not audited by the middleware
+  nlohmann::json audit_note;       // what a plugin's RequestDispatcher call adds to the audit entry (AuditEntry::note)
 
   bool has_scope(sdk::Scope scope) const {
     return scope == sdk::Scope::None || std::find(scopes.begin(), scopes.end(), scope) != scopes.end();

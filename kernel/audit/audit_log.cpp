@@ -24,6 +24,8 @@ nlohmann::json audit_entry_json(const AuditEntry& entry) {
                       {"event", entry.event},
                       {"outcome", entry.outcome}};
   if (!entry.detail.empty()) item["detail"] = entry.detail;
+  if (entry.note.is_object())
+    for (const auto& [key, value] : entry.note.items()) item.emplace(key, value);  // never over the entry's own
   return item;
 }
 
@@ -82,12 +84,13 @@ void AuditLog::identify(std::string robot_ruri, const sdk::Clock& clock) {
   clock_ = &clock;
 }
 
-std::uint64_t AuditLog::begin(const std::string& principal, const std::string& message_id, std::string event) {
+std::uint64_t AuditLog::begin(const std::string& principal, const std::string& message_id, std::string event,
+                              nlohmann::json note) {
   const std::int64_t now_ms =
       clock_ != nullptr
           ? clock_->wall_ms()
           : std::chrono::duration_cast<std::chrono::milliseconds>(std::chrono::system_clock::now().time_since_epoch()).count();
-  return record({0, principal, robot_ruri_, message_id, std::move(event), now_ms, "pending", {}});
+  return record({0, principal, robot_ruri_, message_id, std::move(event), now_ms, "pending", {}, std::move(note)});
 }
 
 std::uint64_t AuditLog::record(AuditEntry entry) {

@@ -32,6 +32,8 @@ struct AuditEntry {
   std::int64_t timestamp_ms = 0;
   std::string outcome = "pending";  // until dispatch finishes: ok | blocked | error
   std::string detail;               // why it was blocked or failed
+  nlohmann::json note;              // null, or keys the requesting plugin added (the chat's "ai"), checked by
+                                    // KernelRequestDispatcher: lowercase names, none of the above, bounded
 };
 
 class AuditLog {
@@ -53,7 +55,8 @@ class AuditLog {
   void identify(std::string robot_ruri, const sdk::Clock& clock);
   // The one audit call of request paths: records "pending" for `principal` now and returns the seq that finish()
   // completes. Before dispatch, always (docs/protocol.md §6.3).
-  std::uint64_t begin(const std::string& principal, const std::string& message_id, std::string event);
+  std::uint64_t begin(const std::string& principal, const std::string& message_id, std::string event,
+                      nlohmann::json note = nullptr);
   void finish(std::uint64_t seq, std::string outcome, std::string detail = {});
   // {"entries":[...]} newest first, at most `limit`.
   nlohmann::json to_json(std::size_t limit) const;

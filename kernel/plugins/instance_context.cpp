@@ -23,7 +23,7 @@ void InstanceEstop::request_estop(const std::string& reason) noexcept {
   if (services_.audit != nullptr) {
     try {
       seq = services_.audit->record({0, "plugin:" + plugin_id_, services_.ruri, "", "estop requested by " + source,
-                                     services_.clock.wall_ms(), "pending", reason});
+                                     services_.clock.wall_ms(), "pending", reason, nullptr});
     } catch (...) {  // the audit entry is bookkeeping: the stop happens regardless
     }
   }

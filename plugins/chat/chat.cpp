@@ -49,6 +49,7 @@ struct Chat::Thought {
   std::shared_ptr<sdk::StreamWriter> writer;
   std::uint64_t epoch = 0;  // chat's e-stop epoch when the instruction came in
   Clock::time_point deadline;
+  Json ai;  // who decided: the audit note of the dispatched request ({"ai": ...}), set once a brain answered
 };
 
 Chat::Chat(sdk::PluginContext& ctx)
@@ -283,6 +284,11 @@ void Chat::think(const std::shared_ptr<Thought>& thought, const sdk::CancelToken
                 {"attempts", attempts},   {"inference_latency_ms", attempts.back()["latency_ms"]}};
     if (p.confidence) record["confidence"] = *p.confidence;
     thoughts_.update(thought->id, record, p.reasoning);
+    thought->ai = {{"provider", p.brain},
+                   {"model", p.model},
+                   {"confidence", p.confidence ? Json(*p.confidence) : Json(nullptr)},
+                   {"inference_latency_ms", attempts.back()["latency_ms"]},
+                   {"thought_id", thought->id}};
     if (!p.error.empty()) {
       answer(*thought, "failed", refusal(503, "UNAVAILABLE", "no brain answered: " + p.error, answer_body),
              {{"Retry-After", "1"}});
@@ -476,7 +482,7 @@ void Chat::dispatch(const std::shared_ptr<Thought>& thought, const Json& answer_
   ctx_.log().info("thought ", thought->id, " (message ", thought->request.message_id, ", '", thought->request.principal,
                   "'): ", route, " by ", answer_body.value("brain", ""), ": ", answer_body.value("raw_text", ""));
   if (!action.motion) {  // stops and reads are never held back by the e-stop
-    dispatcher->dispatch(std::move(request), std::move(done));
+    dispatcher->dispatch(std::move(request), Json{{"ai", thought->ai}}, std::move(done));
     return;
   }
   std::unique_lock lock(dispatch_mutex_);
@@ -487,7 +493,7 @@ void Chat::dispatch(const std::shared_ptr<Thought>& thought, const Json& answer_
     reply(refusal(423, "ESTOP_ACTIVE", "the e-stop latched after this instruction came in; its action was dropped", answer_body));
     return;
   }
-  dispatcher->dispatch(std::move(request), std::move(done));
+  dispatcher->dispatch(std::move(request), Json{{"ai", thought->ai}}, std::move(done));
 }
 
 void Chat::on_estop() noexcept {

@@ -46,9 +46,11 @@ inline json rover_config(json chat = json::object(), json agent = {{"provider", 
 // rcand's RequestDispatcher as a double: records each request and answers `answer` at once.
 struct Dispatcher final : sdk::RequestDispatcher {
   mutable std::vector<sdk::Request> requests;
+  mutable std::vector<json> audit_notes;
   Response answer = Response::ok({{"ok", true}});
-  void dispatch(sdk::Request request, std::function<void(Response)> done) const noexcept override {
+  void dispatch(sdk::Request request, json audit_note, std::function<void(Response)> done) const noexcept override {
     requests.push_back(request);
+    audit_notes.push_back(std::move(audit_note));
     done(answer);
   }
 };

@@ -27,6 +27,25 @@ TEST_CASE("an instruction is read, checked and dispatched as the caller, with th
   CHECK(r.principal == "alice");
   CHECK(r.role == Role::User);
   CHECK(r.message_id == thought);
+  // The kernel's audit entry of the dispatched request says which brain decided it.
+  REQUIRE(f.dispatcher.audit_notes.size() == 1);
+  const json& ai = f.dispatcher.audit_notes[0]["ai"];
+  CHECK(ai["provider"] == "grammar");
+  CHECK(ai["model"] == "grammar-en-1");
+  CHECK(ai["confidence"] == 1.0);
+  CHECK(ai["thought_id"] == thought);
+  CHECK(ai["inference_latency_ms"].is_number());
+  CHECK(ai["inference_latency_ms"].get<double>() >= 0.0);
+}
+
+TEST_CASE("a brain that gives no confidence is audited with confidence null, never a made-up 1.0") {
+  Fixture f(rover_config(json::object(), {{"provider", "spy"}}));
+  f.spy.answer = [](const sdk::BrainRequest&, sdk::CancelToken) { return spy_says(waypoint(1, 0), std::nullopt); };
+  const auto w = f.say("anything");
+  INFO(w->json().dump());
+  REQUIRE(f.dispatcher.audit_notes.size() == 1);
+  CHECK(f.dispatcher.audit_notes[0]["ai"]["provider"] == "spy");
+  CHECK(f.dispatcher.audit_notes[0]["ai"]["confidence"].is_null());
 }
 
 TEST_CASE("the handler only queues: the brain runs later on chat's own worker, never on the capability's") {

@@ -88,12 +88,23 @@ TEST_CASE("chat: an instruction drives through nav as the caller; a stop latches
   CHECK(status == 423);
   CHECK(answer["code"] == "ESTOP_ACTIVE");
 
-  bool linked = false;
   const json audit = rcand.json("GET", "/api/audit", "owner-token");
   INFO(audit.dump());
+  json linked;  // the nav request the thought dispatched, as the caller, with the brain that decided it
   for (const auto& entry : audit["entries"])
-    linked |= entry.value("message_id", "") == thought && entry.value("principal", "") == "user-principal";
-  CHECK_MESSAGE(linked, "no audit entry carries the thought id " << thought << " as its message id");
+    if (entry.value("message_id", "") == thought && entry.value("principal", "") == "user-principal") linked = entry;
+  REQUIRE_MESSAGE(linked.is_object(), "no audit entry carries the thought id " << thought << " as its message id");
+  CHECK(linked["event"] == "POST /api/nav/waypoint");
+  CHECK(linked["outcome"] == "ok");
+  CHECK(linked["ai"]["provider"] == "grammar");
+  CHECK(linked["ai"]["model"] == "grammar-en-1");
+  CHECK(linked["ai"]["confidence"] == 1.0);
+  CHECK(linked["ai"]["thought_id"] == thought);
+  CHECK(linked["ai"]["inference_latency_ms"].is_number());
+  bool injection_audited = false;  // the blocked instruction: its POST /api/command entry names the block
+  for (const auto& entry : audit["entries"])
+    injection_audited |= entry.value("event", "") == "POST /api/command" && entry.value("detail", "") == "INJECTION_BLOCKED";
+  CHECK(injection_audited);
 }
 
 TEST_CASE("chat: an HTTP brain's answer drives the robot; the thought shows reasoning only to scope config") {

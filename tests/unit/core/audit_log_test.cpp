@@ -17,12 +17,22 @@ using namespace rcand::kernel;
 
 TEST_CASE("entries rotated out of the in-memory ring are counted as dropped") {
   AuditLog log(3);
-  for (int i = 0; i < 5; ++i) log.finish(log.record({0, "p", "r", "m" + std::to_string(i), "POST /x", 1, "pending", {}}), "ok");
+  for (int i = 0; i < 5; ++i) log.finish(log.record({0, "p", "r", "m" + std::to_string(i), "POST /x", 1, "pending", {}, nullptr}), "ok");
   const auto doc = log.to_json(100);
   CHECK(doc["entries"].size() == 3);
   CHECK(doc["total"] == 5);
   CHECK(doc["dropped"] == 2);
   CHECK(log.dropped() == 2);
+}
+
+TEST_CASE("a plugin's note joins its entry, in memory and in the file, and never replaces the entry's own fields") {
+  AuditLog log(4);
+  const nlohmann::json note{{"ai", {{"provider", "grammar"}, {"thought_id", "th-1"}}}, {"outcome", "forged"}};
+  log.finish(log.begin("alice", "m1", "POST /api/nav/waypoint", note), "ok");
+  const auto entry = log.to_json(1)["entries"][0];
+  CHECK(entry["ai"] == note["ai"]);
+  CHECK(entry["outcome"] == "ok");
+  CHECK(entry["principal"] == "alice");
 }
 
 TEST_CASE("with a file, every entry is appended twice: pending before dispatch, then its outcome under the same seq") {
@@ -32,7 +42,7 @@ TEST_CASE("with a file, every entry is appended twice: pending before dispatch, 
     AuditLog log(2);
     log.persist_to(file);
     for (int i = 0; i < 4; ++i) {
-      const auto seq = log.record({0, "p", "r", "m" + std::to_string(i), "POST /x", 1, "pending", {}});
+      const auto seq = log.record({0, "p", "r", "m" + std::to_string(i), "POST /x", 1, "pending", {}, nullptr});
       // The pending line is in the file before finish() (before the command is dispatched).
       std::ifstream before(file);
       std::string last, line;
@@ -94,7 +104,7 @@ TEST_CASE("every text field is bounded as it is recorded: length, UTF-8, control
   AuditLog log;
   log.persist_to(file);
   const std::string huge(1 << 20, 'x');
-  const auto seq = log.record({0, huge, huge, "id\n\x1b[31m" + huge, "POST /api/nav/waypoint " + huge, 1, "pending", huge});
+  const auto seq = log.record({0, huge, huge, "id\n\x1b[31m" + huge, "POST /api/nav/waypoint " + huge, 1, "pending", huge, nullptr});
   log.finish(seq, "error", "bad type '" + huge + "' \xff");
   const auto entry = log.to_json(1)["entries"][0];
   CHECK(entry["principal"].get<std::string>().size() <= AuditLog::kFieldLimit);
@@ -114,7 +124,7 @@ TEST_CASE("the file rotates by size and keeps `keep` rotated files") {
   {
     AuditLog log;
     log.persist_to(file, 4096, 2);
-    for (int i = 0; i < 60; ++i) log.finish(log.record({0, "p", "r", "m" + std::to_string(i), "POST /x", 1, "pending", {}}), "ok");
+    for (int i = 0; i < 60; ++i) log.finish(log.record({0, "p", "r", "m" + std::to_string(i), "POST /x", 1, "pending", {}, nullptr}), "ok");
   }
   const std::filesystem::path one = file.string() + ".1", two = file.string() + ".2";
   CHECK(std::filesystem::exists(one));
@@ -138,19 +148,19 @@ TEST_CASE("the sequence continues from the file, also right after a rotation, an
   {
     AuditLog log;
     log.persist_to(file);
-    for (int i = 0; i < 5; ++i) log.record({0, "p", "r", "m", "POST /x", 1, "pending", {}});  // never finished: a crash
+    for (int i = 0; i < 5; ++i) log.record({0, "p", "r", "m", "POST /x", 1, "pending", {}, nullptr});  // never finished: a crash
   }
   std::ofstream(file, std::ios::app) << R"({"seq":99,"kind":"entr)";  // the half-written line of a kill -9
   {
     AuditLog log;
     log.persist_to(file);
-    CHECK(log.record({0, "p", "r", "m", "POST /x", 1, "pending", {}}) == 6);
+    CHECK(log.record({0, "p", "r", "m", "POST /x", 1, "pending", {}, nullptr}) == 6);
     CHECK(log.total() == 1);  // this run's entries
   }
   std::filesystem::rename(file, file.string() + ".1");  // as if it had just rotated
   AuditLog log;
   log.persist_to(file);
-  CHECK(log.record({0, "p", "r", "m", "POST /x", 1, "pending", {}}) == 7);
+  CHECK(log.record({0, "p", "r", "m", "POST /x", 1, "pending", {}, nullptr}) == 7);
 }
 
 TEST_CASE("LogRateLimiter: N lines a second per source, then the count of suppressed ones on the next line") {

@@ -15,8 +15,8 @@ using namespace rcand::kernel;
 
 TEST_CASE("audit log: newest first, outcome filled in after dispatch, bounded") {
   AuditLog audit(3);
-  const auto a = audit.record({0, "alice", "rcan://x", "m1", "POST /api/action move", 1, "pending", {}});
-  const auto b = audit.record({0, "bob", "rcan://x", "m2", "POST /api/stop", 2, "pending", {}});
+  const auto a = audit.record({0, "alice", "rcan://x", "m1", "POST /api/action move", 1, "pending", {}, nullptr});
+  const auto b = audit.record({0, "bob", "rcan://x", "m2", "POST /api/stop", 2, "pending", {}, nullptr});
   audit.finish(a, "blocked", "e-stop active");
   audit.finish(b, "ok");
   auto doc = audit.to_json(10);
@@ -26,7 +26,7 @@ TEST_CASE("audit log: newest first, outcome filled in after dispatch, bounded") 
   CHECK(doc["entries"][1]["outcome"] == "blocked");
   CHECK(doc["entries"][1]["detail"] == "e-stop active");
   for (auto key : {"principal", "ruri", "timestamp_ms", "message_id", "event", "outcome"}) CHECK(doc["entries"][0].contains(key));
-  for (int i = 0; i < 5; ++i) audit.record({0, "c", "r", "m", "e", 3, "pending", {}});
+  for (int i = 0; i < 5; ++i) audit.record({0, "c", "r", "m", "e", 3, "pending", {}, nullptr});
   CHECK(audit.to_json(10)["entries"].size() == 3);
   CHECK(audit.total() == 7);
   audit.finish(a, "ok");  // rotated out: ignored, no crash

@@ -9,6 +9,7 @@
 // waiting for a request to itself would wait for its own turn.
 #pragma once
 
+#include <cstddef>
 #include <functional>
 #include <string_view>
 
@@ -19,13 +20,22 @@ namespace rcand::sdk {
 
 class RCAND_INTERFACE RequestDispatcher {
  public:
-  static constexpr std::string_view kServiceId = "rcand.request_dispatcher/1";
+  static constexpr std::string_view kServiceId = "rcand.request_dispatcher/2";
+  // The largest audit note rcand records (its JSON text, in bytes).
+  static constexpr std::size_t kAuditNoteLimit = 2048;
   virtual ~RequestDispatcher() = default;
   // Runs `request` as an HTTP request from `request.principal` with the default scopes of `request.role`: method,
   // path, query and body are used; `message_id` (empty: one is made) names it in the audit log. `done` is called
   // exactly once, from any thread (possibly before dispatch returns), with the answer the HTTP client would have got.
   // Any thread, never blocks.
-  virtual void dispatch(Request request, std::function<void(Response)> done) const noexcept = 0;
+  //
+  // `audit_note`: what the dispatching plugin adds to the request's audit entry, so the entry says why it happened
+  // (the chat capability: {"ai": {"provider", "model", "confidence", "inference_latency_ms", "thought_id"}}). null
+  // for none, else an object whose keys are lowercase names ([a-z][a-z0-9_]{0,31}) other than the entry's own
+  // fields (seq, principal, ruri, message_id, event, timestamp_ms, outcome, detail, kind), at most kAuditNoteLimit
+  // bytes as JSON. A note that breaks these rules is a bug in the plugin: the request is not run and `done` gets
+  // 500 INVALID_AUDIT_NOTE.
+  virtual void dispatch(Request request, Json audit_note, std::function<void(Response)> done) const noexcept = 0;
 };
 
 }  // namespace rcand::sdk

@@ -199,11 +199,11 @@ TEST_CASE("KernelRequestDispatcher: a plugin's request on a caller's behalf runs
   Kernel kernel(sim_rover());
   Api& api = kernel.api();
   const KernelRequestDispatcher dispatcher(api);
-  auto dispatch = [&](rcand::sdk::Request request) {
+  auto dispatch = [&](rcand::sdk::Request request, json note = nullptr) {
     std::mutex mutex;
     std::condition_variable cv;
     std::optional<rcand::sdk::Response> answer;
-    dispatcher.dispatch(std::move(request), [&](rcand::sdk::Response response) {
+    dispatcher.dispatch(std::move(request), std::move(note), [&](rcand::sdk::Response response) {
       std::lock_guard lock(mutex);
       answer = std::move(response);
       cv.notify_all();
@@ -246,4 +246,56 @@ TEST_CASE("KernelRequestDispatcher: a plugin's request on a caller's behalf runs
     if (entry["principal"] == "chat-user") ids.insert(entry.value("message_id", ""));
   CHECK(ids.count("thought-1") == 1);
   CHECK(ids.count("thought-4") == 1);
+}
+
+// The note a plugin adds to the audit entry of its request (the chat's "ai" block): recorded with the entry when it
+// keeps the SDK's rules, and the request refused unrun when it breaks them (a plugin bug must not forge an entry).
+TEST_CASE("KernelRequestDispatcher: a plugin's audit note joins the entry; a note breaking the rules runs nothing") {
+  Kernel kernel(sim_rover());
+  Api& api = kernel.api();
+  const KernelRequestDispatcher dispatcher(api);
+  auto dispatch = [&](std::string id, json note) {
+    std::mutex mutex;
+    std::condition_variable cv;
+    std::optional<rcand::sdk::Response> answer;
+    rcand::sdk::Request r;
+    r.method = "POST";
+    r.path = "/api/action";
+    r.body = kMove;
+    r.principal = "chat-user";
+    r.role = Role::User;
+    r.message_id = std::move(id);
+    dispatcher.dispatch(std::move(r), std::move(note), [&](rcand::sdk::Response response) {
+      std::lock_guard lock(mutex);
+      answer = std::move(response);
+      cv.notify_all();
+    });
+    std::unique_lock lock(mutex);
+    REQUIRE(cv.wait_for(lock, std::chrono::seconds(10), [&] { return answer.has_value(); }));
+    return *answer;
+  };
+  const json ai{{"provider", "grammar"}, {"model", "grammar-en-1"}, {"confidence", 0.9}, {"thought_id", "th-1"}};
+  CHECK(dispatch("noted-1", json{{"ai", ai}}).status == 200);
+
+  const int before = drive_commands(api);
+  for (const json& bad : {json("text"), json{{"Ai", 1}}, json{{"principal", "root"}}, json{{"outcome", "ok"}},
+                          json{{"ai", std::string(3000, 'x')}}, json{{"a-b", 1}}}) {
+    INFO(bad.dump().substr(0, 80));
+    const auto refused = dispatch("noted-bad", bad);
+    CHECK(refused.status == 500);
+    CHECK(refused.body["code"] == "INVALID_AUDIT_NOTE");
+  }
+  CHECK(drive_commands(api) == before);
+
+  const json audit = json::parse(call(api, "GET", "/api/audit").body)["entries"];
+  int noted = 0;
+  for (const auto& entry : audit) {
+    CHECK(entry.value("message_id", "") != "noted-bad");
+    if (entry.value("message_id", "") != "noted-1") continue;
+    ++noted;
+    CHECK(entry["ai"] == ai);
+    CHECK(entry["principal"] == "chat-user");
+    CHECK(entry["event"] == "POST /api/action move");
+  }
+  CHECK(noted == 1);
 }
