@@ -42,8 +42,7 @@ class Api {
   void execute(const Principal& principal, http::Request request, http::Respond respond, nlohmann::json audit_note = nullptr);
 
  private:
-  void serve(http::Request&& request, const Principal* authenticated, http::Respond respond,
-             nlohmann::json audit_note = nullptr);
+  void serve(http::Request&& request, const Principal* authenticated, http::Respond respond, nlohmann::json audit_note = nullptr);
   // The audit entry, the e-stop pre-check and the handler (after the row's decorator, if any).
   void dispatch(const Route& route, Call& call, Reply reply);
   // The principal for `scope` (the R2R peer's own when `authenticated`), else answers 401/403 and returns false.

@@ -26,8 +26,8 @@ std::string audit_note_fault(const nlohmann::json& note) {
   }
   const auto size = note.dump(-1, ' ', false, nlohmann::json::error_handler_t::replace).size();
   if (size > sdk::RequestDispatcher::kAuditNoteLimit)
-    return "audit note of " + std::to_string(size) + " bytes (limit " +
-           std::to_string(sdk::RequestDispatcher::kAuditNoteLimit) + ")";
+    return "audit note of " + std::to_string(size) + " bytes (limit " + std::to_string(sdk::RequestDispatcher::kAuditNoteLimit) +
+           ")";
   return {};
 }
 
@@ -37,8 +37,9 @@ void KernelRequestDispatcher::dispatch(sdk::Request request, sdk::Json audit_not
                                        std::function<void(sdk::Response)> done) const noexcept {
   try {
     if (const auto fault = audit_note_fault(audit_note); !fault.empty()) {
-      logger("kernel.api")->error("a plugin's request {} {} was not run: {}", bounded_text(request.method, 16),
-                                  bounded_text(request.path, 200), fault);
+      logger("kernel.api")
+          ->error("a plugin's request {} {} was not run: {}", bounded_text(request.method, 16), bounded_text(request.path, 200),
+                  fault);
       done(sdk::Response::error(500, "INVALID_AUDIT_NOTE", "request not dispatched: " + fault));
       return;
     }
@@ -50,15 +51,18 @@ void KernelRequestDispatcher::dispatch(sdk::Request request, sdk::Json audit_not
     if (!request.body.is_null()) http.body = request.body.dump(-1, ' ', false, nlohmann::json::error_handler_t::replace);
     http.remote = "plugin";
     if (!request.message_id.empty()) http.headers["x-message-id"] = std::move(request.message_id);
-    api_.execute(principal, std::move(http), [done](http::Response response) {
-      // A stream or a binary body (a snapshot JPEG) has no JSON to hand back: the caller learns what it was.
-      if (response.stream != nullptr || response.content_type != "application/json") {
-        done(sdk::Response{response.status, {{"content_type", response.content_type}, {"bytes", response.body.size()}}});
-        return;
-      }
-      auto body = nlohmann::json::parse(response.body, nullptr, false);
-      done(sdk::Response{response.status, body.is_discarded() ? nlohmann::json::object() : std::move(body)});
-    }, std::move(audit_note));
+    api_.execute(
+        principal, std::move(http),
+        [done](http::Response response) {
+          // A stream or a binary body (a snapshot JPEG) has no JSON to hand back: the caller learns what it was.
+          if (response.stream != nullptr || response.content_type != "application/json") {
+            done(sdk::Response{response.status, {{"content_type", response.content_type}, {"bytes", response.body.size()}}});
+            return;
+          }
+          auto body = nlohmann::json::parse(response.body, nullptr, false);
+          done(sdk::Response{response.status, body.is_discarded() ? nlohmann::json::object() : std::move(body)});
+        },
+        std::move(audit_note));
   } catch (const std::exception& e) {  // no memory: the request never ran
     done(sdk::Response::error(500, "INTERNAL", std::string("request not dispatched: ") + e.what()));
   }

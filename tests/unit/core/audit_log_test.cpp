@@ -17,7 +17,8 @@ using namespace rcand::kernel;
 
 TEST_CASE("entries rotated out of the in-memory ring are counted as dropped") {
   AuditLog log(3);
-  for (int i = 0; i < 5; ++i) log.finish(log.record({0, "p", "r", "m" + std::to_string(i), "POST /x", 1, "pending", {}, nullptr}), "ok");
+  for (int i = 0; i < 5; ++i)
+    log.finish(log.record({0, "p", "r", "m" + std::to_string(i), "POST /x", 1, "pending", {}, nullptr}), "ok");
   const auto doc = log.to_json(100);
   CHECK(doc["entries"].size() == 3);
   CHECK(doc["total"] == 5);
@@ -104,7 +105,8 @@ TEST_CASE("every text field is bounded as it is recorded: length, UTF-8, control
   AuditLog log;
   log.persist_to(file);
   const std::string huge(1 << 20, 'x');
-  const auto seq = log.record({0, huge, huge, "id\n\x1b[31m" + huge, "POST /api/nav/waypoint " + huge, 1, "pending", huge, nullptr});
+  const auto seq =
+      log.record({0, huge, huge, "id\n\x1b[31m" + huge, "POST /api/nav/waypoint " + huge, 1, "pending", huge, nullptr});
   log.finish(seq, "error", "bad type '" + huge + "' \xff");
   const auto entry = log.to_json(1)["entries"][0];
   CHECK(entry["principal"].get<std::string>().size() <= AuditLog::kFieldLimit);
@@ -124,7 +126,8 @@ TEST_CASE("the file rotates by size and keeps `keep` rotated files") {
   {
     AuditLog log;
     log.persist_to(file, 4096, 2);
-    for (int i = 0; i < 60; ++i) log.finish(log.record({0, "p", "r", "m" + std::to_string(i), "POST /x", 1, "pending", {}, nullptr}), "ok");
+    for (int i = 0; i < 60; ++i)
+      log.finish(log.record({0, "p", "r", "m" + std::to_string(i), "POST /x", 1, "pending", {}, nullptr}), "ok");
   }
   const std::filesystem::path one = file.string() + ".1", two = file.string() + ".2";
   CHECK(std::filesystem::exists(one));
