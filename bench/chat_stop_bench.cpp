@@ -1,6 +1,7 @@
 // POST /api/stop while chat's brains are busy (issue 16): a real rcand whose chat brain is an OpenAI-compatible
 // scripted model server on loopback. Each loaded sample puts five instructions in flight - four whose model answers
-// after 2 s and one whose model never answers - waits until the server has read all five requests, then times one
+// after 2 s and one whose model never answers - waits until the server has read all five requests and then a random
+// 2-20 ms (a stop lands anywhere in a model call), then times one
 // POST /api/stop on a kept-alive connection, and records when the server saw each brain socket close. Idle samples
 // time the same stop with nothing in flight. The e-stop is cleared between samples.
 //   bench_chat_stop [SAMPLES]
@@ -9,6 +10,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
+#include <random>
 #include <string>
 #include <thread>
 #include <vector>
@@ -75,6 +77,8 @@ int main(int argc, char** argv) {
     clear(client);
   }
   std::size_t posts = 0;
+  std::mt19937 random(12345);
+  std::uniform_int_distribution<int> settle(2000, 20000);
   for (int i = 0; i < samples; ++i) {
     for (int k = 0; k < 4; ++k) server.then(ScriptedModelServer::answer(move, std::chrono::milliseconds(2000)));
     server.then(ScriptedModelServer::hang());
@@ -83,6 +87,10 @@ int main(int argc, char** argv) {
       callers.emplace_back([&] { rcand.request("POST", "/api/command", "user-token", R"({"instruction":"drive on"})"); });
     posts += 5;
     if (!server.wait_for_posts(posts)) throw std::runtime_error("the brain calls did not reach the model server");
+    // A stop comes at any moment of a 2 s model call, not in the same millisecond as the five requests: waiting a
+    // random 2-20 ms keeps this harness's own threads (the callers, the model server reading the posts) from being
+    // timed as the stop's cost, while the calls stay in flight.
+    std::this_thread::sleep_for(std::chrono::microseconds(settle(random)));
     const auto sent = Clock::now();
     loaded.push_back(timed_stop(client, loaded_server));
     if (!server.wait_for_closes(posts, std::chrono::milliseconds(2000))) throw std::runtime_error("a brain socket stayed open");
