@@ -48,6 +48,7 @@ struct Packages {
   rcand::test::TempDir scratch;
   fs::path root;                        // every package unpacked here
   std::map<std::string, fs::path> debs;  // package name -> .deb
+  std::map<std::string, fs::path> ddebs;  // package name -> its -dbgsym .ddeb (not unpacked into root)
   fs::path plugin_dir;                  // <root>/usr/lib/<multiarch>/rcand/plugins
   fs::path vendor_plugins;              // the out-of-tree com.acme.gripper build's plugin directory
   fs::path vendor_deb;                  // its Debian package, made by the template's CPack setup
@@ -94,6 +95,11 @@ void build(Packages& p) {
              "cpack");
   p.root = p.scratch.path() / "root";
   for (const auto& entry : fs::directory_iterator(out)) {
+    if (entry.path().extension() == ".ddeb") {
+      const auto name = run_tool(*p.dpkg_deb, {"--field", entry.path().string(), "Package"});
+      require_ok(name, "dpkg-deb --field");
+      p.ddebs[name.out.substr(0, name.out.find('\n'))] = entry.path();
+    }
     if (entry.path().extension() != ".deb") continue;
     const auto name = run_tool(*p.dpkg_deb, {"--field", entry.path().string(), "Package"});
     require_ok(name, "dpkg-deb --field");
@@ -177,9 +183,12 @@ TEST_CASE("the kernel, SDK and core plugin packages are built, and the core set 
   for (const char* name : {"rcand", "librcand-sdk-dev", "rcand-plugins-core", "rcand-plugins-hw"})
     CHECK_MESSAGE(p.debs.count(name) == 1, name);
   CHECK_FALSE(p.debs.count("rcand-plugins-acme"));  // the vendor example is not a packaged plugin
+  // A versioned Provides: a plugin package needs at least the minor it was built for.
   const std::string abi = std::string("rcand-plugin-abi-") + RCAND_ABI_MAJOR_TEXT;
-  CHECK(p.field("rcand", "Provides").find(abi) != std::string::npos);
-  CHECK(p.field("rcand-plugins-core", "Depends").find(abi) != std::string::npos);
+  const std::string version = std::string(RCAND_ABI_MAJOR_TEXT) + "." + RCAND_ABI_MINOR_TEXT;
+  CHECK(p.field("rcand", "Provides").find(abi + " (= " + version + ")") != std::string::npos);
+  for (const char* plugins : {"rcand-plugins-core", "rcand-plugins-hw"})
+    CHECK_MESSAGE(p.field(plugins, "Depends").find(abi + " (>= " + version + ")") != std::string::npos, plugins);
   for (const auto& entry : p.debs) {  // not a structured binding: CHECK_MESSAGE makes a lambda (clang 14)
     const std::string& name = entry.first;
     if (name.find("vision") != std::string::npos) continue;
@@ -198,6 +207,7 @@ TEST_CASE("the unpacked tree has the Debian layout, the systemd unit and the con
   CHECK_FALSE(fs::exists(p.plugin_dir / "acme_gripper.so"));
   const std::string pc = slurp(p.root / "usr/lib" / RCAND_LIBRARY_ARCHITECTURE / "pkgconfig/rcand-sdk.pc");
   CHECK(pc.find(std::string("abi_major=") + RCAND_ABI_MAJOR_TEXT) != std::string::npos);
+  CHECK(pc.find(std::string("abi_minor=") + RCAND_ABI_MINOR_TEXT) != std::string::npos);
   CHECK(pc.find(std::string("plugindir=${prefix}/lib/") + RCAND_LIBRARY_ARCHITECTURE + "/rcand/plugins") != std::string::npos);
 
   const std::string unit = slurp(p.root / "lib/systemd/system/rcand.service");
@@ -263,7 +273,9 @@ TEST_CASE("two plugins made from the template with identical C++ names load and 
 TEST_CASE("a vendor .deb from the template installs into the packaged plugin directory and depends on the ABI") {
   REQUIRE_PACKAGES(p);
   const auto depends = run_tool(*p.dpkg_deb, {"--field", p.vendor_deb.string(), "Depends"});
-  CHECK(depends.out.find(std::string("rcand-plugin-abi-") + RCAND_ABI_MAJOR_TEXT) != std::string::npos);
+  const std::string abi_depends = std::string("rcand-plugin-abi-") + RCAND_ABI_MAJOR_TEXT + " (>= " + RCAND_ABI_MAJOR_TEXT +
+                                  "." + RCAND_ABI_MINOR_TEXT + ")";
+  CHECK(depends.out.find(abi_depends) != std::string::npos);
   const fs::path vendor_root = p.scratch.path() / "vendor-root";
   REQUIRE(run_tool(*p.dpkg_deb, {"-x", p.vendor_deb.string(), vendor_root.string()}).exit_code == 0);
   const fs::path installed = vendor_root / "usr/lib" / RCAND_LIBRARY_ARCHITECTURE / "rcand/plugins";
@@ -384,4 +396,37 @@ TEST_CASE("the packaged binaries carry Debian's hardening: full RELRO, BIND_NOW,
   }
   const auto symbols = run_tool(*readelf, {"--dyn-syms", "--wide", (p.root / "usr/sbin/rcand").string()}).out;
   CHECK(symbols.find("_chk@") != std::string::npos);  // at least one fortified libc call (e.g. __memcpy_chk)
+}
+
+// Debug symbols the Debian way: the packaged ELF files are stripped, and each package's -dbgsym .ddeb holds their
+// debug info under /usr/lib/debug/.build-id/, named by the build id the stripped file still carries.
+TEST_CASE("every binary package has a -dbgsym package with the debug info of its stripped files") {
+  REQUIRE_PACKAGES(p);
+  const auto readelf = which("readelf");
+  if (!readelf) {
+    MESSAGE("SKIPPED: readelf not found (binutils)");
+    return;
+  }
+  const std::vector<std::pair<std::string, fs::path>> binaries{{"rcand", p.root / "usr/sbin/rcand"},
+                                                                {"rcand-plugins-core", p.plugin_dir / "rcand_nav.so"},
+                                                                {"rcand-plugins-hw", p.plugin_dir / "rcand_dynamixel.so"}};
+  for (const auto& binary : binaries) {
+    const std::string& package = binary.first;
+    INFO(package, ": ", binary.second.string());
+    REQUIRE(p.ddebs.count(package + "-dbgsym") == 1);
+    const auto depends = run_tool(*p.dpkg_deb, {"--field", p.ddebs.at(package + "-dbgsym").string(), "Depends"}).out;
+    CHECK(depends.find(package + " (=") != std::string::npos);
+    const auto sections = run_tool(*readelf, {"--section-headers", "--wide", binary.second.string()}).out;
+    CHECK(sections.find(".debug_info") == std::string::npos);  // stripped
+    const auto notes = run_tool(*readelf, {"--notes", binary.second.string()}).out;
+    const auto at = notes.find("Build ID: ");
+    REQUIRE(at != std::string::npos);
+    const std::string id = notes.substr(at + 10, notes.find_first_of(" \n", at + 10) - at - 10);
+    REQUIRE(id.size() > 2);
+    const fs::path debug_root = p.scratch.path() / ("dbgsym-" + package);
+    REQUIRE(run_tool(*p.dpkg_deb, {"-x", p.ddebs.at(package + "-dbgsym").string(), debug_root.string()}).exit_code == 0);
+    const fs::path debug_file = debug_root / "usr/lib/debug/.build-id" / id.substr(0, 2) / (id.substr(2) + ".debug");
+    REQUIRE(fs::is_regular_file(debug_file));
+    CHECK(run_tool(*readelf, {"--section-headers", "--wide", debug_file.string()}).out.find(".debug_info") != std::string::npos);
+  }
 }
