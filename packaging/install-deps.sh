@@ -16,6 +16,7 @@ packages=(
   chromium                                  # the dashboard test: headless Chromium driven by playwright-core
   prometheus                                # promtool: GET /metrics checked with `promtool check metrics`
   systemd                                   # systemd-analyze: the packaged unit's verify and security checks
+  debootstrap                               # the packages' install/upgrade/remove/purge test in a clean root
 )
 # --checks: also what the test suite's code checks need (tests/check_kernel_shape.py, tests/check_style.sh).
 if [ "${1:-}" = "--checks" ]; then

@@ -1,0 +1,122 @@
+#!/usr/bin/env bash
+# The packages' life on a clean Debian 12 root (issue 19): install, upgrade, remove, reinstall and purge rcand and
+# its core plugins with apt in a debootstrap'ed minbase root, checking what a robot builder relies on after each
+# step - the service user and its groups, the JWT secret, the unit's enablement and mask, the admin's config edits,
+# the state and log directories. The maintainer scripts run for real (dpkg, deb-systemd-helper, adduser); no
+# systemd runs in the root, as in any image build.
+#   tests/packaging/lifecycle_test.sh BUILD_DIR
+# Needs root, debootstrap, cpack and a Debian mirror (RCAND_DEBIAN_MIRROR, default deb.debian.org). Where one is
+# missing it exits 77 (ctest: skipped, saying why), unless RCAND_REQUIRE_LIFECYCLE=1 (CI), which makes that a failure.
+set -euo pipefail
+build=$(realpath "${1:?usage: lifecycle_test.sh BUILD_DIR}")
+mirror=${RCAND_DEBIAN_MIRROR:-http://deb.debian.org/debian}
+
+skip() {
+  echo "SKIPPED: $*"
+  [ "${RCAND_REQUIRE_LIFECYCLE:-0}" = 1 ] && { echo "RCAND_REQUIRE_LIFECYCLE=1: a skip is a failure"; exit 1; }
+  exit 77
+}
+[ "$(id -u)" -eq 0 ] || skip "needs root (debootstrap and chroot)"
+command -v debootstrap > /dev/null || skip "debootstrap is not installed"
+command -v cpack > /dev/null || skip "cpack is not installed"
+
+work=$(mktemp -d /tmp/rcand-lifecycle.XXXXXX)
+root=$work/root
+cleanup() { rm -rf --one-file-system "$work"; }
+trap cleanup EXIT
+
+failures=0
+check() {  # check "what" command...: one line per check, the suite fails at the end if any failed
+  local what=$1
+  shift
+  if "$@"; then echo "ok    $what"; else echo "FAIL  $what"; failures=$((failures + 1)); fi
+}
+in_root() { chroot "$root" "$@"; }
+apt_in_root() { in_root env DEBIAN_FRONTEND=noninteractive apt-get -y -qq -o Dpkg::Options::=--force-confold "$@"; }
+enabled_link=/etc/systemd/system/multi-user.target.wants/rcand.service
+is_enabled() { [ "$(readlink "$root$enabled_link")" = /lib/systemd/system/rcand.service ]; }
+is_masked() { [ "$(readlink "$root/etc/systemd/system/rcand.service")" = /dev/null ]; }
+secret() { cat "$root/etc/rcand/jwt.secret"; }
+debs_in_root() { (cd "$root" && printf '/%s\n' debs/"$1"/*.deb); }  # apt in the root needs the root's own paths
+
+echo "== packages (cpack) and a clean Debian 12 root (debootstrap, $mirror)"
+cpack -G DEB --config "$build/CPackConfig.cmake" -B "$work/debs" > "$work/cpack.log" 2>&1 || {
+  cat "$work/cpack.log"
+  exit 1
+}
+debootstrap --variant=minbase bookworm "$root" "$mirror" > "$work/debootstrap.log" 2>&1 ||
+  skip "debootstrap from $mirror failed: $(tail -n 2 "$work/debootstrap.log" | tr '\n' ' ')"
+cp /etc/resolv.conf "$root/etc/resolv.conf"
+# Every installed Debian system has one (systemd-machine-id-setup); rcand derives the robot's identity from it.
+od -An -tx1 -N16 /dev/urandom | tr -d ' \n' > "$root/etc/machine-id"
+mkdir -p "$root/debs/v1" "$root/debs/v2"
+cp "$work"/debs/rcand_*.deb "$work"/debs/rcand-plugins-core_*.deb "$root/debs/v1/"
+# The upgrade: the same packages at a higher version (their Depends between each other follow the version).
+version=$(dpkg-deb --field "$root"/debs/v1/rcand_*.deb Version)
+for deb in "$root"/debs/v1/*.deb; do
+  unpacked=$work/repack/$(basename "$deb" .deb)
+  mkdir -p "$work/repack"
+  dpkg-deb -R "$deb" "$unpacked"
+  sed -i "s/^Version: .*/Version: ${version}+lifecycle1/" "$unpacked/DEBIAN/control"
+  dpkg-deb --root-owner-group -b "$unpacked" "$root/debs/v2/" > /dev/null
+done
+in_root apt-get -qq update > /dev/null
+
+echo "== install"
+apt_in_root install --no-install-recommends $(debs_in_root v1) > "$work/apt.log" 2>&1 || {
+  cat "$work/apt.log"
+  exit 1
+}
+check "rcand runs" in_root rcand --version
+check "the rcand system user is in gpio, i2c, dialout and video" \
+  bash -c "in_groups=\$(chroot '$root' id -nG rcand); for g in rcand gpio i2c dialout video; do [[ \" \$in_groups \" == *\" \$g \"* ]] || exit 1; done"
+check "a JWT secret of 64 hex digits, root:rcand 0640" \
+  bash -c "[[ \$(chroot '$root' stat -c '%U:%G %a' /etc/rcand/jwt.secret) == 'root:rcand 640' ]] && grep -qxE '[0-9a-f]{64}' '$root/etc/rcand/jwt.secret'"
+check "/var/lib/rcand is rcand's, 0750" bash -c "[[ \$(chroot '$root' stat -c '%U:%G %a' /var/lib/rcand) == 'rcand:rcand 750' ]]"
+check "the service is enabled (starts at boot)" is_enabled
+check "the packaged config is valid for the rcand user" in_root runuser -u rcand -- rcand --check-config /etc/rcand/robot.rcan.yaml
+first_secret=$(secret)
+echo "# edited by the admin" >> "$root/etc/rcand/robot.rcan.yaml"
+mkdir -p "$root/var/log/rcand" && echo "audit" > "$root/var/log/rcand/audit.jsonl"
+
+echo "== upgrade to ${version}+lifecycle1"
+apt_in_root install --no-install-recommends $(debs_in_root v2) > "$work/apt.log" 2>&1 || {
+  cat "$work/apt.log"
+  exit 1
+}
+check "upgraded" bash -c "chroot '$root' dpkg-query -W -f='\${Version}' rcand | grep -qx '${version}+lifecycle1'"
+check "the admin's config edit is kept (a conffile)" grep -q "edited by the admin" "$root/etc/rcand/robot.rcan.yaml"
+check "the JWT secret is unchanged" test "$(secret)" = "$first_secret"
+check "still enabled" is_enabled
+
+echo "== remove"
+apt_in_root remove rcand-plugins-core rcand > "$work/apt.log" 2>&1 || {
+  cat "$work/apt.log"
+  exit 1
+}
+check "the daemon is gone" test ! -e "$root/usr/sbin/rcand"
+check "the config and the secret stay (remove is not purge)" test -s "$root/etc/rcand/robot.rcan.yaml" -a -s "$root/etc/rcand/jwt.secret"
+check "the unit is masked while its package is removed" is_masked
+
+echo "== reinstall"
+apt_in_root install --no-install-recommends $(debs_in_root v2) > "$work/apt.log" 2>&1 || {
+  cat "$work/apt.log"
+  exit 1
+}
+check "unmasked again" bash -c "! { [ -L '$root/etc/systemd/system/rcand.service' ] && [ \"\$(readlink '$root/etc/systemd/system/rcand.service')\" = /dev/null ]; }"
+check "enabled again: the robot starts at boot" is_enabled
+check "the same JWT secret (tokens issued before stay valid)" test "$(secret)" = "$first_secret"
+
+echo "== purge"
+apt_in_root purge rcand-plugins-core rcand > "$work/apt.log" 2>&1 || {
+  cat "$work/apt.log"
+  exit 1
+}
+check "/etc/rcand is gone" test ! -e "$root/etc/rcand"
+check "state and logs are gone" test ! -e "$root/var/lib/rcand" -a ! -e "$root/var/log/rcand"
+check "neither enabled nor masked" bash -c "[ ! -L '$root$enabled_link' ] && [ ! -L '$root/etc/systemd/system/rcand.service' ]"
+check "no deb-systemd-helper state left" test ! -e "$root/var/lib/systemd/deb-systemd-helper-enabled/rcand.service.dsh-also"
+check "dpkg knows nothing of rcand" bash -c "! chroot '$root' dpkg-query -W rcand > /dev/null 2>&1"
+
+[ "$failures" -eq 0 ] || { echo "$failures check(s) failed"; exit 1; }
+echo "all lifecycle checks passed"
