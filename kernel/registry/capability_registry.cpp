@@ -38,7 +38,9 @@ void add_unique(std::vector<std::string>& names, std::string name) {
 }
 
 // §9.3 (with the names other runtimes write for the same hardware), plus: any driver implementing differential_drive
-// implies teleop (and nav when physics allows), any implementing joint_arm implies arm.
+// implies teleop (and nav when physics allows), any implementing joint_arm implies arm. One reading of the table:
+// with physics.kinematics, dynamixel drivers are the arm's servos and imply arm only - an arm advertising teleop
+// would answer every drive with 503 (a robot that also drives on Dynamixel wheels lists its capabilities).
 std::vector<std::string> auto_detect(const RobotConfig& config, const ProviderLookup& lookup, std::vector<std::string>& notes) {
   std::vector<std::string> found{"status"};
   bool drive = false, arm = false;
@@ -46,9 +48,13 @@ std::vector<std::string> auto_detect(const RobotConfig& config, const ProviderLo
     const std::string& p = driver.protocol;
     const bool dynamixel = p == "dynamixel" || p == "dynamixel_v2";
     const auto interface = lookup.driver_interface ? lookup.driver_interface(p) : std::nullopt;
-    if (dynamixel || p == "pca9685" || p == "pca9685_i2c" || interface == "differential_drive") drive = true;
+    if ((dynamixel && !config.has_kinematics) || p == "pca9685" || p == "pca9685_i2c" || interface == "differential_drive")
+      drive = true;
     if ((dynamixel && config.has_kinematics) || interface == "joint_arm") arm = true;
   }
+  if (arm && !drive && config.has_kinematics)
+    notes.emplace_back("dynamixel drivers with physics.kinematics read as an arm: arm, not teleop or nav (list "
+                       "rcan_protocol.capabilities for a robot that also drives on them)");
   if (drive) {
     if (has_nav_physics(config)) add_unique(found, std::string(kNavCapability));
     else

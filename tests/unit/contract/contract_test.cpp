@@ -148,6 +148,10 @@ const std::vector<SettingsCase>& settings_cases() {
        "watchdog",
        "unknown key; expected one of: driver, watchdog_ms; did you mean 'watchdog_ms'?"},
       {"good settings", {{"watchdog_ms", 300}, {"driver", "drive0"}}, "", ""},
+      {"a key of another runtime (no near miss): taken, the key left out with a warning",
+       {{"watchdog_ms", 300}, {"frequency", 50}},
+       "",
+       ""},
   };
   return table;
 }
@@ -155,7 +159,8 @@ const std::vector<SettingsCase>& settings_cases() {
 // The refusal as the contract itself gives it: "" when the settings are taken.
 std::string contract_refusal(const json& schema, const json& settings) {
   try {
-    contract::apply_settings(schema, settings);
+    std::vector<std::string> ignored;  // as both hosts run it by default (rcand without --strict)
+    contract::apply_settings(schema, settings, {}, &ignored);
   } catch (const contract::SettingsError& e) {
     return e.key() + ": " + e.problem();
   }
@@ -214,6 +219,17 @@ TEST_CASE("contract: the settings table is the contract's own answer") {
   CHECK(entry == json{{"id", "d"}, {"protocol", "p"}, {"port", "/dev/ttyS0"}, {"speed", 0.5}});
   CHECK_THROWS_WITH_AS(contract::apply_settings(schema, {{"id", "d"}, {"sped", 1}}, contract::kDriverEntryKeys),
                        "sped: unknown key; expected one of: speed; did you mean 'speed'?", contract::SettingsError);
+
+  // Unknown keys that are no near miss: left out and named (a warning), or refused when strict (no list given).
+  std::vector<std::string> ignored;
+  const json lenient = contract::apply_settings(schema, {{"id", "d"}, {"frequency", 50}, {"hardware_id", "x"}},
+                                                contract::kDriverEntryKeys, &ignored);
+  CHECK(lenient == json{{"id", "d"}, {"speed", 0.5}});
+  CHECK(ignored == std::vector<std::string>{"frequency", "hardware_id"});
+  CHECK_THROWS_WITH_AS(contract::apply_settings(schema, {{"frequency", 50}}), "frequency: unknown key; expected one of: speed",
+                       contract::SettingsError);
+  ignored.clear();  // a near miss is refused even when lenient
+  CHECK_THROWS_AS(contract::apply_settings(schema, {{"sped", 1}}, {}, &ignored), contract::SettingsError);
 }
 
 TEST_CASE("contract: the fake host validates plugin settings as the contract says") {
@@ -228,6 +244,7 @@ TEST_CASE("contract: the fake host validates plugin settings as the contract say
       error = e.what();
     }
     check_refusal(c, error, "fake host");
+    CHECK(host.ignored_settings().size() == (c.settings.contains("frequency") ? 1u : 0u));
   }
 }
 

@@ -1,5 +1,6 @@
 #include <doctest/doctest.h>
 
+#include <algorithm>
 #include <random>
 
 #include "kernel/registry/capability_registry.hpp"
@@ -96,12 +97,18 @@ TEST_CASE("auto-detection follows §9.3 only when the list is omitted") {
     auto plan = plan_capabilities(config, installed_everything());
     CHECK(plan.names == std::vector<std::string>{"status", "nav", "teleop", "vision", "chat"});
   }
-  SUBCASE("dynamixel with kinematics: arm") {
+  SUBCASE("dynamixel with kinematics: the arm's servos, so arm only (an arm that advertised teleop could not drive)") {
     config.drivers = {{"d0", "dynamixel", {}}};
     config.has_kinematics = true;
     config.has_camera = config.has_agent = false;
     auto plan = plan_capabilities(config, installed_everything());
-    CHECK(plan.names == std::vector<std::string>{"status", "teleop", "arm"});
+    CHECK(plan.names == std::vector<std::string>{"status", "arm"});
+    CHECK(std::any_of(plan.notes.begin(), plan.notes.end(), [](const std::string& n) { return n.find("read as an arm") != std::string::npos; }));
+  }
+  SUBCASE("dynamixel without kinematics: a drive (§9.3: teleop, and nav with physics)") {
+    config.drivers = {{"d0", "dynamixel", {}}};
+    config.has_camera = config.has_agent = false;
+    CHECK(plan_capabilities(config, installed_everything()).names == std::vector<std::string>{"status", "teleop"});
   }
   SUBCASE("the names other runtimes write for the same hardware: pca9685_i2c, dynamixel_v2") {
     config.drivers = {{"d0", "pca9685_i2c", {}}, {"d1", "dynamixel_v2", {}}};

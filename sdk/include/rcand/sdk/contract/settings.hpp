@@ -1,6 +1,7 @@
 // The plugin settings rule the kernel and the SDK's fake host share: a manifest's "config" schema is checked when the
 // plugin loads, and each instance's settings are validated against it (types, minimum, maximum, enum, required),
-// defaults filled in, and unknown keys refused naming the allowed ones, with a did-you-mean. Both hosts call these
+// defaults filled in, and unknown keys either refused (a near miss of an allowed key: a typo, with a did-you-mean)
+// or dropped and named for a warning (any other: a key another runtime's config carries). Both hosts call these
 // functions and nothing else, so a settings test that passes on the fake host gives the robot's answer
 // (tests/unit/contract runs the same cases through both). Pure and header-only.
 //
@@ -197,9 +198,13 @@ inline void check_settings_schema(const nlohmann::json& schema, const std::strin
 
 // Validates an instance's settings (a mapping, or null for none) against a plugin's "config" schema and returns them
 // with defaults filled in; an explicit null means "not set". Keys in `also_allowed` (a driver entry's
-// kDriverEntryKeys) are kept as written; any other key the schema does not name is refused. Throws SettingsError.
+// kDriverEntryKeys) are kept as written. A key the schema does not name is refused when it is a near miss of one it
+// does (a typo: the did-you-mean names it); any other unknown key (`frequency`, `hardware_id`: a key of another
+// runtime's driver) is left out of the result and appended to `ignored`, for the host to warn about - or refused
+// too when `ignored` is null (strict). Throws SettingsError.
 inline nlohmann::json apply_settings(const nlohmann::json& schema, const nlohmann::json& settings,
-                                     std::span<const std::string_view> also_allowed = {}) {
+                                     std::span<const std::string_view> also_allowed = {},
+                                     std::vector<std::string>* ignored = nullptr) {
   using nlohmann::json;
   check_settings_schema(schema);
   if (!settings.is_null() && !settings.is_object())
@@ -223,12 +228,21 @@ inline nlohmann::json apply_settings(const nlohmann::json& schema, const nlohman
   }
   std::vector<std::string> allowed;
   for (const auto& [key, entry] : schema.items()) allowed.push_back(key);
+  std::vector<std::string> unknown;
   for (const auto& [key, value] : result.items()) {
     (void)value;
     if (schema.contains(key) || std::find(also_allowed.begin(), also_allowed.end(), key) != also_allowed.end()) continue;
+    const std::string hint = settings_detail::closest_hint(key, allowed);
+    if (ignored != nullptr && hint.empty()) {
+      unknown.push_back(key);
+      continue;
+    }
     if (allowed.empty()) throw SettingsError(key, "unknown key; this plugin takes no settings");
-    throw SettingsError(
-        key, "unknown key; expected one of: " + settings_detail::joined(allowed) + settings_detail::closest_hint(key, allowed));
+    throw SettingsError(key, "unknown key; expected one of: " + settings_detail::joined(allowed) + hint);
+  }
+  for (const auto& key : unknown) {
+    result.erase(key);
+    ignored->push_back(key);
   }
   return result;
 }

@@ -250,6 +250,9 @@ class FakeHost {
   std::size_t pending_tasks() const { return scheduler_.size(); }
   // "<worker>: <message>" for every task that threw (the kernel logs these and marks the plugin failed).
   const std::vector<std::string>& task_failures() const noexcept { return task_failures_; }
+  // Settings keys the kernel's rule left out with a warning ("drivers[0].frequency": unknown, no near miss of a key
+  // the plugin's schema names), in the order instances were added.
+  const std::vector<std::string>& ignored_settings() const noexcept { return ignored_settings_; }
 
   // ---- inspection ------------------------------------------------------------------------------------------
 
@@ -670,13 +673,17 @@ class FakeHost {
   }
 
   // The kernel's settings rule (rcand/sdk/contract/settings.hpp): types, bounds, enums and required keys checked,
-  // defaults filled in, unknown keys refused naming the allowed ones. `where` names the instance in the error.
+  // defaults filled in, near-miss unknown keys refused with a did-you-mean, other unknown keys left out and recorded
+  // (ignored_settings(); rcand logs a warning). `where` names the instance in the error.
   nlohmann::json apply_schema(const std::string& plugin_id, nlohmann::json settings, const std::string& where,
                               std::span<const std::string_view> also_allowed) const {
     const auto it = schemas_.find(plugin_id);
     if (it == schemas_.end()) return settings;  // loaded without a manifest: nothing to check against
     try {
-      return contract::apply_settings(it->second, settings, also_allowed);
+      std::vector<std::string> ignored;
+      auto result = contract::apply_settings(it->second, settings, also_allowed, &ignored);
+      for (const auto& key : ignored) ignored_settings_.push_back(where + "." + key);
+      return result;
     } catch (const contract::SettingsError& e) {
       const std::string key_path = e.key().empty() ? where : where + "." + e.key();
       throw HostError(key_path + ": " + e.problem() + " (settings of plugin " + plugin_id + ")");
@@ -897,6 +904,7 @@ class FakeHost {
   std::uint64_t message_counter_ = 0;
   std::set<std::string> loaded_;
   std::map<std::string, nlohmann::json> schemas_;
+  mutable std::vector<std::string> ignored_settings_;  // apply_schema() is const: it records what it left out
   std::map<std::string, CapabilityRegistration, std::less<>> capability_registrations_;
   std::map<std::string, DriverRegistration, std::less<>> driver_registrations_;
   std::map<std::string, std::unique_ptr<FakeWorker>> workers_;
