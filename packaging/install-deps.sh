@@ -25,7 +25,8 @@ if [ "$tests" = 1 ]; then
     chromium                                  # the dashboard test: headless Chromium driven by playwright-core
     prometheus                                # promtool: GET /metrics checked with `promtool check metrics`
     systemd                                   # systemd-analyze: the packaged unit's verify and security checks
-    debootstrap                               # the packages' install/upgrade/remove/purge test in a clean root
+    debootstrap dpkg-dev apt-utils gpg file   # the packages' lifecycle test in a clean root, from a signed repository
+    qemu-user-static                          # the arm64 packages' smoke run (packaging/build-arm64.sh)
   )
 fi
 if [ "${1:-}" = "--checks" ]; then

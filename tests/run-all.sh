@@ -34,6 +34,9 @@ RCAND_REQUIRE_LIFECYCLE=1 ctest --test-dir build --output-on-failure --timeout 6
 # The soak's 20-second smoke run (bench/soak, normal build only): any error fails the suite.
 stage "soak smoke run"
 bench/soak/run-soak.sh build --smoke
+# The arm64 packages: cross-compiled (Debian's cross toolchain, arm64 multiarch libraries), smoke-run under qemu-user.
+stage "arm64 packages"
+packaging/build-arm64.sh build-arm64
 
 # The sanitizer build: clang-14 with ASan + UBSan (and libFuzzer coverage), the whole suite again (the packaging
 # test only runs above). Any report, in a test or in an rcand it started, fails the suite.

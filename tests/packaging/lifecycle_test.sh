@@ -1,11 +1,12 @@
 #!/usr/bin/env bash
 # The packages' life on a clean Debian 12 root (issue 19): install, upgrade, remove, reinstall and purge rcand and
-# its core plugins with apt in a debootstrap'ed minbase root, checking what a robot builder relies on after each
+# its core plugins with apt in a debootstrap'ed minbase root, from a signed local APT repository made by
+# packaging/make-apt-repo.sh (one sources.list line, as on a robot), checking what a robot builder relies on after each
 # step - the service user and its groups, the JWT secret, the unit's enablement and mask, the admin's config edits,
 # the state and log directories. The maintainer scripts run for real (dpkg, deb-systemd-helper, adduser); no
 # systemd runs in the root, as in any image build.
 #   tests/packaging/lifecycle_test.sh BUILD_DIR
-# Needs root, debootstrap, cpack and a Debian mirror (RCAND_DEBIAN_MIRROR, default deb.debian.org). Where one is
+# Needs root, debootstrap, cpack, dpkg-dev, apt-utils, gpg and a Debian mirror (RCAND_DEBIAN_MIRROR, default deb.debian.org). Where one is
 # missing it exits 77 (ctest: skipped, saying why), unless RCAND_REQUIRE_LIFECYCLE=1 (CI), which makes that a failure.
 set -euo pipefail
 build=$(realpath "${1:?usage: lifecycle_test.sh BUILD_DIR}")
@@ -19,6 +20,10 @@ skip() {
 [ "$(id -u)" -eq 0 ] || skip "needs root (debootstrap and chroot)"
 command -v debootstrap > /dev/null || skip "debootstrap is not installed"
 command -v cpack > /dev/null || skip "cpack is not installed"
+for tool in dpkg-scanpackages apt-ftparchive gpg; do
+  command -v "$tool" > /dev/null || skip "$tool is not installed (dpkg-dev, apt-utils, gpg)"
+done
+repo_script=$(realpath "$(dirname "$0")/../../packaging/make-apt-repo.sh")
 
 work=$(mktemp -d /tmp/rcand-lifecycle.XXXXXX)
 root=$work/root
@@ -37,7 +42,18 @@ enabled_link=/etc/systemd/system/multi-user.target.wants/rcand.service
 is_enabled() { [ "$(readlink "$root$enabled_link")" = /lib/systemd/system/rcand.service ]; }
 is_masked() { [ "$(readlink "$root/etc/systemd/system/rcand.service")" = /dev/null ]; }
 secret() { cat "$root/etc/rcand/jwt.secret"; }
-debs_in_root() { (cd "$root" && printf '/%s\n' debs/"$1"/*.deb); }  # apt in the root needs the root's own paths
+# The robot's repository: REPO in the root, signed by a key made for this run; publish(DIR) adds DIR's packages.
+repo=/srv/rcand
+publish() {
+  RCAND_REPO_GNUPGHOME=$work/gnupg "$repo_script" "$1" "$root$repo" > "$work/repo.log" 2>&1 || {
+    cat "$work/repo.log"
+    exit 1
+  }
+  in_root apt-get -qq update > "$work/apt.log" 2>&1 || {
+    cat "$work/apt.log"
+    exit 1
+  }
+}
 
 echo "== packages (cpack) and a clean Debian 12 root (debootstrap, $mirror)"
 cpack -G DEB --config "$build/CPackConfig.cmake" -B "$work/debs" > "$work/cpack.log" 2>&1 || {
@@ -49,21 +65,27 @@ debootstrap --variant=minbase bookworm "$root" "$mirror" > "$work/debootstrap.lo
 cp /etc/resolv.conf "$root/etc/resolv.conf"
 # Every installed Debian system has one (systemd-machine-id-setup); rcand derives the robot's identity from it.
 od -An -tx1 -N16 /dev/urandom | tr -d ' \n' > "$root/etc/machine-id"
-mkdir -p "$root/debs/v1" "$root/debs/v2"
-cp "$work"/debs/rcand_*.deb "$work"/debs/rcand-plugins-core_*.deb "$root/debs/v1/"
+mkdir -p "$work/v1" "$work/v2"
+cp "$work"/debs/rcand_*.deb "$work"/debs/rcand-plugins-core_*.deb "$work/v1/"
 # The upgrade: the same packages at a higher version (their Depends between each other follow the version).
-version=$(dpkg-deb --field "$root"/debs/v1/rcand_*.deb Version)
-for deb in "$root"/debs/v1/*.deb; do
+version=$(dpkg-deb --field "$work"/v1/rcand_*.deb Version)
+for deb in "$work"/v1/*.deb; do
   unpacked=$work/repack/$(basename "$deb" .deb)
   mkdir -p "$work/repack"
   dpkg-deb -R "$deb" "$unpacked"
   sed -i "s/^Version: .*/Version: ${version}+lifecycle1/" "$unpacked/DEBIAN/control"
-  dpkg-deb --root-owner-group -b "$unpacked" "$root/debs/v2/" > /dev/null
+  dpkg-deb --root-owner-group -b "$unpacked" "$work/v2/" > /dev/null
 done
 in_root apt-get -qq update > /dev/null
+publish "$work/v1"
+install -m 0644 "$root$repo/rcand-archive-keyring.gpg" "$root/usr/share/keyrings/rcand-archive-keyring.gpg"
+echo "deb [signed-by=/usr/share/keyrings/rcand-archive-keyring.gpg] file:$repo ./" > "$root/etc/apt/sources.list.d/rcand.list"
+in_root apt-get -qq update > /dev/null
+check "the signed repository is trusted with its one sources.list line" \
+  bash -c "chroot '$root' apt-cache policy rcand | grep -q 'file:$repo'"
 
 echo "== install"
-apt_in_root install --no-install-recommends $(debs_in_root v1) > "$work/apt.log" 2>&1 || {
+apt_in_root install --no-install-recommends rcand rcand-plugins-core > "$work/apt.log" 2>&1 || {
   cat "$work/apt.log"
   exit 1
 }
@@ -79,8 +101,9 @@ first_secret=$(secret)
 echo "# edited by the admin" >> "$root/etc/rcand/robot.rcan.yaml"
 mkdir -p "$root/var/log/rcand" && echo "audit" > "$root/var/log/rcand/audit.jsonl"
 
-echo "== upgrade to ${version}+lifecycle1"
-apt_in_root install --no-install-recommends $(debs_in_root v2) > "$work/apt.log" 2>&1 || {
+echo "== upgrade to ${version}+lifecycle1 (published to the repository, then apt-get upgrade)"
+publish "$work/v2"
+apt_in_root upgrade > "$work/apt.log" 2>&1 || {
   cat "$work/apt.log"
   exit 1
 }
@@ -99,7 +122,7 @@ check "the config and the secret stay (remove is not purge)" test -s "$root/etc/
 check "the unit is masked while its package is removed" is_masked
 
 echo "== reinstall"
-apt_in_root install --no-install-recommends $(debs_in_root v2) > "$work/apt.log" 2>&1 || {
+apt_in_root install --no-install-recommends rcand rcand-plugins-core > "$work/apt.log" 2>&1 || {
   cat "$work/apt.log"
   exit 1
 }
@@ -117,6 +140,14 @@ check "state and logs are gone" test ! -e "$root/var/lib/rcand" -a ! -e "$root/v
 check "neither enabled nor masked" bash -c "[ ! -L '$root$enabled_link' ] && [ ! -L '$root/etc/systemd/system/rcand.service' ]"
 check "no deb-systemd-helper state left" test ! -e "$root/var/lib/systemd/deb-systemd-helper-enabled/rcand.service.dsh-also"
 check "dpkg knows nothing of rcand" bash -c "! chroot '$root' dpkg-query -W rcand > /dev/null 2>&1"
+
+echo "== a repository signed by another key"
+mkdir -m 0700 "$work/other.gnupg"
+GNUPGHOME=$work/other.gnupg gpg --batch --quiet --passphrase '' --quick-generate-key "someone else <x@rcand.invalid>" ed25519 sign never
+GNUPGHOME=$work/other.gnupg gpg --batch --yes --clearsign --output "$root$repo/InRelease" "$root$repo/Release"
+# apt keeps the lists it verified before and says why (for a repository it had, a warning: no exit code to check).
+chroot "$root" apt-get update > "$work/apt.log" 2>&1 || true
+check "apt refuses it (NO_PUBKEY: the lists are not updated)" grep -q "NO_PUBKEY" "$work/apt.log"
 
 [ "$failures" -eq 0 ] || { echo "$failures check(s) failed"; exit 1; }
 echo "all lifecycle checks passed"
