@@ -1,6 +1,8 @@
 // Measures POST /api/stop on a running rcand: end-to-end latency (client clock) and the server's own halt latency
 // (latency_us in the answer). Clears the e-stop between samples (with CLEAR_TOKEN, default TOKEN).
-//   bench_stop_latency PORT TOKEN [SAMPLES] [keepalive|fresh] [CLEAR_TOKEN]
+//   bench_stop_latency PORT TOKEN [SAMPLES] [keepalive|fresh] [CLEAR_TOKEN] [CA_FILE]
+// CA_FILE: over TLS (runtime.listen.tls) to 127.0.0.1, the certificate verified against it; fresh then means a new
+// connection and a full handshake per stop (the test client's, not the blocking one).
 // keepalive (default): every stop on one kept-alive connection; fresh: each on a new connection, timed from
 // connect() to the whole answer (an operator's panic button, or rcanctl stop), with Beast's blocking calls (no event
 // loop: the client itself adds as few wake-ups, each a wait for a CPU on a saturated machine, as a client can).
@@ -9,6 +11,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -63,13 +66,18 @@ int main(int argc, char** argv) {
   const int samples = argc > 3 ? std::stoi(argv[3]) : 2000;
   const bool fresh = argc > 4 && std::string(argv[4]) == "fresh";
   const std::map<std::string, std::string> clear_auth{{"Authorization", std::string("Bearer ") + (argc > 5 ? argv[5] : argv[2])}};
-  rcand::http::Client stop_client("127.0.0.1", port);
-  rcand::http::Client clear_client("127.0.0.1", port);
+  std::optional<rcand::http::ClientTlsSettings> tls;
+  if (argc > 6) tls.emplace().ca_file = argv[6];
+  rcand::http::Client stop_client("127.0.0.1", port, std::chrono::milliseconds{5000}, tls);
+  rcand::http::Client clear_client("127.0.0.1", port, std::chrono::milliseconds{5000}, tls);
   net::io_context blocking_ioc;  // owns the blocking sockets only: never run
   std::vector<double> end_to_end_us, server_us;
   for (int i = 0; i < samples; ++i) {
     const auto start = std::chrono::steady_clock::now();
-    const auto answer = fresh ? blocking_stop(blocking_ioc, port, argv[2]) : stop_client.request("POST", "/api/stop", "", auth);
+    const auto answer = fresh && tls ? rcand::http::request("127.0.0.1", port, "POST", "/api/stop", "", auth,
+                                                            std::chrono::milliseconds{5000}, tls)
+                        : fresh      ? blocking_stop(blocking_ioc, port, argv[2])
+                                     : stop_client.request("POST", "/api/stop", "", auth);
     const auto elapsed = std::chrono::duration<double, std::micro>(std::chrono::steady_clock::now() - start).count();
     if (answer.status != 200) {
       std::fprintf(stderr, "stop answered %d: %s\n", answer.status, answer.body.c_str());
@@ -79,7 +87,8 @@ int main(int argc, char** argv) {
     server_us.push_back(nlohmann::json::parse(answer.body)["latency_us"].get<double>());
     clear_client.request("POST", "/api/estop/clear", "", clear_auth);
   }
-  std::printf("samples %d, %s\n", samples, fresh ? "each stop on a fresh connection" : "one kept-alive connection");
+  std::printf("samples %d, %s%s\n", samples, fresh ? "each stop on a fresh connection" : "one kept-alive connection",
+              tls ? ", TLS" : "");
   std::printf("stop end-to-end us: p50 %.0f  p99 %.0f  max %.0f\n", percentile(end_to_end_us, 0.5),
               percentile(end_to_end_us, 0.99), percentile(end_to_end_us, 1.0));
   std::printf("stop halt (server) us: p50 %.0f  p99 %.0f  max %.0f\n", percentile(server_us, 0.5), percentile(server_us, 0.99),

@@ -25,6 +25,7 @@
 #include "libs/base/logging.hpp"
 #include "libs/base/stop_path_priority.hpp"
 #include "libs/http/server.hpp"
+#include "libs/http/tls_context.hpp"
 #include "libs/mdns/service_publisher.hpp"
 #include "libs/rcan/loopback.hpp"
 #include "libs/rcan/ruri.hpp"
@@ -79,6 +80,13 @@ AuthSettings auth_settings(const RobotConfig& config, const std::string& ruri, c
   return settings;
 }
 
+// runtime.listen.tls as the HTTP server takes it; its files are read (and every problem named) by make_server_tls_context.
+std::optional<http::TlsSettings> tls_settings(const RobotConfig& config) {
+  const auto& tls = config.runtime.listen_tls;
+  if (!tls) return std::nullopt;
+  return http::TlsSettings{tls->cert_file, tls->key_file, tls->client_ca_file};
+}
+
 }  // namespace
 
 std::vector<std::filesystem::path> default_plugin_paths() { return {"/usr/local/lib/rcand/plugins", RCAND_DEFAULT_PLUGIN_DIR}; }
@@ -110,6 +118,8 @@ struct Kernel::State {
   std::unique_ptr<PluginRuntime> runtime;
   std::unique_ptr<DeadlineCrew> halt_crew;  // one thread per actuator: the stop path's parallel halt() calls
   std::unique_ptr<WorkerThread> timers;
+  std::unique_ptr<WorkerThread> reloader;   // "plugin.reload", only with runtime.plugins.allow_reload: one reload at a time
+  std::atomic<bool> reloads_closed{false};  // set by shutdown(): a queued reload answers 503
   std::unique_ptr<KernelRouteDeps> kernel_routes;
   std::unique_ptr<CapabilityRouteDeps> capability_routes;
   std::unique_ptr<StatusBoard> status_board;  // GET /api/status, discovery, mDNS TXT and R2R status read it
@@ -127,6 +137,8 @@ struct Kernel::State {
   void start_plugins();
   void add_routes();
   void restore_latch();
+  bool reload_tls(const RobotConfig& next);
+  void reload_plugin(const std::string& id, const std::string& principal, std::function<void(int, nlohmann::json)> done);
 };
 
 // Manifests only: nothing is opened until we know what the config needs. Then the registry, and the robot config as
@@ -225,14 +237,40 @@ void Kernel::State::start_plugins() {
 
 // The route table: the kernel's rows, the capabilities' rows, then each service's (which may wrap the others).
 void Kernel::State::add_routes() {
-  kernel_routes.reset(
-      new KernelRouteDeps{clock, estop, audit, host, *runtime, std::string(kRcandVersion), started_us, *status_board,
-                          [this] { return registry->advertise(status_board->robot_state(), bound_port.load()).discover; }});
+  kernel_routes.reset(new KernelRouteDeps{
+      clock, estop, audit, host, *runtime, std::string(kRcandVersion), started_us, *status_board,
+      [this] { return registry->advertise(status_board->robot_state(), bound_port.load()).discover; },
+      [this](const std::string& id, const std::string& principal, auto done) { reload_plugin(id, principal, std::move(done)); }});
   add_kernel_routes(api->router(), *kernel_routes);
   capability_routes.reset(new CapabilityRouteDeps{*registry, *runtime, audit, estop, *timers,
                                                   std::chrono::milliseconds(config.runtime.handler_timeout_ms)});
   add_capability_routes(api->router(), *capability_routes);
   for (auto& service : optional_services) service->add_routes(api->router());
+}
+
+// POST /api/plugins/<id>/reload (docs/protocol.md §7.15): refused unless runtime.plugins.allow_reload; otherwise on the
+// reload worker, never during shutdown: every driver halted through the e-stop latch, then PluginRuntime::reload. The
+// e-stop stays latched (an operator clears it).
+void Kernel::State::reload_plugin(const std::string& id, const std::string& principal,
+                                  std::function<void(int, nlohmann::json)> done) {
+  if (!reloader)
+    return done(409,
+                {{"code", "RELOAD_DISABLED"},
+                 {"error", "plugin reload is off on this robot; development robots set runtime.plugins.allow_reload: true"}});
+  reloader->post([this, id, principal, done = std::move(done)] {
+    if (reloads_closed) return done(503, {{"code", "UNAVAILABLE"}, {"error", "rcand is shutting down"}});
+    nlohmann::json body{{"plugin", id}, {"estopped", false}};
+    const ReloadResult result = runtime->reload(id, config, [&] {
+      const auto halt = estop.latch("plugin reload: " + id, principal);
+      body["estopped"] = true;
+      body["motors_stopped"] = std::all_of(halt.drivers.begin(), halt.drivers.end(), [](const auto& d) { return d.halted; });
+    });
+    if (const PluginRecord* record = host.find(id))
+      body.update({{"state", to_string(record->state)}, {"version", record->version}, {"build_info", record->build_info}});
+    body["instances"] = result.instances;
+    if (result.status != 200) body.update({{"code", result.code}, {"error", result.error}});
+    done(result.status, std::move(body));
+  });
 }
 
 Kernel::Kernel(RobotConfig config, KernelOptions options) : state_(std::make_unique<State>()) {
@@ -263,6 +301,8 @@ Kernel::Kernel(RobotConfig config, KernelOptions options) : state_(std::make_uni
   s.create_services(options);  // before the plugins: R2R offers them links
   s.start_plugins();
   s.timers = std::make_unique<WorkerThread>("kernel.timers", nullptr);
+  if (cfg.doc.is_object() && cfg.doc.value(nlohmann::json::json_pointer("/runtime/plugins/allow_reload"), false))
+    s.reloader = std::make_unique<WorkerThread>("plugin.reload", nullptr);
   // The status snapshot plugins publish into; GET /api/status never calls plugin code.
   s.status_board = std::make_unique<StatusBoard>(
       *s.runtime, s.services, StatusBoard::fixed_fields(s.registry->identity(), s.registry->names(), s.host, kRcandVersion),
@@ -284,6 +324,11 @@ Kernel::CheckReport Kernel::check(RobotConfig config, const KernelOptions& optio
   s.services.ruri = robot_ruri(s.config.ruri, s.config.manufacturer, s.config.model, s.config.robot_uuid);
   s.auth = std::make_unique<Authenticator>(auth_settings(s.config, s.services.ruri, s.config.runtime.listen_address));
   s.load_swarm();  // reads the secret and swarm files as serving would: a file rcand cannot read fails here too
+  try {
+    if (const auto tls = tls_settings(s.config)) http::make_server_tls_context(*tls);
+  } catch (const http::TlsError& e) {
+    throw StartupError(e.what());
+  }
   s.load_plugins(options);
   PluginRuntime runtime(s.host, s.services, s.actuators);
   auto problems = runtime.check(s.config, s.registry->names());
@@ -340,6 +385,8 @@ std::uint16_t Kernel::start() {
   options.port = s.port;
   options.max_connections = connections_within_fd_limit(s.config.runtime.max_connections, options.busy_lane);
   options.max_connections_per_address = s.config.runtime.max_connections_per_address;
+  options.tls = tls_settings(s.config);  // then plain HTTP on loopback only (http/server_options.hpp)
+  options.plain_loopback_port = s.config.runtime.plain_loopback_port;
   // The e-stop is read and handled on the accept thread, ahead of any other work, and is answered even when every
   // connection slot is taken (issue 13: neither load nor a flood may delay or lock out a stop).
   options.on_thread_start = [priority = s.config.runtime.stop_path_priority](bool accept_loop) {
@@ -378,6 +425,8 @@ std::uint16_t Kernel::start() {
   return s.port;
 }
 
+std::uint16_t Kernel::plain_loopback_port() const { return state_->server ? state_->server->plain_loopback_port() : 0; }
+
 bool Kernel::stop_path_responsive(std::chrono::milliseconds within) const {
   return state_ && state_->server && state_->server->accept_loop_responsive(within);
 }
@@ -391,6 +440,8 @@ void Kernel::shutdown() noexcept {
     s.estop.latch("rcand shutting down", "kernel");  // motors stop first, whatever else happens
     // Then the services, in reverse: no R2R message is handled or sent, no broadcast goes out.
     for (auto it = s.optional_services.rbegin(); it != s.optional_services.rend(); ++it) (*it)->stop();
+    s.reloads_closed = true;
+    if (s.reloader) s.reloader->join();              // a reload under way ends first; queued ones answer 503
     if (s.mdns_publisher) s.mdns_publisher->stop();  // withdrawn (goodbye sent) while HTTP still answers
     if (s.server) s.server->stop();
     if (s.status_board) s.status_board->stop();  // before the plugins go: it polls them
@@ -414,6 +465,16 @@ void Kernel::shutdown() noexcept {
   }
 }
 
+// SIGHUP: runtime.listen.tls's files are read again even when the config names the same ones (renewed in place), for
+// the connections accepted from now on. Throws (nothing changed) when they cannot be used; false when TLS was not on
+// at start or is not now: turning it on or off needs a restart.
+bool Kernel::State::reload_tls(const RobotConfig& next) {
+  const auto tls = tls_settings(next);
+  if (!tls || !config.runtime.listen_tls || !server) return false;
+  server->reload_tls(*tls);
+  return true;
+}
+
 Kernel::ReloadReport Kernel::reload(const std::filesystem::path& file) noexcept {
   static const std::vector<std::string> kLiveKeys{"runtime.auth", "runtime.logging", "runtime.swarm_file"};
   auto& s = *state_;
@@ -433,13 +494,15 @@ Kernel::ReloadReport Kernel::reload(const std::filesystem::path& file) noexcept 
         throw StartupError(std::string("runtime.swarm_file: ") + e.what());
       }
     }
+    const bool tls_live = s.reload_tls(next);
     s.auth->replace(std::move(auth));
     new_log_level = next.runtime.log_level;  // applied after this reload's own log line
     s.swarm_now = swarm.get();
     s.retired_swarms.push_back(std::move(swarm));  // requests in flight may still read the ones before
     for (const auto& warning : loaded.warnings) log->warn("{}", warning.format());
     for (auto& key : changed_keys(s.config.doc, next.doc)) {
-      const bool live = std::any_of(kLiveKeys.begin(), kLiveKeys.end(), [&](const auto& p) { return key_is_under(key, p); });
+      const bool live = std::any_of(kLiveKeys.begin(), kLiveKeys.end(), [&](const auto& p) { return key_is_under(key, p); }) ||
+                        (tls_live && key_is_under(key, "runtime.listen.tls"));
       (live ? report.applied : report.needs_restart).push_back(std::move(key));
     }
     report.ok = true;

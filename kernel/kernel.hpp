@@ -60,6 +60,8 @@ class Kernel {
 
   // Binds and serves; returns the bound port.
   std::uint16_t start();
+  // With runtime.listen.tls: the plain HTTP port on 127.0.0.1 (after start); else 0.
+  std::uint16_t plain_loopback_port() const;
   // The e-stop path runs first (motors halt), then HTTP stops, then plugins shut down. Idempotent.
   void shutdown() noexcept;
   // Whether the thread that reads and handles the e-stop answers within `within` (the service watchdog's check).

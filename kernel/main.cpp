@@ -13,13 +13,14 @@
 #include <thread>
 #include <vector>
 
-#include "libs/config/robot_config.hpp"
 #include "kernel/kernel.hpp"
 #include "kernel/service.hpp"
 #include "libs/base/logging.hpp"
 #include "libs/base/service_watchdog.hpp"
 #include "libs/base/systemd_notify.hpp"
 #include "libs/base/user_access.hpp"
+#include "libs/config/driver_protocols.hpp"
+#include "libs/config/robot_config.hpp"
 #include "rcand/sdk/abi.h"
 
 namespace {
@@ -27,8 +28,8 @@ namespace {
 using namespace rcand;
 using namespace rcand::kernel;
 
-constexpr const char* kUsage = R"(usage: rcand [--config FILE] [--plugin-path DIR]... [--port N]
-       rcand --check-config FILE [--as-user NAME]
+constexpr const char* kUsage = R"(usage: rcand [--config FILE] [--plugin-path DIR]... [--port N] [--strict]
+       rcand --check-config FILE [--as-user NAME] [--strict]
        rcand --check-plugins [--config FILE] [--plugin-path DIR]...
        rcand --version
 
@@ -40,8 +41,11 @@ constexpr const char* kUsage = R"(usage: rcand [--config FILE] [--plugin-path DI
   --as-user NAME       with --check-config: also check that user NAME (the service's rcand) can read and write
                        every file, directory and device the config names
   --check-plugins      open every installed plugin, print the table, exit 1 if any failed
+  --strict             refuse a config that loads only with warnings (keys rcand ignores, values it supplies,
+                       nav without its physics, another RCAN version), at start, --check-config and reload
 
-On start, rcand prints one line "rcand: listening on http://ADDRESS:PORT" on stdout once it serves.
+On start, rcand prints one line "rcand: listening on http://ADDRESS:PORT" on stdout once it serves; with
+runtime.listen.tls, "rcand: listening on https://ADDRESS:PORT" and then the plain loopback port's line.
 )";
 
 constexpr std::chrono::seconds kShutdownGrace{5};
@@ -50,7 +54,7 @@ struct Options {
   std::string config = "/etc/rcand/robot.rcan.yaml";
   std::vector<std::filesystem::path> plugin_paths;
   std::optional<std::uint16_t> port;
-  bool check_config = false, check_plugins = false;
+  bool check_config = false, check_plugins = false, strict = false;
   std::string as_user;  // --check-config --as-user NAME
 };
 
@@ -141,6 +145,8 @@ std::optional<int> parse_arguments(const std::vector<std::string>& args, Options
       }
     } else if (arg == "--check-plugins") {
       options.check_plugins = true;
+    } else if (arg == "--strict") {
+      options.strict = true;
     } else {
       return usage_error("unknown argument '" + arg + "'");
     }
@@ -153,8 +159,13 @@ std::optional<int> parse_arguments(const std::vector<std::string>& args, Options
 std::vector<std::string> access_problems(const RobotConfig& config, const Options& options, const UserIdentity& user) {
   std::vector<std::pair<std::filesystem::path, Access>> needed{{options.config, Access::Read},
                                                                {config.runtime.state_dir, Access::Write}};
+  for (const auto& fragment : config.fragment_files) needed.emplace_back(fragment, Access::Read);
   if (config.runtime.auth.jwt_secret_file) needed.emplace_back(*config.runtime.auth.jwt_secret_file, Access::Read);
   if (config.runtime.audit_file) needed.emplace_back(*config.runtime.audit_file, Access::Write);
+  if (const auto& tls = config.runtime.listen_tls) {
+    needed.insert(needed.end(), {{tls->cert_file, Access::Read}, {tls->key_file, Access::Read}});
+    if (tls->client_ca_file) needed.emplace_back(*tls->client_ca_file, Access::Read);
+  }
   if (std::filesystem::exists(config.runtime.swarm_file)) needed.emplace_back(config.runtime.swarm_file, Access::Read);
   auto plugin_paths = options.plugin_paths.empty() ? config.runtime.plugin_paths : options.plugin_paths;
   for (const auto& dir : plugin_paths.empty() ? default_plugin_paths() : plugin_paths)
@@ -178,7 +189,10 @@ int serve(const Options& options, LoadedConfig loaded, sigset_t& signals) {
   const std::string address = loaded.config.runtime.listen_address;
   Kernel kernel(std::move(loaded.config), kernel_options(options));
   const auto port = kernel.start();
-  std::cout << "rcand: listening on http://" << address << ":" << port << std::endl;
+  if (const auto plain = kernel.plain_loopback_port())  // runtime.listen.tls: HTTPS there, plain HTTP on loopback
+    std::cout << "rcand: listening on https://" << address << ":" << port << "\n"
+              << "rcand: listening on http://127.0.0.1:" << plain << std::endl;
+  else std::cout << "rcand: listening on http://" << address << ":" << port << std::endl;
   // Under systemd (Type=notify): ready now; reloads and the stop announced; the watchdog fed while the e-stop's
   // thread answers.
   notify_service_manager("READY=1\nSTATUS=serving on port " + std::to_string(port));
@@ -211,6 +225,7 @@ int main(int argc, char** argv) {
   Options options;
   if (auto done = parse_arguments(std::vector<std::string>(argv + 1, argv + argc), options)) return *done;
   configure_logging("info");
+  set_default_load_options(LoadOptions{options.strict});
   if (options.check_plugins) return check_plugins(options);
 
   // Signals are taken synchronously by the main thread; every thread started later inherits the mask.
@@ -223,10 +238,14 @@ int main(int argc, char** argv) {
   std::signal(SIGPIPE, SIG_IGN);
 
   raise_open_files_limit();
+  std::vector<std::string> protocols;  // the drivers', for advice on one no plugin serves
   try {
     LoadedConfig loaded = load_robot_config(options.config);
+    for (const auto& driver : loaded.config.drivers) protocols.push_back(driver.protocol);
     print_warnings(loaded);
     configure_logging(loaded.config.runtime.log_level);
+    const auto fragments = loaded.config.fragment_files;
+    for (const auto& fragment : fragments) logger("kernel")->info("config: merged the conf.d fragment {}", fragment.string());
     if (!options.check_config) return serve(options, std::move(loaded), signals);
     if (!options.as_user.empty()) {
       const auto user = lookup_user(options.as_user);
@@ -240,10 +259,11 @@ int main(int argc, char** argv) {
     std::cout << options.config << ": OK (capabilities: ";
     for (std::size_t i = 0; i < report.capabilities.size(); ++i) std::cout << (i ? ", " : "") << report.capabilities[i];
     std::cout << ")\n";
+    for (const auto& fragment : fragments) std::cout << "  merged " << fragment.string() << "\n";
     for (const auto& line : report.fail_safes) std::cout << "  fail-safe of " << line << "\n";
     return 0;
   } catch (const ConfigError& e) {
-    for (const auto& diagnostic : e.diagnostics()) std::cerr << diagnostic.format() << "\n";
+    for (const auto& diagnostic : e.diagnostics()) std::cerr << with_protocol_advice(diagnostic, protocols).format() << "\n";
     std::cerr << "rcand: configuration invalid; not started\n";
     return 1;
   } catch (const StartupError& e) {

@@ -47,8 +47,9 @@ struct ServiceHost {
   // Set by a service before the plugins start, so their contexts can hand out R2R links.
   std::function<void(R2rLinkFactory*)> offer_r2r_links;
   // The services plugin instances offer (rcand/sdk/services.hpp): sdk::find<T>(plugin_services) at use time, any
-  // thread, never blocks; null while nothing offers T (the plugins start after the services are made).
-  const ServiceDirectory& plugin_services;
+  // thread, never blocks; null while nothing offers T (the plugins start after the services are made). A service
+  // may offer one too (telemetry offers sdk::Metrics), with itself as the owner, withdrawn when it is destroyed.
+  ServiceDirectory& plugin_services;
 };
 
 class Service {

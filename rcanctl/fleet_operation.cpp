@@ -166,6 +166,9 @@ bool parse_fleet_options(std::span<const std::string> args, Operation op, bool s
       if (!value(options.token)) return false;
     } else if (arg == "--token-file" && !swarm_mode) {
       if (!value(token_file)) return false;
+    } else if (bool ok = true; !swarm_mode && parse_tls_option(arg, value, options.tls, ok)) {
+      if (!ok) return false;
+      host_given = true;
     } else {
       err << prefix << "unknown option '" << arg << "' (see --help)\n";
       return false;
@@ -182,7 +185,11 @@ bool parse_fleet_options(std::span<const std::string> args, Operation op, bool s
       return false;
     }
     if (!options.nodes.empty() && (host_given || port_given || !options.token.empty() || !token_file.empty())) {
-      err << prefix << "--node takes address and token from the swarm file; drop --host/--port/--token\n";
+      err << prefix << "--node takes address, token and TLS from the swarm file; drop --host/--port/--token/--cacert\n";
+      return false;
+    }
+    if (const auto problem = finish_tls_options(options.tls, options.host, options.port); !problem.empty()) {
+      err << prefix << problem << "\n";
       return false;
     }
     if (!token_file.empty()) {

@@ -13,6 +13,7 @@
 
 #include "exit_codes.hpp"
 #include "libs/swarm/swarm_registry.hpp"
+#include "tls_options.hpp"
 
 namespace rcand::rcanctl {
 
@@ -31,6 +32,7 @@ struct FleetOptions {
   std::string host = "127.0.0.1";
   std::uint16_t port = swarm::kDefaultSwarmPort;
   std::string token;  // --token, --token-file or $RCAND_TOKEN
+  TlsOptions tls;     // one robot: --cacert/--cert/--key, https:// hosts (swarm nodes name their own `ca`)
 };
 
 // Parses the words after the operation name; on a usage error writes it to `err` and returns false.

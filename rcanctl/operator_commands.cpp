@@ -14,6 +14,7 @@
 #include <thread>
 
 #include "exit_codes.hpp"
+#include "plugins_command.hpp"
 #include "robot_connection.hpp"
 #include "text_table.hpp"
 
@@ -215,7 +216,9 @@ int run_nav(std::span<const std::string> args) {
 
 int run_plugins(std::span<const std::string> args) {
   constexpr std::string_view usage =
-      "usage: rcanctl plugins   every plugin found: version, state, what it provides, why it failed\n";
+      "usage: rcanctl plugins   every plugin found: version, state, what it provides, why it failed\n"
+      "       rcanctl plugins reload ID   re-open one plugin from disk (development robots; plugins reload --help)\n";
+  if (!args.empty() && args.front() == "reload") return run_plugins_reload(args.subspan(1));
   RobotOptions options;
   if (auto done = parse(args, "plugins", usage, {}, options)) return *done;
   const auto answer = call_robot(options, "GET", "/api/plugins");

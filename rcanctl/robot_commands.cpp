@@ -14,7 +14,9 @@ constexpr std::string_view kRobotUsage =
     "       any of them with --node NAME [--swarm FILE] instead of --host/--port/--token: a node of swarm.yaml\n"
     "  HOST default 127.0.0.1, PORT default 8000, the token may also come from $RCAND_TOKEN;\n"
     "  --swarm default /etc/rcand/swarm.yaml. Output: a table, or one JSON object per node with --json.\n"
-    "  Exit: 0 success, 1 the robot failed, was unreachable or reports state error, 2 usage or config error.\n";
+    "  Exit: 0 success, 1 the robot failed, was unreachable or reports state error, 2 usage or config error.\n"
+    "  TLS: --host https://HOST[:PORT], or --cacert FILE (the CA that signed the robot's certificate; default the\n"
+    "  system's CAs), --cert FILE --key FILE for mutual TLS ($RCAND_CACERT, $RCAND_CERT, $RCAND_KEY supply them).\n";
 
 }  // namespace
 
@@ -31,6 +33,7 @@ int run_robot(std::string_view operation, std::span<const std::string> args, std
     robot.host = options.host;
     robot.port = options.port;
     robot.token = options.token;
+    apply_tls(options.tls, robot);
     targets.push_back(std::move(robot));
   }
   return run_fleet_operation(op, targets, options, out, err);

@@ -80,12 +80,18 @@ bool parse_robot_options(std::span<const std::string> args, std::string_view pre
         err << prefix << ": cannot read a token from --token-file " << token_file << "\n";
         return false;
       }
+    } else if (bool ok = true; parse_tls_option(arg, next, options.tls, ok)) {
+      if (!ok) return false;
     } else if (!extra || !extra(arg, next)) {
       err << prefix << ": unknown option '" << arg << "' (see --help)\n";
       return false;
     }
   }
   if (options.help) return true;
+  if (const auto problem = finish_tls_options(options.tls, options.host, options.port); !problem.empty()) {
+    err << prefix << ": " << problem << "\n";
+    return false;
+  }
   if (options.token.empty())
     if (const char* env = std::getenv("RCAND_TOKEN")) options.token = env;
   if (options.token.empty()) {
@@ -98,9 +104,9 @@ bool parse_robot_options(std::span<const std::string> args, std::string_view pre
 RobotAnswer call_robot(const RobotOptions& options, std::string_view method, std::string_view target, const json& body) {
   RobotAnswer answer;
   try {
-    const auto response = http::request(address_of(options.host, options.timeout), options.port, method, target,
-                                        body.is_null() ? std::string() : body.dump(),
-                                        {{"Authorization", "Bearer " + options.token}}, options.timeout);
+    const auto response = http::request(
+        address_of(options.host, options.timeout), options.port, method, target, body.is_null() ? std::string() : body.dump(),
+        {{"Authorization", "Bearer " + options.token}}, options.timeout, client_tls(options.tls, options.host));
     answer.status = response.status;
     answer.body = json::parse(response.body, nullptr, false);
     if (answer.body.is_discarded()) answer.body = nullptr;

@@ -1,5 +1,6 @@
 // One robot as an operator's command reaches it: the connection options every single-robot subcommand takes
-// (--host, --port, --token/--token-file/$RCAND_TOKEN, --json, --timeout) and one request with its answer parsed.
+// (--host, --port, --token/--token-file/$RCAND_TOKEN, --json, --timeout, the TLS options) and one request with its
+// answer parsed.
 #pragma once
 
 #include <nlohmann/json.hpp>
@@ -13,6 +14,8 @@
 #include <string>
 #include <string_view>
 
+#include "tls_options.hpp"
+
 namespace rcand::rcanctl {
 
 struct RobotOptions {
@@ -22,6 +25,7 @@ struct RobotOptions {
   bool json = false;
   bool help = false;
   std::chrono::milliseconds timeout{5000};
+  TlsOptions tls;  // --cacert/--cert/--key, https:// hosts (tls_options.hpp)
 };
 
 // Called for an option the common parser does not know: `next` yields its value (false after writing the error).

@@ -5,7 +5,6 @@
 #include <boost/asio/io_context.hpp>
 #include <boost/asio/ip/tcp.hpp>
 #include <boost/beast/core/buffers_to_string.hpp>
-#include <boost/beast/core/tcp_stream.hpp>
 #include <boost/beast/websocket.hpp>
 #include <nlohmann/json.hpp>
 
@@ -15,6 +14,8 @@
 #include <optional>
 
 #include "exit_codes.hpp"
+#include "libs/http/connection_stream.hpp"
+#include "libs/http/tls_context.hpp"
 #include "robot_connection.hpp"
 #include "text_table.hpp"
 
@@ -33,7 +34,9 @@ constexpr std::string_view kWatchUsage =
     "  --frames N stops after N frames; otherwise it runs until Ctrl-C. --timeout: connecting, and the longest gap\n"
     "  between frames before the connection counts as lost (default 5000). HOST default 127.0.0.1, PORT 8000,\n"
     "  the token may also come from $RCAND_TOKEN (any role: telemetry needs the status scope).\n"
-    "  Exit: 0 after --frames N or Ctrl-C, 1 refused (401/403), unreachable or connection lost, 2 usage.\n";
+    "  Exit: 0 after --frames N or Ctrl-C, 1 refused (401/403), unreachable or connection lost, 2 usage.\n"
+    "  TLS (wss): --host https://HOST[:PORT], or --cacert FILE (default the system's CAs), --cert FILE --key FILE for\n"
+    "  mutual TLS ($RCAND_CACERT, $RCAND_CERT, $RCAND_KEY supply them).\n";
 
 std::atomic<bool> watch_interrupted{false};
 extern "C" void on_watch_interrupt(int) { watch_interrupted.store(true); }
@@ -117,7 +120,11 @@ int run_watch(std::span<const std::string> args) {
   }
   const std::string where = options.host + ":" + std::to_string(options.port);
   net::io_context io;
-  websocket::stream<beast::tcp_stream> ws(io);
+  // wss when TLS is asked for: the robot's certificate verified before the upgrade (and its token) is sent.
+  const auto tls = client_tls(options.tls, options.host);
+  auto context = tls ? http::make_client_tls_context(*tls) : nullptr;
+  websocket::stream<http::ConnectionStream> ws(context ? http::ConnectionStream(http::TcpStream(io), context)
+                                                       : http::ConnectionStream(io));
   bool done = false;
   beast::error_code result;
   net::ip::tcp::resolver resolver(io);
@@ -136,6 +143,19 @@ int run_watch(std::span<const std::string> args) {
   if (!run_until(io, done, options.timeout) || result) {
     std::cerr << "rcanctl watch: cannot connect to " << where << ": " << (result ? result.message() : "timed out") << "\n";
     return kExitFailure;
+  }
+  if (auto* layer = ws.next_layer().tls()) {
+    http::expect_server_name(layer->native_handle(), options.host);
+    done = false;
+    layer->async_handshake(net::ssl::stream_base::client, [&](beast::error_code ec) {
+      result = ec;
+      done = true;
+    });
+    if (!run_until(io, done, options.timeout) || result) {
+      std::cerr << "rcanctl watch: TLS handshake with " << where
+                << " failed: " << (result ? http::tls_failure(layer->native_handle(), result) : "timed out") << "\n";
+      return kExitFailure;
+    }
   }
   ws.set_option(websocket::stream_base::decorator([token = options.token](websocket::request_type& request) {
     request.set(beast::http::field::authorization, "Bearer " + token);

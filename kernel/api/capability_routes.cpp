@@ -1,5 +1,6 @@
 #include "kernel/api/capability_routes.hpp"
 
+#include <algorithm>
 #include <atomic>
 #include <memory>
 
@@ -56,14 +57,19 @@ class CapabilityRoutes {
     reply(std::move(response));
   }
 
-  // The instance serving `name`, or answers 404/503 and returns null.
-  CapabilityInstance* available(const std::string& name, Call& call, const Reply& reply) const {
+  // The instance serving `name`, admitted through its reload gate (`pass`, held until the handler returns), or
+  // answers 404/503 and returns null.
+  CapabilityInstance* available(const std::string& name, Call& call, const Reply& reply, ReloadGate::Pass& pass) const {
     if (!d_.registry.declared(name)) {  // §9.1: an undeclared capability reaches no plugin
       refuse(call, reply, answer(contract::not_declared(bounded_text(name), d_.registry.names())), "blocked",
              "capability not declared");
       return nullptr;
     }
     CapabilityInstance* instance = d_.runtime.capability(name);
+    if (instance != nullptr && !(pass = instance->gate->enter())) {
+      refuse(call, reply, answer(contract::out_of_service(name, "its plugin is being reloaded")), "error", "plugin reloading");
+      return nullptr;
+    }
     if (instance == nullptr || instance->health.failed() || !instance->object) {
       const std::string why = instance ? instance->health.reason() : "not running";
       refuse(call, reply, answer(contract::out_of_service(name, why)), "error", why);
@@ -72,20 +78,31 @@ class CapabilityRoutes {
     return instance;
   }
 
-  // A routed request: the body parsed, then the handler on the capability's worker.
-  void serve(const std::string& name, const sdk::Route& route, Call& call, const Reply& reply) const {
-    CapabilityInstance* instance = available(name, call, reply);
+  // A routed request: the body parsed, then the handler on the capability's worker. The route is looked up by its
+  // method and path at each call: a reloaded plugin's routes replace the ones it had.
+  void serve(const std::string& name, const std::string& method, const std::string& path, Call& call, const Reply& reply) const {
+    ReloadGate::Pass pass;
+    CapabilityInstance* instance = available(name, call, reply, pass);
     if (instance == nullptr) return;
+    const auto route = std::find_if(instance->routes.begin(), instance->routes.end(), [&](const sdk::Route& r) {
+      return r.action_type.empty() && r.method == method && r.path == path;
+    });
+    if (route == instance->routes.end()) return unrouted(name, call, reply);
     JsonBody body = parse_json_body(call.request.body);
     if (!body.error.empty())
       return refuse(call, reply, error_response(400, "BAD_REQUEST", body.error, {{"field", "body"}}), "blocked", "bad body");
-    dispatch(*instance, route, call, std::move(body.value), reply);
+    dispatch(*instance, *route, call, std::move(body.value), reply, std::move(pass));
   }
 
   // A stream route: the handler gets a writer whose first answer (a stream, a body, or JSON) ends the timeout.
-  void serve_stream(const std::string& name, const sdk::StreamRoute& route, Call& call, const Reply& reply) const {
-    CapabilityInstance* instance = available(name, call, reply);
+  void serve_stream(const std::string& name, const std::string& method, const std::string& path, Call& call,
+                    const Reply& reply) const {
+    ReloadGate::Pass pass;
+    CapabilityInstance* instance = available(name, call, reply, pass);
     if (instance == nullptr) return;
+    const auto route = std::find_if(instance->stream_routes.begin(), instance->stream_routes.end(),
+                                    [&](const sdk::StreamRoute& r) { return r.method == method && r.path == path; });
+    if (route == instance->stream_routes.end()) return unrouted(name, call, reply);
     JsonBody body = parse_json_body(call.request.body);
     if (!body.error.empty())
       return refuse(call, reply, error_response(400, "BAD_REQUEST", body.error, {{"field", "body"}}), "blocked", "bad body");
@@ -105,17 +122,18 @@ class CapabilityRoutes {
       timers->cancel(pending->timer);
       return true;
     });
-    instance->handler_worker->post([finish, target = instance, handler = route.handler, request, pending, writer]() mutable {
-      if (pending->answered.load()) return;  // timed out while queued
-      std::string failure;
-      // The handler gets a copy: ours outlives a throw, so the capability is failed before any answer (a dropped
-      // writer's 500) can reach the client and let its next request in.
-      const bool ok = guarded_call(target->who, "stream handler", failure, [&] { handler(*request, writer); });
-      pending->returned = true;
-      if (ok) return;
-      target->health.mark_failed("stream handler threw: " + failure);
-      finish(answer(contract::handler_threw(target->name)), "error", failure);
-    });
+    instance->handler_worker->post(
+        [finish, target = instance, handler = route->handler, request, pending, writer, pass = std::move(pass)]() mutable {
+          if (pending->answered.load()) return;  // timed out while queued
+          std::string failure;
+          // The handler gets a copy: ours outlives a throw, so the capability is failed before any answer (a dropped
+          // writer's 500) can reach the client and let its next request in.
+          const bool ok = guarded_call(target->who, "stream handler", failure, [&] { handler(*request, writer); });
+          pending->returned = true;
+          if (ok) return;
+          target->health.mark_failed("stream handler threw: " + failure);
+          finish(answer(contract::handler_threw(target->name)), "error", failure);
+        });
   }
 
   // What a mount answers when no row of a running capability matched: not declared, out of service, or no route.
@@ -133,8 +151,25 @@ class CapabilityRoutes {
             error_response(404, "NOT_FOUND", "'" + bounded_text(name) + "' is a standard capability; use its standard endpoint"),
             "blocked", "standard capability under /api/cap");
     }
-    CapabilityInstance* instance = available(name, call, reply);
+    ReloadGate::Pass pass;
+    CapabilityInstance* instance = available(name, call, reply, pass);
     if (instance == nullptr) return;
+    // A route the table has no row for: one a reloaded plugin added, or one of a plugin that failed at startup.
+    const auto added = std::find_if(instance->routes.begin(), instance->routes.end(), [&](const sdk::Route& r) {
+      return r.action_type.empty() && r.method == call.request.method && r.path == (custom ? subpath : path);
+    });
+    if (added != instance->routes.end()) {
+      const Scope scope = contract::route_scope(added->scope, added->method, custom);
+      if (!call.has_scope(scope))
+        return refuse(call, reply, answer(contract::insufficient_scope("principal '" + call.principal + "'", scope)), "blocked",
+                      "insufficient privileges");
+      if (added->motion && d_.estop.latched())
+        return refuse(call, reply, answer(contract::estop_active()), "blocked", "e-stop active");
+      JsonBody body = parse_json_body(call.request.body);
+      if (!body.error.empty())
+        return refuse(call, reply, error_response(400, "BAD_REQUEST", body.error, {{"field", "body"}}), "blocked", "bad body");
+      return dispatch(*instance, *added, call, std::move(body.value), reply, std::move(pass));
+    }
     std::vector<std::string> methods;
     for (const auto& route : instance->routes)
       if (route.action_type.empty() && route.path == (custom ? subpath : path)) methods.push_back(route.method);
@@ -161,7 +196,8 @@ class CapabilityRoutes {
     const StandardCapability* standard = capability_of_action(type);
     if (standard == nullptr) return reply(answer(contract::unknown_action_type(bounded_text(type), declared_types)));
     call.audit_seq = d_.audit.begin(call.principal, call.message_id, "POST /api/action " + type, call.audit_note);
-    CapabilityInstance* instance = available(std::string(standard->name), call, reply);
+    ReloadGate::Pass pass;
+    CapabilityInstance* instance = available(std::string(standard->name), call, reply, pass);
     if (instance == nullptr) return;
     const sdk::Route* route = nullptr;
     for (const auto& candidate : instance->routes)
@@ -176,10 +212,11 @@ class CapabilityRoutes {
                     "insufficient privileges");
     if (route->motion && d_.estop.latched())
       return refuse(call, reply, answer(contract::estop_active()), "blocked", "e-stop active");
-    dispatch(*instance, *route, call, std::move(body.value), reply);
+    dispatch(*instance, *route, call, std::move(body.value), reply, std::move(pass));
   }
 
-  void dispatch(CapabilityInstance& instance, const sdk::Route& route, Call& call, json body, const Reply& reply) const;
+  void dispatch(CapabilityInstance& instance, const sdk::Route& route, Call& call, json body, const Reply& reply,
+                ReloadGate::Pass pass) const;
   // The once-only answer of a dispatched request, and its timeout: a handler still running then fails its
   // capability; one that returned without answering (a stream never started) only gets the client a 503.
   Finish arm(CapabilityInstance& instance, const Call& call, const Reply& reply, const std::shared_ptr<Pending>& pending) const;
@@ -211,12 +248,13 @@ Finish CapabilityRoutes::arm(CapabilityInstance& instance, const Call& call, con
   return finish;
 }
 
-void CapabilityRoutes::dispatch(CapabilityInstance& instance, const sdk::Route& route, Call& call, json body,
-                                const Reply& reply) const {
+void CapabilityRoutes::dispatch(CapabilityInstance& instance, const sdk::Route& route, Call& call, json body, const Reply& reply,
+                                ReloadGate::Pass pass) const {
   auto request = make_request(call, std::move(body));
   auto pending = std::make_shared<Pending>();
   Finish finish = arm(instance, call, reply, pending);
-  instance.handler_worker->post([timers = &d_.timers, finish, target = &instance, handler = route.handler, request, pending] {
+  instance.handler_worker->post([timers = &d_.timers, finish, target = &instance, handler = route.handler, request, pending,
+                                 pass = std::move(pass)] {
     if (pending->answered.load()) return;  // timed out while queued
     std::string failure;
     auto result = guarded_result(target->who, "request handler", failure, [&] { return handler(*request); });
@@ -260,11 +298,15 @@ void add_instance_routes(Router& router, const std::shared_ptr<const CapabilityR
   for (const auto& route : instance.routes) {
     if (!route.action_type.empty()) continue;  // served through POST /api/action
     add(route.method, route.path, route.scope, route.motion,
-        [routes, name = instance.name, &route](Call& call, Reply reply) { routes->serve(name, route, call, reply); });
+        [routes, name = instance.name, method = route.method, path = route.path](Call& call, Reply reply) {
+          routes->serve(name, method, path, call, reply);
+        });
   }
   for (const auto& route : instance.stream_routes)
     add(route.method, route.path, route.scope, false,
-        [routes, name = instance.name, &route](Call& call, Reply reply) { routes->serve_stream(name, route, call, reply); });
+        [routes, name = instance.name, method = route.method, path = route.path](Call& call, Reply reply) {
+          routes->serve_stream(name, method, path, call, reply);
+        });
 }
 
 }  // namespace

@@ -91,6 +91,26 @@ void plugins(const KernelRouteDeps& d, Call& call, const Reply& reply) {
   reply(json_response(200, {{"plugins", d.host.to_json(sdk::role_grants(call.role, Scope::Config))}}));
 }
 
+// POST /api/plugins/<id>/reload (docs/protocol.md §7.15): answered when the reload is over; audited either way.
+void plugin_reload(const KernelRouteDeps& d, Call& call, const Reply& reply) {
+  constexpr std::string_view kPrefix = "/api/plugins/", kSuffix = "/reload";
+  const std::string& path = call.request.path;
+  if (!path.ends_with(kSuffix) || path.size() <= kPrefix.size() + kSuffix.size()) {
+    d.audit.finish(call.audit_seq, "blocked", "no such route");
+    return reply(error_response(404, "NOT_FOUND", "the plugin action is POST /api/plugins/<id>/reload"));
+  }
+  const std::string id = path.substr(kPrefix.size(), path.size() - kPrefix.size() - kSuffix.size());
+  d.reload_plugin(id, call.principal, [audit = &d.audit, seq = call.audit_seq, reply](int status, json body) {
+    const std::string code = body.value("code", "");
+    audit->finish(seq, status == 200 ? "ok" : "error", code);
+    if (status == 200) return reply(json_response(200, body));
+    const std::string why = body.value("error", "plugin reload failed");
+    body.erase("error");
+    body.erase("code");
+    reply(error_response(status, code, why, body));
+  });
+}
+
 void driver(const KernelRouteDeps& d, Call& call, const Reply& reply) {
   const std::string id = call.request.path.substr(std::string_view("/api/drivers/").size());
   for (const auto& instance : d.runtime.drivers()) {
@@ -123,6 +143,7 @@ void add_kernel_routes(Router& router, const KernelRouteDeps& deps) {
   router.add({"GET", "/api/audit", Scope::Config}, [d](Call& call, Reply reply) { audit_entries(*d, call, reply); });
   router.add({"GET", "/api/plugins", Scope::Status}, [d](Call& call, Reply reply) { plugins(*d, call, reply); });
   router.add({"GET", "/api/drivers/*", Scope::Status}, [d](Call& call, Reply reply) { driver(*d, call, reply); });
+  router.add({"POST", "/api/plugins/*", Scope::Config, true}, [d](Call& call, Reply reply) { plugin_reload(*d, call, reply); });
 }
 
 }  // namespace rcand::kernel

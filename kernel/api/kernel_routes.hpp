@@ -27,6 +27,9 @@ struct KernelRouteDeps {
   std::int64_t started_us = 0;
   StatusBoard& status;                        // the GET /api/status snapshot
   std::function<nlohmann::json()> discovery;  // GET /api/discovery
+  // POST /api/plugins/<id>/reload as `principal`: `done` is called once, from any thread, with the status and body.
+  std::function<void(const std::string& id, const std::string& principal, std::function<void(int, nlohmann::json)> done)>
+      reload_plugin;
 };
 
 // Startup. The dependencies outlive the router's use of them (the Kernel owns both).

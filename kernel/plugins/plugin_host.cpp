@@ -1,11 +1,13 @@
 #include "kernel/plugins/plugin_host.hpp"
 
 #include <dlfcn.h>
+#include <unistd.h>
 
 #include <boost/dll/shared_library.hpp>
 
 #include <algorithm>
 #include <array>
+#include <atomic>
 #include <map>
 #include <sstream>
 
@@ -315,6 +317,47 @@ bool PluginHost::accept(PluginRecord& record, detail::RecordingRegistrar& regist
   return true;
 }
 
+void PluginHost::reopen(std::string_view id) {
+  PluginRecord* record = find(id);
+  if (record == nullptr) return;
+  {
+    std::lock_guard lock(mutex_);
+    record->state = PluginState::InstalledNotEnabled;  // what it registered is free for its new version
+    record->capabilities.clear();
+    record->drivers.clear();
+  }
+  PluginRecord fresh;
+  fresh.manifest_file = record->manifest_file;
+  fresh.id = record->id;
+  try {
+    fresh.manifest = load_manifest(fresh.manifest_file);
+    fresh.version = fresh.manifest->version;
+  } catch (const std::exception& e) {
+    set_state(fresh, PluginState::InvalidManifest, e.what(), "fix the manifest (format: manifests/manifest.schema.json)");
+  }
+  if (fresh.manifest && fresh.manifest->id != fresh.id)
+    set_state(fresh, PluginState::InvalidManifest, "the manifest's id is now '" + fresh.manifest->id + "'",
+              "a reload keeps a plugin's id; restart rcand to load it under another");
+  else if (fresh.manifest) open_copy(fresh);
+  std::lock_guard lock(mutex_);
+  *record = std::move(fresh);
+}
+
+void PluginHost::open_copy(PluginRecord& record) {
+  static std::atomic<unsigned> reloads{0};
+  const fs::path original = record.manifest->library;
+  std::error_code ec;
+  const fs::path copy = fs::temp_directory_path(ec) / ("rcand-" + std::to_string(::getpid()) + "-reload-" +
+                                                       std::to_string(++reloads) + "-" + original.filename().string());
+  if (fs::exists(original, ec) && !fs::copy_file(original, copy, fs::copy_options::overwrite_existing, ec))
+    return set_state(record, PluginState::FailedToOpen, "cannot copy " + original.string() + " to reload it: " + ec.message(),
+                     "check the free space and permissions of " + copy.parent_path().string());
+  if (fs::exists(copy, ec)) record.manifest->library = copy;
+  open(record);
+  fs::remove(copy, ec);  // mapped by now, or refused: the file is not needed any more
+  record.manifest->library = original;
+}
+
 PluginRecord* PluginHost::find(std::string_view id) noexcept {
   for (const auto& record : records_)
     if (record->id == id) return record.get();
@@ -335,6 +378,7 @@ std::string provides_text(const PluginRecord& record) {
 }  // namespace
 
 std::string PluginHost::format_table() const {
+  std::lock_guard lock(mutex_);
   std::vector<std::array<std::string, 5>> rows{{"ID", "VERSION", "STATE", "PROVIDES", "REASON / HINT"}};
   for (const auto& r : records_) {
     std::string why = r->reason;
@@ -381,6 +425,7 @@ std::string without_directories(const std::string& text) {
 }  // namespace
 
 json PluginHost::to_json(bool with_paths) const {
+  std::lock_guard lock(mutex_);
   json out = json::array();
   for (const auto& r : records_) {
     json provided = json::array();

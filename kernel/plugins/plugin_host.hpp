@@ -1,5 +1,6 @@
 // Finds plugins by their manifests, opens exactly the ones the robot needs, checks them against their
-// manifests and records every outcome. Main thread only; nothing here is thread-safe.
+// manifests and records every outcome. Main thread only, except to_json() and format_table(), which any thread may
+// call while reopen() runs on another.
 #pragma once
 
 #include <nlohmann/json.hpp>
@@ -7,6 +8,7 @@
 #include <chrono>
 #include <filesystem>
 #include <memory>
+#include <mutex>
 #include <set>
 #include <string>
 #include <string_view>
@@ -44,6 +46,12 @@ class PluginHost {
   // hint. Plugins already opened by an earlier call are left as they are.
   void load_needed(const std::set<std::string>& capabilities, const std::set<std::string>& driver_protocols);
 
+  // A development reload of plugin `id`, once nothing of it runs (PluginRuntime::reload): its manifest re-read and
+  // its library opened again from disk, through a private copy (a new file, so the loader cannot hand back the old
+  // image; that one stays mapped, RTLD_NODELETE, so nothing the old version left behind can call into unmapped
+  // code). The record ends Loaded or in a named failure state, as at startup.
+  void reopen(std::string_view id);
+
   // How long a plugin's register() may take (runtime.plugin_start_timeout_ms): one that overruns is recorded
   // registration-failed and left running on its own thread. Applies to plugins opened after the call.
   void set_register_timeout(std::chrono::milliseconds timeout) noexcept { register_timeout_ = timeout; }
@@ -63,6 +71,7 @@ class PluginHost {
 
  private:
   void open(PluginRecord& record);
+  void open_copy(PluginRecord& record);  // open() from a fresh copy of the library (reopen)
   // The loader's steps; each one that refuses sets the record's state and returns false (or null).
   bool open_library(PluginRecord& record);
   const rcand_plugin_descriptor* read_descriptor(PluginRecord& record);
@@ -70,6 +79,7 @@ class PluginHost {
   bool accept(PluginRecord& record, detail::RecordingRegistrar& registrar);
 
   std::vector<std::unique_ptr<PluginRecord>> records_;
+  mutable std::mutex mutex_;  // a record's contents, while reopen() replaces them (the list itself never changes then)
   std::chrono::milliseconds register_timeout_{10000};
 };
 

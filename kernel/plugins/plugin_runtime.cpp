@@ -175,25 +175,33 @@ void PluginRuntime::start_drivers(const RobotConfig& config) {
 }
 
 void PluginRuntime::start_capabilities(const std::vector<std::string>& names, const RobotConfig& config) {
-  auto log = logger("kernel.plugins");
   for (const auto& name : names) {
     if (name == kStatusCapability) continue;  // the kernel's own
-    auto [registered, plugin] = find_loaded(host_, host_.providers_of_capability(name), &PluginRecord::capabilities, name);
     auto& instance = capabilities_.emplace_back();
     instance.name = name;
+    start_capability(instance, config);
+  }
+  start_crews();
+}
+
+void PluginRuntime::start_capability(CapabilityInstance& instance, const RobotConfig& config) {
+  auto log = logger("kernel.plugins");
+  const std::string& name = instance.name;
+  {
+    auto [registered, plugin] = find_loaded(host_, host_.providers_of_capability(name), &PluginRecord::capabilities, name);
     if (registered == nullptr) {
       instance.health.mark_failed(plugin == nullptr ? "no installed plugin provides it"
                                                     : "plugin " + plugin->id + " is " + std::string(to_string(plugin->state)) +
                                                           ": " + plugin->reason);
       log->error("capability {}: {}", name, instance.health.reason());
-      continue;
+      return;
     }
     instance.plugin_id = plugin->id;
     instance.actuates = registered->info.actuates;
     if (const auto missing = missing_requirement(*plugin)) {
       instance.health.mark_failed("requires a " + *missing + " actuator, and no configured driver provides one");
       log->error("capability {}: {}", name, instance.health.reason());
-      continue;
+      return;
     }
     const nlohmann::json raw =
         config.runtime.capabilities.contains(name) ? config.runtime.capabilities.at(name) : nlohmann::json::object();
@@ -214,7 +222,7 @@ void PluginRuntime::start_capabilities(const std::vector<std::string>& names, co
                                             if (minor >= 2) streams = object.stream_routes();  // older: no such virtual
                                           });
     if (abandoned) keep_forever(instance.context);  // still in use by the plugin thread that never returned
-    if (!instance.object) continue;
+    if (!instance.object) return;
     if (!instance.health.failed()) {
       if (auto problem = route_problem(routes)) instance.health.mark_failed("routes() returned an unusable route: " + *problem);
       else if (auto bad = route_problem(streams))
@@ -229,19 +237,30 @@ void PluginRuntime::start_capabilities(const std::vector<std::string>& names, co
               instance.health.failed() ? "failed: " + instance.health.reason() : "started",
               instance.routes.size() + instance.stream_routes.size());
   }
-  start_crews();
 }
 
-std::optional<nlohmann::json> PluginRuntime::status_at(std::size_t index) {
-  if (!status_reader_ || index == kNoStatus) return std::nullopt;
-  return status_reader_->read(index);
+std::optional<nlohmann::json> PluginRuntime::status_at(const std::size_t& status_index) {
+  std::shared_ptr<StatusReader> reader;
+  std::size_t index = kNoStatus;
+  {
+    std::lock_guard lock(crews_mutex_);
+    reader = status_reader_;
+    index = status_index;
+  }
+  if (!reader || index == kNoStatus) return std::nullopt;
+  return reader->read(index);
 }
 
 std::vector<std::optional<nlohmann::json>> PluginRuntime::capability_statuses() {
   std::vector<std::size_t> indices;
-  for (const auto& instance : capabilities_) indices.push_back(instance.health.failed() ? kNoStatus : instance.status_index);
-  if (!status_reader_) return std::vector<std::optional<nlohmann::json>>(indices.size());
-  return status_reader_->read(indices);
+  std::shared_ptr<StatusReader> reader;
+  {
+    std::lock_guard lock(crews_mutex_);
+    for (const auto& instance : capabilities_) indices.push_back(instance.health.failed() ? kNoStatus : instance.status_index);
+    reader = status_reader_;
+  }
+  if (!reader) return std::vector<std::optional<nlohmann::json>>(indices.size());
+  return reader->read(indices);
 }
 
 namespace {
@@ -323,12 +342,17 @@ CapabilityInstance* PluginRuntime::capability(std::string_view name) noexcept {
 }
 
 void PluginRuntime::notify_estop() noexcept {
-  if (!estop_crew_) {
+  std::shared_ptr<DeadlineCrew> crew;
+  {
+    std::lock_guard lock(crews_mutex_);
+    crew = estop_crew_;
+  }
+  if (!crew) {
     for (auto& instance : capabilities_)
       if (instance.object) instance.object->on_estop();
     return;
   }
-  for (const auto& outcome : estop_crew_->run_all(std::chrono::steady_clock::now() + kEstopNotifyDeadline)) {
+  for (const auto& outcome : crew->run_all(std::chrono::steady_clock::now() + kEstopNotifyDeadline)) {
     if (outcome.state == DeadlineCrew::State::Done) continue;
     try {
       const std::string why = outcome.state == DeadlineCrew::State::Failed
@@ -348,22 +372,23 @@ namespace {
 // offers were withdrawn; then the workers of each instance whose hook returned are joined. A hook that throws out
 // of its noexcept is contained and logged; one still running at the deadline is logged and left running, and true
 // is returned: its object and context must never be destroyed.
-template <class Instances> bool shut_down_all(Instances& instances, std::chrono::milliseconds deadline) noexcept {
-  for (auto& instance : instances)
-    if (instance.context) instance.context->withdraw_offers();
-  std::vector<typename Instances::value_type*> members;
+template <class Instance>
+bool shut_down_all(const std::vector<Instance*>& instances, std::chrono::milliseconds deadline) noexcept {
+  for (auto* instance : instances)
+    if (instance->context) instance->context->withdraw_offers();
+  std::vector<Instance*> members;
   std::optional<DeadlineCrew> crew;
   try {
     std::vector<DeadlineCrew::Job> jobs;
-    for (auto& instance : instances) {
-      if (!instance.object) continue;
-      jobs.push_back({instance.who, [object = instance.object.get()] { object->shutdown(); }});
-      members.push_back(&instance);
+    for (auto* instance : instances) {
+      if (!instance->object) continue;
+      jobs.push_back({instance->who, [object = instance->object.get()] { object->shutdown(); }});
+      members.push_back(instance);
     }
     crew.emplace("shutdown", std::move(jobs));
   } catch (...) {  // no memory or no threads for the crew: shut down inline, as a last resort
-    for (auto& instance : instances)
-      if (instance.object) instance.object->shutdown();
+    for (auto* instance : instances)
+      if (instance->object) instance->object->shutdown();
     return false;
   }
   const auto outcomes = crew->run_all(std::chrono::steady_clock::now() + deadline);
@@ -384,6 +409,12 @@ template <class Instances> bool shut_down_all(Instances& instances, std::chrono:
   return abandoned;
 }
 
+template <class Instances> auto pointers_to(Instances& instances) {
+  std::vector<typename Instances::value_type*> out;
+  for (auto& instance : instances) out.push_back(&instance);
+  return out;
+}
+
 }  // namespace
 
 void PluginRuntime::shutdown() noexcept {
@@ -392,27 +423,143 @@ void PluginRuntime::shutdown() noexcept {
   if (estop_crew_ && !estop_crew_->quiesce(std::chrono::milliseconds(500))) abandon_capabilities_ = true;
   for (auto& instance : capabilities_)
     if (instance.handler_worker) instance.handler_worker->join();
-  if (shut_down_all(capabilities_, kShutdownDeadline)) abandon_capabilities_ = true;
-  if (shut_down_all(drivers_, kShutdownDeadline)) abandon_drivers_ = true;
+  try {
+    if (shut_down_all(pointers_to(capabilities_), kShutdownDeadline)) abandon_capabilities_ = true;
+    if (shut_down_all(pointers_to(drivers_), kShutdownDeadline)) abandon_drivers_ = true;
+  } catch (...) {  // no memory for the lists: leave the objects to the process's end
+    abandon_capabilities_ = abandon_drivers_ = true;
+  }
 }
 
 // The threads every started instance gets from the kernel: an on_estop() caller each (the stop path's notify crew)
 // and a status() reader each.
-void PluginRuntime::start_crews() {
+std::pair<std::shared_ptr<DeadlineCrew>, std::shared_ptr<StatusReader>> PluginRuntime::start_crews(std::string_view skip) {
+  const auto wanted = [skip](const auto& instance) { return instance.object && (skip.empty() || instance.plugin_id != skip); };
   std::vector<DeadlineCrew::Job> jobs;
   for (auto& instance : capabilities_)
-    if (instance.object) jobs.push_back({instance.name, [object = instance.object.get()] { object->on_estop(); }});
-  estop_crew_ = std::make_unique<DeadlineCrew>("estop.notify", std::move(jobs));
+    if (wanted(instance)) jobs.push_back({instance.name, [object = instance.object.get()] { object->on_estop(); }});
+  auto crew = std::make_shared<DeadlineCrew>("estop.notify", std::move(jobs));
 
   std::vector<StatusReader::Source> sources;
-  auto add_source = [&sources](auto& instance) {
-    if (!instance.object) return;
-    instance.status_index = sources.size();
+  std::vector<std::pair<std::size_t*, std::size_t>> indices;  // set with the swap, under the lock
+  auto add_source = [&](auto& instance) {
+    indices.emplace_back(&instance.status_index, wanted(instance) ? sources.size() : kNoStatus);
+    if (!wanted(instance)) return;
     sources.push_back({instance.who, [object = instance.object.get()] { return object->status(); }, &instance.health});
   };
   for (auto& instance : drivers_) add_source(instance);
   for (auto& instance : capabilities_) add_source(instance);
-  status_reader_ = std::make_unique<StatusReader>(std::move(sources));
+  auto reader = std::make_shared<StatusReader>(std::move(sources));
+  std::lock_guard lock(crews_mutex_);
+  estop_crew_.swap(crew);
+  status_reader_.swap(reader);
+  for (auto [slot, index] : indices) *slot = index;
+  return {std::move(crew), std::move(reader)};
+}
+
+std::vector<CapabilityInstance*> PluginRuntime::instances_of(const std::string& id) {
+  const PluginRecord* record = host_.find(id);
+  std::vector<CapabilityInstance*> out;
+  for (auto& instance : capabilities_) {
+    const bool would_serve =
+        instance.plugin_id.empty() && record != nullptr && record->manifest &&
+        std::any_of(record->manifest->provides.begin(), record->manifest->provides.end(),
+                    [&](const ProvidedItem& item) { return item.kind == "capability" && item.name == instance.name; });
+    if (instance.plugin_id == id || would_serve) out.push_back(&instance);
+  }
+  return out;
+}
+
+namespace {
+template <class T> void never_destroy(std::shared_ptr<T> shared) {
+  if (!shared) return;
+  auto holder = std::make_unique<std::shared_ptr<T>>(std::move(shared));
+  keep_forever(holder);
+}
+}  // namespace
+
+bool PluginRuntime::stop_capabilities(const std::vector<CapabilityInstance*>& members, const std::string& id,
+                                      std::chrono::milliseconds drain) {
+  bool drained = true;
+  for (auto* instance : members) drained = instance->gate->close_and_drain(drain) && drained;  // in-flight calls finish
+  auto [old_crew, old_reader] = start_crews(id);  // no on_estop() or status() reaches them from here on
+  const bool crews_quiet = (!old_crew || old_crew->quiesce(std::chrono::milliseconds(500))) &&
+                           (!old_reader || old_reader->quiesce(std::chrono::milliseconds(250)));
+  if (!crews_quiet) {
+    never_destroy(std::move(old_crew));
+    never_destroy(std::move(old_reader));
+  }
+  if (drained)
+    for (auto* instance : members)
+      if (instance->handler_worker) instance->handler_worker->join();
+  const bool stopped = drained && crews_quiet && !shut_down_all(members, kShutdownDeadline);
+  for (auto* instance : members) {
+    if (!stopped) {  // a call still runs in the old code: its objects stay alive, out of service
+      keep_forever(instance->object);
+      keep_forever(instance->context);
+      keep_forever(instance->handler_worker);
+    }
+    instance->object.reset();
+    instance->handler_worker.reset();
+    instance->context.reset();
+    instance->routes.clear();
+    instance->stream_routes.clear();
+  }
+  return stopped;
+}
+
+ReloadResult PluginRuntime::reload(const std::string& id, const RobotConfig& config, const std::function<void()>& halt_first) {
+  ReloadResult result;
+  const auto refuse = [&result](int status, std::string code, std::string error) {
+    result.status = status;
+    result.code = std::move(code);
+    result.error = std::move(error);
+    return result;
+  };
+  const PluginRecord* record = host_.find(id);
+  if (record == nullptr) return refuse(404, "NOT_FOUND", "no plugin '" + id + "' is installed");
+  for (const auto& driver : drivers_)
+    if (driver.plugin_id == id || (driver.plugin_id.empty() && !host_.providers_of_driver(driver.protocol).empty() &&
+                                   host_.providers_of_driver(driver.protocol).front() == record))
+      return refuse(409, "RELOAD_UNSUPPORTED",
+                    "plugin " + id + " serves driver " + driver.id +
+                        ": drivers stay in the actuator table for the life of rcand; restart rcand to run its new version");
+  const auto members = instances_of(id);
+  if (members.empty())
+    return refuse(409, "NOT_IN_USE", "plugin " + id + " serves no capability of this robot: nothing to reload");
+
+  halt_first();
+  auto log = logger("kernel.plugins");
+  log->warn("plugin {}: reloading ({} capability instance(s))", id, members.size());
+  const bool stopped = stop_capabilities(
+      members, id, std::chrono::milliseconds(config.runtime.handler_timeout_ms) + std::chrono::milliseconds(500));
+  if (stopped) host_.reopen(id);
+  for (auto* instance : members) {
+    instance->health.reset();
+    if (!stopped) instance->health.mark_failed("plugin reload: a call into the old version did not finish; restart rcand");
+    else try {
+        start_capability(*instance, config);
+      } catch (const std::exception& e) {  // the new manifest's settings schema refuses the config
+        instance->health.mark_failed(std::string("plugin reload: ") + e.what());
+      }
+  }
+  start_crews();
+  for (auto* instance : members) {
+    instance->gate->open();
+    nlohmann::json item{{"capability", instance->name}, {"state", instance->health.failed() ? "failed" : "running"}};
+    if (instance->health.failed()) item["reason"] = instance->health.reason();
+    result.instances.push_back(std::move(item));
+  }
+  const auto failed = std::find_if(members.begin(), members.end(), [](auto* m) { return m->health.failed(); });
+  std::string why;
+  if (!stopped) why = "a call into its old version did not finish; restart rcand";
+  else if (record->state != PluginState::Loaded)
+    why = "it is " + std::string(to_string(record->state)) + (record->reason.empty() ? "" : ": " + record->reason);
+  else if (failed != members.end()) why = "capability " + (*failed)->name + " failed: " + (*failed)->health.reason();
+  if (!why.empty())
+    return refuse(500, "RELOAD_FAILED", "plugin " + id + " reload failed: " + why + " (the robot stays e-stopped)");
+  log->warn("plugin {}: reloaded, version {}", id, record->version);
+  return result;
 }
 
 }  // namespace rcand::kernel

@@ -7,17 +7,20 @@
 #pragma once
 
 #include <deque>
+#include <functional>
 #include <memory>
+#include <mutex>
 #include <optional>
 #include <string>
 #include <vector>
 
-#include "libs/config/robot_config.hpp"
 #include "kernel/plugins/instance_context.hpp"
 #include "kernel/plugins/plugin_host.hpp"
+#include "kernel/plugins/reload_gate.hpp"
 #include "kernel/plugins/status_reader.hpp"
 #include "kernel/safety/actuator_table.hpp"
 #include "kernel/safety/deadline_crew.hpp"
+#include "libs/config/robot_config.hpp"
 
 namespace rcand::kernel {
 
@@ -44,6 +47,15 @@ struct CapabilityInstance {
   std::vector<sdk::StreamRoute> stream_routes;   // ABI 1.2 plugins only (Capability::stream_routes())
   std::unique_ptr<WorkerThread> handler_worker;  // "cap.<name>": handlers run here, one at a time
   std::size_t status_index = kNoStatus;          // its source in the status reader
+  std::shared_ptr<ReloadGate> gate = std::make_shared<ReloadGate>();  // closed while its plugin is reloaded
+};
+
+// What PluginRuntime::reload did: `error` empty when every instance of the plugin runs its new code again.
+struct ReloadResult {
+  int status = 200;  // the HTTP status to answer with
+  std::string code;  // the error code when not 200
+  std::string error;
+  nlohmann::json instances = nlohmann::json::array();  // [{"capability","state","reason"?}]
 };
 
 class PluginRuntime {
@@ -82,9 +94,24 @@ class PluginRuntime {
   void shutdown() noexcept;
   static constexpr std::chrono::milliseconds kShutdownDeadline{2000};
 
+  // A development reload of plugin `id` (docs/protocol.md §7.15), after the kernel latched the e-stop: its capability
+  // instances are held closed (503) and drained, their offers withdrawn, shut down and destroyed; the plugin re-read
+  // and re-opened from disk (PluginHost::reopen); its instances started again. A plugin that runs drivers is refused
+  // (the actuator table is fixed after startup). Not concurrently with itself or shutdown() (the kernel serializes).
+  // `halt_first` runs once the request is known to be valid, before anything of the plugin stops.
+  ReloadResult reload(const std::string& id, const RobotConfig& config, const std::function<void()>& halt_first);
+
  private:
-  std::optional<nlohmann::json> status_at(std::size_t status_index);
-  void start_crews();
+  std::optional<nlohmann::json> status_at(const std::size_t& status_index);
+  // The on_estop() crew and the status reader over every instance with an object, except those of plugin `skip`;
+  // returns the ones they replace (still running what they were asked).
+  std::pair<std::shared_ptr<DeadlineCrew>, std::shared_ptr<StatusReader>> start_crews(std::string_view skip = {});
+  void start_capability(CapabilityInstance& instance, const RobotConfig& config);
+  // The capability instances plugin `id` serves, or would serve (it failed before it could).
+  std::vector<CapabilityInstance*> instances_of(const std::string& id);
+  // `members` (of plugin `id`) held closed, drained, out of the crews, shut down and destroyed; false when one of
+  // them could not be stopped (its objects are then left alive, never destroyed under a running call).
+  bool stop_capabilities(const std::vector<CapabilityInstance*>& members, const std::string& id, std::chrono::milliseconds drain);
   // The first interface the plugin's manifest `requires` that no started actuator implements.
   std::optional<std::string> missing_requirement(const PluginRecord& plugin) const;
 
@@ -98,8 +125,11 @@ class PluginRuntime {
   // destroyed under it.
   bool abandon_capabilities_ = false;
   bool abandon_drivers_ = false;
-  std::unique_ptr<DeadlineCrew> estop_crew_;     // declared after the instances: stopped before they are destroyed
-  std::unique_ptr<StatusReader> status_reader_;  // likewise
+  // Replaced by a reload while other threads use them: read and swapped under crews_mutex_ (which also guards every
+  // instance's status_index).
+  mutable std::mutex crews_mutex_;
+  std::shared_ptr<DeadlineCrew> estop_crew_;     // declared after the instances: stopped before they are destroyed
+  std::shared_ptr<StatusReader> status_reader_;  // likewise
 };
 
 }  // namespace rcand::kernel

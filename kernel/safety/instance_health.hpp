@@ -1,5 +1,5 @@
 // Whether one plugin instance (a capability or a driver) is still in service. An exception from plugin code
-// marks it failed once, with the first reason; it stays failed until rcand restarts.
+// marks it failed once, with the first reason; it stays failed until rcand restarts (or its plugin is reloaded).
 #pragma once
 
 #include <atomic>
@@ -17,6 +17,12 @@ class InstanceHealth {
       if (reason_.empty()) reason_ = std::move(why);
     }
     failed_.store(true);
+  }
+  // In service again: only for a plugin reload, once nothing of the failed instance runs any more.
+  void reset() {
+    std::lock_guard lock(mutex_);
+    reason_.clear();
+    failed_.store(false);
   }
   std::string reason() const {
     std::lock_guard lock(mutex_);

@@ -4,6 +4,7 @@
 #include "libs/yaml/yaml_document.hpp"
 
 #include "libs/config/config_reference.hpp"
+#include "libs/config/foreign_keys.hpp"
 
 #include <rcand/sdk/scope.hpp>
 
@@ -38,6 +39,13 @@ std::string check_sha256(const json& value) {
   return "";
 }
 
+// Any RCAN version is read (one of another major version with a warning, see robot_config.cpp); only something that
+// is no version at all is refused.
+std::string check_rcan_version(const json& value) {
+  if (rcan_major_version(value.get_ref<const std::string&>())) return "";
+  return "expected an RCAN version such as \"1.3\", found " + value.dump();
+}
+
 constexpr double kIntMax = INT_MAX;
 
 // Every known key, in file order. Free-form blocks are `open` mappings with no children listed. A table, one key per
@@ -45,8 +53,9 @@ constexpr double kIntMax = INT_MAX;
 // clang-format off
 const std::vector<KeySpec>& build_schema() {  // NOLINT(readability-function-size)
   static const std::vector<KeySpec> table = {
-      {.path = "rcan_version", .type = String, .required = true, .non_empty = true,
-       .description = "RCAN version the file is written for, quoted (\"1.3\")"},
+      {.path = "rcan_version", .type = String, .required = true, .non_empty = true, .check = check_rcan_version,
+       .description = "RCAN version the file is written for, quoted (\"1.3\"); another major version is read as "
+                      "1.3 with a warning"},
 
       {.path = "metadata", .type = Mapping, .required = true, .description = "who the robot is"},
       {.path = "metadata.robot_name", .type = String, .required = true, .non_empty = true,
@@ -54,10 +63,10 @@ const std::vector<KeySpec>& build_schema() {  // NOLINT(readability-function-siz
       {.path = "metadata.robot_uuid", .type = String, .non_empty = true,
        .description = "device id; its first 8 hex digits name the robot in its RURI (left out, or the all-zero "
                       "placeholder: derived from /etc/machine-id)"},
-      {.path = "metadata.manufacturer", .type = String, .required = true, .non_empty = true,
-       .description = "manufacturer segment of the RURI"},
-      {.path = "metadata.model", .type = String, .required = true, .non_empty = true,
-       .description = "model segment of the RURI"},
+      {.path = "metadata.manufacturer", .type = String, .non_empty = true,
+       .description = "manufacturer segment of the RURI (left out: \"unknown\", with a warning)"},
+      {.path = "metadata.model", .type = String, .non_empty = true,
+       .description = "model segment of the RURI (left out: robot_name as a slug, with a warning)"},
       {.path = "metadata.ruri", .type = String, .non_empty = true,
        .description = "the robot's RURI, when not derived from manufacturer, model and robot_uuid"},
       {.path = "metadata.description", .type = String, .description = "free text"},
@@ -89,8 +98,8 @@ const std::vector<KeySpec>& build_schema() {  // NOLINT(readability-function-siz
       {.path = "drivers", .type = Sequence, .description = "hardware drivers, each served by a driver plugin"},
       {.path = "drivers[]", .type = Mapping, .open = true,
        .description = "one driver; keys beyond id and protocol are the plugin's settings"},
-      {.path = "drivers[].id", .type = String, .required = true, .non_empty = true, .unique = true,
-       .description = "driver id, unique in the file"},
+      {.path = "drivers[].id", .type = String, .non_empty = true, .unique = true,
+       .description = "driver id, unique in the file (left out: <protocol><index>, with a warning)"},
       {.path = "drivers[].protocol", .type = String, .required = true, .non_empty = true,
        .description = "driver protocol a plugin provides (pca9685, dynamixel, sim, ...)"},
       {.path = "drivers[].port", .type = Any, .description = "device port (plugin-defined)"},
@@ -129,9 +138,24 @@ const std::vector<KeySpec>& build_schema() {  // NOLINT(readability-function-siz
        .description = "listen address"},
       {.path = "runtime.listen.port", .type = Integer, .min = 0, .max = 65535,
        .description = "listen port; rcan_protocol.port when absent"},
+      {.path = "runtime.listen.tls", .type = Mapping,
+       .description = "HTTPS and wss only on the listen address (TLS 1.2 or later); plain HTTP moves to 127.0.0.1"},
+      {.path = "runtime.listen.tls.cert_file", .type = String, .required = true, .non_empty = true,
+       .description = "PEM certificate chain, leaf first (relative to this file); read at start and on SIGHUP"},
+      {.path = "runtime.listen.tls.key_file", .type = String, .required = true, .non_empty = true,
+       .description = "its PEM private key, unencrypted, no access for other users (mode 600 or 640; relative to this file)"},
+      {.path = "runtime.listen.tls.client_ca_file", .type = String, .non_empty = true,
+       .description = "mutual TLS: clients must present a certificate signed by a CA in this PEM file (relative to this file)"},
+      {.path = "runtime.listen.plain_loopback_port", .type = Integer, .min = 0, .max = 65535,
+       .description = "with runtime.listen.tls: plain HTTP for local tools on 127.0.0.1 at this port; default the listen "
+                      "port + 1 (0: any free port)"},
       {.path = "runtime.plugin_paths", .type = Sequence,
        .description = "folders searched for plugins (relative to this file)"},
       {.path = "runtime.plugin_paths[]", .type = String, .non_empty = true, .description = "a plugin folder"},
+      {.path = "runtime.plugins", .type = Mapping, .description = "plugin development settings"},
+      {.path = "runtime.plugins.allow_reload", .type = Boolean, .default_value = false,
+       .description = "POST /api/plugins/<id>/reload (rcanctl plugins reload) may re-open a plugin from disk in the "
+                      "running rcand, the e-stop latched first; for development robots only"},
       {.path = "runtime.auth", .type = Mapping, .description = "who may talk to the robot"},
       {.path = "runtime.auth.mode", .type = String, .default_value = "tokens", .choices = {"tokens", "open"},
        .description = "tokens: deny by default; open: no auth, loopback only"},
@@ -447,26 +471,53 @@ class Validator {
     }
   }
 
+ public:
+  // The one warning that lists every ignored key (other runtimes' and newer RCAN versions'), at the first of them.
+  void finish() {
+    if (ignored_.empty()) return;
+    std::stable_sort(ignored_.begin(), ignored_.end(), [](const IgnoredKey& a, const IgnoredKey& b) {
+      return std::pair(a.mark.line, a.mark.column) < std::pair(b.mark.line, b.mark.column);
+    });  // file order (a mapping's keys are walked by name)
+    std::string list;
+    for (const auto& key : ignored_) list += (list.empty() ? "" : ", ") + key.text;
+    const std::size_t count = ignored_.size();
+    warning_at(ignored_.front().mark, "",
+               std::to_string(count) + (count == 1 ? " key" : " keys") +
+                   " of other RCAN versions or runtimes, not implemented by rcand (RCAN 1.3), ignored: " + list);
+    ignored_.clear();
+  }
+
+ private:
+  struct IgnoredKey {
+    SourceMark mark;
+    std::string text;  // "port (line 9; newer RCAN, rcand reads rcan_protocol.port)"
+  };
+
+  void warning_at(SourceMark where, const std::string& key_path, std::string message) {
+    out_.push_back({ConfigDiagnostic::Severity::Warning, std::move(where), key_path, std::move(message)});
+  }
+
   void unknown_key(const std::string& schema_path, const std::string& key_path, const std::string& name,
                    const std::string& child_key) {
     std::vector<std::string> allowed;
     if (const auto it = schema_index().children.find(schema_path); it != schema_index().children.end())
       for (const KeySpec* child : it->second) allowed.emplace_back(last_segment(child->path));
-    std::string message = "unknown key '" + name + "'";
+    const ForeignKey* foreign = find_foreign_key(child_path(schema_path, name));
     // A near miss of a key this block takes is a typo whose setting would be silently lost ("rcan_protocl:" and the
-    // robot advertises what it auto-detects): an error. Other unknown keys (other runtimes' keys) stay warnings.
-    auto severity = ConfigDiagnostic::Severity::Warning;
-    if (const auto guess = closest_match(name, allowed)) {
-      message += "; did you mean '" + *guess + "'?";
-      severity = ConfigDiagnostic::Severity::Error;
+    // robot advertises what it auto-detects): an error. A key another runtime or RCAN version is known to use never
+    // is, however close it looks; it and every other unknown key join the one warning of ignored keys.
+    if (const auto guess = foreign ? std::nullopt : closest_match(name, allowed))
+      return out_.push_back({ConfigDiagnostic::Severity::Error, mark(child_key), key_path,
+                             "unknown key '" + name + "'; did you mean '" + *guess + "'?"});
+    const SourceMark where = mark(child_key);
+    std::string text = child_key + " (line " + std::to_string(where.line);
+    if (foreign != nullptr) {
+      text += foreign->origin == ForeignKey::Origin::NewerRcan ? "; newer RCAN" : "; another runtime's";
+      if (!foreign->rcand_reads.empty()) text += ", rcand reads " + std::string(foreign->rcand_reads);
     } else if (const auto elsewhere = known_elsewhere(name)) {
-      message += "; did you mean '" + *elsewhere + "'? (it belongs in another block)";
-    } else {
-      std::string list;
-      for (const auto& key : allowed) list += (list.empty() ? "" : ", ") + key;
-      message += list.empty() ? "; this block takes no keys" : "; allowed keys here: " + list;
+      text += "; rcand reads " + *elsewhere;
     }
-    out_.push_back({severity, mark(child_key), key_path, std::move(message)});
+    ignored_.push_back({where, text + ")"});
   }
 
   // A key written in the wrong block ("plugin_paths" at the top instead of under runtime).
@@ -483,6 +534,7 @@ class Validator {
   const std::string& file_;
   std::vector<ConfigDiagnostic>& out_;
   std::map<std::string_view, std::map<std::string, std::string>> seen_;  // unique spec -> value -> first key path
+  std::vector<IgnoredKey> ignored_;
 };
 
 const json* at(const json& doc, std::initializer_list<const char*> keys) {
@@ -520,6 +572,16 @@ void check_cross_field_rules(const json& doc, Validator& validator) {
 
 }  // namespace
 
+std::optional<int> rcan_major_version(std::string_view text) noexcept {
+  if (text.starts_with('v') || text.starts_with('V')) text.remove_prefix(1);
+  int major = 0;
+  std::size_t digits = 0;
+  for (; digits < text.size() && digits < 4 && text[digits] >= '0' && text[digits] <= '9'; ++digits)
+    major = major * 10 + (text[digits] - '0');
+  if (digits == 0 || (digits < text.size() && text[digits] != '.' && text[digits] != '-')) return std::nullopt;
+  return major;
+}
+
 const std::vector<const KeySpec*>& config_schema() { return schema_index().rows; }
 
 const KeySpec* find_spec(std::string_view schema_path) {
@@ -543,6 +605,7 @@ void validate_config(const json& doc, const std::map<std::string, SourceMark>& m
     return;
   }
   validator.check(kRootSpec, doc, "");
+  validator.finish();
   check_cross_field_rules(doc, validator);
 }
 

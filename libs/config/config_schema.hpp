@@ -50,6 +50,10 @@ const nlohmann::json& schema_default(std::string_view schema_path);
 void validate_config(const nlohmann::json& doc, const std::map<std::string, SourceMark>& marks, const std::string& file,
                      std::vector<ConfigDiagnostic>& out);
 
+// The major version of an `rcan_version` value ("1.3" -> 1, "v2.1.0" -> 2, "1.0.0-alpha" -> 1); nullopt when it is
+// not a version.
+std::optional<int> rcan_major_version(std::string_view text) noexcept;
+
 // A role name as auth reads it (GUEST ... CREATOR, any case); for rows of any fragment that name a role.
 std::string check_role(const nlohmann::json& value);
 

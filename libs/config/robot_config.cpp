@@ -1,5 +1,7 @@
 #include "libs/config/robot_config.hpp"
 
+#include "libs/config/config_defaults.hpp"
+#include "libs/config/config_fragments.hpp"
 #include "libs/config/config_schema.hpp"
 #include "libs/rcan/machine_identity.hpp"
 #include "libs/yaml/yaml_document.hpp"
@@ -7,11 +9,13 @@
 #include <rcand/sdk/scope.hpp>
 
 #include <algorithm>
+#include <atomic>
 #include <cctype>
 #include <cerrno>
 #include <cstdlib>
 #include <cstring>
 #include <fstream>
+#include <tuple>
 
 namespace rcand::kernel {
 namespace {
@@ -69,6 +73,15 @@ RuntimeConfig extract_runtime(const json& doc, const fs::path& base_dir) {
   r.listen_address = value_or_default<std::string>(doc, "runtime.listen.address");
   if (const auto port = optional_value<std::int64_t>(doc, "runtime.listen.port"))
     r.listen_port = static_cast<std::uint16_t>(*port);
+  if (const auto cert_file = optional_value<std::string>(doc, "runtime.listen.tls.cert_file")) {
+    auto& tls = r.listen_tls.emplace();
+    tls.cert_file = resolve(base_dir, *cert_file);
+    tls.key_file = resolve(base_dir, optional_value<std::string>(doc, "runtime.listen.tls.key_file").value_or(""));
+    if (const auto ca_file = optional_value<std::string>(doc, "runtime.listen.tls.client_ca_file"))
+      tls.client_ca_file = resolve(base_dir, *ca_file);
+  }
+  if (const auto plain_port = optional_value<std::int64_t>(doc, "runtime.listen.plain_loopback_port"))
+    r.plain_loopback_port = static_cast<std::uint16_t>(*plain_port);
   if (const json* paths = find(doc, "runtime.plugin_paths"); paths != nullptr && paths->is_array())
     for (const auto& path : *paths) r.plugin_paths.push_back(resolve(base_dir, path.get<std::string>()));
   r.auth.mode = value_or_default<std::string>(doc, "runtime.auth.mode");
@@ -109,7 +122,12 @@ RuntimeConfig extract_runtime(const json& doc, const fs::path& base_dir) {
   return r;
 }
 
-RobotConfig extract(yaml::YamlDocument yaml, const fs::path& source_file, const fs::path& base_dir) {
+std::size_t hex_digits(std::string_view text) {
+  return static_cast<std::size_t>(std::count_if(text.begin(), text.end(), [](unsigned char c) { return std::isxdigit(c) != 0; }));
+}
+
+RobotConfig extract(yaml::YamlDocument yaml, const fs::path& source_file, const fs::path& base_dir,
+                    std::vector<ConfigDiagnostic>& warnings) {
   RobotConfig c;
   c.source_file = source_file;
   c.doc = std::move(yaml.doc);
@@ -119,10 +137,16 @@ RobotConfig extract(yaml::YamlDocument yaml, const fs::path& source_file, const 
   c.rcan_version = value_or_default<std::string>(doc, "rcan_version");
   c.robot_name = value_or_default<std::string>(doc, "metadata.robot_name");
   c.robot_uuid = optional_value<std::string>(doc, "metadata.robot_uuid").value_or("");
-  c.manufacturer = value_or_default<std::string>(doc, "metadata.manufacturer");
-  c.model = value_or_default<std::string>(doc, "metadata.model");
+  c.manufacturer = optional_value<std::string>(doc, "metadata.manufacturer").value_or("");
+  c.model = optional_value<std::string>(doc, "metadata.model").value_or("");
   c.ruri = optional_value<std::string>(doc, "metadata.ruri");
-  if (!c.ruri && (c.robot_uuid.empty() || is_placeholder_uuid(c.robot_uuid))) {  // one packaged config, many robots
+  // RCAN §1: the device id is 8 hex digits or a UUID; a name ("bob-001") would make every such robot 00000000.
+  const bool not_an_id = !c.robot_uuid.empty() && hex_digits(c.robot_uuid) < 8;
+  if (!c.ruri && not_an_id)
+    warnings.push_back({ConfigDiagnostic::Severity::Warning, c.mark_of("metadata.robot_uuid"), "metadata.robot_uuid",
+                        "not a UUID or 8 hex digits (RCAN §1): this robot's identity is derived from /etc/machine-id "
+                        "instead"});
+  if (!c.ruri && (c.robot_uuid.empty() || not_an_id || is_placeholder_uuid(c.robot_uuid))) {  // one packaged config, many robots
     const auto derived = robot_uuid_from_machine_id();
     if (!derived)
       throw ConfigError({{ConfigDiagnostic::Severity::Error, c.mark_of("metadata.robot_uuid"), "metadata.robot_uuid",
@@ -145,7 +169,7 @@ RobotConfig extract(yaml::YamlDocument yaml, const fs::path& source_file, const 
 
   if (const json* drivers = find(doc, "drivers"); drivers != nullptr && drivers->is_array())
     for (const auto& entry : *drivers)
-      c.drivers.push_back(DriverEntry{entry.at("id").get<std::string>(), entry.at("protocol").get<std::string>(), entry});
+      c.drivers.push_back(DriverEntry{entry.value("id", ""), entry.at("protocol").get<std::string>(), entry});
 
   c.rcan_port = static_cast<std::uint16_t>(value_or_default<std::int64_t>(doc, "rcan_protocol.port"));
   c.capabilities = optional_value<std::vector<std::string>>(doc, "rcan_protocol.capabilities");
@@ -157,41 +181,20 @@ RobotConfig extract(yaml::YamlDocument yaml, const fs::path& source_file, const 
   c.max_linear_speed = value_or_default<double>(doc, "safety.max_linear_speed");
 
   c.runtime = extract_runtime(doc, base_dir);
+  apply_config_defaults(c, warnings);
   return c;
 }
 
-}  // namespace
+std::atomic<bool> default_strict{false};
 
-SourceMark RobotConfig::mark_of(std::string_view key_path) const {
-  return yaml::nearest_mark(marks, source_file.string(), std::string(key_path));
-}
-
-LoadedConfig parse_robot_config(std::string_view yaml, const std::string& display_name, const fs::path& base_dir) {
-  std::vector<ConfigDiagnostic> diagnostics;
-  yaml::YamlDocument document = yaml::yaml_to_json(yaml, display_name, diagnostics);
-  if (document.ok) config_detail::validate_config(document.doc, document.marks, display_name, diagnostics);
+// By file (the main file's name sorts apart from conf.d's), then line and column.
+void sort_by_position(std::vector<ConfigDiagnostic>& diagnostics) {
   std::stable_sort(diagnostics.begin(), diagnostics.end(), [](const ConfigDiagnostic& a, const ConfigDiagnostic& b) {
-    return std::pair(a.mark.line, a.mark.column) < std::pair(b.mark.line, b.mark.column);
+    return std::tie(a.mark.file, a.mark.line, a.mark.column) < std::tie(b.mark.file, b.mark.line, b.mark.column);
   });
-  const bool has_error = std::any_of(diagnostics.begin(), diagnostics.end(),
-                                     [](const ConfigDiagnostic& d) { return d.severity == ConfigDiagnostic::Severity::Error; });
-  if (has_error || !document.ok) throw ConfigError(std::move(diagnostics));
-
-  std::error_code ec;
-  fs::path base = fs::absolute(base_dir, ec);
-  if (ec) base = base_dir;
-  LoadedConfig loaded;
-  try {
-    loaded.config = extract(std::move(document), display_name, base);
-  } catch (const std::exception& e) {
-    // Validation should make this unreachable; if the table and the extraction ever disagree, fail cleanly.
-    fail_file(display_name, std::string("internal error while reading the validated config: ") + e.what());
-  }
-  loaded.warnings = std::move(diagnostics);
-  return loaded;
 }
 
-LoadedConfig load_robot_config(const fs::path& file) {
+std::string read_config_text(const fs::path& file) {
   const std::string display = file.string();
   std::error_code ec;
   const auto status = fs::status(file, ec);
@@ -209,11 +212,73 @@ LoadedConfig load_robot_config(const fs::path& file) {
       fail_file(display, "the config file is larger than " + std::to_string(kMaxFileBytes / (1024 * 1024)) + " MiB");
   }
   if (in.bad()) fail_file(display, "cannot read the config file: read error");
+  return text;
+}
 
+// --strict: every warning refuses the file, each named at its own position.
+[[noreturn]] void refuse_strictly(std::vector<ConfigDiagnostic> warnings) {
+  for (auto& diagnostic : warnings) {
+    diagnostic.severity = ConfigDiagnostic::Severity::Error;
+    diagnostic.message += " [refused: --strict]";
+  }
+  throw ConfigError(std::move(warnings));
+}
+
+}  // namespace
+
+SourceMark RobotConfig::mark_of(std::string_view key_path) const {
+  return yaml::nearest_mark(marks, source_file.string(), std::string(key_path));
+}
+
+void set_default_load_options(LoadOptions options) noexcept { default_strict.store(options.strict); }
+LoadOptions default_load_options() noexcept { return LoadOptions{default_strict.load()}; }
+
+LoadedConfig parse_robot_config(std::string_view yaml, const std::string& display_name, const fs::path& base_dir,
+                                LoadOptions options, const std::vector<ConfigFragmentText>& fragments) {
+  std::vector<ConfigDiagnostic> diagnostics;
+  yaml::YamlDocument document = yaml::yaml_to_json(yaml, display_name, diagnostics);
+  for (const auto& fragment : fragments) {
+    std::vector<ConfigDiagnostic> found;
+    const yaml::YamlDocument patch = yaml::yaml_to_json(fragment.text, fragment.display_name, found);
+    if (patch.empty) continue;  // nothing in it, or only comments: it changes nothing
+    diagnostics.insert(diagnostics.end(), found.begin(), found.end());
+    if (document.ok && patch.ok) merge_config_fragment(document, patch, fragment.display_name, diagnostics);
+  }
+  if (document.ok) config_detail::validate_config(document.doc, document.marks, display_name, diagnostics);
+  sort_by_position(diagnostics);
+  const bool has_error = std::any_of(diagnostics.begin(), diagnostics.end(),
+                                     [](const ConfigDiagnostic& d) { return d.severity == ConfigDiagnostic::Severity::Error; });
+  if (has_error || !document.ok) throw ConfigError(std::move(diagnostics));
+
+  std::error_code ec;
+  fs::path base = fs::absolute(base_dir, ec);
+  if (ec) base = base_dir;
+  LoadedConfig loaded;
+  try {
+    loaded.config = extract(std::move(document), display_name, base, diagnostics);
+  } catch (const ConfigError&) {
+    throw;
+  } catch (const std::exception& e) {
+    // Validation should make this unreachable; if the table and the extraction ever disagree, fail cleanly.
+    fail_file(display_name, std::string("internal error while reading the validated config: ") + e.what());
+  }
+  sort_by_position(diagnostics);
+  if (options.strict && !diagnostics.empty()) refuse_strictly(std::move(diagnostics));
+  loaded.warnings = std::move(diagnostics);
+  return loaded;
+}
+
+LoadedConfig load_robot_config(const fs::path& file, LoadOptions options) {
+  const std::string text = read_config_text(file);
+  std::error_code ec;
   const fs::path absolute = fs::absolute(file, ec);
   const fs::path source = ec ? file : absolute.lexically_normal();
-  LoadedConfig loaded = parse_robot_config(text, display, source.parent_path());
+  const std::vector<fs::path> fragment_files = config_fragment_files(source);
+  std::vector<ConfigFragmentText> fragments;
+  for (const auto& fragment : fragment_files) fragments.push_back({read_config_text(fragment), fragment.string()});
+  LoadedConfig loaded = parse_robot_config(text, file.string(), source.parent_path(), options, fragments);
   loaded.config.source_file = source;
+  loaded.config.fragment_files = fragment_files;
   return loaded;
 }
 

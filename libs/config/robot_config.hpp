@@ -37,6 +37,13 @@ struct AuthConfig {
 struct RuntimeConfig {
   std::string listen_address = "127.0.0.1";
   std::optional<std::uint16_t> listen_port;
+  // runtime.listen.tls (paths absolute after loading) and the loopback plain port it comes with.
+  struct ListenTls {
+    std::filesystem::path cert_file, key_file;
+    std::optional<std::filesystem::path> client_ca_file;
+  };
+  std::optional<ListenTls> listen_tls;
+  std::optional<std::uint16_t> plain_loopback_port;
   std::vector<std::filesystem::path> plugin_paths;  // absolute after loading
   AuthConfig auth;
   std::string log_level = "info";
@@ -69,6 +76,7 @@ struct DriverEntry {
 
 struct RobotConfig {
   std::filesystem::path source_file;
+  std::vector<std::filesystem::path> fragment_files;  // the conf.d fragments merged over it, in order
   nlohmann::json doc;                       // the whole document as JSON, defaults NOT filled in (what the operator wrote)
   std::map<std::string, SourceMark> marks;  // key path -> where it was written ("" is the document itself)
   std::string rcan_version;
@@ -97,9 +105,30 @@ struct LoadedConfig {
   std::vector<ConfigDiagnostic> warnings;
 };
 
-// Throws ConfigError carrying every error found (a missing/unreadable file is one error with line 0).
-LoadedConfig load_robot_config(const std::filesystem::path& file);
-// Same, from text; `display_name` is used in marks, `base_dir` resolves relative paths.
-LoadedConfig parse_robot_config(std::string_view yaml, const std::string& display_name, const std::filesystem::path& base_dir);
+// How a file is judged. A config written for another runtime loads with warnings for what rcand supplies, reads
+// differently or ignores (docs/protocol.md §10.3); `strict` (rcand --strict) makes every such warning an error, so
+// only a file that says exactly what rcand runs is accepted.
+struct LoadOptions {
+  bool strict = false;
+};
+// The options every load uses unless it passes its own: rcand's main sets them once from the command line, so the
+// start, --check-config and each SIGHUP reload judge a file alike.
+void set_default_load_options(LoadOptions options) noexcept;
+LoadOptions default_load_options() noexcept;
+
+// A conf.d fragment (libs/config/config_fragments.hpp) as text, with the name its diagnostics use.
+struct ConfigFragmentText {
+  std::string text;
+  std::string display_name;
+};
+
+// Throws ConfigError carrying every error found (a missing/unreadable file is one error with line 0). The fragments
+// in conf.d/ beside `file` are merged over it first (config_fragments.hpp).
+LoadedConfig load_robot_config(const std::filesystem::path& file, LoadOptions options = default_load_options());
+// Same, from text; `display_name` is used in marks, `base_dir` resolves relative paths; `fragments` are merged over
+// it in order.
+LoadedConfig parse_robot_config(std::string_view yaml, const std::string& display_name, const std::filesystem::path& base_dir,
+                                LoadOptions options = default_load_options(),
+                                const std::vector<ConfigFragmentText>& fragments = {});
 
 }  // namespace rcand::kernel

@@ -2,9 +2,9 @@
 
 #include <boost/asio/io_context.hpp>
 #include <boost/asio/ip/tcp.hpp>
+#include <boost/asio/ssl/error.hpp>
 #include <boost/beast/core/flat_buffer.hpp>
 #include <boost/beast/core/string.hpp>
-#include <boost/beast/core/tcp_stream.hpp>
 #include <boost/beast/http/error.hpp>
 #include <boost/beast/http/parser.hpp>
 #include <boost/beast/http/read.hpp>
@@ -14,6 +14,9 @@
 #include <algorithm>
 #include <optional>
 #include <vector>
+
+#include "libs/http/connection_stream.hpp"
+#include "libs/http/tls_context.hpp"
 
 namespace rcand::http {
 
@@ -66,8 +69,10 @@ bool has_header(const std::map<std::string, std::string>& headers, std::string_v
 // A failure on a kept-alive connection before any byte of the answer: the server had closed it while idle.
 bool is_stale_connection(const beast::error_code& ec) {
   return ec == bhttp::error::end_of_stream || ec == net::error::eof || ec == net::error::connection_reset ||
-         ec == net::error::broken_pipe || ec == net::error::not_connected;
+         ec == net::error::broken_pipe || ec == net::error::not_connected || ec == net::ssl::error::stream_truncated;
 }
+
+bool is_tls_error(const beast::error_code& ec) { return ec.category() == net::error::get_ssl_category(); }
 
 }  // namespace
 
@@ -76,7 +81,9 @@ struct Client::Impl {
   std::uint16_t port;
   std::chrono::milliseconds timeout;
   net::io_context ioc{1};
-  std::optional<beast::tcp_stream> stream;  // engaged while connected
+  std::shared_ptr<net::ssl::context> tls;  // set: HTTPS
+  std::string server_name;                 // what the certificate must name
+  std::optional<ConnectionStream> stream;  // engaged while connected
   beast::flat_buffer buffer;
 
   std::string authority() const {
@@ -133,9 +140,10 @@ struct Client::Impl {
 
   void connect(Clock::time_point deadline, const std::string& timed_out) {
     auto endpoints = resolve(deadline, timed_out);
-    stream.emplace(ioc);
+    if (tls) stream.emplace(TcpStream(ioc), tls);
+    else stream.emplace(ioc);
     stream->expires_at(deadline);
-    auto ec = run([&](auto handler) { stream->async_connect(endpoints, handler); });
+    auto ec = run([&](auto handler) { stream->next_layer().async_connect(endpoints, handler); });
     if (ec) {
       disconnect();
       if (ec == beast::error::timeout) throw ClientError(timed_out);
@@ -143,13 +151,40 @@ struct Client::Impl {
     }
     beast::error_code ignored;
     stream->socket().set_option(tcp::no_delay(true), ignored);
+    if (tls) handshake(timed_out);
+  }
+
+  // Nothing is sent before the server's certificate is verified.
+  void handshake(const std::string& timed_out) {
+    SSL* ssl = stream->tls()->native_handle();
+    try {
+      expect_server_name(ssl, server_name);
+    } catch (const TlsError& e) {
+      disconnect();
+      throw ClientError(e.what());
+    }
+    auto ec = run([&](auto handler) { stream->tls()->async_handshake(net::ssl::stream_base::client, handler); });
+    if (!ec) return;
+    const std::string why = tls_failure(ssl, ec);
+    disconnect();
+    if (ec == beast::error::timeout) throw ClientError(timed_out);
+    throw ClientError("TLS handshake with " + authority() + " failed: " + why);
   }
 };
 
-Client::Client(std::string host, std::uint16_t port, std::chrono::milliseconds timeout) : impl_(std::make_unique<Impl>()) {
+Client::Client(std::string host, std::uint16_t port, std::chrono::milliseconds timeout, std::optional<ClientTlsSettings> tls)
+    : impl_(std::make_unique<Impl>()) {
   impl_->host = std::move(host);
   impl_->port = port;
   impl_->timeout = timeout;
+  if (tls) {
+    try {
+      impl_->tls = make_client_tls_context(*tls);
+    } catch (const TlsError& e) {
+      throw ClientError(e.what());
+    }
+    impl_->server_name = tls->server_name.empty() ? impl_->host : tls->server_name;
+  }
 }
 
 Client::~Client() {
@@ -209,10 +244,13 @@ ClientResponse Client::request(std::string_view method, std::string_view target,
 
     if (ec) {
       const bool nothing_received = !parser.got_some();
+      // TLS 1.3: a server that refuses the client's certificate says so after the client's handshake is done.
+      const std::string tls_why = is_tls_error(ec) ? tls_failure(impl.stream->tls()->native_handle(), ec) : "";
       impl.disconnect();
       if (ec == beast::error::timeout) throw ClientError(timed_out);
       if (reused && attempt == 0 && nothing_received && is_stale_connection(ec)) continue;
       if (is_stale_connection(ec)) throw ClientError(prefix + ": connection closed by the server (" + ec.message() + ")");
+      if (!tls_why.empty()) throw ClientError(prefix + ": TLS failure: " + tls_why);
       throw ClientError(prefix + ": bad response: " + ec.message());
     }
 
@@ -234,8 +272,8 @@ ClientResponse Client::request(std::string_view method, std::string_view target,
 
 ClientResponse request(const std::string& host, std::uint16_t port, std::string_view method, std::string_view target,
                        std::string_view body, const std::map<std::string, std::string>& headers,
-                       std::chrono::milliseconds timeout) {
-  Client client(host, port, timeout);
+                       std::chrono::milliseconds timeout, std::optional<ClientTlsSettings> tls) {
+  Client client(host, port, timeout, std::move(tls));
   if (has_header(headers, "connection")) return client.request(method, target, body, headers);
   auto with_close = headers;
   with_close.emplace("Connection", "close");

@@ -1,13 +1,16 @@
-// A small blocking HTTP/1.1 client (rcanctl, tests, swarm fan-out): one keep-alive connection per Client.
+// A small blocking HTTP/1.1 client (rcanctl, tests): one keep-alive connection per Client, plain or TLS.
 #pragma once
 
 #include <chrono>
 #include <cstdint>
 #include <map>
 #include <memory>
+#include <optional>
 #include <stdexcept>
 #include <string>
 #include <string_view>
+
+#include "libs/http/tls_settings.hpp"
 
 namespace rcand::http {
 
@@ -18,7 +21,9 @@ struct ClientResponse {
 };
 
 // Messages: "cannot connect to 127.0.0.1:8000: Connection refused", "cannot resolve host 'x': ...",
-// "GET /api/status on 127.0.0.1:8000: timed out after 500 ms", "GET /x on 127.0.0.1:8000: bad response: ...".
+// "GET /api/status on 127.0.0.1:8000: timed out after 500 ms", "GET /x on 127.0.0.1:8000: bad response: ...",
+// "TLS handshake with 127.0.0.1:8443 failed: certificate verify failed: certificate has expired" (nothing was sent),
+// "--cacert 'ca.pem': cannot read: No such file or directory".
 class ClientError : public std::runtime_error {
  public:
   using std::runtime_error::runtime_error;
@@ -28,7 +33,10 @@ class ClientError : public std::runtime_error {
 // (a request that failed on a reused connection before any byte of the answer arrived is sent once more).
 class Client {
  public:
-  Client(std::string host, std::uint16_t port, std::chrono::milliseconds timeout = std::chrono::milliseconds{5000});
+  // `tls` set: HTTPS, the server's certificate verified (libs/http/tls_context.hpp); its files are read here
+  // (ClientError when they cannot be used).
+  Client(std::string host, std::uint16_t port, std::chrono::milliseconds timeout = std::chrono::milliseconds{5000},
+         std::optional<ClientTlsSettings> tls = std::nullopt);
   ~Client();
   Client(Client&&) noexcept;
   Client& operator=(Client&&) noexcept;
@@ -46,6 +54,7 @@ class Client {
 // One request on a fresh connection (sent with "Connection: close").
 ClientResponse request(const std::string& host, std::uint16_t port, std::string_view method, std::string_view target,
                        std::string_view body = {}, const std::map<std::string, std::string>& headers = {},
-                       std::chrono::milliseconds timeout = std::chrono::milliseconds{5000});
+                       std::chrono::milliseconds timeout = std::chrono::milliseconds{5000},
+                       std::optional<ClientTlsSettings> tls = std::nullopt);
 
 }  // namespace rcand::http

@@ -26,8 +26,8 @@ constexpr std::chrono::milliseconds kAcceptBackoff{100};
 
 }  // namespace
 
-Listener::Listener(ServerCore& core, const tcp::endpoint& endpoint, std::string_view shown)
-    : core_(core), acceptor_(core.slots.front()->ioc), backoff_(core.slots.front()->ioc) {
+Listener::Listener(ServerCore& core, const tcp::endpoint& endpoint, std::string_view shown, bool tls)
+    : core_(core), tls_(tls), acceptor_(core.slots.front()->ioc), backoff_(core.slots.front()->ioc) {
   boost::system::error_code ec;
   acceptor_.open(endpoint.protocol(), ec);
   if (ec) fail(shown, ec);
@@ -59,7 +59,7 @@ void Listener::accept() {
   if (!acceptor_.is_open()) return;
   // Without priority requests the socket is born on its worker's loop, so the session never touches another
   // thread's loop; with them it is born here, where its first request is read.
-  IoSlot& slot = core_.options.priority ? *core_.slots.front() : core_.next_worker();
+  IoSlot& slot = core_.options.priority && !tls_ ? *core_.slots.front() : core_.next_worker();
   acceptor_.async_accept(slot.ioc, [this, &slot](boost::system::error_code ec, Stream::socket_type socket) {
     on_accept(ec, slot, std::move(socket));
   });
@@ -86,9 +86,10 @@ void Listener::on_accept(boost::system::error_code ec, IoSlot& slot, Stream::soc
       return accept();
     }
     core_.limit_logged.store(false, std::memory_order_relaxed);
-    const auto placement = core_.options.priority ? Session::Placement::AcceptLoop : Session::Placement::Worker;
+    const auto placement = core_.options.priority && !tls_ ? Session::Placement::AcceptLoop : Session::Placement::Worker;
     auto session = std::make_shared<Session>(core_, slot, std::move(socket),
-                                             std::make_unique<ConnectionTicket>(core_, std::move(address), false), placement);
+                                             std::make_unique<ConnectionTicket>(core_, std::move(address), false), placement,
+                                             tls_ ? core_.tls_context.load() : nullptr);
     if (&slot == core_.slots.front().get()) session->start();
     else net::post(slot.ioc, [session = std::move(session)] { session->start(); });
   } catch (const std::exception& e) {
@@ -104,7 +105,8 @@ void Listener::admit_busy(Stream::socket_type socket, std::string address) {
                     core_.options.priority ? "only get priority requests answered (503 for the rest)" : "are closed");
   }
   boost::system::error_code ignored;
-  if (!core_.options.priority || core_.options.busy_lane == 0) {
+  // TLS: closed too (its handshake would run here); a stop beyond the limits has the loopback plain port.
+  if (!core_.options.priority || core_.options.busy_lane == 0 || tls_) {
     socket.close(ignored);
     return;
   }

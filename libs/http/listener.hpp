@@ -20,7 +20,9 @@ namespace rcand::http::detail {
 class Listener {
  public:
   // Binds and listens at once (caller's thread). Throws std::runtime_error "cannot listen on <shown>: <reason>".
-  Listener(ServerCore& core, const boost::asio::ip::tcp::endpoint& endpoint, std::string_view shown);
+  // `tls`: every connection speaks TLS (core.tls_context) and goes straight to a worker loop, where its handshake
+  // runs; none is read on the accept loop and none joins the busy lane.
+  Listener(ServerCore& core, const boost::asio::ip::tcp::endpoint& endpoint, std::string_view shown, bool tls = false);
   std::uint16_t port() const;
   // Queues the first accept; the loop then runs on slot 0's thread.
   void start();
@@ -34,6 +36,7 @@ class Listener {
   void admit_busy(Stream::socket_type socket, std::string address);
 
   ServerCore& core_;
+  const bool tls_;
   boost::asio::ip::tcp::acceptor acceptor_;
   boost::asio::steady_timer backoff_;  // after accept errors such as EMFILE, so a full fd table does not spin us
   // A full lane evicts one waiter for a newcomer from `newcomer` (the rule: busy_lane.hpp); false: refuse it.

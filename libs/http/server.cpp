@@ -13,6 +13,7 @@
 
 #include "libs/http/listener.hpp"
 #include "libs/http/server_core.hpp"
+#include "libs/http/tls_context.hpp"
 
 namespace rcand::http {
 
@@ -40,6 +41,12 @@ void validate(const ServerOptions& options, const Handler& handler) {
 std::string shown_address(const ServerOptions& options) {
   const bool v6 = options.address.find(':') != std::string::npos;
   return (v6 ? "[" + options.address + "]" : options.address) + ":" + std::to_string(options.port);
+}
+
+// With TLS: where plain HTTP stays available for local tools (server_options.hpp).
+std::uint16_t plain_port_for(const ServerOptions& options) {
+  if (options.plain_loopback_port) return *options.plain_loopback_port;
+  return options.port == 0 || options.port == 65535 ? 0 : static_cast<std::uint16_t>(options.port + 1);
 }
 
 tcp::endpoint resolve_listen_endpoint(const ServerOptions& options, const std::string& shown) {
@@ -85,17 +92,26 @@ std::uint16_t Server::start() {
   const auto& options = core_->options;
   const std::string shown = shown_address(options);
   const auto endpoint = resolve_listen_endpoint(options, shown);
+  if (options.tls) core_->tls_context.store(make_server_tls_context(*options.tls));
 
   // The accept loop, then io_threads workers (server_core.hpp).
   for (int i = 0; i <= options.io_threads; ++i) core_->slots.push_back(std::make_unique<detail::IoSlot>());
   try {
-    listener_ = std::make_unique<detail::Listener>(*core_, endpoint, shown);
+    listener_ = std::make_unique<detail::Listener>(*core_, endpoint, shown, options.tls.has_value());
+    if (options.tls) {
+      const std::uint16_t plain = plain_port_for(options);
+      plain_listener_ = std::make_unique<detail::Listener>(*core_, tcp::endpoint(net::ip::address_v4::loopback(), plain),
+                                                           "127.0.0.1:" + std::to_string(plain) + " (plain HTTP)");
+    }
   } catch (...) {
+    listener_.reset();
+    plain_listener_.reset();
     core_->slots.clear();
     throw;
   }
   started_ = true;
   listener_->start();
+  if (plain_listener_) plain_listener_->start();
   try {
     for (std::size_t i = 0; i < core_->slots.size(); ++i) {
       threads_.emplace_back([core = core_, slot = core_->slots[i].get(), i] {
@@ -110,7 +126,13 @@ std::uint16_t Server::start() {
     throw std::runtime_error(std::string{"cannot start the http I/O threads: "} + e.what());
   }
   const auto port = listener_->port();
-  core_->log->info("listening on {}", shown.substr(0, shown.rfind(':')) + ":" + std::to_string(port));
+  const std::string host = shown.substr(0, shown.rfind(':'));
+  if (!plain_listener_) {
+    core_->log->info("listening on {}", host + ":" + std::to_string(port));
+  } else {
+    core_->log->info("listening on {}:{} with TLS{}; plain HTTP on 127.0.0.1:{} (loopback only)", host, port,
+                     options.tls->client_ca_file ? " (client certificates required)" : "", plain_listener_->port());
+  }
   return port;
 }
 
@@ -126,9 +148,11 @@ void Server::stop_locked() noexcept {
   for (std::size_t i = 0; i < core_->slots.size(); ++i) {
     auto* slot = core_->slots[i].get();
     auto* listener = i == 0 ? listener_.get() : nullptr;
+    auto* plain_listener = i == 0 ? plain_listener_.get() : nullptr;
     try {
-      net::post(slot->ioc, [slot, listener] {
+      net::post(slot->ioc, [slot, listener, plain_listener] {
         if (listener) listener->close();
+        if (plain_listener) plain_listener->close();
         slot->close_all();
         slot->ioc.stop();
       });
@@ -172,6 +196,16 @@ bool Server::accept_loop_responsive(std::chrono::milliseconds within) const {
   auto done = ran->get_future();
   boost::asio::post(core->slots.front()->ioc, [ran] { ran->set_value(); });
   return done.wait_for(within) == std::future_status::ready;
+}
+
+std::uint16_t Server::plain_loopback_port() const {
+  std::lock_guard lock(lifecycle_);
+  return plain_listener_ ? plain_listener_->port() : 0;
+}
+
+void Server::reload_tls(const TlsSettings& settings) {
+  if (!core_->options.tls) throw std::logic_error("this server was started without TLS");
+  core_->tls_context.store(make_server_tls_context(settings));
 }
 
 std::size_t Server::connection_count() const noexcept {

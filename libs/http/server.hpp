@@ -31,8 +31,16 @@ class Server {
   Server& operator=(const Server&) = delete;
 
   // Binds, listens and starts the I/O threads; returns the bound port. Throws std::runtime_error
-  // "cannot listen on 127.0.0.1:8000: Address already in use" (or a bad address), or when already started.
+  // "cannot listen on 127.0.0.1:8000: Address already in use" (or a bad address), or when already started; with
+  // ServerOptions::tls first reads its files (TlsError naming the setting, libs/http/tls_context.hpp) and also binds
+  // the loopback plain port.
   std::uint16_t start();
+  // With ServerOptions::tls: the plain HTTP port bound on 127.0.0.1; 0 without TLS or before start.
+  std::uint16_t plain_loopback_port() const;
+  // With ServerOptions::tls, after start: reads `settings` anew (renewed files, other paths) for the connections
+  // accepted from now on; open ones keep theirs. Throws TlsError (nothing changes then), std::logic_error when the
+  // server does not serve TLS. Any thread.
+  void reload_tls(const TlsSettings& settings);
   // Stops accepting, closes every connection, joins the I/O threads. Idempotent and thread-safe. Called from an I/O
   // thread (it should not be) it cannot join that thread and detaches it instead.
   void stop();
@@ -49,6 +57,7 @@ class Server {
   // goes before the core, which may outlive the Server while a Respond still holds it.
   std::shared_ptr<detail::ServerCore> core_;
   std::unique_ptr<detail::Listener> listener_;
+  std::unique_ptr<detail::Listener> plain_listener_;  // with TLS: 127.0.0.1, plain HTTP
   std::vector<std::thread> threads_;
   mutable std::mutex lifecycle_;  // start() against stop(); never taken on the request path
   bool started_ = false;

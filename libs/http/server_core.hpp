@@ -16,6 +16,10 @@
 #include "libs/http/handler.hpp"
 #include "libs/http/server_options.hpp"
 
+namespace boost::asio::ssl {
+class context;
+}
+
 namespace rcand::http::detail {
 
 class Session;
@@ -44,6 +48,9 @@ struct ServerCore : std::enable_shared_from_this<ServerCore> {
   std::atomic<std::size_t> busy_connections{0};  // in the busy lane
   std::atomic<bool> stopping{false};
   std::atomic<bool> limit_logged{false};
+  // With ServerOptions::tls: the context new TLS connections use (Server::reload_tls swaps it; a connection keeps
+  // the one it began with).
+  std::atomic<std::shared_ptr<boost::asio::ssl::context>> tls_context;
 
   // The acceptor's thread only: whether one more connection from `address` fits max_connections and
   // max_connections_per_address (only the acceptor adds connections, so the answer cannot be raced past).

@@ -10,6 +10,7 @@
 
 #include "libs/http/request.hpp"
 #include "libs/http/response.hpp"
+#include "libs/http/tls_settings.hpp"
 
 namespace rcand::http {
 
@@ -50,6 +51,13 @@ struct ServerOptions {
   // A streamed answer (Response::stream) whose client takes longer than this to accept one part is closed: a viewer
   // that stopped reading holds one part and its socket buffers, and only for this long.
   std::chrono::milliseconds stream_stall_timeout{10'000};
+  // Set: `address` serves HTTPS (and wss) only, TLS 1.2 or later (start() reads the files; errors are named, see
+  // libs/http/tls_context.hpp), and plain HTTP is served on 127.0.0.1 at plain_loopback_port (unset: port + 1, or
+  // any free port when port is 0), where the stop lane and the busy lane work as without TLS. TLS connections go to
+  // a worker loop at once and their handshake runs there, never on the accept loop; beyond the connection limits
+  // they are closed (no busy lane: that would mean handshakes on the accept loop).
+  std::optional<TlsSettings> tls;
+  std::optional<std::uint16_t> plain_loopback_port;
 };
 
 }  // namespace rcand::http

@@ -1,6 +1,8 @@
 #include "libs/http/session.hpp"
 
+#include <boost/asio/ssl/error.hpp>
 #include <boost/asio/write.hpp>
+#include <boost/beast/core/detect_ssl.hpp>
 #include <boost/beast/core/string.hpp>
 #include <boost/beast/http/error.hpp>
 #include <boost/beast/http/read.hpp>
@@ -20,6 +22,7 @@
 
 #include "libs/http/request_builder.hpp"
 #include "libs/http/responder.hpp"
+#include "libs/http/tls_context.hpp"
 #include "libs/http/upgrade.hpp"
 
 namespace rcand::http::detail {
@@ -75,11 +78,20 @@ bool is_http_error(const beast::error_code& ec) {
   return &ec.category() == &bhttp::make_error_code(bhttp::error::bad_method).category();
 }
 
+ConnectionStream make_stream(Stream::socket_type socket, std::shared_ptr<net::ssl::context> tls) {
+  if (tls) return ConnectionStream(Stream(std::move(socket)), std::move(tls));
+  return ConnectionStream(Stream(std::move(socket)));
+}
+
 }  // namespace
 
 Session::Session(ServerCore& core, IoSlot& slot, Stream::socket_type socket, std::unique_ptr<ConnectionTicket> ticket,
-                 Placement placement)
-    : core_(core), slot_(slot), ticket_(std::move(ticket)), placement_(placement), stream_(std::move(socket)) {}
+                 Placement placement, std::shared_ptr<net::ssl::context> tls)
+    : core_(core),
+      slot_(slot),
+      ticket_(std::move(ticket)),
+      placement_(placement),
+      stream_(make_stream(std::move(socket), std::move(tls))) {}
 
 void Session::start() {
   slot_.track(weak_from_this());
@@ -90,6 +102,7 @@ void Session::start() {
   beast::error_code ec;
   auto endpoint = stream_.socket().remote_endpoint(ec);
   remote_ = ec ? std::string{"unknown"} : format_endpoint(endpoint);
+  if (stream_.is_tls()) return handshake();
   if (placement_ != Placement::Worker) {
     // A client that sends its request with the connection (a stop does) is answered without another trip through
     // the loop: read what is there now, without waiting.
@@ -127,6 +140,49 @@ void Session::close() noexcept {
   // The producer of a streamed answer sees closed() and stops pushing.
   if (body_stream_) body_stream_->close();
   stream_.close();  // also cancels the stream's timers, so every pending operation completes
+}
+
+void Session::handshake() {
+  fresh_ = false;  // the first request gets its own header_timeout once the handshake is done
+  stream_.expires_after(core_.options.header_timeout);
+  // A TLS client speaks first with a handshake record; anything else (plain HTTP) is answered in plain words.
+  beast::async_detect_ssl(stream_.next_layer(), buffer_, [self = shared_from_this()](beast::error_code ec, bool is_tls) {
+    if (ec || self->closed_) {
+      if (!self->closed_) self->core_.log->debug("{}: closed before its TLS handshake: {}", self->remote_, ec.message());
+      return self->close();
+    }
+    if (!is_tls) return self->refuse_plain_http();
+    self->stream_.tls()->async_handshake(
+        net::ssl::stream_base::server, self->buffer_.data(), [self](beast::error_code handshake_ec, std::size_t used) {
+          if (self->closed_) return;
+          if (handshake_ec) {
+            self->core_.log->debug("{}: TLS handshake failed: {}", self->remote_,
+                                   tls_failure(self->stream_.tls()->native_handle(), handshake_ec));
+            return self->close();
+          }
+          self->buffer_.consume(used);
+          self->stream_.expires_after(self->core_.options.header_timeout);
+          self->fresh_ = true;
+          self->wait_for_request();
+        });
+  });
+}
+
+void Session::refuse_plain_http() {
+  raw_ = true;
+  core_.log->debug("{}: plain HTTP on the TLS port; answering 400 TLS_REQUIRED", remote_);
+  auto response =
+      error_response(400, "TLS_REQUIRED", "this port speaks HTTPS only: use https:// (plain HTTP is served on 127.0.0.1 only)");
+  bhttp::response<bhttp::string_body> message{bhttp::status::bad_request, 11};
+  message.set(bhttp::field::server, "rcand");
+  message.set(bhttp::field::content_type, bsv(response.content_type));
+  message.keep_alive(false);
+  message.body() = std::move(response.body);
+  message.prepare_payload();
+  response_ = std::move(message);
+  stream_.expires_after(core_.options.idle_timeout);
+  bhttp::async_write(stream_.next_layer(), response_,
+                     [self = shared_from_this()](beast::error_code ec, std::size_t) { self->on_write(ec, true); });
 }
 
 void Session::wait_for_request() {
@@ -435,6 +491,12 @@ void Session::on_write(beast::error_code ec, bool close_after) {
 }
 
 void Session::linger_close() {
+  if (stream_.is_tls() && !raw_) {
+    // close_notify, then the client's (or its end): bounded like the plain linger below.
+    stream_.expires_after(std::min(core_.options.header_timeout, kLingerTime));
+    stream_.tls()->async_shutdown([self = shared_from_this()](beast::error_code) { self->close(); });
+    return;
+  }
   beast::error_code ec;
   stream_.socket().shutdown(net::ip::tcp::socket::shutdown_send, ec);
   if (ec) return close();
@@ -444,11 +506,12 @@ void Session::linger_close() {
 }
 
 void Session::drain() {
-  stream_.async_read_some(buffer_.prepare(kReadChunk), [self = shared_from_this()](beast::error_code ec, std::size_t bytes) {
-    self->drained_ += bytes;
-    if (ec || self->closed_ || self->drained_ > kLingerBytes) return self->close();
-    self->drain();
-  });
+  stream_.next_layer().async_read_some(buffer_.prepare(kReadChunk),
+                                       [self = shared_from_this()](beast::error_code ec, std::size_t bytes) {
+                                         self->drained_ += bytes;
+                                         if (ec || self->closed_ || self->drained_ > kLingerBytes) return self->close();
+                                         self->drain();
+                                       });
 }
 
 }  // namespace rcand::http::detail

@@ -11,10 +11,12 @@
 //
 // WebSocket seam: an upgrade request is offered to ServerOptions::upgrade in dispatch_request(); when the hook takes
 // it, the stream, the raw request and the buffered bytes move out (http/upgrade.hpp) and this object simply ends.
+//
+// TLS (a session made with a context; always on a worker loop): the handshake comes first, under header_timeout. A
+// client that speaks plain HTTP there gets one plain 400 TLS_REQUIRED and the connection closes.
 #pragma once
 
 #include <boost/asio/ip/tcp.hpp>
-#include <boost/beast/core/basic_stream.hpp>
 #include <boost/beast/core/flat_buffer.hpp>
 #include <boost/beast/http/parser.hpp>
 #include <boost/beast/http/string_body.hpp>
@@ -26,6 +28,7 @@
 #include <string_view>
 
 #include "libs/http/busy_lane.hpp"
+#include "libs/http/connection_stream.hpp"
 #include "libs/http/connection_ticket.hpp"
 #include "libs/http/request.hpp"
 #include "libs/http/response.hpp"
@@ -34,15 +37,15 @@
 
 namespace rcand::http::detail {
 
-// The concrete executor (not any_io_executor) avoids type erasure on every operation.
-using Stream = boost::beast::basic_stream<boost::asio::ip::tcp, boost::asio::io_context::executor_type>;
+using Stream = TcpStream;
 
 class Session : public std::enable_shared_from_this<Session> {
  public:
   enum class Placement { Worker, AcceptLoop, BusyLane };
   // Holds `ticket` (its place in the limits) for its whole life, or hands it on when it moves to a worker.
+  // `tls` set: a TLS connection (Placement::Worker only).
   Session(ServerCore& core, IoSlot& slot, Stream::socket_type socket, std::unique_ptr<ConnectionTicket> ticket,
-          Placement placement);
+          Placement placement, std::shared_ptr<boost::asio::ssl::context> tls = nullptr);
   Session(const Session&) = delete;
   Session& operator=(const Session&) = delete;
 
@@ -57,6 +60,9 @@ class Session : public std::enable_shared_from_this<Session> {
   ServerCore& core() const noexcept { return core_; }
 
  private:
+  void handshake();
+  // Plain HTTP sent to the TLS port: one plain answer saying so, then close.
+  void refuse_plain_http();
   void wait_for_request();
   void new_parser();
   void parse_buffered();
@@ -86,7 +92,7 @@ class Session : public std::enable_shared_from_this<Session> {
   IoSlot& slot_;
   std::unique_ptr<ConnectionTicket> ticket_;
   Placement placement_;
-  Stream stream_;
+  ConnectionStream stream_;
   boost::beast::flat_buffer buffer_;
   std::optional<boost::beast::http::request_parser<boost::beast::http::string_body>> parser_;
   boost::beast::http::request<boost::beast::http::string_body> message_;    // the request being handled (parser's)
@@ -99,6 +105,7 @@ class Session : public std::enable_shared_from_this<Session> {
   bool awaiting_response_ = false;
   bool fresh_ = true;  // no request read yet: the first one gets header_timeout from accept
   bool closed_ = false;
+  bool raw_ = false;  // on a TLS connection, the bytes are not TLS: I/O (the refusal, the linger) on the TCP layer
   std::optional<PendingInput> answering_;  // busy lane: the request being answered, whose bytes are consumed
 
   std::shared_ptr<ResponseStream> body_stream_;  // a streamed answer's parts; closed with the session

@@ -3,22 +3,22 @@
 // read after it. Only the code that takes connections includes this (it pulls in Beast).
 #pragma once
 
-#include <boost/asio/io_context.hpp>
-#include <boost/asio/ip/tcp.hpp>
-#include <boost/beast/core/basic_stream.hpp>
 #include <boost/beast/core/flat_buffer.hpp>
 #include <boost/beast/http/message.hpp>
 #include <boost/beast/http/string_body.hpp>
 
 #include <string>
 
+#include "libs/http/connection_stream.hpp"
 #include "libs/http/request.hpp"
 #include "libs/http/server_options.hpp"
 
 namespace rcand::http {
 
-// The server's stream type; its executor is the I/O thread's event loop (single-threaded: no strand needed there).
-using UpgradeStream = boost::beast::basic_stream<boost::asio::ip::tcp, boost::asio::io_context::executor_type>;
+// The server's stream type: plain TCP, or TLS (already past its handshake) on a runtime.listen.tls address. Its
+// executor is the I/O thread's event loop (single-threaded: no strand needed there); get_lowest_layer() of a
+// websocket::stream over it is the TCP stream either way.
+using UpgradeStream = ConnectionStream;
 
 struct Upgraded {
   UpgradeStream stream;  // still carries the request deadline: call expires_never() before using it

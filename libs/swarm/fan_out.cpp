@@ -8,10 +8,10 @@
 #include <boost/asio/io_context.hpp>
 #include <boost/asio/ip/tcp.hpp>
 #include <boost/asio/post.hpp>
+#include <boost/asio/ssl/error.hpp>
 #include <boost/asio/steady_timer.hpp>
 #include <boost/beast/core/error.hpp>
 #include <boost/beast/core/flat_buffer.hpp>
-#include <boost/beast/core/tcp_stream.hpp>
 #include <boost/beast/http/parser.hpp>
 #include <boost/beast/http/read.hpp>
 #include <boost/beast/http/string_body.hpp>
@@ -23,6 +23,8 @@
 #include <thread>
 
 #include "libs/base/worker_thread.hpp"
+#include "libs/http/connection_stream.hpp"
+#include "libs/http/tls_context.hpp"
 
 namespace rcand::swarm {
 
@@ -36,6 +38,15 @@ PeerRequest peer_request(const SwarmNode& node, std::string method, std::string 
   request.target = std::move(target);
   request.body = std::move(body);
   request.headers = {{"Authorization", "Bearer " + node.token}};
+  if (node.ca) {
+    http::ClientTlsSettings& tls = request.tls.emplace();
+    tls.ca_file = *node.ca;
+    tls.cert_file = node.cert.value_or("");
+    tls.key_file = node.key.value_or("");
+    tls.ca_setting = "swarm node '" + node.name + "' ca";
+    tls.cert_setting = "swarm node '" + node.name + "' cert";
+    tls.key_setting = "swarm node '" + node.name + "' key";
+  }
   return request;
 }
 
@@ -48,7 +59,7 @@ using Clock = std::chrono::steady_clock;
 // A kept-alive connection to a peer, idle since `since`. Reused for the next request to the same address: a swarm
 // broadcasts to the same peers again and again, and a connection that is already open costs the peer no accept.
 struct IdleConnection {
-  std::unique_ptr<beast::tcp_stream> stream;
+  std::unique_ptr<http::ConnectionStream> stream;
   std::chrono::steady_clock::time_point since;
 };
 
@@ -59,7 +70,9 @@ struct FanOut::Loop : std::enable_shared_from_this<FanOut::Loop> {
   WorkerThread worker{"swarm.fanout", nullptr};
   net::io_context& io = worker.context();
   std::shared_ptr<HostResolver> resolver;                   // may be null: getaddrinfo for every host
-  std::map<std::string, std::vector<IdleConnection>> idle;  // by "ip:port"; touched only on the loop thread
+  std::map<std::string, std::vector<IdleConnection>> idle;  // by "ip:port" ("https://ip:port"); the loop thread's only
+  // TLS contexts by their files (and the files' times, so a renewed CA is read again); the loop thread's only.
+  std::map<std::string, std::shared_ptr<net::ssl::context>> tls_contexts;
   std::mutex mutex;                                         // guards `alive` against helper threads posting after stop()
   bool alive = true;
 
@@ -79,10 +92,23 @@ constexpr std::size_t kMaxIdlePerPeer = 4;
 // A failure on a reused connection before any byte of the answer: the peer had closed it while idle.
 bool is_stale(const beast::error_code& ec) {
   return ec == bhttp::error::end_of_stream || ec == net::error::eof || ec == net::error::connection_reset ||
-         ec == net::error::broken_pipe || ec == net::error::not_connected;
+         ec == net::error::broken_pipe || ec == net::error::not_connected || ec == net::ssl::error::stream_truncated;
 }
 
 beast::string_view bsv(std::string_view s) noexcept { return {s.data(), s.size()}; }
+
+// The context for `tls`, made once per set of files (and again when one of them changes). Throws http::TlsError.
+std::shared_ptr<net::ssl::context> tls_context_for(FanOut::Loop& loop, const http::ClientTlsSettings& tls) {
+  std::string key;
+  for (const auto* file : {&tls.ca_file, &tls.cert_file, &tls.key_file}) {
+    std::error_code ec;
+    const auto written = file->empty() ? std::filesystem::file_time_type{} : std::filesystem::last_write_time(*file, ec);
+    key += file->string() + '@' + std::to_string(written.time_since_epoch().count()) + '\n';
+  }
+  auto& context = loop.tls_contexts[key];
+  if (!context) context = http::make_client_tls_context(tls);
+  return context;
+}
 
 std::string endpoint_text(const tcp::endpoint& endpoint) {
   const auto address = endpoint.address();
@@ -215,7 +241,14 @@ class PeerOp : public std::enable_shared_from_this<PeerOp> {
   void connect(std::vector<tcp::endpoint> endpoints) {
     result_.address = endpoint_text(endpoints.front());
     endpoints_ = std::move(endpoints);
-    if (auto found = loop_->idle.find(result_.address); found != loop_->idle.end()) {
+    if (request_.tls) {
+      try {
+        tls_ = tls_context_for(*loop_, *request_.tls);
+      } catch (const std::exception& e) {
+        return finish(e.what());
+      }
+    }
+    if (auto found = loop_->idle.find(pool_key()); found != loop_->idle.end()) {
       auto& pool = found->second;
       while (!pool.empty() && !stream_) {
         IdleConnection idle = std::move(pool.back());
@@ -231,14 +264,36 @@ class PeerOp : public std::enable_shared_from_this<PeerOp> {
     fresh_connect();
   }
 
+  // Idle connections are pooled by address and scheme: a plain one never serves a TLS request.
+  std::string pool_key() const { return (tls_ ? "https://" : "") + result_.address; }
+
   void fresh_connect() {
     reused_ = false;
-    stream_ = std::make_unique<beast::tcp_stream>(loop_->io);
+    stream_ = tls_ ? std::make_unique<http::ConnectionStream>(http::TcpStream(loop_->io), tls_)
+                   : std::make_unique<http::ConnectionStream>(loop_->io);
     stream_->expires_at(deadline_);
-    stream_->async_connect(endpoints_, [self = shared_from_this()](const beast::error_code& ec, const tcp::endpoint& endpoint) {
-      if (ec) return self->fail("cannot connect to " + self->result_.address, ec);
-      self->result_.address = endpoint_text(endpoint);
-      self->send();
+    stream_->next_layer().async_connect(endpoints_,
+                                        [self = shared_from_this()](const beast::error_code& ec, const tcp::endpoint& endpoint) {
+                                          if (ec) return self->fail("cannot connect to " + self->result_.address, ec);
+                                          self->result_.address = endpoint_text(endpoint);
+                                          if (self->tls_) return self->handshake();
+                                          self->send();
+                                        });
+  }
+
+  // The peer's certificate must chain to its `ca` and name its `host` (even when reached through the ip fallback).
+  void handshake() {
+    SSL* ssl = stream_->tls()->native_handle();
+    try {
+      http::expect_server_name(ssl, request_.tls->server_name.empty() ? request_.host : request_.tls->server_name);
+    } catch (const std::exception& e) {
+      return finish(e.what());
+    }
+    stream_->tls()->async_handshake(net::ssl::stream_base::client, [self = shared_from_this()](const beast::error_code& ec) {
+      if (!ec) return self->send();
+      if (ec == beast::error::timeout) return self->fail("TLS handshake with " + self->result_.address, ec);
+      self->finish("TLS handshake with " + self->result_.address +
+                   " failed: " + http::tls_failure(self->stream_->tls()->native_handle(), ec));
     });
   }
 
@@ -290,7 +345,7 @@ class PeerOp : public std::enable_shared_from_this<PeerOp> {
 
   // Back to the pool for the next broadcast (the answer was complete and the peer keeps the connection).
   void keep_idle() {
-    auto& pool = loop_->idle[result_.address];
+    auto& pool = loop_->idle[pool_key()];
     if (pool.size() >= kMaxIdlePerPeer || buffer_.size() != 0) return;
     stream_->expires_never();
     pool.push_back({std::move(stream_), Clock::now()});
@@ -298,6 +353,8 @@ class PeerOp : public std::enable_shared_from_this<PeerOp> {
 
   void fail(const std::string& what, const beast::error_code& ec) {
     if (ec == beast::error::timeout) finish(what + ": timed out after " + std::to_string(timeout_.count()) + " ms");
+    else if (stream_ && stream_->is_tls() && ec.category() == net::error::get_ssl_category())
+      finish(what + ": TLS failure: " + http::tls_failure(stream_->tls()->native_handle(), ec));
     else finish(what + ": " + ec.message());
   }
 
@@ -318,7 +375,8 @@ class PeerOp : public std::enable_shared_from_this<PeerOp> {
   std::chrono::milliseconds timeout_;
   Clock::time_point deadline_;
   std::vector<tcp::endpoint> endpoints_;
-  std::unique_ptr<beast::tcp_stream> stream_;
+  std::shared_ptr<net::ssl::context> tls_;  // set: HTTPS
+  std::unique_ptr<http::ConnectionStream> stream_;
   net::steady_timer timer_;
   beast::flat_buffer buffer_;
   bhttp::request<bhttp::string_body> message_;

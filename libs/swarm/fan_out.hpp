@@ -14,6 +14,7 @@
 #include <utility>
 #include <vector>
 
+#include "libs/http/tls_settings.hpp"
 #include "libs/swarm/host_resolver.hpp"
 #include "libs/swarm/swarm_registry.hpp"
 
@@ -35,9 +36,13 @@ struct PeerRequest {
   // A larger answer is that peer's failure: a stop's answer is small, and a peer streaming megabytes must not
   // make the fan-out thread (shared by every broadcast) late for everyone else's deadline.
   std::uint64_t body_limit = kDefaultPeerBodyLimit;
+  // Set: HTTPS, the peer's certificate verified against tls->ca_file and `host` (a TLS failure is that peer's error;
+  // nothing is sent to a peer that fails it). Contexts are kept per file set while the files stay unchanged.
+  std::optional<http::ClientTlsSettings> tls;
 };
 
-// A request to a registry node: its name, host, ip fallback and port, authorized with the node's own token.
+// A request to a registry node: its name, host, ip fallback and port, authorized with the node's own token, over
+// TLS when the node names a `ca`.
 PeerRequest peer_request(const SwarmNode& node, std::string method, std::string target, std::string body = {});
 
 struct PeerResult {

@@ -17,7 +17,8 @@
 namespace rcand::swarm {
 namespace {
 
-constexpr std::array<std::string_view, 8> kNodeKeys{"name", "host", "ip", "port", "token", "rcan", "tags", "added"};
+constexpr std::array<std::string_view, 11> kNodeKeys{"name", "host",  "ip", "port", "token", "rcan",
+                                                     "tags", "added", "ca", "cert", "key"};
 
 std::string position(const std::string& file, const YAML::Mark& mark) {
   if (mark.line < 0) return file;
@@ -116,6 +117,12 @@ struct Parser {
       else node.port = static_cast<std::uint16_t>(value);
     }
     node.rcan = string_field(entry, path, "rcan", false);
+    if (auto ca = string_field(entry, path, "ca", false)) node.ca = *ca;
+    if (auto cert = string_field(entry, path, "cert", false)) node.cert = *cert;
+    if (auto key = string_field(entry, path, "key", false)) node.key = *key;
+    if (node.key && !node.cert) error(entry["key"].Mark(), path + ".key", "is given without 'cert' (the client certificate)");
+    if (node.cert && !node.ca)
+      error(entry["cert"].Mark(), path + ".cert", "needs 'ca' too: a client certificate is only sent over TLS");
     node.added = string_field(entry, path, "added", false);
     if (const YAML::Node tags = entry["tags"]) {
       if (!tags.IsSequence() && !tags.IsNull()) {
@@ -208,6 +215,20 @@ SwarmRegistry load_swarm_file(const std::filesystem::path& file) {
   text << in.rdbuf();
   auto registry = parse_swarm(text.str(), file.string());
   registry.source = file;
+  // TLS files: relative to the swarm file, and readable now rather than at the first broadcast.
+  std::vector<std::string> errors;
+  for (auto& node : registry.nodes) {
+    const std::pair<std::optional<std::filesystem::path>*, const char*> files[] = {
+        {&node.ca, "ca"}, {&node.cert, "cert"}, {&node.key, "key"}};
+    for (const auto& [path, key] : files) {
+      if (!*path) continue;
+      if ((*path)->is_relative()) *path = (file.parent_path() / **path).lexically_normal();
+      if (!std::ifstream(**path))
+        errors.push_back(file.string() + ":" + std::to_string(node.line) + ": error: node '" + node.name + "' " + key +
+                         ": cannot read '" + (*path)->string() + "': " + std::strerror(errno));
+    }
+  }
+  if (!errors.empty()) throw SwarmError(errors);
   return registry;
 }
 

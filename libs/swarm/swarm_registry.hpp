@@ -23,6 +23,10 @@ struct SwarmNode {
   std::string token;  // MUST: secret
   std::optional<std::string> rcan, added;
   std::vector<std::string> tags;
+  // TLS (the node serves runtime.listen.tls): `ca` set, the node is reached over HTTPS and its certificate must chain
+  // to this PEM file and name `host`; `cert`/`key`: this robot's client certificate, for nodes that require one.
+  // Relative paths resolve against the swarm file's folder; load_swarm_file checks each can be read.
+  std::optional<std::filesystem::path> ca, cert, key;
   int line = 0;  // 1-based line of the entry in the file
 
   bool has_tag(std::string_view tag) const;

@@ -327,6 +327,7 @@ YamlDocument yaml_to_json(std::string_view text, const std::string& display_name
   }
 
   if (documents.count() == 0 || (documents.count() == 1 && root.IsNull())) {
+    result.empty = true;
     diagnostics.push_back(error_at(SourceMark{display_name, 1, 1}, "",
                                    "the file is empty; expected a mapping with at least 'rcan_version' and 'metadata'"));
     return result;

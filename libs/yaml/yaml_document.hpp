@@ -13,7 +13,8 @@
 namespace rcand::yaml {
 
 struct YamlDocument {
-  bool ok = false;  // false: `diagnostics` holds at least one error and `doc` is unusable
+  bool ok = false;     // false: `diagnostics` holds at least one error and `doc` is unusable
+  bool empty = false;  // no document, or only comments (an error for a config file, nothing for a conf.d fragment)
   nlohmann::json doc;
   std::map<std::string, SourceMark> marks;  // key path -> mark; "" is the root node
 };

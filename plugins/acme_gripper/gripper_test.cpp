@@ -18,7 +18,7 @@ using rcand::sdk::testing::FakeHost;
 namespace {
 
 json manifest() {
-  std::ifstream in(RCAND_SOURCE_DIR "/plugins/acme_gripper/com.acme.gripper.json");
+  std::ifstream in(RCAND_PLUGIN_MANIFEST);  // the manifest's path, from the build (rcand_add_plugin_test in a vendor's)
   REQUIRE(in.good());
   return json::parse(in);
 }

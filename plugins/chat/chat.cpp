@@ -7,6 +7,7 @@
 #include <variant>
 
 #include "action_check.hpp"
+#include "brain_metrics.hpp"
 #include "injection_scan.hpp"
 
 namespace rcand::plugins::chat {
@@ -86,6 +87,7 @@ Chat::Chat(sdk::PluginContext& ctx)
 Chat::~Chat() { shutdown(); }
 
 void Chat::start() {
+  declare_brain_metrics(ctx_);
   if (model_brains_.empty()) return;
   health_ = &ctx_.worker("health");
   for (std::size_t i = 0; i < model_brains_.size(); ++i) health_->post([this, i] { probe(i); });
@@ -236,6 +238,7 @@ sdk::Proposal Chat::ask_brains(const Thought& thought, const sdk::BrainContext& 
     if (p.brain.empty()) p.brain = provider;
     const double ms = std::chrono::duration<double, std::milli>(Clock::now() - started).count();
     attempts.push_back({{"brain", provider}, {"latency_ms", ms}, {"error", p.error.empty() ? Json(nullptr) : Json(p.error)}});
+    record_brain_call(ctx_, provider, p, Clock::now() >= request.deadline, attempts.size() > 1, Clock::now() - started);
     if (p.error.empty()) return p;
     ++counters_.brain_failures;
     ctx_.log().warn("thought ", thought.id, ": brain '", provider, "' failed (", p.error, "); next in the chain");

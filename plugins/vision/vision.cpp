@@ -1,5 +1,7 @@
 #include "vision.hpp"
 
+#include "stream_metrics.hpp"
+
 #include <opencv2/core/utils/logger.hpp>
 
 #include <algorithm>
@@ -137,8 +139,10 @@ Vision::Vision(sdk::PluginContext& ctx, Encoder encoder, SourceFactory sources)
     : ctx_(ctx), settings_(read_settings(ctx.robot_config().sub("camera"), ctx.config())), sources_(std::move(sources)) {
   if (!encoder) encoder = jpeg_encoder(settings_.jpeg_quality);
   if (!sources_) sources_ = [source = settings_.source] { return make_source(source); };
-  hub_ = std::make_shared<FrameHub>(settings_.hub, std::move(encoder),
-                                    [&ctx](const sdk::Json& status) { ctx.publish_status(status); });
+  hub_ = std::make_shared<FrameHub>(settings_.hub, std::move(encoder), [&ctx](const sdk::Json& status) {
+    ctx.publish_status(status);
+    record_stream_metrics(ctx, status);
+  });
   if (settings_.depth.enabled) depth_ = std::make_unique<DepthFeed>(settings_.depth);
 }
 
@@ -146,6 +150,7 @@ Vision::~Vision() { shutdown(); }
 
 void Vision::start() {
   cv::utils::logging::setLogLevel(cv::utils::logging::LOG_LEVEL_ERROR);  // faults are reported by name, here
+  declare_stream_metrics(ctx_);
   hub_->start();
   capture_ = std::make_unique<Capture>(sources_, settings_.capture, hub_, [&ctx = ctx_](bool fault, const std::string& text) {
     if (fault) ctx.log().error("camera: ", text);

@@ -18,6 +18,10 @@ inline constexpr std::size_t kMaxMessageBytes = 64 * 1024;  // docs/protocol.md 
 inline constexpr int kMaxMessageDepth = 32;                 // JSON nesting; deeper is refused with code 100
 inline constexpr std::size_t kMaxIdBytes = 256;             // source_id / target_id: longer is refused with code 100
 inline constexpr std::string_view kProtocolVersion = "1.0";
+// The rcand hop marker (docs/protocol.md §11.3): a robot that relays a message for another robot of its fleet adds
+// header.relayed_by = its own name. A message carrying it is never relayed again, and it is left out of what a
+// signature covers (signing_input), so the original sender's signature still verifies at the target.
+inline constexpr const char* kRelayMarker = "relayed_by";
 
 enum class MessageType { Status, TaskRequest, TaskResponse, Command, Negotiation, Error };
 

@@ -155,8 +155,10 @@ std::string Ed25519Key::private_pem() const {
 
 std::string signing_input(const json& message) {
   json unsigned_copy = message;
-  if (auto header = unsigned_copy.find("header"); header != unsigned_copy.end() && header->is_object())
+  if (auto header = unsigned_copy.find("header"); header != unsigned_copy.end() && header->is_object()) {
     header->erase("signature");
+    header->erase(kRelayMarker);  // added by a relaying robot after the sender signed
+  }
   return unsigned_copy.dump(-1, ' ', false, json::error_handler_t::replace);
 }
 

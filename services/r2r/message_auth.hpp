@@ -64,8 +64,8 @@ struct MessageAuthSettings {
   double future_skew_s = kDefaultFutureSkewS;
 };
 
-// The bytes a signature covers: the message as JSON with header.signature removed, dumped by nlohmann (keys sorted,
-// compact) - canonical whatever order the sender wrote.
+// The bytes a signature covers: the message as JSON with header.signature and the hop marker (kRelayMarker) removed, dumped by
+// nlohmann (keys sorted, compact) - canonical whatever order the sender wrote.
 std::string signing_input(const nlohmann::json& message);
 // Adds header.signature {"key_id", "sig" (standard base64)} to `message` (a whole message object).
 void sign_message(nlohmann::json& message, const std::string& key_id, const Ed25519Key& key);

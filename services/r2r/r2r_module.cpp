@@ -2,6 +2,7 @@
 
 #include "rcand/sdk/fleet_auctions.hpp"
 #include "services/r2r/plugin_bridge.hpp"
+#include "services/r2r/r2r_metrics.hpp"
 #include "services/r2r/r2r_routes.hpp"
 #include "services/r2r/r2r_service.hpp"
 
@@ -35,6 +36,7 @@ class R2rModule final : public Service {
          fleet_lookup(host)});
     if (!service_) return;
     bridge_.attach(service_->node());
+    service_->node().observe_messages(r2r::message_metrics(host.plugin_services));
     host.offer_r2r_links(&links_);
   }
   ~R2rModule() override { stop(); }

@@ -30,6 +30,7 @@ struct Wire {
   std::string open_bytes;
   std::optional<std::string> target;
   Route reply;  // preferred route for a direct answer (same connection), may be empty
+  std::optional<MessageType> type{};  // for the message observer; unset for bytes passed on as received
 };
 
 }  // namespace node_detail
@@ -91,6 +92,7 @@ struct R2rNode::Impl {
   // (when the replay memory was lost) can be replayed after it.
   double started_s = 0.0;
 
+  R2rNode::MessageObserver observer;  // set before start(), read without a lock
   mutable std::mutex mutex;  // everything below
   ReplayGuard replays{deps.settings.auth.replay_window_s + deps.settings.auth.future_skew_s};
   std::map<std::uint64_t, std::pair<MessageType, Subscriber>> subscribers;
@@ -134,7 +136,7 @@ struct R2rNode::Impl {
     const double timestamp = now_s();
     std::string open = build(type, payload, target, timestamp, false);
     std::string full = deps.settings.outbound_token ? build(type, payload, target, timestamp, true) : open;
-    return {std::move(full), std::move(open), target, std::move(reply)};
+    return {std::move(full), std::move(open), target, std::move(reply), type};
   }
 
   // Sends outside `mutex`. A direct answer goes back on the connection it came from when it can; otherwise every
@@ -172,6 +174,8 @@ struct R2rNode::Impl {
           }
         }
       }
+      if (observer && w.type)
+        for (const auto& transport : by) observer(true, *w.type, transport);
       std::lock_guard lock(mutex);
       ++(!by.empty() ? counters.sent : counters.send_failed);
     }
@@ -202,6 +206,86 @@ struct R2rNode::Impl {
     json payload = make_error_payload(code, std::move(message), ref);
     if (extra) payload.update(*extra);
     return wire(MessageType::Error, payload, source, reply);
+  }
+
+  // Whether a message for `id` can be passed on: a robot of the fleet (swarm.yaml) or one heard from.
+  bool knows(const std::string& id) const {
+    if (deps.fleet_member && deps.fleet_member(id)) return true;
+    std::lock_guard lock(mutex);
+    return peers.contains(id);
+  }
+
+  // `source` heard from now, over `transport`; `reply` (when set) becomes the way back to it. Under `mutex`.
+  Peer& note_peer_locked(const std::string& source, const std::string& transport, const Route& reply) {
+    Peer& peer = peer_entry_locked(source);
+    peer.last_seen_ms = deps.clock.wall_ms();
+    peer.transport = transport;
+    if (reply) peer.reply = reply;
+    return peer;
+  }
+
+  // Raw bytes to `target` on the first transport that takes them (an answer routed through a relaying robot).
+  void send_on_transports(const std::string& bytes, const std::string& target) {
+    std::vector<Transport*> targets;
+    {
+      std::lock_guard lock(transports_mutex);
+      if (started) targets = transports;
+    }
+    for (Transport* transport : targets)
+      if (transport->send(bytes, target)) return;
+  }
+
+  // A message for another robot (docs/protocol.md §11.3): passed on once, as received plus the hop marker, when
+  // that robot is of the fleet or has been heard from. The sender's own credentials go with it unchanged (a
+  // signature still verifies, the marker being outside what it covers; a token travels only where this robot's own
+  // would); the relay adds no authority of its own. Otherwise - a relayed message, an unknown target, no transport
+  // reaching it - the sender gets 101 (never for an `error`).
+  void relay_or_refuse(const Envelope& envelope, const json& clean_ref, const Route& reply) {
+    const std::string& target = *envelope.target_id;
+    std::string why;
+    if (envelope.header_extra.contains(kRelayMarker)) {
+      why = "target robot '" + target + "' is not '" + deps.identity.name +
+            "', and the message was relayed already: a relayed message is never relayed again";
+    } else if (!knows(target)) {
+      why = "unknown target robot '" + target + "': '" + deps.identity.name +
+            "' has neither it in its fleet (swarm.yaml) nor heard from it";
+    } else {
+      json message = envelope.received;
+      message["header"][kRelayMarker] = deps.identity.name;
+      std::string full = message.dump(-1, ' ', false, json::error_handler_t::replace);
+      message["header"].erase("auth");
+      std::string open = message.dump(-1, ' ', false, json::error_handler_t::replace);
+      if (full.size() > kMaxMessageBytes) {
+        why = "target robot '" + target + "' is known, but the message is too large to relay with the hop marker";
+      } else if (!transmit({Wire{std::move(full), std::move(open), target, {}}}).front().empty()) {
+        std::lock_guard lock(mutex);
+        ++counters.relayed;
+        log->debug("r2r: relayed a {} from '{}' to '{}'", type_name(envelope.type), envelope.source_id, target);
+        return;
+      } else {
+        why = "target robot '" + target + "' is known, but no transport reaches it now";
+      }
+    }
+    {
+      std::lock_guard lock(mutex);
+      ++counters.rejected;
+    }
+    if (envelope.type == MessageType::Error) return;
+    log->info("r2r: {} from '{}' not relayed: {}", type_name(envelope.type), envelope.source_id, why);
+    transmit({error_reply(ErrorCode::UnknownTarget, why, clean_ref, envelope.source_id, reply)});
+  }
+
+  // The way back to the sender of a relayed message that came without one (MQTT): through the robot that relayed it,
+  // which passes the answer on like any message for a robot it knows. Only for a relay this robot knows itself.
+  static Route via_relay(const std::shared_ptr<Impl>& self, const Envelope& envelope) {
+    const auto marker = envelope.header_extra.find(kRelayMarker);
+    if (marker == envelope.header_extra.end() || !marker->is_string()) return {};
+    const std::string relay = marker->get<std::string>();
+    if (relay.empty() || self->is_self(relay) || !self->knows(relay)) return {};
+    return Route{[weak = std::weak_ptr<Impl>(self), relay](std::string bytes) {
+                   if (const auto s = weak.lock()) s->send_on_transports(bytes, relay);
+                 },
+                 false};
   }
 
   json status_payload_locked(const LocalStatus& local) const {
@@ -260,7 +344,7 @@ void R2rNode::stop() noexcept {
 
 void R2rNode::receive(InboundMessage message) {
   Impl& s = *impl_;
-  const Route reply{message.reply, transport_may_carry_secrets(message.transport) && message.trusted_with_secrets};
+  Route reply{message.reply, transport_may_carry_secrets(message.transport) && message.trusted_with_secrets};
   {
     std::lock_guard lock(s.mutex);
     ++s.counters.received;
@@ -290,6 +374,7 @@ void R2rNode::receive(InboundMessage message) {
   }
   Envelope envelope = std::move(std::get<Envelope>(parsed));
   if (s.is_self(envelope.source_id)) return;  // our own broadcast, echoed back by a transport
+  if (!reply) reply = Impl::via_relay(impl_, envelope);
   const std::string& source = envelope.source_id;
   const bool is_error = envelope.type == MessageType::Error;
   json clean_ref = envelope.header_extra;  // the `ref` of any answer: the header, minus credentials
@@ -338,15 +423,11 @@ void R2rNode::receive(InboundMessage message) {
   }
 
   if (envelope.target_id && !s.is_self(*envelope.target_id)) {
-    if (is_error) {
+    {
       std::lock_guard lock(s.mutex);
-      ++s.counters.rejected;
-      return;
+      s.note_peer_locked(source, message.transport, reply);  // so the target's answer finds its way back
     }
-    reject(s.error_reply(
-        ErrorCode::UnknownTarget,
-        "unknown target robot '" + *envelope.target_id + "': this is '" + s.deps.identity.name + "' and it does not forward",
-        clean_ref, source, reply));
+    s.relay_or_refuse(envelope, clean_ref, reply);
     return;
   }
 
@@ -355,10 +436,7 @@ void R2rNode::receive(InboundMessage message) {
   {
     std::lock_guard lock(s.mutex);
     ++s.counters.accepted;
-    Impl::Peer& peer = s.peer_entry_locked(source);
-    peer.last_seen_ms = s.deps.clock.wall_ms();
-    peer.transport = message.transport;
-    if (reply) peer.reply = reply;
+    Impl::Peer& peer = s.note_peer_locked(source, message.transport, reply);
     const json& p = envelope.payload;
     // Task requests, negotiations and task responses are the fleet plugin's (it subscribes): the auction runs there.
     switch (envelope.type) {
@@ -377,6 +455,7 @@ void R2rNode::receive(InboundMessage message) {
       if (entry.first == envelope.type) to_notify.push_back(entry.second);
   }
 
+  if (s.observer) s.observer(false, envelope.type, message.transport);
   if (run_command) {
     if (!s.deps.command_executor) {
       reject(s.error_reply(ErrorCode::Unauthorized, "this robot does not accept R2R commands", clean_ref, source, reply));
@@ -461,6 +540,8 @@ std::variant<SendOutcome, R2rError> R2rNode::send_message(MessageType type, json
   outcome.queued_on = std::move(impl_->transmit({std::move(w)}).front());
   return outcome;
 }
+
+void R2rNode::observe_messages(MessageObserver observer) { impl_->observer = std::move(observer); }
 
 std::uint64_t R2rNode::subscribe(MessageType type, Subscriber callback) {
   std::lock_guard lock(impl_->mutex);

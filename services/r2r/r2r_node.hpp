@@ -71,6 +71,9 @@ struct R2rNodeDeps {
   StatusSource status_source;           // may be empty: status says unknown everywhere
   CommandExecutor command_executor;     // may be empty: every command is refused (code 103, "commands disabled")
   std::vector<Transport*> transports;   // not owned; outlive the node. Also add_transport() later.
+  // Whether `id` names another robot of this robot's fleet (swarm.yaml): a message for it is relayed (§11.3), as is
+  // one for a robot in the peer table. May be empty (only heard peers are known). Any thread; must not block.
+  std::function<bool(const std::string& id)> fleet_member;
   std::shared_ptr<spdlog::logger> log;  // null: spdlog's default logger
 };
 
@@ -84,6 +87,7 @@ struct SendOutcome {
 
 struct NodeCounters {
   std::uint64_t received = 0, accepted = 0, rejected = 0, sent = 0, send_failed = 0;
+  std::uint64_t relayed = 0;  // messages for another robot of the fleet passed on (docs/protocol.md §11.3)
 };
 
 class R2rNode {
@@ -116,6 +120,10 @@ class R2rNode {
   // Subscribers get every validated, authorized message of `type` (any transport). The callback runs on the
   // thread that delivered the message: wrap it to post elsewhere (the plugin link posts to the plugin's worker).
   std::uint64_t subscribe(MessageType type, Subscriber callback);
+  // Told of each message accepted from a transport (sent: false) and each one a transport took (sent: true; "reply"
+  // and "route" name the way back to a peer). Any thread; must not block. Before start() only (metrics).
+  using MessageObserver = std::function<void(bool sent, MessageType type, const std::string& transport)>;
+  void observe_messages(MessageObserver observer);
   void unsubscribe(std::uint64_t id);
 
   // {"peers":[{"name","last_seen_ms","transport","status":{...}}]}: the last status (its ruled fields, bounded) of

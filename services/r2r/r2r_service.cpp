@@ -187,6 +187,10 @@ std::unique_ptr<R2rService> R2rService::from_config(R2rServiceDeps deps) {
                               const Principal& principal, json body,
                               r2r::CommandDone done) { execute(principal, std::move(body), std::move(done)); },
       .transports = {s.ws.get()},
+      .fleet_member =
+          [swarm = &s.deps.swarm](const std::string& id) {
+            return std::any_of(swarm->nodes.begin(), swarm->nodes.end(), [&](const auto& node) { return node.name == id; });
+          },
       .log = s.log,
   };
   if (s.mqtt) node_deps.transports.push_back(s.mqtt.get());
@@ -282,11 +286,8 @@ json R2rService::peers() const {
   }
   doc["transports"] = std::move(transports);
   const auto counters = s.node->counters();
-  doc["counters"] = {{"received", counters.received},
-                     {"accepted", counters.accepted},
-                     {"rejected", counters.rejected},
-                     {"sent", counters.sent},
-                     {"send_failed", counters.send_failed}};
+  doc["counters"] = {{"received", counters.received}, {"accepted", counters.accepted},       {"rejected", counters.rejected},
+                     {"sent", counters.sent},         {"send_failed", counters.send_failed}, {"relayed", counters.relayed}};
   const sdk::FleetAuctions* auctions = fleet();
   doc["held_tasks"] = auctions != nullptr ? auctions->held_tasks() : json::array();
   return doc;

@@ -1,7 +1,6 @@
 #include "services/swarm_broadcast/swarm_broadcast.hpp"
 
-#include <boost/asio/ip/address.hpp>
-
+#include <cctype>
 #include <mutex>
 #include <optional>
 
@@ -12,6 +11,8 @@
 #include "libs/swarm/broadcast_report.hpp"
 #include "libs/swarm/fan_out.hpp"
 #include "libs/swarm/node_selection.hpp"
+#include "services/swarm_broadcast/swarm_metrics.hpp"
+#include "services/swarm_broadcast/swarm_table.hpp"
 
 namespace rcand::services {
 namespace {
@@ -72,6 +73,7 @@ class SwarmBroadcast final : public kernel::Service {
       resolver_->prefetch(mdns_hosts);
     }
     fan_out_ = std::make_unique<swarm::FanOut>(resolver_);
+    table_ = std::make_unique<SwarmTable>(host, *fan_out_);
   }
   ~SwarmBroadcast() override { stop(); }
 
@@ -82,6 +84,7 @@ class SwarmBroadcast final : public kernel::Service {
                 [this](Call& call, Reply reply, const RouteHandler& next) { stop_route(call, std::move(reply), next); });
     router.wrap("POST", "/api/command",
                 [this](Call& call, Reply reply, const RouteHandler& next) { command_route(call, std::move(reply), next); });
+    table_->add_routes(router);
   }
 
   void stop() noexcept override {
@@ -130,20 +133,6 @@ class SwarmBroadcast final : public kernel::Service {
     return header_true(request, "x-swarm-broadcast") || (body_ok && body.contains("broadcast") && body["broadcast"] == true);
   }
 
-  bool is_self(const swarm::SwarmNode& node) const {
-    if (node.port != host_.port.load()) return false;
-    boost::system::error_code ec;
-    const auto listen = boost::asio::ip::make_address(host_.config.runtime.listen_address, ec);
-    if (ec) return false;
-    for (const std::string& candidate : {node.host, node.ip.value_or("")}) {
-      if (candidate == "localhost" && (listen.is_loopback() || listen.is_unspecified())) return true;
-      const auto address = boost::asio::ip::make_address(candidate, ec);
-      if (ec) continue;
-      if (address == listen || (address.is_loopback() && (listen.is_loopback() || listen.is_unspecified()))) return true;
-    }
-    return false;
-  }
-
   // The peers the body selects (all of them by default), this robot left out; or the 400 naming the field.
   std::optional<http::Response> select_peers(Broadcast& b) const {
     swarm::Selection selection;
@@ -159,7 +148,7 @@ class SwarmBroadcast final : public kernel::Service {
         field = failure->field;
       } else {
         for (auto& node : std::get<std::vector<swarm::SwarmNode>>(chosen))
-          if (!is_self(node)) b.peers.push_back(std::move(node));
+          if (!is_this_robot(node, host_)) b.peers.push_back(std::move(node));
       }
     }
     if (!bad) return std::nullopt;
@@ -191,7 +180,9 @@ class SwarmBroadcast final : public kernel::Service {
     auto requests = peer_requests(b, call, forwarded_body);
     const auto seq = host_.audit.begin(call.principal, call.message_id, "swarm broadcast POST " + call.request.path);
     auto gather = std::make_shared<Gather>();
-    auto complete = [audit = &host_.audit, gather, seq, reply = std::move(reply)] { answer(*audit, *gather, seq, reply); };
+    auto complete = [audit = &host_.audit, directory = &host_.plugin_services, gather, seq, reply = std::move(reply)] {
+      answer(*audit, *directory, *gather, seq, reply);
+    };
     if (b.is_stop) {
       gather->stop_fields = json::parse(local_stop.body, nullptr, false);
       if (!gather->stop_fields.is_object()) gather->stop_fields = json::object();
@@ -253,7 +244,8 @@ class SwarmBroadcast final : public kernel::Service {
         });
   }
 
-  static void answer(kernel::AuditLog& audit, Gather& gather, std::uint64_t seq, const Reply& reply) {
+  static void answer(kernel::AuditLog& audit, const kernel::ServiceDirectory& directory, Gather& gather, std::uint64_t seq,
+                     const Reply& reply) {
     json local;
     std::vector<swarm::PeerResult> remote;
     {
@@ -269,6 +261,7 @@ class SwarmBroadcast final : public kernel::Service {
     for (const auto& result : remote)
       nodes.push_back(swarm::node_entry(result, is_stop ? swarm::BroadcastKind::Stop : swarm::BroadcastKind::Command));
     json doc = swarm::broadcast_document(std::move(nodes));
+    record_broadcast(directory, is_stop ? "stop" : "command", doc["nodes"]);
     const auto& summary = doc["summary"];
     audit.finish(seq, summary["failed"] == 0 ? "ok" : "error",
                  summary["ok"].dump() + "/" + summary["total"].dump() + " nodes ok");
@@ -279,6 +272,7 @@ class SwarmBroadcast final : public kernel::Service {
   kernel::ServiceHost& host_;
   std::shared_ptr<mdns::AvahiHostResolver> resolver_;  // swarm "*.local" hosts; shared with the fan-out
   std::unique_ptr<swarm::FanOut> fan_out_;
+  std::unique_ptr<SwarmTable> table_;  // GET /api/swarm, POST /api/swarm/<node>/stop, on the same fan-out
 };
 
 }  // namespace

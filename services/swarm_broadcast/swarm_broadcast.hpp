@@ -2,7 +2,8 @@
 // "broadcast": true) run here and on every selected peer of runtime.swarm_file, answered with one report. The local
 // stop happens first, inline, before anything is forwarded; peers get 300 ms each so the whole stays inside 500 ms.
 // A forwarded command on a node in e-stop is acknowledged and not executed (§15.5: the e-stop is always local).
-// Wraps the kernel's rows; the kernel knows nothing of it.
+// Wraps the kernel's rows; the kernel knows nothing of it. Also the swarm table (swarm_table.hpp): GET /api/swarm and
+// POST /api/swarm/<node>/stop, on the same fan-out.
 #pragma once
 
 #include <memory>

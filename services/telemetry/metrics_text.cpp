@@ -43,6 +43,7 @@ std::string format_value(double value) {
 
 void MetricsText::family(std::string_view name, std::string_view type, std::string_view help) {
   name_ = std::string(name);
+  names_.push_back(name_);
   out_ += "# HELP " + name_ + " " + escape_help(help) + "\n";
   out_ += "# TYPE " + name_ + " " + std::string(type) + "\n";
 }

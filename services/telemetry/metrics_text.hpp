@@ -34,12 +34,15 @@ class MetricsText {
   void histogram(const Labels& labels, const HistogramSample& h);
 
   const std::string& text() const noexcept { return out_; }
+  // The families started so far, in order.
+  const std::vector<std::string>& family_names() const noexcept { return names_; }
   static constexpr std::string_view kContentType = "text/plain; version=0.0.4; charset=utf-8";
 
  private:
   void line(std::string_view suffix, const Labels& labels, const std::pair<std::string, std::string>* extra, double value);
   std::string name_;
   std::string out_;
+  std::vector<std::string> names_;
 };
 
 // A label value or HELP text escaped as the format requires (backslash, double quote in label values, newline).

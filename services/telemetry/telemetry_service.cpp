@@ -2,11 +2,12 @@
 
 #include <atomic>
 
-#include "libs/config/config_schema.hpp"
 #include "kernel/kernel.hpp"
+#include "libs/config/config_schema.hpp"
 #include "libs/http/server.hpp"
 #include "rcand/sdk/obstacle_source.hpp"
 #include "services/telemetry/metrics_text.hpp"
+#include "services/telemetry/plugin_metrics.hpp"
 #include "services/telemetry/route_metrics.hpp"
 #include "services/telemetry/status_metrics.hpp"
 #include "services/telemetry/stop_metrics.hpp"
@@ -67,8 +68,17 @@ class TelemetryService final : public kernel::Service {
       watch->latched.store(false);
       if (auto hub = watch->hub.lock()) hub->signal(HubEvent::Cleared);
     });
+    // Before the plugins start: they (and the other services) find sdk::Metrics at use time.
+    MetricsText own;
+    write_own_families(own, json::object());
+    contributed_ = std::make_unique<PluginMetrics>(own.family_names());
+    host.plugin_services.offer_service(sdk::Metrics::kServiceId, static_cast<const sdk::Metrics*>(contributed_.get()), this,
+                                       "telemetry", nullptr);
   }
-  ~TelemetryService() override { stop(); }
+  ~TelemetryService() override {
+    host_.plugin_services.withdraw(this);
+    stop();
+  }
 
   std::string_view name() const noexcept override { return "telemetry"; }
 
@@ -119,7 +129,17 @@ class TelemetryService final : public kernel::Service {
 
   http::Response metrics_response() const {
     MetricsText out;
-    write_status_metrics(out, host_.status_document());
+    write_own_families(out, host_.status_document());
+    contributed_->write(out);
+    http::Response response;
+    response.content_type = std::string(MetricsText::kContentType);
+    response.body = out.text();
+    return response;
+  }
+
+  // Every family rcand writes itself (the status snapshot's, the stops', the hub's, the routes').
+  void write_own_families(MetricsText& out, const json& status) const {
+    write_status_metrics(out, status);
     out.family("rcand_estop_latches_total", "counter", "times the e-stop went from clear to latched");
     out.sample(static_cast<double>(watch_->latches.load()));
     out.family("rcand_estop_stop_requests_total", "counter",
@@ -130,10 +150,9 @@ class TelemetryService final : public kernel::Service {
     out.sample(static_cast<double>(routes_.successes("POST", "/api/nav/waypoint")));
     write_hub_metrics(out, hub_->counters());
     routes_.write(out);
-    http::Response response;
-    response.content_type = std::string(MetricsText::kContentType);
-    response.body = out.text();
-    return response;
+    out.family("rcand_metrics_refused_total", "counter",
+               "metric calls of plugins and services refused (a bad name or label, a mismatched family; see the log)");
+    out.sample(contributed_ ? static_cast<double>(contributed_->refused()) : 0.0);
   }
 
   static void write_hub_metrics(MetricsText& out, const HubCounters& c) {
@@ -163,6 +182,7 @@ class TelemetryService final : public kernel::Service {
   std::shared_ptr<TelemetryHub> hub_;
   RouteMetrics routes_;
   StopMetrics stops_;
+  std::unique_ptr<PluginMetrics> contributed_;  // offered as sdk::Metrics
   std::unique_ptr<http::Server> metrics_server_;
 };
 

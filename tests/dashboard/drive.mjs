@@ -1,16 +1,17 @@
 // The dashboard in a real browser (Debian's headless Chromium, driven by playwright-core): log in, see the
 // capabilities, drive with the pad and see the sim drive's timeline move, press STOP and see the latch, clear it, and
-// lose the connection while holding the pad and see the motors stop. A screenshot of each step goes to SHOTS.
-// Usage: node drive.mjs BASE_URL TOKEN SHOTS_DIR   (exit 0: every step held; otherwise the failed step on stderr)
+// lose the connection while holding the pad and see the motors stop, and stop one node of the swarm table (a second
+// robot, NODE at NODE_URL) and see that node latched and this one not. A screenshot of each step goes to SHOTS.
+// Usage: node drive.mjs BASE_URL TOKEN SHOTS_DIR NODE NODE_URL   (exit 0: every step held; else the failed step on stderr)
 import { chromium } from 'playwright-core';
 import { mkdirSync } from 'node:fs';
 
-const [base, token, shots] = process.argv.slice(2);
+const [base, token, shots, node, nodeUrl] = process.argv.slice(2);
 mkdirSync(shots, { recursive: true });
 const auth = { Authorization: `Bearer ${token}` };
 
-async function robot(path, init = {}) {
-  const response = await fetch(base + path, { ...init, headers: { ...auth, ...(init.headers || {}) } });
+async function robot(path, init = {}, at = base) {
+  const response = await fetch(at + path, { ...init, headers: { ...auth, ...(init.headers || {}) } });
   return response.json();
 }
 // The sim drive's timeline: every wheel-speed change it was told, oldest first.
@@ -94,7 +95,18 @@ try {
   await page.waitForFunction(() => document.getElementById('state').textContent !== 'E-STOPPED', null, { timeout: 2000 });
   check('clear shown to the owner and it clears', true);
 
-  // 6. Hold the pad, then lose the connection: the motors stop by themselves (each move is a 300 ms lease).
+  // 6. The swarm table: the other robot is listed with its state; its Stop latches that robot only.
+  const row = `#swarm tr[data-node="${node}"]`;
+  await page.waitForSelector(`${row}[data-state=ok]`, { timeout: 5000 });
+  check('the swarm table lists the node, reachable', true, node);
+  await page.click(`${row} .node-stop`);
+  await until(`${node} to latch`, async () => (await robot('/api/estop', {}, nodeUrl)).estopped === true, 3000);
+  await page.waitForSelector(`${row}[data-state=estopped]`, { timeout: 5000 });
+  const local = await robot('/api/estop');
+  check('per-node stop latches that node only', local.estopped === false, `${node} latched, this robot not`);
+  await page.screenshot({ path: `${shots}/7-swarm.png`, fullPage: true });
+
+  // 7. Hold the pad, then lose the connection: the motors stop by themselves (each move is a 300 ms lease).
   const beforeHold = moving(await timeline());
   await page.mouse.move(box.x + box.width / 2, box.y + box.height / 2);
   await page.mouse.down();
@@ -111,7 +123,7 @@ try {
   await page.mouse.up();
   await context.setOffline(false);
 
-  // 7. A phone-sized view.
+  // 8. A phone-sized view.
   const phone = await browser.newContext({ viewport: { width: 390, height: 844 }, isMobile: true, hasTouch: true });
   const small = await phone.newPage();
   await small.goto(base + '/');

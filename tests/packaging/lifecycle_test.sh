@@ -99,6 +99,9 @@ check "the service is enabled (starts at boot)" is_enabled
 check "the packaged config is valid for the rcand user" in_root runuser -u rcand -- rcand --check-config /etc/rcand/robot.rcan.yaml
 first_secret=$(secret)
 echo "# edited by the admin" >> "$root/etc/rcand/robot.rcan.yaml"
+printf 'runtime:\n  logging:\n    level: debug\n' > "$root/etc/rcand/conf.d/50-site.yaml"
+check "an admin's conf.d fragment is merged" \
+  bash -c "chroot '$root' runuser -u rcand -- rcand --check-config /etc/rcand/robot.rcan.yaml 2>/dev/null | grep -qx '  merged /etc/rcand/conf.d/50-site.yaml'"
 mkdir -p "$root/var/log/rcand" && echo "audit" > "$root/var/log/rcand/audit.jsonl"
 
 echo "== upgrade to ${version}+lifecycle1 (published to the repository, then apt-get upgrade)"
@@ -110,6 +113,7 @@ apt_in_root upgrade > "$work/apt.log" 2>&1 || {
 check "upgraded" bash -c "chroot '$root' dpkg-query -W -f='\${Version}' rcand | grep -qx '${version}+lifecycle1'"
 check "the admin's config edit is kept (a conffile)" grep -q "edited by the admin" "$root/etc/rcand/robot.rcan.yaml"
 check "the JWT secret is unchanged" test "$(secret)" = "$first_secret"
+check "the conf.d fragment is untouched" test -s "$root/etc/rcand/conf.d/50-site.yaml"
 check "still enabled" is_enabled
 
 echo "== remove"
@@ -135,7 +139,8 @@ apt_in_root purge rcand-plugins-core rcand > "$work/apt.log" 2>&1 || {
   cat "$work/apt.log"
   exit 1
 }
-check "/etc/rcand is gone" test ! -e "$root/etc/rcand"
+check "/etc/rcand is gone but for the admin's own conf.d fragment (Debian leaves files it did not install)" \
+  bash -c "[ \"\$(cd '$root/etc/rcand' && find . -type f)\" = ./conf.d/50-site.yaml ]"
 check "state and logs are gone" test ! -e "$root/var/lib/rcand" -a ! -e "$root/var/log/rcand"
 check "neither enabled nor masked" bash -c "[ ! -L '$root$enabled_link' ] && [ ! -L '$root/etc/systemd/system/rcand.service' ]"
 check "no deb-systemd-helper state left" test ! -e "$root/var/lib/systemd/deb-systemd-helper-enabled/rcand.service.dsh-also"

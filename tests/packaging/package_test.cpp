@@ -54,6 +54,8 @@ struct Packages {
   fs::path vendor_deb;                  // its Debian package, made by the template's CPack setup
   fs::path twin_plugins;                // com.other.gripper: the template renamed, C++ names unchanged
   std::string vendor_sdk_dir;           // RcandSDK_DIR the vendor build used
+  std::string vendor_build_type;        // its CMAKE_BUILD_TYPE, chosen by the template when not given
+  rcand::test::ProcessResult vendor_tests;  // ctest in the vendor build: the template's unit test
   std::optional<std::string> dpkg_deb;
 
   std::string field(const std::string& package, const std::string& name) const {
@@ -112,15 +114,17 @@ void build(Packages& p) {
   const fs::path vendor = p.scratch.path() / "vendor-build";
   const fs::path sdk_dir = p.root / "usr/lib" / RCAND_LIBRARY_ARCHITECTURE / "cmake/RcandSDK";
   const fs::path template_dir = p.root / "usr/share/rcand-sdk/template";
-  auto build_vendor = [&](const fs::path& source, const fs::path& build_dir) {
-    require_ok(run_tool(RCAND_CMAKE_COMMAND, {"-S", source.string(), "-B", build_dir.string(), "-G", RCAND_CMAKE_GENERATOR,
-                                              "-DRcandSDK_DIR=" + sdk_dir.string(),
-                                              "-DCMAKE_PREFIX_PATH=" + (p.root / "usr").string(), "-DCMAKE_INSTALL_PREFIX=/usr"}),
+  auto build_vendor = [&](const fs::path& source, const fs::path& build_dir, bool with_tests) {
+    require_ok(run_tool(RCAND_CMAKE_COMMAND,
+                        {"-S", source.string(), "-B", build_dir.string(), "-G", RCAND_CMAKE_GENERATOR,
+                         "-DRcandSDK_DIR=" + sdk_dir.string(), "-DCMAKE_PREFIX_PATH=" + (p.root / "usr").string(),
+                         "-DCMAKE_INSTALL_PREFIX=/usr", std::string("-DBUILD_TESTING=") + (with_tests ? "ON" : "OFF")}),
                "configuring the vendor plugin from " + source.string());
     require_ok(run_tool(RCAND_CMAKE_COMMAND, {"--build", build_dir.string(), "-j2"}), "building the vendor plugin");
   };
-  build_vendor(template_dir, vendor);
+  build_vendor(template_dir, vendor, true);  // with its unit test, which builds out of tree too
   p.vendor_plugins = vendor / "plugins";
+  p.vendor_tests = run_tool(RCAND_CTEST_COMMAND, {"--test-dir", vendor.string(), "--output-on-failure"});
   // The vendor's package, as the template builds it.
   const fs::path vendor_debs = p.scratch.path() / "vendor-debs";
   require_ok(run_tool(RCAND_CPACK_COMMAND, {"--config", (vendor / "CPackConfig.cmake").string(), "-B", vendor_debs.string()}),
@@ -132,24 +136,26 @@ void build(Packages& p) {
   // name (namespace acme::gripper, class Gripper and its statics) left as it was.
   const fs::path twin = p.scratch.path() / "twin-source";
   fs::create_directories(twin);
-  for (const auto& entry : fs::directory_iterator(template_dir)) {
+  for (const auto& entry : fs::recursive_directory_iterator(template_dir)) {
     if (!entry.is_regular_file()) continue;
-    std::string name = entry.path().filename().string(), text = slurp(entry.path());
+    std::string name = fs::relative(entry.path(), template_dir).string(), text = slurp(entry.path());
     for (auto* s : {&name, &text})
       for (const auto& [from, to] : {std::pair<std::string, std::string>{"com.acme.gripper", "com.other.gripper"},
                                      {"acme_gripper", "other_gripper"},
                                      {"acme-gripper", "other-gripper"}})
         for (auto at = s->find(from); at != std::string::npos; at = s->find(from, at + to.size()))
           s->replace(at, from.size(), to);
+    fs::create_directories((twin / name).parent_path());
     std::ofstream(twin / name) << text;
   }
-  build_vendor(twin, p.scratch.path() / "twin-build");
+  build_vendor(twin, p.scratch.path() / "twin-build", false);
   p.twin_plugins = p.scratch.path() / "twin-build/plugins";
   const std::string cache = slurp(vendor / "CMakeCache.txt");
-  const auto at = cache.find("\nRcandSDK_DIR:");  // RcandSDK_DIR:<type>=<dir>
-  if (at != std::string::npos) {
-    const auto value = cache.find('=', at) + 1;
-    p.vendor_sdk_dir = cache.substr(value, cache.find('\n', value) - value);
+  for (auto [name, value] : {std::pair{"RcandSDK_DIR", &p.vendor_sdk_dir}, std::pair{"CMAKE_BUILD_TYPE", &p.vendor_build_type}}) {
+    const auto at = cache.find("\n" + std::string(name) + ":");  // <name>:<type>=<value>
+    if (at == std::string::npos) continue;
+    const auto begin = cache.find('=', at) + 1;
+    *value = cache.substr(begin, cache.find('\n', begin) - begin);
   }
 }
 
@@ -225,6 +231,11 @@ TEST_CASE("the vendor plugin builds out of tree against the unpacked SDK only") 
   CHECK(fs::is_regular_file(p.vendor_plugins / "acme_gripper.so"));
   CHECK(fs::is_regular_file(p.vendor_plugins / "com.acme.gripper.json"));
   CHECK_MESSAGE(p.vendor_sdk_dir.rfind(p.root.string(), 0) == 0, "RcandSDK_DIR=" << p.vendor_sdk_dir);
+  CHECK(p.vendor_build_type == "Release");  // optimised unless the vendor says otherwise
+  // The template's unit test: built out of tree (rcand_add_plugin_test, the SDK's fake host) and passing.
+  INFO(p.vendor_tests.out, p.vendor_tests.err);
+  CHECK(p.vendor_tests.exit_code == 0);
+  CHECK(p.vendor_tests.out.find("100% tests passed, 0 tests failed out of 1") != std::string::npos);
 }
 
 TEST_CASE("the unpacked rcand loads every packaged plugin and the vendor plugin") {

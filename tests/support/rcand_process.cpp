@@ -219,6 +219,11 @@ void RcandProcess::launch(const nlohmann::json& config, std::vector<fs::path> pl
     throw std::runtime_error("rcand did not start:\n" + text + err);
   }
   port_ = static_cast<std::uint16_t>(std::stoi(line.substr(colon + 1)));
+  // runtime.listen.tls: "rcand: listening on https://ADDRESS:PORT" comes first, then the loopback plain port's line.
+  if (const auto tls = text.find("rcand: listening on https://"); tls != std::string::npos && tls < ready) {
+    const std::string tls_line = text.substr(tls, text.find('\n', tls) - tls);
+    tls_port_ = static_cast<std::uint16_t>(std::stoi(tls_line.substr(tls_line.rfind(':') + 1)));
+  }
 }
 
 RcandProcess::~RcandProcess() { stop(); }

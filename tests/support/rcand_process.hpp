@@ -51,7 +51,9 @@ class RcandProcess {
   RcandProcess(const RcandProcess&) = delete;
   RcandProcess& operator=(const RcandProcess&) = delete;
 
+  // The plain HTTP port (with runtime.listen.tls: the loopback plain port), and the TLS port (0 without TLS).
   std::uint16_t port() const noexcept { return port_; }
+  std::uint16_t tls_port() const noexcept { return tls_port_; }
   const std::string& host() const noexcept { return host_; }
   pid_t pid() const noexcept { return pid_; }
   const TempDir& dir() const noexcept { return dir_; }
@@ -73,6 +75,7 @@ class RcandProcess {
   pid_t pid_ = -1;
   int stdout_fd_ = -1;
   std::uint16_t port_ = 0;
+  std::uint16_t tls_port_ = 0;
   std::string host_ = "127.0.0.1";
   void launch(const nlohmann::json& config, std::vector<std::filesystem::path> plugin_paths, const std::vector<std::string>& launcher);
 };

@@ -84,6 +84,7 @@ async function login(candidate, remember) {
   connect();
   refreshAudit();
   refreshPeers();
+  refreshSwarm();
   return true;
 }
 
@@ -307,6 +308,44 @@ async function refreshPeers() {
         peers.map((p) => [p.id || p.name, p.transport, p.last_seen_ms ? new Date(p.last_seen_ms).toLocaleTimeString() : null]));
 }
 
+// The swarm table: each node of swarm.yaml, probed by rcand (GET /api/swarm), with a stop for that node alone.
+function swarmState(n) {
+  if (!n.reachable) return `unreachable: ${n.error || ''}`;
+  if (n.error) return n.error;
+  return n.estopped ? 'E-STOPPED' : (n.state || 'ok');
+}
+
+async function refreshSwarm() {
+  const answer = await api('GET', '/api/swarm');
+  const nodes = answer.status === 200 ? answer.body.nodes || [] : [];
+  $('swarm-card').hidden = nodes.length === 0;
+  table($('swarm'), ['node', 'address', 'state', ''], []);
+  for (const n of nodes) {
+    const tr = $('swarm').insertRow();
+    tr.dataset.node = n.name;
+    tr.dataset.state = !n.reachable ? 'unreachable' : n.estopped ? 'estopped' : 'ok';
+    cell(tr, n.self ? `${n.name} (this robot)` : n.name);
+    cell(tr, n.address);
+    cell(tr, swarmState(n));
+    const td = document.createElement('td');
+    const stop = document.createElement('button');
+    stop.className = 'node-stop';
+    stop.textContent = 'Stop';
+    stop.title = `e-stop ${n.name} only`;
+    stop.addEventListener('click', () => stopNode(n.name));
+    td.appendChild(stop);
+    tr.appendChild(td);
+  }
+}
+
+async function stopNode(name) {
+  const answer = await api('POST', `/api/swarm/${encodeURIComponent(name)}/stop`,
+                           { reason: `dashboard (${session ? session.principal : '?'})` });
+  if (answer.status !== 200) failure(`stop ${name}`, answer);
+  else toast(`${name} stopped`);
+  refreshSwarm();
+}
+
 async function refreshAudit() {
   const answer = await api('GET', '/api/audit?limit=20');
   if (answer.status !== 200) {
@@ -333,6 +372,6 @@ document.addEventListener('DOMContentLoaded', () => {
   $('audit-refresh').addEventListener('click', refreshAudit);
   bindPad();
   bindKeys();
-  setInterval(() => { if (!$('app').hidden && !document.hidden) { refreshAudit(); refreshPeers(); if (declared.has('arm')) refreshArm(); } }, 5000);
+  setInterval(() => { if (!$('app').hidden && !document.hidden) { refreshAudit(); refreshPeers(); refreshSwarm(); if (declared.has('arm')) refreshArm(); } }, 5000);
   if (token) login(token, !!localStorage.getItem('rcand.token'));
 });

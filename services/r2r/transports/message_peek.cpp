@@ -4,10 +4,13 @@
 
 #include <vector>
 
+#include "services/r2r/envelope.hpp"
+
 namespace rcand::kernel::r2r {
 namespace {
 
-// SAX handler: records top-level "type" and "header"."source_id" strings, and stops as soon as both are known.
+// SAX handler: records top-level "type" and "header"."source_id" strings and whether the header carries the hop
+// marker, and stops once both strings are known and the header has been read to its end.
 class PeekHandler : public nlohmann::json_sax<nlohmann::json> {
  public:
   explicit PeekHandler(MessagePeek& out) : out_(out) {}
@@ -23,13 +26,17 @@ class PeekHandler : public nlohmann::json_sax<nlohmann::json> {
     if (stack_.size() == 2 && stack_[0].is_object && stack_[0].key == "header" && stack_[1].is_object &&
         stack_[1].key == "source_id")
       out_.source_id = value;
-    return out_.type.empty() || out_.source_id.empty();  // false stops the scan: both are known
+    return !complete();  // false stops the scan
   }
   bool start_object(std::size_t) override { return push(true); }
-  bool end_object() override { return pop(); }
+  bool end_object() override {
+    if (in_header()) header_done_ = true;
+    return pop() && !complete();
+  }
   bool start_array(std::size_t) override { return push(false); }
   bool end_array() override { return pop(); }
   bool key(string_t& value) override {
+    if (in_header() && value == kRelayMarker) out_.relayed = true;
     if (!stack_.empty()) stack_.back().key = value;
     return true;
   }
@@ -50,8 +57,13 @@ class PeekHandler : public nlohmann::json_sax<nlohmann::json> {
     return true;
   }
 
+  bool in_header() const { return stack_.size() == 2 && stack_[0].is_object && stack_[0].key == "header" && stack_[1].is_object; }
+  // Everything to learn is known: the type, the source, and the whole header (a hop marker may follow source_id).
+  bool complete() const { return !out_.type.empty() && !out_.source_id.empty() && header_done_; }
+
   MessagePeek& out_;
   std::vector<Frame> stack_;
+  bool header_done_ = false;
 };
 
 }  // namespace

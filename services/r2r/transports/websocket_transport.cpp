@@ -312,8 +312,10 @@ class Connection : public std::enable_shared_from_this<Connection> {
       std::lock_guard lock(hub->mutex);
       ++hub->counters.frames_in;
     }
-    // Transports do not interpret R2R; the announced source_id only makes this connection addressable.
-    if (const auto peek = peek_message(bytes); !peek.source_id.empty()) hub->bind_name(peek.source_id, shared_from_this());
+    // Transports do not interpret R2R; the announced source_id only makes this connection addressable (not a
+    // relayed message's: that sender is at the far side of the robot at the other end).
+    if (const auto peek = peek_message(bytes); !peek.source_id.empty() && !peek.relayed)
+      hub->bind_name(peek.source_id, shared_from_this());
     InboundMessage message;
     message.bytes = std::move(bytes);
     message.transport = "ws";

@@ -1,6 +1,7 @@
 // The dashboard in Debian's headless Chromium against a real rcand: tests/dashboard/drive.mjs (playwright-core, pinned
-// in tests/dashboard/package-lock.json) logs in, drives with the pad, presses STOP, clears, and drops the link while
-// holding the pad; each step's screenshot lands in <build>/tests/dashboard-screenshots/. Chromium, Node.js and npm
+// in tests/dashboard/package-lock.json) logs in, drives with the pad, presses STOP, clears, stops a second real rcand
+// from the swarm table, and drops the link while holding the pad; each step's screenshot lands in
+// <build>/tests/dashboard-screenshots/. Chromium, Node.js and npm
 // come from packaging/install-deps.sh; playwright-core from the npm registry (`npm ci`, once per lock file).
 #include <doctest/doctest.h>
 
@@ -9,6 +10,7 @@
 #include <sstream>
 
 #include "rcand_process.hpp"
+#include "swarm_lab.hpp"
 
 namespace fs = std::filesystem;
 using rcand::test::run_tool;
@@ -41,20 +43,30 @@ fs::path prepared_node_dir() {
 
 }  // namespace
 
-TEST_CASE("the dashboard in a real browser: log in, drive, stop, clear, and a lost link stops the motors") {
+TEST_CASE("the dashboard in a real browser: log in, drive, stop, clear, stop one swarm node, a lost link stops the motors") {
   for (const char* tool : {"/usr/bin/chromium", "/usr/bin/node"})
     REQUIRE_MESSAGE(fs::exists(tool), tool << " is missing: run packaging/install-deps.sh");
   const fs::path node_dir = prepared_node_dir();
 
-  auto config = rcand::test::sim_config();
+  // A second robot, the only node of the first one's swarm file.
+  rcand::test::RcandProcess bravo(rcand::test::swarm_robot_config("bravo"));
+  rcand::test::TempDir dir;
+  const auto swarm_file = dir.write("swarm.yaml", rcand::test::swarm_yaml({{"bravo", "127.0.0.1", bravo.port()}}));
+  auto config = rcand::test::swarm_robot_config("alpha", swarm_file);
   config["rcan_protocol"]["capabilities"].push_back("nav");
   rcand::test::RcandProcess rcand(config);
   const std::string base = "http://127.0.0.1:" + std::to_string(rcand.port());
+  const std::string bravo_url = "http://127.0.0.1:" + std::to_string(bravo.port());
   const fs::path shots = fs::path(RCAND_BINARY_DIR) / "tests/dashboard-screenshots";
-  const auto run = run_tool("/usr/bin/node", {(node_dir / "drive.mjs").string(), base, "owner-token", shots.string()});
+  const auto run =
+      run_tool("/usr/bin/node", {(node_dir / "drive.mjs").string(), base, "owner-token", shots.string(), "bravo", bravo_url});
   INFO("drive.mjs:\n", run.out, run.err);
   CHECK(run.exit_code == 0);
   CHECK(run.out.find("ok - link lost while holding: the motors stop") != std::string::npos);
-  for (const char* shot : {"1-login.png", "2-dashboard.png", "3-driving.png", "4-estopped.png", "5-link-lost.png", "6-phone.png"})
+  CHECK(run.out.find("ok - per-node stop latches that node only") != std::string::npos);
+  CHECK(bravo.json("GET", "/api/estop", "guest-token")["estopped"] == true);  // seen from here too
+  CHECK(rcand.json("GET", "/api/estop", "guest-token")["estopped"] == false);
+  for (const char* shot :
+       {"1-login.png", "2-dashboard.png", "3-driving.png", "4-estopped.png", "5-link-lost.png", "6-phone.png", "7-swarm.png"})
     CHECK_MESSAGE(fs::is_regular_file(shots / shot), shot);
 }

@@ -99,6 +99,7 @@ class Fleet {
                            done(200, {{"ok", true}});
                          },
                      .transports = {&net.endpoint(name)},
+                     .fleet_member = nullptr,  // only robots heard from are relayed to
                      .log = nullptr};
     r.node = std::make_unique<R2rNode>(std::move(deps));
     r.node->start();

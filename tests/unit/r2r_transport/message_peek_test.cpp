@@ -27,3 +27,9 @@ TEST_CASE("peek leaves the fields empty for anything odd, and never throws") {
   // A truncated message still yields what came before the cut.
   CHECK(peek_message(R"({"type":"status","header":{"source_id":"a")").source_id == "a");
 }
+
+TEST_CASE("peek tells a relayed message (header.relayed_by) from the sender's own, wherever the marker is written") {
+  CHECK_FALSE(peek_message(R"({"header":{"source_id":"c"},"type":"status","payload":{"relayed_by":"x"}})").relayed);
+  CHECK(peek_message(R"({"type":"command","header":{"source_id":"c","relayed_by":"alex"},"payload":{}})").relayed);
+  CHECK(peek_message(R"({"header":{"relayed_by":"alex","source_id":"c"},"type":"command"})").relayed);
+}

@@ -148,6 +148,7 @@ TEST_CASE("an R2R command to an e-stopped robot is answered 105 by the node, thr
                                                  .status_source = {},
                                                  .command_executor = std::move(executor),
                                                  .transports = {&net.endpoint(name)},
+                                                 .fleet_member = nullptr,
                                                  .log = nullptr});
   };
   // bob's executor hands the command to the real Api; answers may come from a capability worker.

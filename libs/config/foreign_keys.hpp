@@ -1,0 +1,21 @@
+// Keys that configs written for other RCAN runtimes, or for newer RCAN versions, carry and rcand (RCAN 1.3) does not
+// implement. The validator ignores them and lists them all in one warning; knowing them also keeps a foreign key
+// that happens to look like a misspelling of one of rcand's (`safety.watchdog`, `safety.max_linear_speed_mps`) from
+// being refused as a typo.
+#pragma once
+
+#include <string_view>
+
+namespace rcand::kernel::config_detail {
+
+struct ForeignKey {
+  enum class Origin { NewerRcan, OtherRuntime };
+  std::string_view path;  // dotted key path as written ("safety.watchdog")
+  Origin origin = Origin::OtherRuntime;
+  std::string_view rcand_reads = {};  // the rcand key with the nearest meaning, when there is one
+};
+
+// The catalogue entry for `key_path` (a plain dotted path, no list indices), or nullptr.
+const ForeignKey* find_foreign_key(std::string_view key_path) noexcept;
+
+}  // namespace rcand::kernel::config_detail

@@ -1,0 +1,36 @@
+# rcand_add_plugin_test(<name> PLUGIN <plugin target> SOURCES <test source>...)
+#
+# A doctest executable that unit-tests a plugin on the SDK's fake host (rcand/sdk/testing/fake_host.hpp), out of
+# tree: it compiles the plugin target's own sources with the test sources (no rcand, no kernel), defines
+# RCAND_PLUGIN_MANIFEST as the path of the plugin's manifest (FakeHost::load(entry, manifest) checks the plugin
+# against it as the kernel does), supplies doctest's main, and registers the test with CTest (call enable_testing()
+# in the project's top directory). Without doctest (Debian: doctest-dev) it says so and adds nothing.
+function(rcand_add_plugin_test name)
+  cmake_parse_arguments(TEST "" "PLUGIN" "SOURCES" ${ARGN})
+  if(NOT TEST_PLUGIN OR NOT TARGET ${TEST_PLUGIN})
+    message(FATAL_ERROR "rcand_add_plugin_test(${name}): PLUGIN must name a target made by rcand_add_plugin")
+  endif()
+  find_package(doctest QUIET)
+  if(NOT doctest_FOUND)
+    message(STATUS "${name}: doctest not found (Debian: apt install doctest-dev); the unit test is not built")
+    return()
+  endif()
+  get_target_property(_plugin_sources ${TEST_PLUGIN} SOURCES)
+  get_target_property(_plugin_dir ${TEST_PLUGIN} SOURCE_DIR)
+  get_target_property(_manifest ${TEST_PLUGIN} RCAND_MANIFEST)
+  set(_sources "")
+  foreach(_source IN LISTS _plugin_sources)
+    if(NOT IS_ABSOLUTE ${_source})
+      set(_source ${_plugin_dir}/${_source})
+    endif()
+    list(APPEND _sources ${_source})
+  endforeach()
+  # doctest's runner in a file of its own, never merged into a unity source after another #include <doctest/doctest.h>.
+  set(_main ${CMAKE_CURRENT_BINARY_DIR}/${name}_main.cpp)
+  file(CONFIGURE OUTPUT ${_main} CONTENT "#define DOCTEST_CONFIG_IMPLEMENT_WITH_MAIN\n#include <doctest/doctest.h>\n")
+  set_source_files_properties(${_main} PROPERTIES SKIP_UNITY_BUILD_INCLUSION ON)
+  add_executable(${name} ${TEST_SOURCES} ${_sources} ${_main})
+  target_link_libraries(${name} PRIVATE rcand::sdk doctest::doctest)
+  target_compile_definitions(${name} PRIVATE RCAND_PLUGIN_MANIFEST="${_manifest}")
+  add_test(NAME ${name} COMMAND ${name})
+endfunction()

@@ -1,0 +1,237 @@
+// A plugin reloaded in a running development rcand (issue 20; docs/protocol.md §7.15): POST
+// /api/plugins/<id>/reload and `rcanctl plugins reload ID` halt every motor (the e-stop latches), hold the plugin's
+// routes at 503 while calls already admitted finish, and serve the version now on disk; a failing reload leaves the
+// plugin in a named failed state; without runtime.plugins.allow_reload the request is refused and nothing stops.
+#include <doctest/doctest.h>
+
+#include <filesystem>
+#include <fstream>
+#include <future>
+#include <thread>
+
+#include "rcand_process.hpp"
+#include "temp_dir.hpp"
+
+using namespace rcand::test;
+using nlohmann::json;
+using namespace std::chrono_literals;
+
+namespace {
+
+constexpr const char* kReloadId = "org.rcand.test.reload";
+const std::string kReloadPath = std::string("/api/plugins/") + kReloadId + "/reload";
+const std::string kVersionPath = std::string("/api/cap/") + kReloadId + "/version";
+
+// Puts build variant `variant` (1 or 2) of the reload fixture into `folder` as the plugin rcand loads, under a
+// manifest that says `version`. The library is replaced by a rename, as a build or a package install does.
+void install_reload_fixture(const std::filesystem::path& folder, int variant, const std::string& version) {
+  std::filesystem::create_directories(folder);
+  const auto built = test_plugin_dir() / "reload" / ("rcand_test_reload_v" + std::to_string(variant) + ".so");
+  std::filesystem::copy_file(built, folder / "incoming.so", std::filesystem::copy_options::overwrite_existing);
+  std::filesystem::rename(folder / "incoming.so", folder / "rcand_test_reload.so");
+  std::ofstream(folder / "reload.json") << json{{"id", kReloadId},
+                                                {"version", version},
+                                                {"library", "rcand_test_reload.so"},
+                                                {"abi", {{"major", 1}, {"minor", 0}}},
+                                                {"provides", json::array({json{{"kind", "capability"}, {"name", kReloadId}}})}}
+                                               .dump();
+}
+
+json reload_config(bool allow) {
+  auto config = sim_config();
+  config["rcan_protocol"]["capabilities"].push_back(kReloadId);
+  if (allow) config["runtime"]["plugins"] = {{"allow_reload", true}};
+  return config;
+}
+
+std::string served_version(const RcandProcess& rcand, int* status = nullptr) {
+  const json body = rcand.json("GET", kVersionPath, "user-token", {}, status);
+  return body.value("version", "");
+}
+
+}  // namespace
+
+TEST_CASE("plugin reload: motors halt first, the new version on disk is served, the request is audited") {
+  TempDir dir;
+  const auto folder = dir.path() / "plugins";
+  install_reload_fixture(folder, 1, "1.0.0");
+  RcandProcess rcand(reload_config(true), {plugin_dir(), folder});
+  REQUIRE(served_version(rcand) == "1.0.0");
+  int status = 0;
+  rcand.json("POST", "/api/action", "user-token", R"({"type":"move","linear":0.3,"angular":0,"duration_ms":5000})", &status);
+  REQUIRE(status == 200);
+  REQUIRE(drive_status(rcand)["moving"] == true);
+
+  const std::string added_path = std::string("/api/cap/") + kReloadId + "/added";
+  CHECK(rcand.request("GET", added_path, "user-token").status == 404);
+
+  install_reload_fixture(folder, 2, "2.0.0");
+  const json answer = rcand.json("POST", kReloadPath, "owner-token", {}, &status);
+  REQUIRE(status == 200);
+  CHECK(answer["plugin"] == kReloadId);
+  CHECK(answer["state"] == "loaded");
+  CHECK(answer["version"] == "2.0.0");
+  CHECK(answer["estopped"] == true);
+  CHECK(answer["motors_stopped"] == true);
+  REQUIRE(answer["instances"].size() == 1);
+  CHECK(answer["instances"][0]["state"] == "running");
+  CHECK(drive_status(rcand)["moving"] == false);
+  const json estop = rcand.json("GET", "/api/estop", "guest-token");
+  CHECK(estop["estopped"] == true);
+  CHECK(estop["reason"].get<std::string>().find("plugin reload") != std::string::npos);
+  CHECK(served_version(rcand) == "2.0.0");
+  CHECK(rcand.json("GET", added_path, "user-token")["added"] == true);  // a route only the new version has
+  const json plugins = rcand.json("GET", "/api/plugins", "owner-token");
+  for (const auto& plugin : plugins["plugins"])
+    if (plugin["id"] == kReloadId) CHECK(plugin["version"] == "2.0.0");
+
+  bool audited = false;
+  const json audit = rcand.json("GET", "/api/audit?limit=50", "owner-token");
+  INFO(audit.dump());
+  for (const auto& entry : audit["entries"]) audited = audited || entry.value("event", "").find(kReloadPath) != std::string::npos;
+  CHECK(audited);
+
+  // Who may, and what: config scope; an unknown plugin is 404; a driver plugin is refused (the actuator table is fixed).
+  CHECK(rcand.request("POST", kReloadPath, "user-token").status == 403);
+  const json unknown = rcand.json("POST", "/api/plugins/org.nobody/reload", "owner-token", {}, &status);
+  CHECK(status == 404);
+  CHECK(unknown["code"] == "NOT_FOUND");
+  std::string driver_plugin;
+  for (const auto& plugin : plugins["plugins"])
+    for (const auto& item : plugin["provides"])
+      if (item["kind"] == "driver" && plugin["state"] == "loaded") driver_plugin = plugin["id"];
+  REQUIRE_FALSE(driver_plugin.empty());
+  const json driver = rcand.json("POST", "/api/plugins/" + driver_plugin + "/reload", "owner-token", {}, &status);
+  CHECK(status == 409);
+  CHECK(driver["code"] == "RELOAD_UNSUPPORTED");
+  CHECK(rcand.json("POST", "/api/plugins/" + std::string(kReloadId) + "/restart", "owner-token", {}, &status)["code"] ==
+        "NOT_FOUND");
+}
+
+TEST_CASE("plugin reload: a failing reload leaves a named failed state and the robot stopped; fixed, it serves again") {
+  TempDir dir;
+  const auto folder = dir.path() / "plugins";
+  install_reload_fixture(folder, 1, "1.0.0");
+  RcandProcess rcand(reload_config(true), {plugin_dir(), folder});
+  REQUIRE(served_version(rcand) == "1.0.0");
+
+  install_reload_fixture(folder, 2, "3.0.0");  // the manifest and the library disagree
+  int status = 0;
+  const json failed = rcand.json("POST", kReloadPath, "owner-token", {}, &status);
+  CHECK(status == 500);
+  CHECK(failed["code"] == "RELOAD_FAILED");
+  CHECK(failed["state"] == "manifest-mismatch");
+  CHECK(failed["error"].get<std::string>().find("manifest-mismatch") != std::string::npos);
+  CHECK(failed["estopped"] == true);
+  served_version(rcand, &status);
+  CHECK(status == 503);  // out of service, not a crash
+  CHECK(rcand.json("GET", "/health")["status"] == "ok");
+  CHECK(rcand.json("GET", "/api/estop", "guest-token")["estopped"] == true);
+
+  install_reload_fixture(folder, 2, "2.0.0");
+  const json fixed = rcand.json("POST", kReloadPath, "owner-token", {}, &status);
+  CHECK(status == 200);
+  CHECK(fixed["state"] == "loaded");
+  CHECK(served_version(rcand) == "2.0.0");
+}
+
+TEST_CASE("plugin reload: a call in flight finishes on the old version; calls meanwhile get 503") {
+  TempDir dir;
+  const auto folder = dir.path() / "plugins";
+  install_reload_fixture(folder, 1, "1.0.0");
+  RcandProcess rcand(reload_config(true), {plugin_dir(), folder});
+  const auto entered = dir.path() / "entered", release = dir.path() / "release";
+
+  auto in_flight = std::async(std::launch::async, [&] {
+    int status = 0;
+    const json body = rcand.json(
+        "GET", std::string("/api/cap/") + kReloadId + "/hold?entered=" + entered.string() + "&release=" + release.string(),
+        "user-token", {}, &status);
+    return std::make_pair(status, body);
+  });
+  const auto deadline = std::chrono::steady_clock::now() + 10s;
+  while (!std::filesystem::exists(entered) && std::chrono::steady_clock::now() < deadline) std::this_thread::sleep_for(5ms);
+  REQUIRE(std::filesystem::exists(entered));
+
+  install_reload_fixture(folder, 2, "2.0.0");
+  auto reload = std::async(std::launch::async, [&] {
+    int status = 0;
+    const json body = rcand.json("POST", kReloadPath, "owner-token", {}, &status);
+    return std::make_pair(status, body);
+  });
+  // The reload waits for the held call; until it is released, a new call is held out with 503. A probe admitted
+  // before the gate closed queues behind the held call (one handler at a time): it is left to finish after the
+  // release, and the next probe is sent.
+  std::vector<std::future<int>> probes;
+  bool held_out = false;
+  while (!held_out && std::chrono::steady_clock::now() < deadline) {
+    probes.push_back(std::async(std::launch::async, [&] {
+      int status = 0;
+      served_version(rcand, &status);
+      return status;
+    }));
+    if (probes.back().wait_for(200ms) != std::future_status::ready) continue;  // admitted: queued behind the held call
+    held_out = probes.back().get() == 503;
+    probes.pop_back();
+  }
+  CHECK(held_out);
+  CHECK(reload.wait_for(0ms) == std::future_status::timeout);
+  std::ofstream(release) << "go\n";
+
+  const auto held = in_flight.get();  // (status, body); no structured bindings inside doctest macros
+  CHECK(held.first == 200);
+  CHECK(held.second["version"] == "1.0.0");  // finished on the code it started on
+  CHECK(held.second["released"] == true);
+  const auto reloaded = reload.get();
+  CHECK(reloaded.first == 200);
+  CHECK(reloaded.second["version"] == "2.0.0");
+  for (auto& probe : probes) CHECK(probe.get() != 0);  // each queued probe got an answer, whichever
+  CHECK(served_version(rcand) == "2.0.0");
+}
+
+TEST_CASE("plugin reload: refused (409 RELOAD_DISABLED) without runtime.plugins.allow_reload; nothing stops") {
+  TempDir dir;
+  const auto folder = dir.path() / "plugins";
+  install_reload_fixture(folder, 1, "1.0.0");
+  RcandProcess rcand(reload_config(false), {plugin_dir(), folder});
+  install_reload_fixture(folder, 2, "2.0.0");
+  int status = 0;
+  const json refused = rcand.json("POST", kReloadPath, "owner-token", {}, &status);
+  CHECK(status == 409);
+  CHECK(refused["code"] == "RELOAD_DISABLED");
+  CHECK(refused["error"].get<std::string>().find("runtime.plugins.allow_reload") != std::string::npos);
+  CHECK(rcand.json("GET", "/api/estop", "guest-token")["estopped"] == false);
+  CHECK(served_version(rcand) == "1.0.0");
+
+  const auto port = std::to_string(rcand.port());
+  const auto refused_cli = run_tool(rcanctl_binary(), {"plugins", "reload", kReloadId, "--port", port, "--token", "owner-token"});
+  CHECK(refused_cli.exit_code == 1);
+  CHECK(refused_cli.err.find("RELOAD_DISABLED") != std::string::npos);
+  CHECK(run_tool(rcanctl_binary(), {"plugins", "reload", "--port", port, "--token", "owner-token"}).exit_code == 2);
+}
+
+TEST_CASE("rcanctl plugins reload: a table, or JSON with --json; exit 0 when reloaded, 1 when the robot refuses") {
+  TempDir dir;
+  const auto folder = dir.path() / "plugins";
+  install_reload_fixture(folder, 1, "1.0.0");
+  RcandProcess rcand(reload_config(true), {plugin_dir(), folder});
+  const auto port = std::to_string(rcand.port());
+  install_reload_fixture(folder, 2, "2.0.0");
+
+  const auto table = run_tool(rcanctl_binary(), {"plugins", "reload", kReloadId, "--port", port, "--token", "owner-token"});
+  CHECK(table.exit_code == 0);
+  CHECK(table.out.find("2.0.0") != std::string::npos);
+  CHECK(table.out.find("running") != std::string::npos);
+  CHECK(table.out.find("rcanctl estop clear") != std::string::npos);
+
+  const auto as_json =
+      run_tool(rcanctl_binary(), {"plugins", "reload", kReloadId, "--port", port, "--token", "owner-token", "--json"});
+  CHECK(as_json.exit_code == 0);
+  const json parsed = json::parse(as_json.out, nullptr, false);
+  CHECK(parsed["version"] == "2.0.0");
+  CHECK(parsed["state"] == "loaded");
+
+  const auto unknown = run_tool(rcanctl_binary(), {"plugins", "reload", "org.nobody", "--port", port, "--token", "owner-token"});
+  CHECK(unknown.exit_code == 1);
+  CHECK(run_tool(rcanctl_binary(), {"plugins", "reload", "--help"}).exit_code == 0);
+}
