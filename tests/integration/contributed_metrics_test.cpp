@@ -37,17 +37,6 @@ json chat_robot_config() {
   return config;
 }
 
-void expect_promtool_clean(const std::string& page) {
-  const auto checked = promtool_check(page);
-  if (!checked) {
-    std::cerr << "promtool not installed (apt-get install --no-install-recommends prometheus): metrics lint skipped\n";
-    return;
-  }
-  INFO(checked->output);
-  CHECK(checked->exit_code == 0);
-  CHECK(checked->output.empty());
-}
-
 }  // namespace
 
 TEST_CASE("contributed metrics: a chat command counts one answered brain call with its latency; promtool-clean") {
@@ -66,7 +55,7 @@ TEST_CASE("contributed metrics: a chat command counts one answered brain call wi
   CHECK(contributed_sample(page, "rcand_chat_brain_call_duration_seconds_count", {"provider=\"grammar\""}) == 1);
   CHECK(contributed_sample(page, "rcand_chat_brain_call_duration_seconds_bucket", {"provider=\"grammar\"", "le=\"+Inf\""}) == 1);
   CHECK(page.find("\nrcand_metrics_refused_total 0\n") != std::string::npos);
-  expect_promtool_clean(page);
+  rcand::test::check_promtool_clean(page);
 }
 
 TEST_CASE("contributed metrics: a brain that fails counts as error, the grammar brain after it as fallback") {
@@ -87,7 +76,7 @@ TEST_CASE("contributed metrics: a brain that fails counts as error, the grammar 
   CHECK(contributed_sample(page, "rcand_chat_brain_calls_total", {"provider=\"grammar\"", "outcome=\"fallback\""}) == 1);
   CHECK(contributed_sample(page, "rcand_chat_brain_calls_total", {"outcome=\"answered\""}) == -1);
   CHECK(contributed_sample(page, "rcand_chat_brain_call_duration_seconds_count", {"provider=\"local\""}) == 1);
-  expect_promtool_clean(page);
+  rcand::test::check_promtool_clean(page);
 }
 
 TEST_CASE("contributed metrics: a broadcast stop counts its result and each node's outcome") {
@@ -102,5 +91,5 @@ TEST_CASE("contributed metrics: a broadcast stop counts its result and each node
   CHECK(contributed_sample(page, "rcand_swarm_broadcasts_total", {"kind=\"stop\"", "result=\"partial\""}) == 1);
   CHECK(contributed_sample(page, "rcand_swarm_node_results_total", {"kind=\"stop\"", "outcome=\"ok\""}) == 2);  // alpha, bravo
   CHECK(contributed_sample(page, "rcand_swarm_node_results_total", {"kind=\"stop\"", "outcome=\"unreachable\""}) == 1);
-  expect_promtool_clean(page);
+  rcand::test::check_promtool_clean(page);
 }

@@ -212,14 +212,7 @@ TEST_CASE("metrics: scope status on the robot's port, promtool-clean, unauthenti
   CHECK(local.body.find("rcand_telemetry_clients 1") != std::string::npos);
   CHECK(rcand::http::request("127.0.0.1", metrics_port, "GET", "/api/status", "", {}, std::chrono::seconds(5)).status == 404);
 
-  const auto checked = promtool_check(page);
-  if (!checked) {
-    std::cerr << "promtool not installed (apt-get install --no-install-recommends prometheus): metrics lint skipped\n";
-    return;
-  }
-  INFO(checked->output);
-  CHECK(checked->exit_code == 0);
-  CHECK(checked->output.empty());
+  rcand::test::check_promtool_clean(page);
 }
 
 TEST_CASE("rcanctl watch: JSON lines, refused credentials, connection loss") {

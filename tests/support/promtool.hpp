@@ -10,6 +10,10 @@
 
 #include <unistd.h>
 
+#include <doctest/doctest.h>
+
+#include <iostream>
+
 namespace rcand::test {
 
 inline bool have_promtool() { return std::system("command -v promtool >/dev/null 2>&1") == 0; }
@@ -36,6 +40,18 @@ inline std::optional<PromtoolResult> promtool_check(const std::string& text) {
   }
   std::remove(path);
   return result;
+}
+
+// The check every metrics test makes: promtool finds nothing in `text` (skipped, saying so, without promtool).
+inline void check_promtool_clean(const std::string& text) {
+  const auto checked = promtool_check(text);
+  if (!checked) {
+    std::cerr << "promtool not installed (apt-get install --no-install-recommends prometheus): metrics lint skipped\n";
+    return;
+  }
+  INFO(checked->output, "\n", text);
+  CHECK(checked->exit_code == 0);
+  CHECK(checked->output.empty());
 }
 
 }  // namespace rcand::test

@@ -57,12 +57,5 @@ TEST_CASE("vision metrics: a viewer shows in the viewers gauge while it watches,
       metrics_once(robot, [](const std::string& p) { return has_line(p, "rcand_vision_stream_viewers 0"); });
   CHECK(has_line(after, "rcand_vision_stream_viewers 0"));
 
-  const auto checked = promtool_check(page);
-  if (!checked) {
-    std::cerr << "promtool not installed (apt-get install --no-install-recommends prometheus): metrics lint skipped\n";
-    return;
-  }
-  INFO(checked->output);
-  CHECK(checked->exit_code == 0);
-  CHECK(checked->output.empty());
+  rcand::test::check_promtool_clean(page);
 }

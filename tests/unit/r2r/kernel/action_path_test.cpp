@@ -193,6 +193,25 @@ TEST_CASE("an R2R command to an e-stopped robot is answered 105 by the node, thr
   alex->stop();
 }
 
+namespace {
+
+// The dispatcher's answer to `request` (with `note` for its audit entry), waited for: it may come from any thread.
+rcand::sdk::Response dispatched(const KernelRequestDispatcher& dispatcher, rcand::sdk::Request request, json note = nullptr) {
+  std::mutex mutex;
+  std::condition_variable cv;
+  std::optional<rcand::sdk::Response> answer;
+  dispatcher.dispatch(std::move(request), std::move(note), [&](rcand::sdk::Response response) {
+    std::lock_guard lock(mutex);
+    answer = std::move(response);
+    cv.notify_all();
+  });
+  std::unique_lock lock(mutex);
+  REQUIRE(cv.wait_for(lock, std::chrono::seconds(10), [&] { return answer.has_value(); }));
+  return *answer;
+}
+
+}  // namespace
+
 // The dispatcher plugins find as sdk::RequestDispatcher (the chat capability's way to act): the caller's request runs
 // the kernel's own path, so the caller's role is checked, the e-stop pre-check applies and the audit names the caller
 // under the message id the plugin chose.
@@ -200,19 +219,7 @@ TEST_CASE("KernelRequestDispatcher: a plugin's request on a caller's behalf runs
   Kernel kernel(sim_rover());
   Api& api = kernel.api();
   const KernelRequestDispatcher dispatcher(api);
-  auto dispatch = [&](rcand::sdk::Request request, json note = nullptr) {
-    std::mutex mutex;
-    std::condition_variable cv;
-    std::optional<rcand::sdk::Response> answer;
-    dispatcher.dispatch(std::move(request), std::move(note), [&](rcand::sdk::Response response) {
-      std::lock_guard lock(mutex);
-      answer = std::move(response);
-      cv.notify_all();
-    });
-    std::unique_lock lock(mutex);
-    REQUIRE(cv.wait_for(lock, std::chrono::seconds(10), [&] { return answer.has_value(); }));
-    return *answer;
-  };
+  auto dispatch = [&](rcand::sdk::Request request) { return dispatched(dispatcher, std::move(request)); };
   auto request = [](std::string method, std::string path, json body, Role role, std::string id) {
     rcand::sdk::Request r;
     r.method = std::move(method);
@@ -256,9 +263,6 @@ TEST_CASE("KernelRequestDispatcher: a plugin's audit note joins the entry; a not
   Api& api = kernel.api();
   const KernelRequestDispatcher dispatcher(api);
   auto dispatch = [&](std::string id, json note) {
-    std::mutex mutex;
-    std::condition_variable cv;
-    std::optional<rcand::sdk::Response> answer;
     rcand::sdk::Request r;
     r.method = "POST";
     r.path = "/api/action";
@@ -266,14 +270,7 @@ TEST_CASE("KernelRequestDispatcher: a plugin's audit note joins the entry; a not
     r.principal = "chat-user";
     r.role = Role::User;
     r.message_id = std::move(id);
-    dispatcher.dispatch(std::move(r), std::move(note), [&](rcand::sdk::Response response) {
-      std::lock_guard lock(mutex);
-      answer = std::move(response);
-      cv.notify_all();
-    });
-    std::unique_lock lock(mutex);
-    REQUIRE(cv.wait_for(lock, std::chrono::seconds(10), [&] { return answer.has_value(); }));
-    return *answer;
+    return dispatched(dispatcher, std::move(r), std::move(note));
   };
   const json ai{{"provider", "grammar"}, {"model", "grammar-en-1"}, {"confidence", 0.9}, {"thought_id", "th-1"}};
   CHECK(dispatch("noted-1", json{{"ai", ai}}).status == 200);
