@@ -5,9 +5,9 @@
 #include <rcand/sdk/testing/fake_host.hpp>
 
 #include <chrono>
-#include <fstream>
 
 #include "arm.hpp"
+#include "arm_test_manifest.hpp"
 #include "sim_arm.hpp"
 
 extern "C" const rcand_plugin_descriptor* RCAND_ENTRY_FUNCTION(void);
@@ -22,12 +22,6 @@ using rcand::sdk::testing::FakeHost;
 using rcand::sdk::testing::HostError;
 
 namespace {
-
-json arm_manifest() {
-  std::ifstream in(RCAND_SOURCE_DIR "/manifests/arm.json");
-  REQUIRE(in.good());
-  return json::parse(in);
-}
 
 json robot() {
   return json::parse(R"({

@@ -5,8 +5,8 @@
 #include <rcand/sdk/testing/fake_host.hpp>
 
 #include <chrono>
-#include <fstream>
 
+#include "arm_test_manifest.hpp"
 #include "sim_arm.hpp"
 
 extern "C" const rcand_plugin_descriptor* RCAND_ENTRY_FUNCTION(void);
@@ -21,12 +21,6 @@ using rcand::sdk::testing::FakeHost;
 using rcand::sdk::testing::HostError;
 
 namespace {
-
-json arm_manifest() {
-  std::ifstream in(RCAND_SOURCE_DIR "/manifests/arm.json");
-  REQUIRE(in.good());
-  return json::parse(in);
-}
 
 json two_joints() {
   return json::parse(R"([{"joint": "shoulder", "min_deg": -90, "max_deg": 90, "max_velocity_dps": 60},

@@ -7,12 +7,13 @@
 #include "scripted_model_server.hpp"
 
 using namespace chat_test;
+using rcand::plugins::chat::testing::ms_between;
 using rcand::plugins::chat::testing::ScriptedModelServer;
 using std::chrono::milliseconds;
 
 namespace {
 
-json model_says(json action, double confidence = 0.9) {
+json answer_with(json action, double confidence = 0.9) {
   return {{"reply", "as you say"}, {"reasoning", "because"}, {"action", std::move(action)}, {"confidence", confidence}};
 }
 
@@ -24,17 +25,13 @@ json brains(const ScriptedModelServer& primary, const ScriptedModelServer& backu
 
 json chain_agent() { return {{"provider", "primary"}, {"fallbacks", {{{"provider", "backup"}}}}}; }
 
-double ms_between(std::chrono::steady_clock::time_point a, std::chrono::steady_clock::time_point b) {
-  return std::chrono::duration<double, std::milli>(b - a).count();
-}
-
 }  // namespace
 
 TEST_CASE("fallback chain: a 500 from agent.provider switches to the fallback in < 50 ms; answer and thought name it") {
   ScriptedModelServer primary(ScriptedModelServer::Wire::OpenAI);
   ScriptedModelServer backup(ScriptedModelServer::Wire::Ollama);
   primary.always(ScriptedModelServer::fail(500));
-  backup.always(ScriptedModelServer::answer(model_says(waypoint(1, 0))));
+  backup.always(ScriptedModelServer::answer(answer_with(waypoint(1, 0))));
   Fixture f(rover_config(brains(primary, backup), chain_agent()));
   f.host.run_pending();  // the health probes chat starts with
   CHECK(f.chat().status()["brains"]["primary"]["health"]["ok"] == true);
@@ -64,7 +61,7 @@ TEST_CASE("fallback chain: a hung provider is dropped at its first_byte_timeout 
   ScriptedModelServer primary(ScriptedModelServer::Wire::OpenAI);
   ScriptedModelServer backup(ScriptedModelServer::Wire::Ollama);
   primary.always(ScriptedModelServer::hang());
-  backup.always(ScriptedModelServer::answer(model_says(waypoint(0, 90))));
+  backup.always(ScriptedModelServer::answer(answer_with(waypoint(0, 90))));
   Fixture f(rover_config(brains(primary, backup, {{"first_byte_timeout_ms", 300}}), chain_agent()));
   const auto w = f.say("turn left");
   REQUIRE(w->status() == 200);
@@ -94,11 +91,11 @@ TEST_CASE("a brain's out-of-bounds or undeclared action is refused, nothing move
   ScriptedModelServer primary(ScriptedModelServer::Wire::OpenAI);
   ScriptedModelServer backup(ScriptedModelServer::Wire::Ollama);
   Fixture f(rover_config(brains(primary, backup), chain_agent()));
-  primary.always(ScriptedModelServer::answer(model_says(waypoint(40, 0))));
+  primary.always(ScriptedModelServer::answer(answer_with(waypoint(40, 0))));
   auto w = f.say("go forward 40 metres");
   CHECK(w->status() == 422);
   CHECK(w->json()["code"] == "ACTION_REJECTED");
-  primary.always(ScriptedModelServer::answer(model_says({{"method", "POST"}, {"path", "/api/cap/com.evil/fire"}})));
+  primary.always(ScriptedModelServer::answer(answer_with({{"method", "POST"}, {"path", "/api/cap/com.evil/fire"}})));
   w = f.say("fire");
   CHECK(w->status() == 404);
   CHECK(w->json()["brain"] == "primary");

@@ -14,6 +14,7 @@
 
 using nlohmann::json;
 using namespace rcand::plugins::chat;
+using rcand::plugins::chat::testing::ms_between;
 using rcand::plugins::chat::testing::ScriptedModelServer;
 using std::chrono::milliseconds;
 namespace sdk = rcand::sdk;
@@ -36,7 +37,7 @@ ModelBrain brain_for(const ScriptedModelServer& server, const char* kind, json e
   return ModelBrain(read_model_brain("local", block, ""));
 }
 
-sdk::BrainContext rover() {
+sdk::BrainContext brain_context() {
   sdk::BrainContext c;
   c.capabilities = {"status", "teleop", "nav", "chat"};
   c.limits = {{"max_distance_m", 5}};
@@ -44,11 +45,7 @@ sdk::BrainContext rover() {
 }
 
 sdk::Proposal ask(const ModelBrain& brain, milliseconds budget = milliseconds(3000), std::string image = {}) {
-  return brain.propose({"go forward 1 metre", std::move(image), std::chrono::steady_clock::now() + budget}, rover(), {});
-}
-
-double ms_between(std::chrono::steady_clock::time_point a, std::chrono::steady_clock::time_point b) {
-  return std::chrono::duration<double, std::milli>(b - a).count();
+  return brain.propose({"go forward 1 metre", std::move(image), std::chrono::steady_clock::now() + budget}, brain_context(), {});
 }
 
 }  // namespace
@@ -125,7 +122,7 @@ TEST_CASE("a 500 fails at once (no retry); an overloaded server (503) is retried
   server.always(ScriptedModelServer::fail(503));
   const auto slow_backoff = brain_for(server, "openai", {{"retries", 5}, {"backoff_ms", 5000}});
   const auto before = std::chrono::steady_clock::now();
-  p = slow_backoff.propose({"go", "", before + milliseconds(500)}, rover(), {});
+  p = slow_backoff.propose({"go", "", before + milliseconds(500)}, brain_context(), {});
   CHECK(p.error.find("HTTP 503") != std::string::npos);
   CHECK(std::chrono::steady_clock::now() - before < milliseconds(400));
 }
@@ -161,7 +158,8 @@ TEST_CASE("a refused connection is retried, then fails; a hang ends at first_byt
 
   server.always(ScriptedModelServer::endless());
   before = std::chrono::steady_clock::now();
-  p = brain_for(server, "ollama", {{"max_answer_bytes", 65536}}).propose({"go", "", before + milliseconds(3000)}, rover(), {});
+  p = brain_for(server, "ollama", {{"max_answer_bytes", 65536}})
+          .propose({"go", "", before + milliseconds(3000)}, brain_context(), {});
   CHECK(p.error.find("exceeded 65536 bytes") != std::string::npos);
   CHECK(std::chrono::steady_clock::now() - before < milliseconds(1000));
 }
@@ -230,7 +228,7 @@ TEST_CASE("a cancel closes the brain's socket within 10 ms, during the wait for 
   sdk::CancelToken cancel;
   sdk::Proposal p;
   std::thread call([&] {
-    p = brain.propose({"go", "", std::chrono::steady_clock::now() + milliseconds(10000)}, rover(), cancel);
+    p = brain.propose({"go", "", std::chrono::steady_clock::now() + milliseconds(10000)}, brain_context(), cancel);
   });
   REQUIRE(server.wait_for_posts(1));
   const auto cancelled_at = std::chrono::steady_clock::now();
@@ -244,7 +242,7 @@ TEST_CASE("a cancel closes the brain's socket within 10 ms, during the wait for 
   CHECK(p.action.is_null());
 
   // Cancelled before the call: nothing is sent.
-  p = brain.propose({"go", "", std::chrono::steady_clock::now() + milliseconds(1000)}, rover(), cancel);
+  p = brain.propose({"go", "", std::chrono::steady_clock::now() + milliseconds(1000)}, brain_context(), cancel);
   CHECK(p.error == "cancelled");
   CHECK(server.posts().size() == 1);
 }

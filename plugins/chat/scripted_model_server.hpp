@@ -27,6 +27,11 @@
 
 namespace rcand::plugins::chat::testing {
 
+// Milliseconds from a to b, for the timings the tests read off a server's posts.
+inline double ms_between(std::chrono::steady_clock::time_point a, std::chrono::steady_clock::time_point b) {
+  return std::chrono::duration<double, std::milli>(b - a).count();
+}
+
 class ScriptedModelServer {
  public:
   using Clock = std::chrono::steady_clock;
