@@ -25,6 +25,7 @@
 #include "libs/base/worker_thread.hpp"
 #include "libs/http/connection_stream.hpp"
 #include "libs/http/tls_context.hpp"
+#include "libs/swarm/node_tls.hpp"
 
 namespace rcand::swarm {
 
@@ -38,15 +39,7 @@ PeerRequest peer_request(const SwarmNode& node, std::string method, std::string 
   request.target = std::move(target);
   request.body = std::move(body);
   request.headers = {{"Authorization", "Bearer " + node.token}};
-  if (node.ca) {
-    http::ClientTlsSettings& tls = request.tls.emplace();
-    tls.ca_file = *node.ca;
-    tls.cert_file = node.cert.value_or("");
-    tls.key_file = node.key.value_or("");
-    tls.ca_setting = "swarm node '" + node.name + "' ca";
-    tls.cert_setting = "swarm node '" + node.name + "' cert";
-    tls.key_setting = "swarm node '" + node.name + "' key";
-  }
+  request.tls = node_tls_settings(node);
   return request;
 }
 

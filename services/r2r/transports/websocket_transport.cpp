@@ -18,7 +18,9 @@
 
 #include "libs/base/bounded_text.hpp"
 #include "libs/base/worker_thread.hpp"
+#include "libs/http/tls_context.hpp"
 #include "libs/http/upgrade.hpp"
+#include "libs/swarm/node_tls.hpp"
 #include "services/r2r/transports/message_peek.hpp"
 
 namespace rcand::kernel::r2r {
@@ -160,8 +162,10 @@ class Connection : public std::enable_shared_from_this<Connection> {
     });
   }
 
-  // Outbound: resolves, connects and upgrades with the peer's token, then flushes the queue and reads.
+  // Outbound: resolves, connects (and for a node with `ca`, makes the TLS handshake: wss), upgrades with the peer's
+  // token, then flushes the queue and reads.
   void dial(const swarm::SwarmNode& node) {
+    name_of_dial_ = node.name;
     host_ = node.host;
     port_ = node.port;
     fallback_ip_ = node.ip;
@@ -219,6 +223,29 @@ class Connection : public std::enable_shared_from_this<Connection> {
   void on_connected(beast::error_code ec) {
     if (closed_) return;
     if (ec) return fail(ec, "connect");
+    auto* tls = ws_.next_layer().tls();
+    if (tls == nullptr) return upgrade();
+    try {
+      http::expect_server_name(tls->native_handle(), host_);  // SNI, and the name its certificate must carry
+    } catch (const http::TlsError& e) {
+      return fail_tls(e.what());
+    }
+    // Still under the dial's deadline: a peer that never answers the handshake is dropped like one that never accepts.
+    tls->async_handshake(net::ssl::stream_base::client, [self = shared_from_this()](beast::error_code tls_ec) {
+      if (self->closed_) return;
+      if (tls_ec == beast::error::timeout) return self->fail_tls("the TLS handshake timed out");
+      if (tls_ec) return self->fail_tls(http::tls_failure(self->ws_.next_layer().tls()->native_handle(), tls_ec));
+      self->upgrade();
+    });
+  }
+
+  // A wss dial that failed before the upgrade: the operator's to fix (a CA or certificate), so it is logged as such.
+  void fail_tls(const std::string& why) {
+    if (auto hub = hub_.lock()) hub->log->warn("r2r ws: TLS with {} at {} failed: {}", name_of_dial_, peer_, why);
+    shut();
+  }
+
+  void upgrade() {
     beast::get_lowest_layer(ws_).expires_never();
     websocket::stream_base::timeout timeouts{handshake_timeout_, idle_timeout_, true};
     ws_.set_option(timeouts);
@@ -409,7 +436,7 @@ class Connection : public std::enable_shared_from_this<Connection> {
   bool open_ = false, writing_ = false, closed_ = false;
   // Dial only.
   std::optional<tcp::resolver> resolver_;
-  std::string host_;
+  std::string name_of_dial_, host_;
   std::uint16_t port_ = 0;
   std::optional<std::string> fallback_ip_;
   std::string token_;
@@ -453,13 +480,26 @@ void Hub::closed(const std::shared_ptr<Connection>& connection, bool dial_failed
 }
 
 std::shared_ptr<Connection> Hub::dial_locked(const swarm::SwarmNode& node) {
-  auto connection = std::make_shared<Connection>(weak_from_this(), Stream(dialer->context()), Connection::Direction::Outbound,
+  std::optional<Stream> stream;
+  if (const auto tls = swarm::node_tls_settings(node)) {
+    try {  // read on every dial (dials are rare: a connection stays open), so a renewed CA file is picked up
+      stream.emplace(http::TcpStream(dialer->context()), http::make_client_tls_context(*tls));
+    } catch (const http::TlsError& e) {  // a missing or unreadable CA, certificate or key: named in the message
+      log->error("r2r ws: cannot dial {}: {}", node.name, e.what());
+      ++counters.dial_failed;
+      dial_failed_at[node.name] = Clock::now();
+      return nullptr;
+    }
+  } else {
+    stream.emplace(dialer->context());
+  }
+  auto connection = std::make_shared<Connection>(weak_from_this(), std::move(*stream), Connection::Direction::Outbound,
                                                  node.address(), std::nullopt, options);
   connection->name_ = node.name;
   connections.insert(connection);
   by_name[node.name] = connection;
   ++counters.dialed;
-  log->debug("r2r ws: dialing {} at {}", node.name, node.address());
+  log->debug("r2r ws: dialing {} at {}://{}{}", node.name, node.ca ? "wss" : "ws", node.address(), kWebSocketPath);
   net::post(dialer->context(), [connection, node] { connection->dial(node); });
   return connection;
 }
@@ -594,7 +634,9 @@ bool WebSocketTransport::send_own(const std::string& with_token, const std::stri
       if (recipients.empty()) {
         const auto* node = hub.dial_peer(*target_id);
         if (node == nullptr || hub.in_backoff_locked(node->name)) return false;
-        recipients.push_back(hub.dial_locked(*node));
+        auto dialed = hub.dial_locked(*node);
+        if (!dialed) return false;
+        recipients.push_back(std::move(dialed));
       }
     } else {
       for (const auto& connection : hub.connections) {
@@ -607,7 +649,7 @@ bool WebSocketTransport::send_own(const std::string& with_token, const std::stri
       }
       for (const auto& node : hub.options.dial_peers) {
         if (node.name == hub.options.self_name || hub.by_name.contains(node.name) || hub.in_backoff_locked(node.name)) continue;
-        recipients.push_back(hub.dial_locked(node));
+        if (auto dialed = hub.dial_locked(node)) recipients.push_back(std::move(dialed));
       }
     }
   }

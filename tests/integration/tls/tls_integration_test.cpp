@@ -1,7 +1,7 @@
 // runtime.listen.tls (issue 19) against real rcand processes and a throwaway PKI (tests/support/tls_lab.hpp): HTTPS
 // and wss with a good certificate, refusals for a certificate of another CA and an expired one, mutual TLS, plain
 // HTTP refused on the TLS port but served on the loopback plain port, named start-up errors for bad files, and the
-// swarm fan-out verifying each node against its own `ca`.
+// swarm fan-out verifying each node against its own `ca`, and R2R dialing a TLS-only robot over wss.
 #include <doctest/doctest.h>
 #include <signal.h>
 #include <sys/stat.h>
@@ -24,7 +24,9 @@
 #include "fault_drill.hpp"
 #include "libs/http/client.hpp"
 #include "libs/http/tls_context.hpp"
+#include "r2r_lab.hpp"
 #include "rcand_process.hpp"
+#include "temp_dir.hpp"
 #include "tls_lab.hpp"
 
 using namespace rcand::test;
@@ -297,4 +299,23 @@ TEST_CASE("tls: SIGHUP reads renewed files for new connections; a bad pair keeps
   reload(2);
   CHECK(robot.stderr_text().find("does not match the certificate") != std::string::npos);
   CHECK(tls_refusal(robot.tls_port(), trusting(lab, "other-ca"), "GET", "/api/status").empty());
+}
+
+TEST_CASE("tls: R2R dials a TLS-only robot of swarm.yaml over wss, checked against the node's ca") {
+  TlsLab lab;
+  TempDir dir;
+  const auto token = dir.write("r2r.token", "owner-token\n");
+  json bravo_config = r2r_robot_config("bravo", token);
+  bravo_config["runtime"]["listen"]["tls"] = lab.listen_tls("server");
+  RcandProcess bravo(bravo_config);
+  // alpha's status broadcasts reach bravo only through the connection alpha dials: bravo serves wss alone.
+  const json swarm{{"nodes", json::array({{{"name", "bravo"},
+                                           {"host", "127.0.0.1"},
+                                           {"port", bravo.tls_port()},
+                                           {"token", "owner-token"},
+                                           {"ca", lab.pem("ca").string()}}})}};
+  RcandProcess alpha(r2r_robot_config("alpha", token, 0, 0, dir.write("swarm.yaml", swarm.dump(2))));
+  const auto heard = poll_until<json>([&] { return peer_status(bravo, "alpha"); });
+  REQUIRE(heard);
+  CHECK((*heard)["transport"] == "ws");
 }

@@ -20,6 +20,7 @@
 #include "libs/rcan/crypto.hpp"
 #include "libs/rcan/jwt.hpp"
 #include "services/r2r/transports/websocket_transport.hpp"
+#include "tls_lab.hpp"
 #include "wire_message.hpp"
 #include "ws_client.hpp"
 
@@ -57,7 +58,7 @@ struct Robot {
   rcand::test::Inbox inbox;
 
   explicit Robot(std::string name, std::vector<swarm::SwarmNode> dial = {},
-                 const std::function<void(r2r::WebSocketOptions&)>& adjust = {}) {
+                 const std::function<void(r2r::WebSocketOptions&)>& adjust = {}, std::optional<http::TlsSettings> tls = {}) {
     r2r::WebSocketOptions options;
     options.self_name = std::move(name);
     options.dial_peers = std::move(dial);
@@ -65,6 +66,7 @@ struct Robot {
     transport = std::make_unique<r2r::WebSocketTransport>(options, auth);
     http::ServerOptions server_options;
     server_options.upgrade = transport->upgrade_handler();
+    server_options.tls = std::move(tls);  // set: this robot serves wss only (plain HTTP on another loopback port)
     server = std::make_unique<http::Server>(server_options, [](http::Request&&, http::Respond respond) {
       respond(http::error_response(404, "NOT_FOUND", "no such endpoint"));
     });
@@ -78,6 +80,34 @@ struct Robot {
 };
 
 using Client = rcand::test::WsClient;
+
+// Waits for a counter that has no event of its own (a dial's failure), polling.
+template <class Read> bool eventually(Read read, std::chrono::milliseconds timeout = 5s) {
+  const auto deadline = std::chrono::steady_clock::now() + timeout;
+  while (!read()) {
+    if (std::chrono::steady_clock::now() >= deadline) return false;
+    std::this_thread::sleep_for(5ms);
+  }
+  return true;
+}
+
+// robot-b serving wss only, with a certificate for 127.0.0.1 that the lab's CA signed.
+http::TlsSettings wss_only(const rcand::test::TlsLab& lab) {
+  http::TlsSettings tls;
+  tls.cert_file = lab.pem("server");
+  tls.key_file = lab.key("server");
+  return tls;
+}
+
+swarm::SwarmNode node_b(std::uint16_t port, std::optional<std::filesystem::path> ca) {
+  swarm::SwarmNode node;
+  node.name = "robot-b";
+  node.host = "127.0.0.1";
+  node.port = port;
+  node.token = "peer-token";
+  node.ca = std::move(ca);
+  return node;
+}
 
 }  // namespace
 
@@ -172,6 +202,49 @@ TEST_CASE("a robot dials a swarm peer it must reach, with the peer's token, and 
   CHECK(a.transport->counters().dialed == 1);
 }
 
+TEST_CASE("a robot dials a TLS-only peer over wss, its certificate checked against the node's ca") {
+  rcand::test::TlsLab lab;
+  Robot b("robot-b", {}, {}, wss_only(lab));
+  Robot a("robot-a", {node_b(b.port, lab.pem("ca"))});
+
+  REQUIRE(a.transport->send(wire_message("command", "robot-a"), std::string("robot-b")));
+  const auto at_b = b.inbox.wait_for(1);
+  REQUIRE(at_b.size() == 1);
+  CHECK(at_b[0].bytes == wire_message("command", "robot-a"));
+  CHECK(at_b[0].principal->name == "peer-robot");
+  REQUIRE(b.transport->send(wire_message("task_response", "robot-b"), std::string("robot-a")));
+  const auto at_a = a.inbox.wait_for(1);
+  REQUIRE(at_a.size() == 1);
+  CHECK(at_a[0].bytes == wire_message("task_response", "robot-b"));
+  CHECK(a.transport->counters().dialed == 1);
+  CHECK(a.transport->counters().dial_failed == 0);
+}
+
+TEST_CASE("a wss dial is refused before anything is sent when the peer's certificate fails the check") {
+  rcand::test::TlsLab lab;
+  Robot b("robot-b", {}, {}, wss_only(lab));
+  SUBCASE("signed by a CA the node's ca is not") {
+    Robot a("robot-a", {node_b(b.port, lab.pem("other-ca"))});
+    CHECK(a.transport->send("x", std::string("robot-b")));  // queued while dialing
+    CHECK(eventually([&] { return a.transport->counters().dial_failed == 1; }));
+    CHECK_FALSE(a.transport->send("y", std::string("robot-b")));  // in backoff: the next transport is tried
+  }
+  SUBCASE("a plain dial (no ca) to a wss-only peer") {
+    Robot a("robot-a", {node_b(b.port, std::nullopt)});
+    CHECK(a.transport->send("x", std::string("robot-b")));
+    CHECK(eventually([&] { return a.transport->counters().dial_failed == 1; }));
+  }
+  SUBCASE("a ca file that cannot be read: no connection at all") {
+    Robot a("robot-a", {node_b(b.port, lab.dir() / "missing-ca.pem")});
+    CHECK_FALSE(a.transport->send("x", std::string("robot-b")));
+    CHECK(a.transport->counters().dial_failed == 1);
+    CHECK(a.transport->counters().dialed == 0);
+  }
+  // The token never reached robot-b: it authorized no upgrade and nothing was delivered.
+  CHECK(b.transport->counters().inbound_accepted == 0);
+  CHECK(b.inbox.size() == 0);
+}
+
 TEST_CASE("a dial to a dead peer fails, backs off, and never blocks the sender") {
   swarm::SwarmNode node;
   node.name = "robot-dead";
@@ -186,10 +259,7 @@ TEST_CASE("a dial to a dead peer fails, backs off, and never blocks the sender")
   const auto started = std::chrono::steady_clock::now();
   CHECK(a.transport->send("x", std::string("robot-dead")));  // queued while dialing
   CHECK(std::chrono::steady_clock::now() - started < 100ms);
-  const auto deadline = std::chrono::steady_clock::now() + 5s;
-  while (a.transport->counters().dial_failed == 0 && std::chrono::steady_clock::now() < deadline)
-    std::this_thread::sleep_for(5ms);  // polling a counter: the failure has no event to wait on
-  CHECK(a.transport->counters().dial_failed == 1);
+  CHECK(eventually([&] { return a.transport->counters().dial_failed == 1; }));
   CHECK_FALSE(a.transport->send("y", std::string("robot-dead")));  // in backoff: the node tries another transport
 }
 
