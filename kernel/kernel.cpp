@@ -71,6 +71,7 @@ AuthSettings auth_settings(const RobotConfig& config, const std::string& ruri, c
   if (auth.jwt_secret_file && config.enable_jwt) {
     auto secret = read_secret_file(*auth.jwt_secret_file);
     if (!secret.secret) throw StartupError("runtime.auth.jwt_secret_file: " + secret.error);
+    if (!secret.warning.empty()) logger("kernel.auth")->warn("runtime.auth.jwt_secret_file: {}", secret.warning);
     settings.jwt_secret = std::move(secret.secret);
   }
   for (const auto& token : auth.tokens)

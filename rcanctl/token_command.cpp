@@ -168,6 +168,7 @@ int issue(std::span<const std::string> args, std::ostream& out, std::ostream& er
     err << "rcanctl token issue: --secret-file: " << secret.error << "\n";
     return kExitUsage;
   }
+  if (!secret.warning.empty()) err << "rcanctl token issue: warning: --secret-file: " << secret.warning << "\n";
   claims.iat = std::chrono::duration_cast<std::chrono::seconds>(std::chrono::system_clock::now().time_since_epoch()).count();
   claims.exp = claims.iat + *ttl;
   out << rcand::issue_jwt_hs256(claims, *secret.secret) << "\n";

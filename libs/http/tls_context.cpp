@@ -3,16 +3,15 @@
 #include <openssl/err.h>
 #include <openssl/ssl.h>
 #include <openssl/x509v3.h>
-#include <sys/stat.h>
 
 #include <boost/asio/ip/address.hpp>
 #include <boost/asio/ssl/error.hpp>
 
 #include <cerrno>
-#include <cstdio>
 #include <cstring>
 #include <fstream>
 
+#include "libs/base/file_exposure.hpp"
 #include "libs/http/http_logger.hpp"
 
 namespace rcand::http {
@@ -106,13 +105,7 @@ void warn_when_out_of_date(SSL_CTX* ctx, const std::string& cert_name) {
 }  // namespace
 
 std::string key_permission_problem(const std::filesystem::path& key_file) {
-  struct stat info {};
-  if (::stat(key_file.c_str(), &info) != 0) return std::string("cannot read: ") + std::strerror(errno);
-  if ((info.st_mode & S_IRWXO) == 0) return {};
-  char mode[8];
-  std::snprintf(mode, sizeof mode, "%04o", static_cast<unsigned>(info.st_mode & 07777));
-  return std::string("other users may read or write this private key (mode ") + mode + "); chmod 600 '" + key_file.string() +
-         "' (or 640 with a group rcand is in)";
+  return others_may_access(key_file, "this private key");
 }
 
 std::shared_ptr<ssl::context> make_server_tls_context(const TlsSettings& settings) {

@@ -3,19 +3,21 @@
 #include <fstream>
 #include <iterator>
 
+#include "libs/base/file_exposure.hpp"
+
 namespace rcand {
 
 SecretFile read_secret_file(const std::filesystem::path& path) {
   std::error_code ec;
-  if (std::filesystem::is_directory(path, ec)) return {std::nullopt, "secret file '" + path.string() + "' is a directory"};
+  if (std::filesystem::is_directory(path, ec)) return {std::nullopt, "secret file '" + path.string() + "' is a directory", {}};
   std::ifstream in(path, std::ios::binary);
-  if (!in) return {std::nullopt, "cannot read secret file '" + path.string() + "'"};
+  if (!in) return {std::nullopt, "cannot read secret file '" + path.string() + "'", {}};
   std::string secret{std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
-  if (in.bad()) return {std::nullopt, "cannot read secret file '" + path.string() + "'"};
+  if (in.bad()) return {std::nullopt, "cannot read secret file '" + path.string() + "'", {}};
   // Editors and `echo` add a newline nobody means as part of the key.
   while (!secret.empty() && (secret.back() == '\n' || secret.back() == '\r')) secret.pop_back();
-  if (secret.empty()) return {std::nullopt, "secret file '" + path.string() + "' is empty"};
-  return {std::move(secret), {}};
+  if (secret.empty()) return {std::nullopt, "secret file '" + path.string() + "' is empty", {}};
+  return {std::move(secret), {}, others_may_access(path, "this secret")};
 }
 
 }  // namespace rcand

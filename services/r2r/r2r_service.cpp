@@ -141,6 +141,7 @@ std::unique_ptr<R2rService> R2rService::from_config(R2rServiceDeps deps) {
   } catch (const std::invalid_argument& e) {
     throw StartupError(e.what());
   }
+  for (const auto& warning : settings.warnings) s.log->warn("{}", warning);
 
   const bool has_mqtt = r2r_block.contains("mqtt") && r2r_block["mqtt"].is_object();
   const bool ws_dial = r2r_block.contains("ws_dial") ? r2r_block["ws_dial"] == true : !has_mqtt;

@@ -1,11 +1,11 @@
 #include "services/r2r/r2r_settings.hpp"
 
 #include <algorithm>
-#include <fstream>
-#include <sstream>
 #include <stdexcept>
 
+#include "libs/base/file_exposure.hpp"
 #include "libs/config/config_schema.hpp"
+#include "libs/rcan/secret_file.hpp"
 
 namespace rcand::kernel::r2r {
 namespace {
@@ -132,13 +132,13 @@ std::filesystem::path resolve(const std::filesystem::path& base, const std::stri
   return p.is_absolute() ? p : base / p;
 }
 
-std::string read_secret_file(const std::filesystem::path& file, const std::string& key) {
-  std::ifstream in(file, std::ios::binary);
-  if (!in) bad(key, "cannot read " + file.string());
-  std::ostringstream text;
-  text << in.rdbuf();
-  std::string token = text.str();
-  while (!token.empty() && (token.back() == '\n' || token.back() == '\r' || token.back() == ' ')) token.pop_back();
+// A token file, read like every secret (libs/rcan/secret_file.hpp); trailing blanks are never part of a token.
+std::string read_token_file(const std::filesystem::path& file, const std::string& key, std::vector<std::string>& warnings) {
+  SecretFile read = read_secret_file(file);
+  if (!read.secret) bad(key, read.error);
+  if (!read.warning.empty()) warnings.push_back(std::string(kBlock) + "." + key + ": " + read.warning);
+  std::string token = std::move(*read.secret);
+  while (!token.empty() && (token.back() == ' ' || token.back() == '\t')) token.pop_back();
   if (token.empty()) bad(key, file.string() + " is empty");
   return token;
 }
@@ -182,14 +182,16 @@ R2rSettings load_r2r_settings(const json& r2r, const std::filesystem::path& base
   s.peer_expiry_s = read(r2r, "peer_expiry_s").get<double>();
   s.auth.require_signatures = read(r2r, "require_signatures").get<bool>();
   if (const json file = read(r2r, "token_file"); file.is_string())
-    s.outbound_token = read_secret_file(resolve(base_dir, file.get<std::string>()), "token_file");
+    s.outbound_token = read_token_file(resolve(base_dir, file.get<std::string>()), "token_file", s.warnings);
   if (const json file = read(r2r, "private_key_file"); file.is_string()) {
+    const auto path = resolve(base_dir, file.get<std::string>());
     try {
-      s.private_key =
-          std::make_shared<const Ed25519Key>(Ed25519Key::private_from_file(resolve(base_dir, file.get<std::string>())));
+      s.private_key = std::make_shared<const Ed25519Key>(Ed25519Key::private_from_file(path));
     } catch (const std::exception& e) {
       bad("private_key_file", e.what());
     }
+    if (auto problem = others_may_access(path, "this private key"); !problem.empty())
+      s.warnings.push_back(std::string(kBlock) + ".private_key_file: " + problem);
   }
   s.auth.peers = read_peers(read(r2r, "peers"), base_dir);
   return s;

@@ -27,6 +27,7 @@ struct R2rSettings {
   // Memory bounds (issue 13 #14).
   std::size_t max_peers = 1024;  // runtime.r2r.max_peers: the peer table; the least recently heard goes
   double peer_expiry_s = 120.0;  // runtime.r2r.peer_expiry_s: a peer silent this long is forgotten
+  std::vector<std::string> warnings;  // secrets other users may read (still used): the service logs them at start
 };
 
 // Reads `runtime_r2r` (the runtime.r2r block as JSON; relative files resolve against `base_dir`), after the table's

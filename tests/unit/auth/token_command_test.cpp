@@ -58,6 +58,13 @@ Authenticator verifier(const std::string& secret) {
 
 const std::string kFileSecret = "s3cret-from-file";
 
+// A JWT secret as an operator keeps it: readable by its owner alone (others get a warning on stderr).
+fs::path write_secret(const TempDir& dir, const std::string& content) {
+  const fs::path file = dir.write("jwt.key", content);
+  fs::permissions(file, fs::perms::owner_read | fs::perms::owner_write);
+  return file;
+}
+
 }  // namespace
 
 TEST_CASE("read_secret_file strips the trailing newline and refuses empty or missing files") {
@@ -71,15 +78,30 @@ TEST_CASE("read_secret_file strips the trailing newline and refuses empty or mis
   CHECK(read_secret_file(dir.path() / "missing").error.find("cannot read") != std::string::npos);
   CHECK(read_secret_file(dir.path()).error.find("directory") != std::string::npos);
   CHECK(read_secret_file(dir.write("e", "topsecret\n")).error.find("topsecret") == std::string::npos);
+  // Other users able to read it: still used, with a warning naming the file and the chmod (never the secret).
+  const auto shared = dir.write("f", "topsecret\n");
+  std::filesystem::permissions(shared, std::filesystem::perms(0644));
+  const SecretFile exposed = read_secret_file(shared);
+  CHECK(exposed.secret == "topsecret");
+  CHECK(exposed.warning.find("other users may read") != std::string::npos);
+  CHECK(exposed.warning.find("chmod 600 '" + shared.string() + "'") != std::string::npos);
+  CHECK(exposed.warning.find("topsecret") == std::string::npos);
+  std::filesystem::permissions(shared, std::filesystem::perms(0600));
+  CHECK(read_secret_file(shared).warning.empty());
 }
 
 TEST_CASE("token issue: defaults give the role's scopes, aud rcan://*, a 1 h lifetime") {
   const TempDir dir{"rcand-auth-test"};
-  const fs::path secret = dir.write("jwt.key", kFileSecret + "\n");
+  const fs::path secret = write_secret(dir, kFileSecret + "\n");
   const Run run = token({"issue", "--secret-file", secret.string(), "--role", "user"});
   REQUIRE(run.code == 0);
   CHECK(run.err.empty());
   REQUIRE(run.out.size() > 1);
+  fs::permissions(secret, fs::perms(0644));  // readable by others: still issued, with a warning naming the fix
+  const Run exposed = token({"issue", "--secret-file", secret.string(), "--role", "user"});
+  CHECK(exposed.code == 0);
+  CHECK(exposed.err.find("warning: --secret-file: other users may read or write this secret") != std::string::npos);
+  CHECK(exposed.err.find(kFileSecret) == std::string::npos);
   CHECK(run.out.back() == '\n');
   const std::string jwt = run.out.substr(0, run.out.size() - 1);
   CHECK(jwt.find('\n') == std::string::npos);
@@ -102,7 +124,7 @@ TEST_CASE("token issue: defaults give the role's scopes, aud rcan://*, a 1 h lif
 
 TEST_CASE("token issue: every option") {
   const TempDir dir{"rcand-auth-test"};
-  const fs::path secret = dir.write("jwt.key", kFileSecret);
+  const fs::path secret = write_secret(dir, kFileSecret);
   const Run run = token({"issue", "--secret-file", secret.string(), "--role", "Creator", "--ttl", "15m", "--aud",
                          "rcan://acme.*.*", "--sub", "ops", "--scope", "status,admin", "--fleet=1a2b3c4d,deadbeef"});
   REQUIRE(run.code == 0);
@@ -127,7 +149,7 @@ TEST_CASE("token issue: every option") {
 
 TEST_CASE("token issue: usage and input errors exit 2 with a clear message and no token") {
   const TempDir dir{"rcand-auth-test"};
-  const fs::path secret = dir.write("jwt.key", kFileSecret + "\n");
+  const fs::path secret = write_secret(dir, kFileSecret + "\n");
   const fs::path empty = dir.write("empty.key", "\n");
   const std::string s = secret.string();
   struct Case {
@@ -198,7 +220,7 @@ TEST_CASE("the built rcanctl issues a token the Authenticator accepts") {
     return;
   }
   const TempDir dir{"rcand-auth-test"};
-  const fs::path secret = dir.write("jwt.key", kFileSecret + "\n");
+  const fs::path secret = write_secret(dir, kFileSecret + "\n");
   const std::string command = std::string("'") + RCANCTL_PATH + "' token issue --secret-file '" + secret.string() +
                               "' --role owner --aud " + auth_test::kRobotRuri + " --fleet " + auth_test::kDeviceId;
   FILE* pipe = popen(command.c_str(), "r");

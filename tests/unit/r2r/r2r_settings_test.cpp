@@ -77,6 +77,16 @@ TEST_CASE("runtime.r2r: defaults, and every key read with files relative to the 
   CHECK(s.outbound_token == "fleet-token");
   REQUIRE(s.private_key);
   CHECK(s.private_key->public_base64() == own.public_base64());
+  // Both secrets were written readable by others (mode 644): used, each named in a warning with its chmod.
+  std::filesystem::permissions(dir.path() / "own.pem", std::filesystem::perms(0644));
+  std::filesystem::permissions(dir.path() / "r2r.token", std::filesystem::perms(0644));
+  const auto exposed = load_r2r_settings(block, dir.path()).warnings;
+  REQUIRE(exposed.size() == 2);
+  CHECK(exposed[0].find("runtime.r2r.token_file: other users may read") == 0);
+  CHECK(exposed[1].find("runtime.r2r.private_key_file: other users may read") == 0);
+  std::filesystem::permissions(dir.path() / "own.pem", std::filesystem::perms(0600));
+  std::filesystem::permissions(dir.path() / "r2r.token", std::filesystem::perms(0600));
+  CHECK(load_r2r_settings(block, dir.path()).warnings.empty());
   REQUIRE(s.auth.peers.size() == 2);
   CHECK(s.auth.peers[0].name == "bob");
   CHECK(s.auth.peers[0].role == rcand::sdk::Role::Owner);
