@@ -32,7 +32,7 @@ class R2rModule final : public Service {
          [api = &host.api](const Principal& principal, nlohmann::json body, std::function<void(int, nlohmann::json)> done) {
            api->execute_action(principal, std::move(body), std::move(done));
          },
-         host.status_document, host.estop, host.clock, host.swarm_at_start, host.registry.identity().ruri, host.registry.names(),
+         host.status_document, host.estop, host.clock, host.swarm_now, host.registry.identity().ruri, host.registry.names(),
          fleet_lookup(host)});
     if (!service_) return;
     bridge_.attach(service_->node());

@@ -147,7 +147,7 @@ std::unique_ptr<R2rService> R2rService::from_config(R2rServiceDeps deps) {
   const bool ws_dial = r2r_block.contains("ws_dial") ? r2r_block["ws_dial"] == true : !has_mqtt;
   r2r::WebSocketOptions ws_options;
   ws_options.self_name = cfg.robot_name;
-  if (ws_dial) ws_options.dial_peers = s.deps.swarm.nodes;
+  if (ws_dial) ws_options.dial_peers = s.deps.swarm;
   ws_options.log = s.log;
   r2r::apply_websocket_config(r2r_block, ws_options);  // slot caps, reserved slots, send queue (issue 13 #12, #15)
   s.ws = std::make_unique<r2r::WebSocketTransport>(ws_options, s.deps.authenticator);
@@ -189,8 +189,9 @@ std::unique_ptr<R2rService> R2rService::from_config(R2rServiceDeps deps) {
                               r2r::CommandDone done) { execute(principal, std::move(body), std::move(done)); },
       .transports = {s.ws.get()},
       .fleet_member =
-          [swarm = &s.deps.swarm](const std::string& id) {
-            return std::any_of(swarm->nodes.begin(), swarm->nodes.end(), [&](const auto& node) { return node.name == id; });
+          [swarm = s.deps.swarm](const std::string& id) {
+            const swarm::SwarmRegistry* registry = swarm();
+            return registry != nullptr && registry->find(id) != nullptr;
           },
       .log = s.log,
   };

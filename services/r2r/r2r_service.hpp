@@ -33,7 +33,7 @@ struct R2rServiceDeps {
   std::function<nlohmann::json()> status_document;  // GET /api/status as a document
   const Estop& estop;
   const sdk::Clock& clock;
-  const swarm::SwarmRegistry& swarm;
+  std::function<const swarm::SwarmRegistry*()> swarm;  // swarm.yaml as now (a SIGHUP reload swaps it)
   std::string ruri;
   std::vector<std::string> capabilities;
   // The fleet plugin's auctions (sdk::find<sdk::FleetAuctions> over the plugins' services), looked up at each use:

@@ -4,6 +4,7 @@
 // verifies; a tampered copy does not), its answer comes back through the relay, a marked message is never relayed
 // again, and only a target no transport knows is 101.
 #include <doctest/doctest.h>
+#include <signal.h>
 
 #include <chrono>
 #include <mutex>
@@ -114,6 +115,28 @@ TEST_CASE("r2r relay (ws): to a swarm.yaml robot and to a robot heard from; answ
   // Relayed: two commands, the third to bravo and bravo's answer to it; neither of the refused ones.
   CHECK(alpha.json("GET", "/api/r2r/peers", "guest-token")["counters"]["relayed"] == 4);
   CHECK(drive_status(charlie)["moving"] == false);
+}
+
+TEST_CASE("r2r relay (ws): a robot that a SIGHUP reload adds to swarm.yaml is dialed and relayed to") {
+  TempDir dir;
+  const auto token = dir.write("r2r.token", "owner-token\n");
+  RcandProcess bravo(r2r_robot_config("bravo", token));
+  const auto swarm_file = dir.path() / "swarm.yaml";  // none yet: alpha starts knowing no robot
+  RcandProcess alpha(r2r_robot_config("alpha", token, 0, 0, swarm_file));
+  WsClient client;
+  REQUIRE(client.connect(alpha.port(), "user-token") == 101);
+  client.send(relay_command("client", "bravo"));
+  REQUIRE(read_until(client, error_with(101)));
+
+  dir.write("swarm.yaml", swarm_yaml({{"bravo", "127.0.0.1", bravo.port()}}));
+  REQUIRE(::kill(alpha.pid(), SIGHUP) == 0);
+  REQUIRE(poll_until<bool>([&]() -> std::optional<bool> {
+    if (alpha.stderr_text().find("config reload from") != std::string::npos) return true;
+    return std::nullopt;
+  }));
+  client.send(relay_command("client", "bravo"));  // now a robot of the fleet: dialed with the new file's token
+  CHECK(poll_until<bool>([&] { return relay_moving(bravo); }));
+  CHECK(alpha.json("GET", "/api/r2r/peers", "guest-token")["counters"]["relayed"] == 1);
 }
 
 TEST_CASE("r2r relay (ws): a signed message verifies at the target as its sender; a tampered relayed copy is refused") {

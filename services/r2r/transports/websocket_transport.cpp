@@ -86,11 +86,10 @@ struct WebSocketTransport::Hub : std::enable_shared_from_this<Hub> {
   }
   void closed(const std::shared_ptr<Connection>& connection, bool dial_failed, bool oversize);
   std::shared_ptr<Connection> dial_locked(const swarm::SwarmNode& node);
+  const swarm::SwarmRegistry* dial_registry() const { return options.dial_peers ? options.dial_peers() : nullptr; }
   const swarm::SwarmNode* dial_peer(const std::string& name) const {
-    if (name == options.self_name) return nullptr;
-    for (const auto& node : options.dial_peers)
-      if (node.name == name) return &node;
-    return nullptr;
+    const swarm::SwarmRegistry* registry = dial_registry();
+    return registry == nullptr || name == options.self_name ? nullptr : registry->find(name);
   }
   bool in_backoff_locked(const std::string& name) const {
     const auto it = dial_failed_at.find(name);
@@ -614,7 +613,7 @@ void WebSocketTransport::start(Deliver deliver) {
   std::lock_guard lock(hub.mutex);
   if (hub.started) return;
   hub.started = true;
-  if (!hub.options.dial_peers.empty()) hub.dialer = std::make_unique<WorkerThread>("r2r.ws.dial", nullptr);
+  if (hub.options.dial_peers) hub.dialer = std::make_unique<WorkerThread>("r2r.ws.dial", nullptr);
 }
 
 bool WebSocketTransport::send(const std::string& bytes, const std::optional<std::string>& target_id) {
@@ -647,10 +646,11 @@ bool WebSocketTransport::send_own(const std::string& with_token, const std::stri
         }
         recipients.push_back(connection);
       }
-      for (const auto& node : hub.options.dial_peers) {
-        if (node.name == hub.options.self_name || hub.by_name.contains(node.name) || hub.in_backoff_locked(node.name)) continue;
-        if (auto dialed = hub.dial_locked(node)) recipients.push_back(std::move(dialed));
-      }
+      if (const swarm::SwarmRegistry* registry = hub.dial_registry())
+        for (const auto& node : registry->nodes) {
+          if (node.name == hub.options.self_name || hub.by_name.contains(node.name) || hub.in_backoff_locked(node.name)) continue;
+          if (auto dialed = hub.dial_locked(node)) recipients.push_back(std::move(dialed));
+        }
     }
   }
   for (const auto& connection : recipients) connection->send(connection->trusted_with_secrets() ? with_token : open);

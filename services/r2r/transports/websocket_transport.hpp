@@ -1,13 +1,14 @@
 // R2R over WebSocket (docs/protocol.md §11): `WS /ws/r2r` on the robot's own HTTP port, authenticated like HTTP (a bearer token
 // or JWT on the upgrade request, or ?token=; 401 without), one R2R message per text frame. Peers that connect are
 // addressable by the source_id they announce in their messages; peers listed in swarm.yaml are dialed (with the
-// node's token from swarm.yaml) when a message must reach them and they are not connected. Inbound and dialed
-// connections are the same kind of object: a read loop, a write queue (one async_write at a time), keep-alive pings
-// and an idle timeout; a frame over 64 KiB closes the connection with 1009 (Beast's read_message_max).
+// node's token from swarm.yaml; wss for a node with `ca`) when a message must reach them and they are not connected. Inbound and
+// dialed connections are the same kind of object: a read loop, a write queue (one async_write at a time), keep-alive pings and an
+// idle timeout; a frame over 64 KiB closes the connection with 1009 (Beast's read_message_max).
 #pragma once
 
 #include <chrono>
 #include <cstddef>
+#include <functional>
 #include <memory>
 #include <optional>
 #include <string>
@@ -27,7 +28,9 @@ inline constexpr std::string_view kWebSocketPath = "/ws/r2r";
 
 struct WebSocketOptions {
   std::string self_name;                     // never dialed, even when swarm.yaml lists it
-  std::vector<swarm::SwarmNode> dial_peers;  // empty: this robot never dials (MQTT carries what WS cannot)
+  // The swarm.yaml robots this one dials when a message must reach them, as the registry is now (a SIGHUP reload swaps
+  // it; a registry stays alive while rcand serves). Unset: this robot never dials (MQTT carries what WS cannot).
+  std::function<const swarm::SwarmRegistry*()> dial_peers;
   std::size_t max_message_bytes = 64 * 1024;
   std::chrono::milliseconds idle_timeout{30'000};      // no frame (pongs count) this long: closed; pings at half
   std::chrono::milliseconds handshake_timeout{5'000};  // dial: connect + upgrade

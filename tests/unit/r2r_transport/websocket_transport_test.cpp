@@ -52,6 +52,7 @@ AuthSettings test_auth() {
 // A robot's HTTP side: the server with the WS upgrade hook; plain requests get 404.
 struct Robot {
   Authenticator auth{test_auth()};
+  swarm::SwarmRegistry peers;  // what this robot dials
   std::unique_ptr<r2r::WebSocketTransport> transport;
   std::unique_ptr<http::Server> server;
   std::uint16_t port = 0;
@@ -61,7 +62,8 @@ struct Robot {
                  const std::function<void(r2r::WebSocketOptions&)>& adjust = {}, std::optional<http::TlsSettings> tls = {}) {
     r2r::WebSocketOptions options;
     options.self_name = std::move(name);
-    options.dial_peers = std::move(dial);
+    peers.nodes = std::move(dial);
+    if (!peers.nodes.empty()) options.dial_peers = [this] { return &peers; };
     if (adjust) adjust(options);
     transport = std::make_unique<r2r::WebSocketTransport>(options, auth);
     http::ServerOptions server_options;
