@@ -9,8 +9,16 @@ namespace rcand::plugins::arm {
 SimArm::SimArm(const sdk::Clock& clock, std::vector<JointLimit> joints, sdk::PluginContext* publish_to)
     : clock_(clock),
       limits_(std::move(joints)),
-      publish_to_(publish_to),
-      status_worker_(publish_to != nullptr ? &publish_to->worker("status") : nullptr) {
+      publisher_(
+          publish_to, kPublishPeriod,
+          [this] {
+            std::lock_guard lock(mutex_);
+            return sdk::StatusPublisher::Snapshot{status_locked(), changes_, moving_locked(clock_.now_us())};
+          },
+          [this] {
+            std::lock_guard lock(mutex_);
+            return changes_;
+          }) {
   if (limits_.empty()) throw sdk::ConfigError("sim_arm: no joints (give joints[] or physics.kinematics joints)");
   const std::int64_t now = clock_.now_us();
   for (const auto& j : limits_) motion_.push_back({j.home_deg, j.home_deg, 0.0, now});
@@ -57,7 +65,7 @@ void SimArm::set_joint_targets(const std::vector<sdk::JointTarget>& targets) {
     ++commands_;
     record("command", now);
   }
-  start_publishing();
+  publisher_.changed();
 }
 
 void SimArm::halt() noexcept {
@@ -125,45 +133,6 @@ nlohmann::json SimArm::status_locked() const {
           {"commands", commands_},
           {"halts", halts_},
           {"timeline", std::move(events)}};
-}
-
-void SimArm::start_publishing() noexcept {
-  if (status_worker_ == nullptr || publishing_.exchange(true)) return;
-  try {
-    status_worker_->post([this] { publish_tick(); });
-  } catch (...) {  // no memory for the task: the kernel asks status() itself within a second or two
-    publishing_ = false;
-  }
-}
-
-// Publishes, then again every kPublishPeriod while a joint moves or something changed since, ending with the arm at rest.
-void SimArm::publish_tick() noexcept {
-  nlohmann::json now;
-  std::uint64_t published = 0;
-  bool moving = false;
-  try {
-    std::lock_guard lock(mutex_);
-    now = status_locked();
-    published = changes_;
-    moving = moving_locked(clock_.now_us());
-  } catch (...) {
-    publishing_ = false;
-    return;
-  }
-  publish_to_->publish_status(now);
-  auto more = [this, published, moving] {
-    std::lock_guard lock(mutex_);
-    return moving || changes_ != published;
-  };
-  if (more()) {
-    try {
-      status_worker_->schedule(kPublishPeriod, [this] { publish_tick(); });
-      return;
-    } catch (...) {
-    }
-  }
-  publishing_ = false;
-  if (more()) start_publishing();  // a command landed between more() and the store above
 }
 
 std::vector<SimArm::Event> SimArm::timeline() const {

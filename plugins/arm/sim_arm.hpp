@@ -5,8 +5,8 @@
 
 #include <rcand/sdk/arm.hpp>
 #include <rcand/sdk/plugin.hpp>
+#include <rcand/sdk/status_publisher.hpp>
 
-#include <atomic>
 #include <chrono>
 #include <cstdint>
 #include <deque>
@@ -58,8 +58,6 @@ class SimArm final : public sdk::ActuatorDriver, public sdk::JointArm {
   void record(const char* cause, std::int64_t now_us);
   nlohmann::json status_locked() const;
   bool moving_locked(std::int64_t now_us) const noexcept;
-  void start_publishing() noexcept;
-  void publish_tick() noexcept;
 
   const sdk::Clock& clock_;
   const std::vector<JointLimit> limits_;
@@ -70,9 +68,7 @@ class SimArm final : public sdk::ActuatorDriver, public sdk::JointArm {
   std::uint64_t halts_ = 0;
   std::uint64_t changes_ = 0;
 
-  sdk::PluginContext* const publish_to_;
-  sdk::Worker* const status_worker_;
-  std::atomic<bool> publishing_{false};
+  sdk::StatusPublisher publisher_;  // last: its tasks read the state above
 };
 
 }  // namespace rcand::plugins::arm

@@ -55,8 +55,16 @@ SimDrive::SimDrive(const sdk::Clock& clock, SimDriveSettings settings, sdk::Plug
       settings_(settings),
       pose_us_(clock.now_us()),
       zero_since_us_(pose_us_),
-      publish_to_(publish_to),
-      status_worker_(publish_to != nullptr ? &publish_to->worker("status") : nullptr) {}
+      publisher_(
+          publish_to, kPublishPeriod,
+          [this] {
+            std::lock_guard lock(mutex_);
+            return sdk::StatusPublisher::Snapshot{status_locked(), changes_, left_ != 0.0 || right_ != 0.0};
+          },
+          [this] {
+            std::lock_guard lock(mutex_);
+            return changes_;
+          }) {}
 
 void SimDrive::set_wheel_speeds(double left, double right) {
   {
@@ -68,46 +76,7 @@ void SimDrive::set_wheel_speeds(double left, double right) {
     ++commands_;
     apply(clamp_unit(left), clamp_unit(right), "command");
   }
-  start_publishing();
-}
-
-void SimDrive::start_publishing() noexcept {
-  if (status_worker_ == nullptr || publishing_.exchange(true)) return;
-  try {
-    status_worker_->post([this] { publish_tick(); });
-  } catch (...) {  // no memory for the task: the kernel asks status() itself within a second or two
-    publishing_ = false;
-  }
-}
-
-void SimDrive::publish_tick() noexcept {
-  nlohmann::json now;
-  std::uint64_t published = 0;
-  bool moving = false;
-  try {
-    std::lock_guard lock(mutex_);
-    now = status_locked();
-    published = changes_;
-    moving = left_ != 0.0 || right_ != 0.0;
-  } catch (...) {
-    publishing_ = false;
-    return;
-  }
-  publish_to_->publish_status(now);
-  auto more = [this, published, moving] {
-    std::lock_guard lock(mutex_);
-    return moving || changes_ != published;
-  };
-  if (more()) {
-    try {
-      status_worker_->schedule(kPublishPeriod, [this] { publish_tick(); });
-      return;
-    } catch (...) {
-    }
-  }
-  publishing_ = false;
-  // A command between more() and the store above found publishing_ still set and left it to this tick.
-  if (more()) start_publishing();
+  publisher_.changed();
 }
 
 void SimDrive::halt() noexcept {

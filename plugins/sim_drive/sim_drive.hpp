@@ -3,8 +3,8 @@
 #pragma once
 
 #include <rcand/sdk/plugin.hpp>
+#include <rcand/sdk/status_publisher.hpp>
 
-#include <atomic>
 #include <chrono>
 #include <cstddef>
 #include <cstdint>
@@ -75,10 +75,6 @@ class SimDrive final : public sdk::DifferentialDrive {
   void apply(double left, double right, const char* cause);
   // Requires mutex_.
   nlohmann::json status_locked() const;
-  // Any thread: starts the publishing on the status worker unless it runs already.
-  void start_publishing() noexcept;
-  // The status worker: publishes, then schedules itself again while there is more to publish.
-  void publish_tick() noexcept;
 
   const sdk::Clock& clock_;
   const SimDriveSettings settings_;
@@ -94,9 +90,7 @@ class SimDrive final : public sdk::DifferentialDrive {
   std::deque<Event> timeline_;
   std::uint64_t changes_ = 0;  // bumped by every apply(), so the publisher sees what it has not published yet
 
-  sdk::PluginContext* const publish_to_;
-  sdk::Worker* const status_worker_;     // publish_to_'s "status" worker; null without one
-  std::atomic<bool> publishing_{false};  // a publish_tick is queued or scheduled
+  sdk::StatusPublisher publisher_;  // last: its tasks read the state above
 };
 
 }  // namespace rcand::plugins::sim_drive
