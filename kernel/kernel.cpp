@@ -148,6 +148,13 @@ void Kernel::State::load_plugins(const KernelOptions& options) {
   auto log = logger("kernel");
   auto plugin_paths = options.plugin_paths.value_or(config.runtime.plugin_paths);
   host.scan(plugin_paths.empty() ? default_plugin_paths() : plugin_paths);
+  // A name other runtimes write is rcand's alias only while no installed plugin provides that name itself.
+  for (auto& driver : config.drivers)
+    if (!driver.written_protocol.empty() && !host.providers_of_driver(driver.written_protocol).empty()) {
+      log->info("driver {}: protocol '{}' is served by plugin {}, which provides it (not read as '{}')", driver.id,
+                driver.written_protocol, host.providers_of_driver(driver.written_protocol).front()->id, driver.protocol);
+      driver.settings["protocol"] = driver.protocol = driver.written_protocol;
+    }
   ProviderLookup lookup;
   lookup.driver_interface = [this](std::string_view protocol) -> std::optional<std::string> {
     for (const auto* plugin : host.providers_of_driver(protocol))

@@ -58,7 +58,9 @@ void name_drivers(RobotConfig& c, std::vector<ConfigDiagnostic>& warnings) {
     if (const auto alias = protocol_alias(driver.protocol)) {
       add_warning(c, warnings, path + ".protocol",
                   in_quotes(driver.protocol) + " is read as rcand's protocol " + in_quotes(alias->protocol) + " (" +
-                      std::string(alias->hardware) + "); write " + in_quotes(alias->protocol) + " to say so");
+                      std::string(alias->hardware) + "); write " + in_quotes(alias->protocol) +
+                      " to say so (a plugin that provides " + in_quotes(driver.protocol) + " itself serves it instead)");
+      driver.written_protocol = driver.protocol;
       driver.protocol = std::string(alias->protocol);
       driver.settings["protocol"] = driver.protocol;
     }

@@ -72,6 +72,9 @@ struct DriverEntry {
   std::string id;
   std::string protocol;
   nlohmann::json settings;  // the whole entry, as written (validated later against the plugin's manifest)
+  // The name the file gave when rcand read it as an alias (libs/config/driver_protocols.hpp): a plugin that provides
+  // that name itself serves the driver instead (rcand picks it when it scans the plugins).
+  std::string written_protocol = {};
 };
 
 struct RobotConfig {

@@ -173,6 +173,22 @@ TEST_CASE("--check-config fails on a driver or capability the installed plugins 
   CHECK(no_drive.err.find("capability teleop requires a differential_drive actuator") != std::string::npos);
 }
 
+TEST_CASE("a protocol other runtimes write is rcand's alias only while no installed plugin provides that name") {
+  TempDir dir;
+  const auto file = dir.write("robot.rcan.yaml", replace(kValid, "protocol: sim_diff_drive", "protocol: l298n"));
+  // rcand's own plugins only: read as gpio, so the gpio plugin's settings apply (and its pins are missing).
+  const auto aliased = run_tool(rcand_binary(), {"--check-config", file.string(), "--plugin-path", plugin_dir().string()});
+  CHECK(aliased.err.find("\"l298n\" is read as rcand's protocol \"gpio\"") != std::string::npos);
+  CHECK(aliased.err.find("served by plugin") == std::string::npos);
+  // A vendor plugin that provides "l298n" serves the driver as written.
+  const auto vendor = run_tool(rcand_binary(), {"--check-config", file.string(), "--plugin-path", plugin_dir().string(),
+                                                "--plugin-path", (test_plugin_dir() / "vendor_l298n").string()});
+  INFO(vendor.out, vendor.err);
+  CHECK(vendor.exit_code == 0);
+  CHECK(vendor.err.find("driver drive0: protocol 'l298n' is served by plugin com.acme.l298n, which provides it") !=
+        std::string::npos);
+}
+
 TEST_CASE("§9.3 from real driver blocks: a dynamixel with kinematics declares arm, a drive declares nav and teleop") {
   std::string yaml = replace(kValid, "rcan_protocol:\n  capabilities: [status, teleop]\n", "");
   yaml = replace(yaml, "  turn_time_per_deg_s: 0.008\n",

@@ -1,4 +1,9 @@
-// An actuating differential_drive driver (protocol org.rcand.test.fake_drive) that records the last command.
+// An actuating differential_drive driver (protocol org.rcand.test.fake_drive) that records the last command. Built a
+// second time as a vendor's plugin for a protocol rcand reads as an alias (vendor_l298n/: com.acme.l298n, "l298n").
+#ifndef RCAND_TEST_DRIVER_ID
+#define RCAND_TEST_DRIVER_ID "org.rcand.test.driver"
+#define RCAND_TEST_DRIVER_PROTOCOL "org.rcand.test.fake_drive"
+#endif
 #include <atomic>
 #include <mutex>
 
@@ -29,10 +34,10 @@ class FakeDrive final : public rcand::sdk::DifferentialDrive {
 };
 
 void register_driver(rcand::sdk::Registrar& registrar) {
-  registrar.add_driver({"org.rcand.test.fake_drive", true, std::string(rcand::sdk::DifferentialDrive::kInterface)},
+  registrar.add_driver({RCAND_TEST_DRIVER_PROTOCOL, true, std::string(rcand::sdk::DifferentialDrive::kInterface)},
                        [](rcand::sdk::PluginContext&) { return std::make_unique<FakeDrive>(); });
 }
 
 }  // namespace
 
-RCAND_PLUGIN("org.rcand.test.driver", "1.0.0", register_driver)
+RCAND_PLUGIN(RCAND_TEST_DRIVER_ID, "1.0.0", register_driver)

@@ -102,7 +102,9 @@ TEST_CASE("other runtimes' protocol names for the same hardware are read as rcan
   REQUIRE(loaded.warnings.size() == 3);
   CHECK(loaded.warnings[0].format() ==
         "test.rcan.yaml:8:18: warning: drivers[0].protocol: \"L298N\" is read as rcand's protocol \"gpio\" (GPIO "
-        "H-bridges (L298N)); write \"gpio\" to say so");
+        "H-bridges (L298N)); write \"gpio\" to say so (a plugin that provides \"L298N\" itself serves it instead)");
+  CHECK(loaded.config.drivers[0].written_protocol == "L298N");
+  CHECK(loaded.config.drivers[1].written_protocol == "mock");
   // Names rcand knows for hardware it has no plugin for stay as written: --check-config says what would serve them.
   auto other = minimal_lines();
   other.insert(other.end(), {"drivers:", "  - {id: car, protocol: pca9685_rc}"});
