@@ -1,12 +1,19 @@
 #include "doctor_command.hpp"
 
+#include <fcntl.h>
 #include <pwd.h>
+#include <spawn.h>
 #include <sys/timex.h>
+#include <sys/wait.h>
 #include <unistd.h>
 
+#include <cerrno>
+#include <cstring>
 #include <filesystem>
 #include <iostream>
 #include <optional>
+#include <sstream>
+#include <utility>
 #include <vector>
 
 #include "exit_codes.hpp"
@@ -30,25 +37,53 @@ struct CheckArgs {
   std::string rcand, config, user, plugin_path;
 };
 
-// `rcand --check-config`, run as a child (its verdict is the daemon's own); the first error line, or nullopt when OK.
-// The words are single-quoted for the shell; run_doctor refuses any that hold a quote.
-std::optional<std::string> check_config(const CheckArgs& a) {
-  std::string command = "'" + a.rcand + "' --check-config '" + a.config + "'";
-  if (!a.user.empty()) command += " --as-user '" + a.user + "'";
-  if (!a.plugin_path.empty()) command += " --plugin-path '" + a.plugin_path + "'";
-  FILE* pipe = ::popen((command + " 2>&1").c_str(), "r");
-  if (pipe == nullptr) return "cannot run " + a.rcand;
-  std::string output, first_error;
-  char line[1024];
-  while (std::fgets(line, sizeof line, pipe) != nullptr) {
-    output = line;
-    if (first_error.empty() && (output.find("error") != std::string::npos || output.find("--as-user") != std::string::npos))
-      first_error = output;
+// Runs `argv` (no shell: any path works as given) with stdout and stderr on one pipe: its wait status and output,
+// or nullopt (errno set) when it could not be started.
+std::optional<std::pair<int, std::string>> run_captured(const std::vector<std::string>& argv) {
+  int fds[2];
+  if (::pipe2(fds, O_CLOEXEC) != 0) return std::nullopt;
+  posix_spawn_file_actions_t actions;
+  posix_spawn_file_actions_init(&actions);
+  posix_spawn_file_actions_adddup2(&actions, fds[1], STDOUT_FILENO);  // the copies lose O_CLOEXEC
+  posix_spawn_file_actions_adddup2(&actions, fds[1], STDERR_FILENO);
+  std::vector<char*> args;
+  for (const auto& arg : argv) args.push_back(const_cast<char*>(arg.c_str()));
+  args.push_back(nullptr);
+  pid_t pid = 0;
+  const int spawned = ::posix_spawn(&pid, args[0], &actions, nullptr, args.data(), environ);
+  posix_spawn_file_actions_destroy(&actions);
+  ::close(fds[1]);
+  std::string output;
+  if (spawned == 0) {
+    char chunk[4096];
+    for (ssize_t n; (n = ::read(fds[0], chunk, sizeof chunk)) != 0;) {
+      if (n > 0) output.append(chunk, static_cast<std::size_t>(n));
+      else if (errno != EINTR) break;
+    }
   }
-  const int status = ::pclose(pipe);
-  if (status == 0) return std::nullopt;
-  if (!first_error.empty() && first_error.back() == '\n') first_error.pop_back();
-  return first_error.empty() ? "rcand --check-config failed" : first_error;
+  ::close(fds[0]);
+  if (spawned != 0) {
+    errno = spawned;  // posix_spawn returns the error instead of setting errno
+    return std::nullopt;
+  }
+  int status = 0;
+  while (::waitpid(pid, &status, 0) < 0 && errno == EINTR) {
+  }
+  return std::pair{status, std::move(output)};
+}
+
+// `rcand --check-config`, run as a child (its verdict is the daemon's own); the first error line, or nullopt when OK.
+std::optional<std::string> check_config(const CheckArgs& a) {
+  std::vector<std::string> argv{a.rcand, "--check-config", a.config};
+  if (!a.user.empty()) argv.insert(argv.end(), {"--as-user", a.user});
+  if (!a.plugin_path.empty()) argv.insert(argv.end(), {"--plugin-path", a.plugin_path});
+  const auto run = run_captured(argv);
+  if (!run) return "cannot run " + a.rcand + ": " + std::strerror(errno);
+  if (run->first == 0) return std::nullopt;
+  std::istringstream lines(run->second);
+  for (std::string line; std::getline(lines, line);)
+    if (line.find("error") != std::string::npos || line.find("--as-user") != std::string::npos) return line;
+  return "rcand --check-config failed";
 }
 
 Finding config_finding(const CheckArgs& a) {
@@ -130,8 +165,7 @@ int run_doctor(std::span<const std::string> args) {
     if (option == "--plugin-path") return next(check.plugin_path);
     return false;
   };
-  if (!parse_robot_options(args, "rcanctl doctor", extra, options, std::cerr) ||
-      (check.config + check.rcand + check.user + check.plugin_path).find('\'') != std::string::npos) {
+  if (!parse_robot_options(args, "rcanctl doctor", extra, options, std::cerr)) {
     std::cerr << usage;
     return kExitUsage;
   }

@@ -171,4 +171,14 @@ TEST_CASE("rcanctl doctor names what is wrong and the command that fixes it") {
   CHECK(findings["config"]["ok"] == false);
   CHECK(findings["config"]["detail"].get<std::string>().find("did you mean 'rcan_protocol'") != std::string::npos);
   CHECK(findings["config"]["fix"].get<std::string>().find("--check-config") != std::string::npos);
+
+  // rcand is run without a shell: a path with a quote and a space is checked as it is.
+  std::ifstream good(config);
+  const auto quoted = rcand.dir().write("it's a robot.rcan.yaml", std::string((std::istreambuf_iterator<char>(good)), {}));
+  findings = doctor(quoted.string());
+  CHECK(findings["config"]["ok"] == true);
+  const auto missing = run_tool(rcanctl_binary(), {"doctor", "--config", quoted.string(), "--rcand", "/nonexistent/rcand",
+                                                   "--port", port, "--token", "owner-token", "--json"});
+  CHECK(missing.exit_code == 1);
+  CHECK(missing.out.find("cannot run /nonexistent/rcand: No such file or directory") != std::string::npos);
 }
