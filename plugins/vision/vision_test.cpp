@@ -23,6 +23,7 @@
 #include <fstream>
 #include <thread>
 
+#include "eventually.hpp"
 #include "temp_dir.hpp"
 #include "vision.hpp"
 
@@ -205,16 +206,8 @@ void write_avi(const std::filesystem::path& file, int frames) {
 
 json scripted_camera() { return {{"type", "synthetic"}}; }  // replaced by the scripted source
 
-// For what only time brings (a reading going stale, the depth thread's first frame, a
-// camera's fault): polls every millisecond, bounded.
-template <class Pred> bool eventually(Pred done, std::chrono::milliseconds limit) {
-  const auto deadline = std::chrono::steady_clock::now() + limit;
-  while (!done()) {
-    if (std::chrono::steady_clock::now() > deadline) return false;
-    std::this_thread::sleep_for(1ms);
-  }
-  return true;
-}
+// For what only time brings (a reading going stale, the depth thread's first frame, a camera's fault).
+using rcand::test::eventually;
 
 }  // namespace
 

@@ -13,6 +13,7 @@
 #include <thread>
 #include <vector>
 
+#include "eventually.hpp"
 #include "rcand_process.hpp"
 
 namespace rcand::test::drill {
@@ -85,14 +86,6 @@ inline void set_open_files_soft(rlim_t soft) {
   setrlimit(RLIMIT_NOFILE, &limit);
 }
 
-// Polls `condition` until it holds or `deadline` passes (generous deadlines: this waits on an event, it does not time it).
-template <class Condition> bool eventually(Condition condition, std::chrono::milliseconds deadline = std::chrono::seconds(20)) {
-  const auto until = std::chrono::steady_clock::now() + deadline;
-  while (!condition()) {
-    if (std::chrono::steady_clock::now() > until) return false;
-    std::this_thread::sleep_for(std::chrono::milliseconds(20));
-  }
-  return true;
-}
+using rcand::test::eventually;
 
 }  // namespace rcand::test::drill

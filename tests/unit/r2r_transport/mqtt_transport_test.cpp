@@ -6,6 +6,7 @@
 #include <fstream>
 #include <thread>
 
+#include "eventually.hpp"
 #include "inbox.hpp"
 #include "mosquitto_broker.hpp"
 #include "services/r2r/transports/mqtt_transport.hpp"
@@ -28,15 +29,7 @@ MqttOptions options_for(const std::string& name, std::uint16_t port) {
   return options;
 }
 
-template <class Condition>
-bool eventually(Condition condition, std::chrono::milliseconds timeout = 10s) {
-  const auto deadline = std::chrono::steady_clock::now() + timeout;
-  while (!condition()) {
-    if (std::chrono::steady_clock::now() > deadline) return false;
-    std::this_thread::sleep_for(5ms);  // polling the client's connected flag: libmosquitto gives us no event here
-  }
-  return true;
-}
+using rcand::test::eventually;  // libmosquitto gives no event for the connected flag
 
 }  // namespace
 

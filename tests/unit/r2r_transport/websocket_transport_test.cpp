@@ -15,6 +15,7 @@
 #include <string>
 #include <thread>
 
+#include "eventually.hpp"
 #include "inbox.hpp"
 #include "libs/http/server.hpp"
 #include "libs/rcan/crypto.hpp"
@@ -83,15 +84,7 @@ struct Robot {
 
 using Client = rcand::test::WsClient;
 
-// Waits for a counter that has no event of its own (a dial's failure), polling.
-template <class Read> bool eventually(Read read, std::chrono::milliseconds timeout = 5s) {
-  const auto deadline = std::chrono::steady_clock::now() + timeout;
-  while (!read()) {
-    if (std::chrono::steady_clock::now() >= deadline) return false;
-    std::this_thread::sleep_for(5ms);
-  }
-  return true;
-}
+using rcand::test::eventually;  // a dial's failure has no event of its own
 
 // robot-b serving wss only, with a certificate for 127.0.0.1 that the lab's CA signed.
 http::TlsSettings wss_only(const rcand::test::TlsLab& lab) {
