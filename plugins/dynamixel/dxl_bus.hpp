@@ -1,6 +1,6 @@
 // Protocol 2.0 transactions on a SerialLink: one instruction out, its status packet(s) back, with a reply timeout
 // of the wire time plus a margin (the USB adapter's latency timer lives in that margin). Not thread-safe: exactly
-// one thread (the serial worker) owns a DxlBus.
+// one thread (the bus worker, rcand/sdk/bus_worker.hpp) owns a DxlBus.
 #pragma once
 
 #include <chrono>
@@ -68,6 +68,10 @@ class DxlBus {
   SyncReadResult sync_read(std::uint16_t address, std::uint16_t length, const std::vector<std::uint8_t>& ids);
 
   SerialLink& link() noexcept { return *link_; }
+  // For the bus worker (rcand::sdk::InterruptibleBus): halt cuts a read waiting for a late reply short.
+  using Interrupted = dynamixel::Interrupted;
+  void interrupt() noexcept { link_->interrupt(); }
+  void clear_interrupt() noexcept { link_->clear_interrupt(); }
   std::size_t corrupt_packets() const noexcept { return decoder_.dropped(); }
 
  private:

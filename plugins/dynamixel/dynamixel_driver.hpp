@@ -10,6 +10,7 @@
 #pragma once
 
 #include <rcand/sdk/arm.hpp>
+#include <rcand/sdk/bus_worker.hpp>
 #include <rcand/sdk/plugin.hpp>
 
 #include <atomic>
@@ -23,10 +24,13 @@
 
 #include "dxl_bus.hpp"
 #include "models.hpp"
-#include "serial_worker.hpp"
 #include "settings.hpp"
 
 namespace rcand::plugins::dynamixel {
+
+// Owns the bus; halt interrupts a poll waiting for replies (DxlBus is an sdk::InterruptibleBus).
+using SerialWorker = sdk::BusWorker<DxlBus>;
+static_assert(sdk::InterruptibleBus<DxlBus>);
 
 class DynamixelDriver final : public sdk::DifferentialDrive, public sdk::JointArm {
  public:

@@ -7,6 +7,7 @@
 // (a GPIO wired to the board's OE input, pulled high on the board) is what turns them off without rcand: configure it.
 #pragma once
 
+#include <rcand/sdk/bus_worker.hpp>
 #include <rcand/sdk/plugin.hpp>
 
 #include <atomic>
@@ -17,13 +18,14 @@
 #include <optional>
 #include <string>
 
-#include "bus_worker.hpp"
 #include "i2c_bus.hpp"
 #include "motor_channels.hpp"
 #include "output_pin.hpp"
 #include "pca9685_registers.hpp"
 
 namespace rcand::plugins::pca9685 {
+
+using BusWorker = sdk::BusWorker<I2cBus>;
 
 struct Pca9685Settings {
   std::string bus_path = "/dev/i2c-1";
