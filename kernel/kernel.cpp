@@ -227,7 +227,7 @@ void Kernel::State::start_plugins() {
   runtime->start_drivers(config);
   std::vector<DeadlineCrew::Job> halts;
   for (const auto& slot : actuators.slots())
-    if (slot.driver != nullptr) halts.push_back({slot.id, [driver = slot.driver] { driver->halt(); }});
+    halts.push_back({slot.id, [slot = &slot] { halt_slot(*slot); }});  // whichever driver object serves it then
   halt_crew = std::make_unique<DeadlineCrew>(
       "estop.halt", std::move(halts), [priority = config.runtime.stop_path_priority] { enter_stop_path_priority(priority); });
   estop.use_halt_crew(halt_crew.get());

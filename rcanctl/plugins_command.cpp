@@ -48,12 +48,15 @@ int run_plugins_reload(std::span<const std::string> args) {
   const RobotAnswer answer = call_robot(options, "POST", "/api/plugins/" + id + "/reload");
   const auto table = [&] {
     const json& b = answer.body;
-    std::vector<std::vector<std::string>> rows{{"PLUGIN", "VERSION", "STATE", "CAPABILITY", "INSTANCE", "REASON"}};
-    for (const auto& instance : b.value("instances", json::array()))
-      rows.push_back({cell(b.value("plugin", json(id))), cell(b.value("version", json())), cell(b.value("state", json())),
-                      cell(instance.value("capability", json())), cell(instance.value("state", json())),
+    std::vector<std::vector<std::string>> rows{{"PLUGIN", "VERSION", "STATE", "KIND", "NAME", "INSTANCE", "REASON"}};
+    for (const auto& instance : b.value("instances", json::array())) {
+      const char* kind = instance.contains("driver") ? "driver" : "capability";
+      rows.push_back({cell(b.value("plugin", json(id))), cell(b.value("version", json())), cell(b.value("state", json())), kind,
+                      cell(instance.value(kind, json())), cell(instance.value("state", json())),
                       cell(instance.value("reason", json()))});
-    if (rows.size() == 1) rows.push_back({id, cell(b.value("version", json())), cell(b.value("state", json())), "-", "-", "-"});
+    }
+    if (rows.size() == 1)
+      rows.push_back({id, cell(b.value("version", json())), cell(b.value("state", json())), "-", "-", "-", "-"});
     print_text_table(rows, std::cout);
     if (b.value("estopped", false)) std::cout << "the e-stop is latched: clear it with `rcanctl estop clear`\n";
   };

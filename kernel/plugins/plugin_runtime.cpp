@@ -132,46 +132,62 @@ PluginRuntime::~PluginRuntime() {
 }
 
 void PluginRuntime::start_drivers(const RobotConfig& config) {
-  auto log = logger("kernel.plugins");
   for (std::size_t i = 0; i < config.drivers.size(); ++i) {
-    const auto& entry = config.drivers[i];
     auto& instance = drivers_.emplace_back();
-    instance.id = entry.id;
-    instance.protocol = entry.protocol;
-
-    auto [registered, plugin] =
-        find_loaded(host_, host_.providers_of_driver(entry.protocol), &PluginRecord::drivers, entry.protocol);
-    if (registered == nullptr) {
-      instance.health.mark_failed(plugin == nullptr ? "no installed plugin provides driver protocol '" + entry.protocol + "'"
-                                                    : "plugin " + plugin->id + " is " + std::string(to_string(plugin->state)) +
-                                                          ": " + plugin->reason);
-      log->error("driver {}: {}", entry.id, instance.health.reason());
-      continue;
-    }
-    instance.plugin_id = plugin->id;
-    instance.actuates = registered->info.actuates;
-    auto settings = validated_settings(config, *plugin, entry.settings, true, "drivers[" + std::to_string(i) + "]");
-    instance.context = std::make_unique<InstanceContext>(plugin->id, entry.id, services_, std::move(settings), instance.health);
-
-    instance.who = "plugin " + plugin->id + " driver " + entry.id;
-    bool abandoned = false;
-    instance.object = create_and_start(instance.who, registered->factory, *instance.context, instance.health,
-                                       std::chrono::milliseconds(config.runtime.plugin_start_timeout_ms), abandoned);
-    if (abandoned) keep_forever(instance.context);  // still in use by the plugin thread that never returned
-    if (!instance.object) continue;
-
-    if (instance.actuates) {
-      auto* actuator = dynamic_cast<sdk::ActuatorDriver*>(instance.object.get());
-      if (actuator == nullptr) {
-        instance.health.mark_failed("registered as actuating but is not an ActuatorDriver");
-        continue;
-      }
-      actuators_.add(entry.id, std::string(actuator->interface_name()), plugin->id, actuator, &instance.health);
-    }
-    if (!instance.health.failed()) offer_obstacle_source(*instance.context, instance.object.get());
-    log->info("driver {} ({}, {}) {}", entry.id, entry.protocol, plugin->id,
-              instance.health.failed() ? "failed: " + instance.health.reason() : "started");
+    instance.id = config.drivers[i].id;
+    instance.protocol = config.drivers[i].protocol;
+    start_driver(instance, i, config);
   }
+  drivers_started_ = true;
+}
+
+void PluginRuntime::start_driver(DriverInstance& instance, std::size_t index, const RobotConfig& config) {
+  auto log = logger("kernel.plugins");
+  const auto& entry = config.drivers[index];
+
+  auto [registered, plugin] =
+      find_loaded(host_, host_.providers_of_driver(entry.protocol), &PluginRecord::drivers, entry.protocol);
+  if (registered == nullptr) {
+    instance.health.mark_failed(plugin == nullptr ? "no installed plugin provides driver protocol '" + entry.protocol + "'"
+                                                  : "plugin " + plugin->id + " is " + std::string(to_string(plugin->state)) +
+                                                        ": " + plugin->reason);
+    log->error("driver {}: {}", entry.id, instance.health.reason());
+    return;
+  }
+  instance.plugin_id = plugin->id;
+  instance.actuates = registered->info.actuates;
+  auto settings = validated_settings(config, *plugin, entry.settings, true, "drivers[" + std::to_string(index) + "]");
+  instance.context = std::make_unique<InstanceContext>(plugin->id, entry.id, services_, std::move(settings), instance.health);
+
+  instance.who = "plugin " + plugin->id + " driver " + entry.id;
+  bool abandoned = false;
+  instance.object = create_and_start(instance.who, registered->factory, *instance.context, instance.health,
+                                     std::chrono::milliseconds(config.runtime.plugin_start_timeout_ms), abandoned);
+  if (abandoned) keep_forever(instance.context);  // still in use by the plugin thread that never returned
+  if (!instance.object) return;
+
+  if (instance.actuates) {
+    std::string refused;  // why it cannot serve its actuator
+    auto* actuator = dynamic_cast<sdk::ActuatorDriver*>(instance.object.get());
+    ActuatorSlot* slot = actuators_.find(entry.id);
+    if (actuator == nullptr) refused = "registered as actuating but is not an ActuatorDriver";
+    else if (slot == nullptr && drivers_started_)  // a reload: the stop path reads the table without locks
+      refused = "became an actuator in a reload; restart rcand to put it in the actuator table";
+    else if (slot == nullptr)
+      actuators_.add(entry.id, std::string(actuator->interface_name()), plugin->id, actuator, &instance.health);
+    else if (slot->interface != actuator->interface_name())
+      refused = "its interface changed from " + slot->interface + " to " + std::string(actuator->interface_name()) +
+                " in a reload; restart rcand";
+    else ActuatorTable::install(*slot, actuator);
+    if (!refused.empty()) {
+      instance.health.mark_failed(refused);
+      log->error("driver {}: {}", entry.id, refused);
+      return;
+    }
+  }
+  if (!instance.health.failed()) offer_obstacle_source(*instance.context, instance.object.get());
+  log->info("driver {} ({}, {}) {}", entry.id, entry.protocol, plugin->id,
+            instance.health.failed() ? "failed: " + instance.health.reason() : "started");
 }
 
 void PluginRuntime::start_capabilities(const std::vector<std::string>& names, const RobotConfig& config) {
@@ -508,6 +524,71 @@ bool PluginRuntime::stop_capabilities(const std::vector<CapabilityInstance*>& me
   return stopped;
 }
 
+std::vector<std::size_t> PluginRuntime::drivers_of(const std::string& id) {
+  const PluginRecord* record = host_.find(id);
+  std::vector<std::size_t> out;
+  for (std::size_t i = 0; i < drivers_.size(); ++i) {
+    const auto& driver = drivers_[i];
+    const bool would_serve = driver.plugin_id.empty() && !host_.providers_of_driver(driver.protocol).empty() &&
+                             host_.providers_of_driver(driver.protocol).front() == record;
+    if (driver.plugin_id == id || would_serve) out.push_back(i);
+  }
+  return out;
+}
+
+bool PluginRuntime::stop_drivers(const std::vector<DriverInstance*>& members) {
+  const auto deadline = std::chrono::steady_clock::now() + kShutdownDeadline;
+  std::vector<std::pair<ActuatorSlot*, sdk::ActuatorDriver*>> retired;
+  bool idle = true;
+  for (auto* instance : members) {
+    ActuatorSlot* slot = instance->object && instance->actuates ? actuators_.find(instance->id) : nullptr;
+    if (slot == nullptr) continue;
+    retired.emplace_back(slot, slot->driver.load());
+    idle = ActuatorTable::retire(*slot, deadline) && idle;
+  }
+  if (!idle) {  // a call into the old code did not return: every actuator keeps its driver, nothing is shut down
+    for (auto [slot, driver] : retired) ActuatorTable::install(*slot, driver);
+    return false;
+  }
+  const bool abandoned = shut_down_all(members, kShutdownDeadline);
+  for (auto* instance : members) {
+    if (abandoned) {  // a shutdown() still runs in the old code: its objects stay alive, out of service
+      keep_forever(instance->object);
+      keep_forever(instance->context);
+    }
+    instance->object.reset();
+    instance->context.reset();
+  }
+  return !abandoned;
+}
+
+void PluginRuntime::restart_after_reload(const std::vector<std::size_t>& driver_indices,
+                                         const std::vector<CapabilityInstance*>& members, bool capabilities_stopped, bool stopped,
+                                         const RobotConfig& config) {
+  constexpr const char* kStuck = "plugin reload: a call into the old version did not finish; restart rcand";
+  for (auto i : driver_indices) {
+    auto& instance = drivers_[i];
+    if (!capabilities_stopped) continue;  // never touched: still the old version, in service
+    instance.health.reset();
+    if (!stopped) instance.health.mark_failed(kStuck);
+    else try {
+        start_driver(instance, i, config);
+      } catch (const std::exception& e) {  // the new manifest's settings schema refuses the config
+        instance.health.mark_failed(std::string("plugin reload: ") + e.what());
+      }
+  }
+  for (auto* instance : members) {
+    instance->health.reset();
+    if (!stopped) instance->health.mark_failed(kStuck);
+    else try {
+        start_capability(*instance, config);
+      } catch (const std::exception& e) {
+        instance->health.mark_failed(std::string("plugin reload: ") + e.what());
+      }
+  }
+  start_crews();
+}
+
 ReloadResult PluginRuntime::reload(const std::string& id, const RobotConfig& config, const std::function<void()>& halt_first) {
   ReloadResult result;
   const auto refuse = [&result](int status, std::string code, std::string error) {
@@ -518,44 +599,39 @@ ReloadResult PluginRuntime::reload(const std::string& id, const RobotConfig& con
   };
   const PluginRecord* record = host_.find(id);
   if (record == nullptr) return refuse(404, "NOT_FOUND", "no plugin '" + id + "' is installed");
-  for (const auto& driver : drivers_)
-    if (driver.plugin_id == id || (driver.plugin_id.empty() && !host_.providers_of_driver(driver.protocol).empty() &&
-                                   host_.providers_of_driver(driver.protocol).front() == record))
-      return refuse(409, "RELOAD_UNSUPPORTED",
-                    "plugin " + id + " serves driver " + driver.id +
-                        ": drivers stay in the actuator table for the life of rcand; restart rcand to run its new version");
   const auto members = instances_of(id);
-  if (members.empty())
-    return refuse(409, "NOT_IN_USE", "plugin " + id + " serves no capability of this robot: nothing to reload");
+  const auto driver_indices = drivers_of(id);
+  std::vector<DriverInstance*> drivers;
+  for (auto i : driver_indices) drivers.push_back(&drivers_[i]);
+  if (members.empty() && drivers.empty())
+    return refuse(409, "NOT_IN_USE", "plugin " + id + " serves no driver or capability of this robot: nothing to reload");
 
   halt_first();
   auto log = logger("kernel.plugins");
-  log->warn("plugin {}: reloading ({} capability instance(s))", id, members.size());
-  const bool stopped = stop_capabilities(
+  log->warn("plugin {}: reloading ({} driver(s), {} capability instance(s))", id, drivers.size(), members.size());
+  // Capabilities first (they command the drivers), then drivers: each out of the actuator table, shut down, destroyed.
+  const bool capabilities_stopped = stop_capabilities(
       members, id, std::chrono::milliseconds(config.runtime.handler_timeout_ms) + std::chrono::milliseconds(500));
+  const bool stopped = capabilities_stopped && stop_drivers(drivers);
   if (stopped) host_.reopen(id);
-  for (auto* instance : members) {
-    instance->health.reset();
-    if (!stopped) instance->health.mark_failed("plugin reload: a call into the old version did not finish; restart rcand");
-    else try {
-        start_capability(*instance, config);
-      } catch (const std::exception& e) {  // the new manifest's settings schema refuses the config
-        instance->health.mark_failed(std::string("plugin reload: ") + e.what());
-      }
-  }
-  start_crews();
+  restart_after_reload(driver_indices, members, capabilities_stopped, stopped, config);
+  std::string failure;  // the first instance that does not run its new version
+  const auto report = [&](const char* kind, const std::string& name, const InstanceHealth& health) {
+    nlohmann::json item{{kind, name}, {"state", health.failed() ? "failed" : "running"}};
+    if (health.failed()) item["reason"] = health.reason();
+    if (health.failed() && failure.empty()) failure = std::string(kind) + " " + name + " failed: " + health.reason();
+    result.instances.push_back(std::move(item));
+  };
+  for (auto* instance : drivers) report("driver", instance->id, instance->health);
   for (auto* instance : members) {
     instance->gate->open();
-    nlohmann::json item{{"capability", instance->name}, {"state", instance->health.failed() ? "failed" : "running"}};
-    if (instance->health.failed()) item["reason"] = instance->health.reason();
-    result.instances.push_back(std::move(item));
+    report("capability", instance->name, instance->health);
   }
-  const auto failed = std::find_if(members.begin(), members.end(), [](auto* m) { return m->health.failed(); });
   std::string why;
   if (!stopped) why = "a call into its old version did not finish; restart rcand";
   else if (record->state != PluginState::Loaded)
     why = "it is " + std::string(to_string(record->state)) + (record->reason.empty() ? "" : ": " + record->reason);
-  else if (failed != members.end()) why = "capability " + (*failed)->name + " failed: " + (*failed)->health.reason();
+  else why = failure;
   if (!why.empty())
     return refuse(500, "RELOAD_FAILED", "plugin " + id + " reload failed: " + why + " (the robot stays e-stopped)");
   log->warn("plugin {}: reloaded, version {}", id, record->version);

@@ -55,7 +55,7 @@ struct ReloadResult {
   int status = 200;  // the HTTP status to answer with
   std::string code;  // the error code when not 200
   std::string error;
-  nlohmann::json instances = nlohmann::json::array();  // [{"capability","state","reason"?}]
+  nlohmann::json instances = nlohmann::json::array();  // [{"driver"|"capability","state","reason"?}]
 };
 
 class PluginRuntime {
@@ -95,9 +95,11 @@ class PluginRuntime {
   static constexpr std::chrono::milliseconds kShutdownDeadline{2000};
 
   // A development reload of plugin `id` (docs/protocol.md §7.15), after the kernel latched the e-stop: its capability
-  // instances are held closed (503) and drained, their offers withdrawn, shut down and destroyed; the plugin re-read
-  // and re-opened from disk (PluginHost::reopen); its instances started again. A plugin that runs drivers is refused
-  // (the actuator table is fixed after startup). Not concurrently with itself or shutdown() (the kernel serializes).
+  // instances are held closed (503) and drained; its drivers taken out of the actuator table (ActuatorTable::retire:
+  // halts and the gate skip them) once no call uses them; all of them shut down and destroyed; the plugin re-read
+  // and re-opened from disk (PluginHost::reopen); its instances started again, each driver back in its slot. When a
+  // call into the old code does not return, nothing is destroyed and the instances stay failed (restart rcand). Not
+  // concurrently with itself or shutdown() (the kernel serializes).
   // `halt_first` runs once the request is known to be valid, before anything of the plugin stops.
   ReloadResult reload(const std::string& id, const RobotConfig& config, const std::function<void()>& halt_first);
 
@@ -107,6 +109,18 @@ class PluginRuntime {
   // returns the ones they replace (still running what they were asked).
   std::pair<std::shared_ptr<DeadlineCrew>, std::shared_ptr<StatusReader>> start_crews(std::string_view skip = {});
   void start_capability(CapabilityInstance& instance, const RobotConfig& config);
+  // Creates and starts `instance` for config.drivers[index]; its actuator goes in the table at startup, or back in
+  // its slot after a reload (one that became an actuator, or changed interface, fails: the table is fixed).
+  void start_driver(DriverInstance& instance, std::size_t index, const RobotConfig& config);
+  // The indices in drivers_ of the driver instances plugin `id` serves, or would serve (it failed before it could).
+  std::vector<std::size_t> drivers_of(const std::string& id);
+  // `members` out of the actuator table, shut down and destroyed; false when a call into one of them did not return
+  // (they are then back in their slots, never destroyed).
+  bool stop_drivers(const std::vector<DriverInstance*>& members);
+  // The reload's instances started again from the reopened plugin, or marked failed when their old version could not
+  // be stopped; then the crews rebuilt over every instance.
+  void restart_after_reload(const std::vector<std::size_t>& driver_indices, const std::vector<CapabilityInstance*>& members,
+                            bool capabilities_stopped, bool stopped, const RobotConfig& config);
   // The capability instances plugin `id` serves, or would serve (it failed before it could).
   std::vector<CapabilityInstance*> instances_of(const std::string& id);
   // `members` (of plugin `id`) held closed, drained, out of the crews, shut down and destroyed; false when one of
@@ -121,6 +135,7 @@ class PluginRuntime {
   std::deque<DriverInstance> drivers_;
   std::deque<CapabilityInstance> capabilities_;
   bool shut_down_ = false;
+  bool drivers_started_ = false;  // from here on the actuator table is fixed
   // A capability's on_estop() (or any status()) still running at shutdown: objects are leaked rather than
   // destroyed under it.
   bool abandon_capabilities_ = false;

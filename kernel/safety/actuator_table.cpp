@@ -8,6 +8,7 @@
 #include <array>
 #include <climits>
 #include <ctime>
+#include <thread>
 
 namespace rcand::kernel {
 namespace {
@@ -45,7 +46,7 @@ ActuatorSlot& ActuatorTable::add(std::string id, std::string interface, std::str
   slot.id = std::move(id);
   slot.interface = std::move(interface);
   slot.plugin_id = std::move(plugin_id);
-  slot.driver = driver;
+  slot.driver.store(driver);
   slot.health = health;
   return slot;
 }
@@ -62,6 +63,11 @@ const ActuatorSlot* ActuatorTable::find(std::string_view id) const noexcept {
   return nullptr;
 }
 
+void halt_slot(const ActuatorSlot& slot) noexcept {
+  const DriverUse use(slot);
+  if (use.get() != nullptr) use.get()->halt();
+}
+
 std::vector<HaltReport> ActuatorTable::halt_all(const sdk::Clock& clock) noexcept {
   std::vector<HaltReport> reports;
   try {
@@ -69,15 +75,26 @@ std::vector<HaltReport> ActuatorTable::halt_all(const sdk::Clock& clock) noexcep
   } catch (...) {
   }
   for (auto& slot : slots_) {
-    if (slot.driver == nullptr) continue;
+    const DriverUse use(slot);
+    if (use.get() == nullptr) continue;  // its plugin is being reloaded: no driver object to halt
     const auto start = clock.now_us();
-    slot.driver->halt();
+    use.get()->halt();
     try {
       reports.push_back({slot.id, true, clock.now_us() - start, "halted", {}});
     } catch (...) {  // out of memory while reporting: the halt itself already happened
     }
   }
   return reports;
+}
+
+bool ActuatorTable::retire(ActuatorSlot& slot, std::chrono::steady_clock::time_point deadline) noexcept {
+  slot.driver.store(nullptr);
+  // A development reload, never the stop path: polling a few milliseconds is simpler than another futex.
+  while (slot.users.load() != 0) {
+    if (std::chrono::steady_clock::now() >= deadline) return false;
+    std::this_thread::sleep_for(std::chrono::milliseconds(1));
+  }
+  return true;
 }
 
 void ActuatorTable::enter_command(ActuatorSlot& slot) noexcept {

@@ -1,4 +1,5 @@
 // Every actuating driver instance, filled at startup and fixed afterwards, so the stop path reads it without locks.
+// Only a slot's driver object changes, when a development reload replaces its plugin (retire, then install).
 #pragma once
 
 #include <atomic>
@@ -16,12 +17,35 @@ namespace rcand::kernel {
 
 struct ActuatorSlot {
   std::string id, interface, plugin_id;
-  sdk::ActuatorDriver* driver = nullptr;  // owned by the plugin runtime, which outlives the table's users
-  InstanceHealth* health = nullptr;       // the driver instance's health, shared with the runtime
+  InstanceHealth* health = nullptr;  // the driver instance's health, shared with the runtime
+  // Owned by the plugin runtime; null while a reload replaces it. Read only through a DriverUse.
+  std::atomic<sdk::ActuatorDriver*> driver{nullptr};
+  mutable std::atomic<std::uint32_t> users{0};  // DriverUses alive: a retired driver is destroyed only at zero
   // Commands inside the motion gate for this actuator right now (KernelMotionGate: raised before the latch check,
   // lowered only after the command returned and, if a stop came meanwhile, after the gate halted the actuator).
   std::atomic<std::uint32_t> commands_in_flight{0};
 };
+
+// Holds a slot's driver for the length of one call (seq_cst, lock-free, so the stop path uses it too): counted
+// before the pointer is read, so a reload that retired the driver either is seen here as null or sees this use.
+class DriverUse {
+ public:
+  explicit DriverUse(const ActuatorSlot& slot) noexcept : slot_(slot) {
+    slot_.users.fetch_add(1);
+    driver_ = slot_.driver.load();
+  }
+  ~DriverUse() { slot_.users.fetch_sub(1); }
+  DriverUse(const DriverUse&) = delete;
+  DriverUse& operator=(const DriverUse&) = delete;
+  sdk::ActuatorDriver* get() const noexcept { return driver_; }  // null while its plugin reloads
+
+ private:
+  const ActuatorSlot& slot_;
+  sdk::ActuatorDriver* driver_;
+};
+
+// halt() on the slot's driver, if it has one right now.
+void halt_slot(const ActuatorSlot& slot) noexcept;
 
 struct HaltReport {
   std::string id;
@@ -42,6 +66,12 @@ class ActuatorTable {
   // Calls halt() on every actuator directly, in registration order, failed ones too (a failed driver may still
   // move). No queue, lock or worker in between.
   std::vector<HaltReport> halt_all(const sdk::Clock& clock) noexcept;
+  // A plugin reload, with the e-stop latched: the slot's driver is taken out (the gate answers ActuatorFailed, halts
+  // skip it), then waited for until no call uses it or `deadline` passes. False: a call into it still runs, so the
+  // old object must never be destroyed.
+  static bool retire(ActuatorSlot& slot, std::chrono::steady_clock::time_point deadline) noexcept;
+  // The reload's new driver object, in service from here on.
+  static void install(ActuatorSlot& slot, sdk::ActuatorDriver* driver) noexcept { slot.driver.store(driver); }
 
   // The motion gate's bookkeeping of commands in flight (seq_cst, lock-free): enter before the latch check,
   // leave after the command (and the gate's own halt). leave() wakes a stop waiting in wait_for_commands().

@@ -91,21 +91,62 @@ TEST_CASE("plugin reload: motors halt first, the new version on disk is served, 
   for (const auto& entry : audit["entries"]) audited = audited || entry.value("event", "").find(kReloadPath) != std::string::npos;
   CHECK(audited);
 
-  // Who may, and what: config scope; an unknown plugin is 404; a driver plugin is refused (the actuator table is fixed).
+  // Who may, and what: config scope; an unknown plugin is 404.
   CHECK(rcand.request("POST", kReloadPath, "user-token").status == 403);
   const json unknown = rcand.json("POST", "/api/plugins/org.nobody/reload", "owner-token", {}, &status);
   CHECK(status == 404);
   CHECK(unknown["code"] == "NOT_FOUND");
-  std::string driver_plugin;
-  for (const auto& plugin : plugins["plugins"])
-    for (const auto& item : plugin["provides"])
-      if (item["kind"] == "driver" && plugin["state"] == "loaded") driver_plugin = plugin["id"];
-  REQUIRE_FALSE(driver_plugin.empty());
-  const json driver = rcand.json("POST", "/api/plugins/" + driver_plugin + "/reload", "owner-token", {}, &status);
-  CHECK(status == 409);
-  CHECK(driver["code"] == "RELOAD_UNSUPPORTED");
   CHECK(rcand.json("POST", "/api/plugins/" + std::string(kReloadId) + "/restart", "owner-token", {}, &status)["code"] ==
         "NOT_FOUND");
+}
+
+TEST_CASE("plugin reload: a driver plugin's new object takes the actuator's slot; the old one is halted and never used again") {
+  auto config = sim_config();
+  config["runtime"]["plugins"] = {{"allow_reload", true}};
+  RcandProcess rcand(config, {plugin_dir()});
+  int status = 0;
+  rcand.json("POST", "/api/action", "user-token", R"({"type":"move","linear":0.3,"angular":0,"duration_ms":5000})", &status);
+  REQUIRE(status == 200);
+  REQUIRE(drive_status(rcand)["moving"] == true);
+  REQUIRE(drive_status(rcand)["commands"].get<int>() > 0);
+
+  const json answer = rcand.json("POST", "/api/plugins/org.rcand.sim_drive/reload", "owner-token", {}, &status);
+  INFO(answer.dump());
+  REQUIRE(status == 200);
+  CHECK(answer["estopped"] == true);
+  CHECK(answer["motors_stopped"] == true);
+  CHECK(answer["instances"] == json::array({{{"driver", "drive0"}, {"state", "running"}}}));
+  const json fresh = drive_status(rcand);  // a new object: nothing commanded it yet
+  CHECK(fresh["moving"] == false);
+  CHECK(fresh["commands"] == 0);
+  CHECK(rcand.json("GET", "/api/drivers/drive0", "owner-token")["state"] == "ok");
+
+  // The new object serves the gate and the stop path.
+  rcand.json("POST", "/api/action", "user-token", R"({"type":"move","linear":0.3,"angular":0,"duration_ms":5000})", &status);
+  CHECK(status == 423);  // the reload's stop stays latched until an operator clears it
+  REQUIRE(rcand.request("POST", "/api/estop/clear", "owner-token").status == 200);
+  rcand.json("POST", "/api/action", "user-token", R"({"type":"move","linear":0.3,"angular":0,"duration_ms":5000})", &status);
+  CHECK(status == 200);
+  CHECK(drive_status(rcand)["moving"] == true);
+  REQUIRE(rcand.request("POST", "/api/stop", "user-token").status == 200);
+  CHECK(drive_status(rcand)["moving"] == false);
+  CHECK(drive_status(rcand)["halts"].get<int>() >= 1);
+
+  // A plugin with a driver and a capability (the Acme gripper): both restart, the capability commands the new driver.
+  const json gripper = rcand.json("POST", "/api/plugins/com.acme.gripper/reload", "owner-token", {}, &status);
+  INFO(gripper.dump());
+  REQUIRE(status == 200);
+  CHECK(gripper["instances"] == json::array({{{"driver", "gripper0"}, {"state", "running"}},
+                                             {{"capability", "com.acme.gripper"}, {"state", "running"}}}));
+  REQUIRE(rcand.request("POST", "/api/estop/clear", "owner-token").status == 200);
+  rcand.json("POST", "/api/cap/com.acme.gripper/grip", "user-token", R"({"state":"close"})", &status);
+  CHECK(status == 200);
+
+  const auto table = run_tool(rcanctl_binary(), {"plugins", "reload", "org.rcand.sim_drive", "--port",
+                                                 std::to_string(rcand.port()), "--token", "owner-token"});
+  CHECK(table.exit_code == 0);
+  CHECK(table.out.find("driver") != std::string::npos);
+  CHECK(table.out.find("drive0") != std::string::npos);
 }
 
 TEST_CASE("plugin reload: a failing reload leaves a named failed state and the robot stopped; fixed, it serves again") {

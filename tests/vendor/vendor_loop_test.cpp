@@ -211,4 +211,20 @@ TEST_CASE("a scaffolded driver builds and tests against the installed SDK alone,
   CHECK(wheels["plugin"] == "com.acme.wheels");
   CHECK(wheels["status"]["commands"].get<int>() >= 1);
   CHECK(wheels["status"]["left"] == doctest::Approx(0.2));  // 0.4 at the fragment's max_speed 0.5
+
+  // The development loop: edited and rebuilt, the driver is reloaded into the running dev robot, wheels halted first.
+  std::ofstream(source / "wheels_driver.hpp", std::ios::app) << "// edited\n";
+  require_ok(run_tool(RCAND_CMAKE_COMMAND, {"--build", build.string()}), "rebuild");
+  const auto reloaded = run_tool(rcand::test::rcanctl_binary(), {"plugins", "reload", "com.acme.wheels", "--port",
+                                                                 std::to_string(robot.port()), "--token", "rcand-dev-owner"});
+  INFO(reloaded.out, reloaded.err, robot.stderr_text());
+  CHECK(reloaded.exit_code == 0);
+  CHECK(reloaded.out.find("wheels0") != std::string::npos);
+  const auto fresh = robot.json("GET", "/api/drivers/wheels0", "rcand-dev-guest");
+  CHECK(fresh["state"] == "ok");
+  CHECK(fresh["status"]["commands"] == 0);  // the new object; the old one was halted and destroyed
+  REQUIRE(robot.request("POST", "/api/estop/clear", "rcand-dev-owner").status == 200);
+  robot.json("POST", "/api/action", "rcand-dev-user", R"({"type":"move","linear":0.4,"duration_ms":60000})", &status);
+  CHECK(status == 200);
+  CHECK(robot.json("GET", "/api/drivers/wheels0", "rcand-dev-guest")["status"]["left"] == doctest::Approx(0.2));
 }

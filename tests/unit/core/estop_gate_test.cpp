@@ -137,3 +137,56 @@ TEST_CASE("a command overtaken by a stop that was already cleared is still halte
   CHECK(status == GateStatus::EstopActive);
   CHECK(rig.drive.speed == 0.0);
 }
+
+TEST_CASE("a plugin reload retires a driver: halts and the gate skip it, and it is destroyed only once no call uses it") {
+  Rig rig;
+  ActuatorSlot& slot = *rig.table.find("drive0");
+  rig.estop.latch("plugin reload", "unit");
+  const int halts_before = rig.drive.halts;
+  {
+    const DriverUse in_use(slot);  // a call into the old driver, still running
+    CHECK_FALSE(ActuatorTable::retire(slot, std::chrono::steady_clock::now() + std::chrono::milliseconds(20)));
+  }
+  CHECK(ActuatorTable::retire(slot, std::chrono::steady_clock::now() + std::chrono::seconds(5)));
+  CHECK(rig.estop.clear());
+  CHECK(rig.go(0.4) == GateStatus::ActuatorFailed);  // out of service while its plugin reloads
+  rig.gate.halt("drive0");
+  rig.estop.latch("again", "unit");
+  CHECK(rig.drive.halts == halts_before);  // nothing reached the retired object
+  CHECK(rig.estop.clear());
+
+  TestDrive replacement;  // the new version's object, back in the same slot
+  ActuatorTable::install(slot, &replacement);
+  CHECK(rig.go(0.4) == GateStatus::Ok);
+  CHECK(replacement.speed == 0.4);
+  CHECK(rig.drive.commands == 0);
+  rig.estop.latch("after the reload", "unit");
+  CHECK(replacement.speed == 0);
+}
+
+TEST_CASE("retire waits for a command in the gate to return before it reports the driver free") {
+  Rig rig;
+  ActuatorSlot& slot = *rig.table.find("drive0");
+  std::atomic<bool> entered{false}, release{false};
+  std::thread command([&] {
+    rig.gate.actuate("drive0", [&](auto&) {
+      entered = true;
+      entered.notify_all();
+      release.wait(false);
+    });
+  });
+  entered.wait(false);
+  std::atomic<bool> retired{false};
+  std::thread reload([&] {
+    retired = ActuatorTable::retire(slot, std::chrono::steady_clock::now() + std::chrono::seconds(30));
+    retired.notify_all();
+  });
+  while (slot.driver.load() != nullptr) std::this_thread::yield();  // the reload has taken it out of the slot
+  CHECK_FALSE(retired);                                             // but the command still runs in it
+  release = true;
+  release.notify_all();
+  command.join();
+  reload.join();
+  CHECK(retired);
+  CHECK(slot.users.load() == 0);
+}
