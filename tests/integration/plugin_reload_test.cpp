@@ -9,6 +9,7 @@
 #include <future>
 #include <thread>
 
+#include "eventually.hpp"
 #include "rcand_process.hpp"
 #include "temp_dir.hpp"
 
@@ -147,6 +148,31 @@ TEST_CASE("plugin reload: a driver plugin's new object takes the actuator's slot
   CHECK(table.exit_code == 0);
   CHECK(table.out.find("driver") != std::string::npos);
   CHECK(table.out.find("drive0") != std::string::npos);
+}
+
+TEST_CASE("plugin reload: a driver with a call that does not return in time keeps its slot; the reload fails, named") {
+  auto config = sim_config();
+  config["runtime"]["plugins"] = {{"allow_reload", true}};
+  config["drivers"][0]["halt_delay_ms"] = 4000;  // the reload's own stop is inside halt() for 4 s; retire waits 2 s
+  RcandProcess rcand(config, {plugin_dir()});
+  int status = 0;
+  const json answer = rcand.json("POST", "/api/plugins/org.rcand.sim_drive/reload", "owner-token", {}, &status);
+  INFO(answer.dump());
+  CHECK(status == 500);
+  CHECK(answer["code"] == "RELOAD_FAILED");
+  CHECK(answer["error"].get<std::string>().find("did not finish") != std::string::npos);
+  REQUIRE(answer["instances"].size() == 1);
+  CHECK(answer["instances"][0]["driver"] == "drive0");
+  CHECK(answer["instances"][0]["state"] == "failed");
+  const json driver = rcand.json("GET", "/api/drivers/drive0", "owner-token");
+  CHECK(driver["state"] == "failed");
+  CHECK(answer["motors_stopped"] == false);  // the halt was still running when the stop answered
+  CHECK(rcand.json("GET", "/api/estop", "guest-token")["estopped"] == true);
+  // The old object is back in the slot: its halt finishes, and the next stop's halt reaches it again.
+  const auto halts = [&] { return drive_status(rcand).value("halts", -1); };
+  CHECK(eventually([&] { return halts() == 1; }, 20s, 50ms));
+  REQUIRE(rcand.request("POST", "/api/stop", "user-token").status == 200);
+  CHECK(eventually([&] { return halts() == 2; }, 20s, 50ms));
 }
 
 TEST_CASE("plugin reload: a failing reload leaves a named failed state and the robot stopped; fixed, it serves again") {
