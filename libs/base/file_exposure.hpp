@@ -1,5 +1,6 @@
 // Whether other users of the machine can get at a secret, with the command that fixes it: the TLS private key
-// (refused, as ssh refuses), the JWT secret, R2R token files and the R2R signing key (warned about at start).
+// (refused, as ssh refuses), the JWT secret, R2R token files, the MQTT broker's password or token and the R2R
+// signing key (warned about at start).
 #pragma once
 
 #include <filesystem>

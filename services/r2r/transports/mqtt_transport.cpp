@@ -11,6 +11,7 @@
 #include <shared_mutex>
 #include <stdexcept>
 
+#include "libs/base/file_exposure.hpp"
 #include "services/r2r/transports/message_peek.hpp"
 
 namespace rcand::kernel::r2r {
@@ -168,9 +169,15 @@ void MqttTransport::start(Deliver deliver) {
   s.broadcast_topic = o.topic_prefix + "/broadcast";
   const std::string client_id = o.client_id.empty() ? "rcand-" + o.robot_name : o.client_id;
 
+  // The broker password or token, with a warning when other users of the machine may read it (as for every secret).
+  const auto read_secret = [&s](const std::filesystem::path& file, const std::string& key) {
+    std::string secret = first_line_of(file, key);
+    if (const auto problem = others_may_access(file, "this secret"); !problem.empty()) s.log->warn("{}: {}", key, problem);
+    return secret;
+  };
   std::optional<std::string> password;
-  if (o.password_file) password = first_line_of(*o.password_file, "runtime.r2r.mqtt.password_file");
-  if (o.token_file) password = first_line_of(*o.token_file, "runtime.r2r.mqtt.token_file");
+  if (o.password_file) password = read_secret(*o.password_file, "runtime.r2r.mqtt.password_file");
+  if (o.token_file) password = read_secret(*o.token_file, "runtime.r2r.mqtt.token_file");
 
   s.client = mosquitto_new(client_id.c_str(), true, &s);
   if (s.client == nullptr) throw std::runtime_error("runtime.r2r.mqtt: cannot create the MQTT client");

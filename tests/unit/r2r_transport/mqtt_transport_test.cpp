@@ -3,7 +3,12 @@
 #include <doctest/doctest.h>
 #include <nlohmann/json.hpp>
 
+#include <spdlog/logger.h>
+#include <spdlog/sinks/ostream_sink.h>
+
+#include <filesystem>
 #include <fstream>
+#include <sstream>
 #include <thread>
 
 #include "eventually.hpp"
@@ -93,19 +98,31 @@ TEST_CASE("a password-protected broker: right password connects, wrong one never
   std::ofstream(good_file) << "s3cret-pass\n";
   std::ofstream(bad_file) << "wrong\n";
 
+  std::filesystem::permissions(good_file, std::filesystem::perms::owner_read | std::filesystem::perms::owner_write);
+  std::filesystem::permissions(bad_file, std::filesystem::perms::others_read, std::filesystem::perm_options::add);
+  std::ostringstream logged;
+  auto log = std::make_shared<spdlog::logger>("mqtt", std::make_shared<spdlog::sinks::ostream_sink_mt>(logged));
+
   auto good_options = options_for("robot-a", broker.port());
   good_options.password_file = good_file;  // username defaults to the robot name
+  good_options.log = log;
   MqttTransport good(good_options);
   rcand::test::Inbox inbox;
   good.start(inbox.deliver());
   CHECK(eventually([&] { return good.connected(); }));
+  CHECK(logged.str().find("other users") == std::string::npos);  // mode 0600: nothing to say
 
   auto bad_options = options_for("robot-a", broker.port());
   bad_options.client_id = "rcand-robot-a-bad";
   bad_options.password_file = bad_file;
+  bad_options.log = log;
   MqttTransport bad(bad_options);
   bad.start(inbox.deliver());
   CHECK_FALSE(eventually([&] { return bad.connected(); }, 1500ms));
+  // Readable by others: named with the fix, the password itself never logged.
+  CHECK(logged.str().find("runtime.r2r.mqtt.password_file: other users may read or write this secret") != std::string::npos);
+  CHECK(logged.str().find("chmod 600") != std::string::npos);
+  CHECK(logged.str().find("wrong") == std::string::npos);
 
   auto missing = options_for("robot-a", broker.port());
   missing.password_file = broker.dir() / "missing.pw";
