@@ -64,11 +64,17 @@ rm -rf "$build/debs" && mkdir -p "$build/debs"
 cp "$root"/src/build/debs/*.deb "$root"/src/build/debs/*.ddeb "$build/debs/"
 
 stage "smoke run under qemu-user"
-# The arm64 loader and libraries come from the build root's multiarch directories (-L).
+# The arm64 loader and libraries come from the build root's multiarch directories (-L). Debian's alternatives (BLAS
+# and LAPACK, which OpenCV links) are absolute links through /etc/alternatives, which the host resolves outside the
+# root: the guest's loader is pointed at the directories they select in the root.
 rcand=$root/src/build/kernel/rcand
 file "$rcand" | grep -q "ARM aarch64" || { echo "$rcand is not an arm64 binary"; exit 1; }
-qemu-aarch64-static -L "$root" "$rcand" --version
-qemu-aarch64-static -L "$root" "$rcand" --check-plugins --plugin-path "$root/src/build/plugins"
+alternatives=$(for link in "$root"/etc/alternatives/*-aarch64-linux-gnu; do
+  if [ -L "$link" ]; then dirname "$(readlink "$link")"; fi
+done | sort -u | paste -sd: -)
+guest() { env LD_LIBRARY_PATH="$alternatives" qemu-aarch64-static -L "$root" "$@"; }
+guest "$rcand" --version
+guest "$rcand" --check-plugins --plugin-path "$root/src/build/plugins"
 for deb in "$build"/debs/*.deb; do
   arch=$(dpkg-deb --field "$deb" Architecture)
   [ "$arch" = arm64 ] || [ "$arch" = all ] || { echo "$deb: Architecture $arch, not arm64"; exit 1; }
