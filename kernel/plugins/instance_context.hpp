@@ -108,6 +108,9 @@ class InstanceContext final : public sdk::PluginContext {
   const void* service(std::string_view interface_id) const noexcept override { return services_.directory.service(interface_id); }
   bool offer_service(std::string_view interface_id, const void* service) noexcept override;
 
+  // The instance's health, which outlives this context: the status board knows an instance by it, across reloads.
+  const InstanceHealth& health() const noexcept { return health_; }
+
   // Withdraws every service this instance offered: before its shutdown(), and when the context goes. Idempotent.
   void withdraw_offers() noexcept { services_.directory.withdraw(this); }
 

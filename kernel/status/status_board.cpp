@@ -140,7 +140,7 @@ class StatusBoard::Impl final : public StatusSink, public std::enable_shared_fro
   void publish(const InstanceContext& from, const json& status) noexcept override {
     Entry* entry = nullptr;
     for (const auto& candidate : entries_)
-      if (candidate->source.context == &from) entry = candidate.get();
+      if (candidate->source.health == &from.health()) entry = candidate.get();
     if (entry == nullptr) return;
     try {
       json copy = status;  // the one allocation-heavy step, outside the lock
@@ -349,23 +349,18 @@ json StatusBoard::fixed_fields(const RobotIdentity& identity, const std::vector<
 }
 
 std::vector<StatusBoard::Source> StatusBoard::sources_of(PluginRuntime& runtime) {
+  // Polled through the runtime even without an object now: a reload may start one (status_of answers nullopt until).
   std::vector<Source> sources;
-  for (const auto& instance : runtime.capabilities()) {
-    Source source{instance.name, false, {{"plugin", instance.plugin_id}}, &instance.health, instance.context.get(), {}};
-    if (instance.object) source.poll = [&runtime, &instance] { return runtime.status_of(instance); };
-    sources.push_back(std::move(source));
-  }
-  for (const auto& instance : runtime.drivers()) {
-    Source source{
-        instance.id,
-        true,
-        {{"id", instance.id}, {"protocol", instance.protocol}, {"plugin", instance.plugin_id}, {"actuates", instance.actuates}},
-        &instance.health,
-        instance.context.get(),
-        {}};
-    if (instance.object) source.poll = [&runtime, &instance] { return runtime.status_of(instance); };
-    sources.push_back(std::move(source));
-  }
+  for (const auto& instance : runtime.capabilities())
+    sources.push_back({instance.name, false, {{"plugin", instance.plugin_id}}, &instance.health,
+                       [&runtime, &instance] { return runtime.status_of(instance); }});
+  for (const auto& instance : runtime.drivers())
+    sources.push_back(
+        {instance.id,
+         true,
+         {{"id", instance.id}, {"protocol", instance.protocol}, {"plugin", instance.plugin_id}, {"actuates", instance.actuates}},
+         &instance.health,
+         [&runtime, &instance] { return runtime.status_of(instance); }});
   return sources;
 }
 

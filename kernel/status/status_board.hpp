@@ -50,8 +50,9 @@ class StatusBoard {
     std::string name;     // the capability name, or the driver id
     bool driver = false;  // listed under "drivers" (without its status), else under "capabilities"
     nlohmann::json item;  // its item's fields that never change: {"plugin"}, or {"id","protocol","plugin","actuates"}
-    const InstanceHealth* health = nullptr;               // failed: "state": "failed" with the reason, and never polled
-    const InstanceContext* context = nullptr;             // whose publish_status() feeds this entry; null: it never publishes
+    // The instance: failed, "state": "failed" with the reason, and never polled; the publish_status() of any context
+    // made with this health (the instance's, a reload's new one too) feeds this entry. Null: it never publishes.
+    const InstanceHealth* health = nullptr;
     std::function<std::optional<nlohmann::json>()> poll;  // its status(), through the status reader; empty: never
   };
 

@@ -85,14 +85,13 @@ struct Rig {
     gripper_poll.set(std::nullopt);  // answers nothing, never publishes
     drive_poll.set(json{{"moving", false}});
     std::vector<StatusBoard::Source> sources{
-        {"nav", false, {{"plugin", "org.rcand.nav"}}, &nav_health, &nav, nav_poll.fn()},
-        {"teleop", false, {{"plugin", "org.rcand.teleop"}}, &teleop_health, nullptr, teleop_poll.fn()},
-        {"com.acme.gripper", false, {{"plugin", "com.acme.gripper"}}, &gripper_health, nullptr, gripper_poll.fn()},
+        {"nav", false, {{"plugin", "org.rcand.nav"}}, &nav_health, nav_poll.fn()},
+        {"teleop", false, {{"plugin", "org.rcand.teleop"}}, &teleop_health, teleop_poll.fn()},
+        {"com.acme.gripper", false, {{"plugin", "com.acme.gripper"}}, &gripper_health, gripper_poll.fn()},
         {"drive0",
          true,
          {{"id", "drive0"}, {"protocol", "sim_diff_drive"}, {"plugin", "org.rcand.sim_drive"}, {"actuates", true}},
          &drive_health,
-         &drive_context,
          drive_poll.fn()},
     };
     PluginHost no_plugins;
@@ -352,6 +351,23 @@ TEST_CASE("publishes coalesce; a driver's published status keeps it fresh withou
   rig.clock.advance(1000ms);
   rig.board->refresh();
   CHECK_FALSE(rig.body()["drivers"][0].contains("stale"));
+}
+
+TEST_CASE("after a plugin reload the new context's publishes feed the same entry, never polled while they come") {
+  Rig rig;
+  rig.board->start();
+  const int asked = rig.nav_poll.calls;
+  // The reload destroyed nav's context and made another over the same instance (the same health).
+  InstanceContext reloaded{"org.rcand.nav", "nav", rig.services, json::object(), rig.nav_health};
+  reloaded.publish_status({{"running", false}, {"version", 2}});
+  CHECK(rig.current()["capabilities"]["nav"]["status"]["version"] == 2);
+  for (int step = 1; step <= 5; ++step) {
+    rig.clock.advance(900ms);
+    reloaded.publish_status({{"running", false}, {"version", 2}, {"step", step}});
+    rig.board->refresh();
+  }
+  CHECK(rig.nav_poll.calls == asked);  // kept fresh by its publishes alone
+  CHECK(rig.body()["capabilities"]["nav"]["status"]["step"] == 5);
 }
 
 TEST_CASE("stop is idempotent; afterwards publishes are dropped and when_current answers at once") {
