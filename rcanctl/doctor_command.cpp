@@ -37,6 +37,17 @@ struct CheckArgs {
   std::string rcand, config, user, plugin_path;
 };
 
+// `word` as one word of a POSIX shell command, so a fix with any path can be pasted as it is: unchanged when it has
+// only characters no shell treats specially, else in single quotes (a quote inside written '\'').
+std::string shell_word(const std::string& word) {
+  const bool plain = !word.empty() && word.find_first_not_of("ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz"
+                                                             "0123456789_-./:=@%+,") == std::string::npos;
+  if (plain) return word;
+  std::string quoted = "'";
+  for (char c : word) quoted += c == '\'' ? std::string("'\\''") : std::string(1, c);
+  return quoted + "'";
+}
+
 // Runs `argv` (no shell: any path works as given) with stdout and stderr on one pipe: its wait status and output,
 // or nullopt (errno set) when it could not be started.
 std::optional<std::pair<int, std::string>> run_captured(const std::vector<std::string>& argv) {
@@ -94,8 +105,8 @@ Finding config_finding(const CheckArgs& a) {
   if (const auto problem = check_config(a)) {
     f.ok = false;
     f.detail = *problem;
-    f.fix = "edit " + a.config + ", then: sudo " + a.rcand + " --check-config " + a.config +
-            (a.user.empty() ? "" : " --as-user " + a.user);
+    f.fix = "edit " + shell_word(a.config) + ", then: sudo " + shell_word(a.rcand) + " --check-config " +
+            shell_word(a.config) + (a.user.empty() ? "" : " --as-user " + shell_word(a.user));
   }
   return f;
 }

@@ -177,6 +177,12 @@ TEST_CASE("rcanctl doctor names what is wrong and the command that fixes it") {
   const auto quoted = rcand.dir().write("it's a robot.rcan.yaml", std::string((std::istreambuf_iterator<char>(good)), {}));
   findings = doctor(quoted.string());
   CHECK(findings["config"]["ok"] == true);
+  // The fix names such a path so that it can be pasted into a shell.
+  const auto broken = dir.write("it's broken.rcan.yaml", yaml);
+  findings = doctor(broken.string());
+  CHECK(findings["config"]["ok"] == false);
+  const std::string pasteable = "'" + dir.path().string() + "/it'\\''s broken.rcan.yaml'";
+  CHECK(findings["config"]["fix"].get<std::string>().find("edit " + pasteable + ", then:") != std::string::npos);
   const auto missing = run_tool(rcanctl_binary(), {"doctor", "--config", quoted.string(), "--rcand", "/nonexistent/rcand",
                                                    "--port", port, "--token", "owner-token", "--json"});
   CHECK(missing.exit_code == 1);
