@@ -11,9 +11,9 @@
 #include <string>
 #include <vector>
 
-#include "libs/config/robot_config.hpp"
 #include "kernel/plugins/plugin_host.hpp"
 #include "kernel/registry/capability_registry.hpp"
+#include "libs/config/robot_config.hpp"
 
 namespace rcand::kernel {
 

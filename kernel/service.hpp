@@ -19,11 +19,11 @@
 #include "kernel/api/router.hpp"
 #include "kernel/audit/audit_log.hpp"
 #include "kernel/auth/authenticator.hpp"
-#include "libs/config/robot_config.hpp"
 #include "kernel/plugins/r2r_link_factory.hpp"
 #include "kernel/plugins/service_directory.hpp"
 #include "kernel/registry/capability_registry.hpp"
 #include "kernel/safety/estop.hpp"
+#include "libs/config/robot_config.hpp"
 #include "libs/http/server_options.hpp"
 #include "libs/swarm/swarm_registry.hpp"
 

@@ -13,6 +13,7 @@
 #include <iostream>
 #include <optional>
 #include <sstream>
+#include <string_view>
 #include <utility>
 #include <vector>
 
@@ -40,9 +41,8 @@ struct CheckArgs {
 // `word` as one word of a POSIX shell command, so a fix with any path can be pasted as it is: unchanged when it has
 // only characters no shell treats specially, else in single quotes (a quote inside written '\'').
 std::string shell_word(const std::string& word) {
-  const bool plain = !word.empty() && word.find_first_not_of("ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz"
-                                                             "0123456789_-./:=@%+,") == std::string::npos;
-  if (plain) return word;
+  constexpr std::string_view kPlain = "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789_-./:=@%+,";
+  if (!word.empty() && word.find_first_not_of(kPlain) == std::string::npos) return word;
   std::string quoted = "'";
   for (char c : word) quoted += c == '\'' ? std::string("'\\''") : std::string(1, c);
   return quoted + "'";
@@ -105,8 +105,8 @@ Finding config_finding(const CheckArgs& a) {
   if (const auto problem = check_config(a)) {
     f.ok = false;
     f.detail = *problem;
-    f.fix = "edit " + shell_word(a.config) + ", then: sudo " + shell_word(a.rcand) + " --check-config " +
-            shell_word(a.config) + (a.user.empty() ? "" : " --as-user " + shell_word(a.user));
+    f.fix = "edit " + shell_word(a.config) + ", then: sudo " + shell_word(a.rcand) + " --check-config " + shell_word(a.config) +
+            (a.user.empty() ? "" : " --as-user " + shell_word(a.user));
   }
   return f;
 }

@@ -14,10 +14,10 @@
 #include "kernel/api/router.hpp"
 #include "kernel/audit/audit_log.hpp"
 #include "kernel/auth/authenticator.hpp"
-#include "libs/config/robot_config.hpp"
 #include "kernel/safety/estop.hpp"
 #include "libs/base/logging.hpp"
 #include "libs/base/rate_limiter.hpp"
+#include "libs/config/robot_config.hpp"
 #include "libs/http/handler.hpp"
 
 namespace rcand::kernel {

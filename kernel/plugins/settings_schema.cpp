@@ -11,9 +11,9 @@ nlohmann::json plugin_settings(const RobotConfig& config, const std::string& plu
   try {
     auto result = apply_config_schema(schema, settings, driver_entry, strict ? nullptr : &ignored);
     for (const auto& key : ignored) {
-      const ConfigDiagnostic warning{ConfigDiagnostic::Severity::Warning, config.mark_of(path + "." + key), path,
-                                     "'" + key + "' is not a setting of plugin " + plugin_id +
-                                         "; ignored (a key of another runtime? --strict refuses it)"};
+      const ConfigDiagnostic warning{
+          ConfigDiagnostic::Severity::Warning, config.mark_of(path + "." + key), path,
+          "'" + key + "' is not a setting of plugin " + plugin_id + "; ignored (a key of another runtime? --strict refuses it)"};
       logger("kernel.config")->warn("{}", warning.format());
     }
     return result;

@@ -53,8 +53,9 @@ std::vector<std::string> auto_detect(const RobotConfig& config, const ProviderLo
     if ((dynamixel && config.has_kinematics) || interface == "joint_arm") arm = true;
   }
   if (arm && !drive && config.has_kinematics)
-    notes.emplace_back("dynamixel drivers with physics.kinematics read as an arm: arm, not teleop or nav (list "
-                       "rcan_protocol.capabilities for a robot that also drives on them)");
+    notes.emplace_back(
+        "dynamixel drivers with physics.kinematics read as an arm: arm, not teleop or nav (list "
+        "rcan_protocol.capabilities for a robot that also drives on them)");
   if (drive) {
     if (has_nav_physics(config)) add_unique(found, std::string(kNavCapability));
     else

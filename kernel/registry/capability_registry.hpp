@@ -13,8 +13,8 @@
 #include <utility>
 #include <vector>
 
-#include "libs/config/robot_config.hpp"
 #include "kernel/registry/standard_capabilities.hpp"
+#include "libs/config/robot_config.hpp"
 #include "rcand/sdk/scope.hpp"
 
 namespace rcand::kernel {

@@ -350,17 +350,15 @@ json StatusBoard::fixed_fields(const RobotIdentity& identity, const std::vector<
 
 std::vector<StatusBoard::Source> StatusBoard::sources_of(PluginRuntime& runtime) {
   // Polled through the runtime even without an object now: a reload may start one (status_of answers nullopt until).
+  const auto poll = [&runtime](const auto& instance) { return [&runtime, &instance] { return runtime.status_of(instance); }; };
   std::vector<Source> sources;
   for (const auto& instance : runtime.capabilities())
-    sources.push_back({instance.name, false, {{"plugin", instance.plugin_id}}, &instance.health,
-                       [&runtime, &instance] { return runtime.status_of(instance); }});
-  for (const auto& instance : runtime.drivers())
-    sources.push_back(
-        {instance.id,
-         true,
-         {{"id", instance.id}, {"protocol", instance.protocol}, {"plugin", instance.plugin_id}, {"actuates", instance.actuates}},
-         &instance.health,
-         [&runtime, &instance] { return runtime.status_of(instance); }});
+    sources.push_back({instance.name, false, {{"plugin", instance.plugin_id}}, &instance.health, poll(instance)});
+  for (const auto& instance : runtime.drivers()) {
+    nlohmann::json item{
+        {"id", instance.id}, {"protocol", instance.protocol}, {"plugin", instance.plugin_id}, {"actuates", instance.actuates}};
+    sources.push_back({instance.id, true, std::move(item), &instance.health, poll(instance)});
+  }
   return sources;
 }
 

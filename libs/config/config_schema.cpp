@@ -372,8 +372,8 @@ class Validator {
       return;
     }
     if (!type_matches(spec.type, value)) {
-      error(key_path, "expected " + type_phrase(spec.type) + ", found " + describe(value, spec.secret) +
-                          type_hint(spec.type, value));
+      error(key_path,
+            "expected " + type_phrase(spec.type) + ", found " + describe(value, spec.secret) + type_hint(spec.type, value));
       return;
     }
     check_constraints(spec, value, key_path);
@@ -410,10 +410,8 @@ class Validator {
           bound = "between " + number_text(*spec.min) + " and " + number_text(*spec.max);
         else if (spec.min && spec.max)
           bound = "greater than " + number_text(*spec.min) + " and at most " + number_text(*spec.max);
-        else if (spec.min)
-          bound = (spec.min_exclusive ? "greater than " : "at least ") + number_text(*spec.min);
-        else
-          bound = "at most " + number_text(*spec.max);
+        else if (spec.min) bound = (spec.min_exclusive ? "greater than " : "at least ") + number_text(*spec.min);
+        else bound = "at most " + number_text(*spec.max);
         return error(key_path, "must be " + bound + ", found " + describe(value, spec.secret));
       }
     }
@@ -429,8 +427,8 @@ class Validator {
     std::vector<std::string> names(spec.choices.begin(), spec.choices.end());
     std::string list;
     for (const auto& name : names) list += (list.empty() ? "" : ", ") + name;
-    std::string message = "must be one of " + list + (spec.ignore_case ? " (any case)" : "") + ", found " +
-                          describe(json(text), spec.secret);
+    std::string message =
+        "must be one of " + list + (spec.ignore_case ? " (any case)" : "") + ", found " + describe(json(text), spec.secret);
     if (!spec.secret)
       if (const auto guess = closest_match(text, names)) message += "; did you mean '" + *guess + "'?";
     error(key_path, std::move(message));
@@ -462,8 +460,7 @@ class Validator {
       if (!(child->required || required_now) || value.contains(name)) continue;
       if (!child->required_unless.empty() && value.contains(std::string(child->required_unless))) continue;
       std::string message = "required key '" + name + "' is missing";
-      if (!child->required_unless.empty())
-        message += " (give '" + name + "' or '" + std::string(child->required_unless) + "')";
+      if (!child->required_unless.empty()) message += " (give '" + name + "' or '" + std::string(child->required_unless) + "')";
       if (required_now) message += " (" + std::string(child->required_if) + " is true, so " + name + " must be set)";
       message += "; expected " + type_phrase(child->type) + ": " + std::string(child->description);
       // The key is not in the file, so point at the block that should hold it.
@@ -557,7 +554,8 @@ void check_cross_field_rules(const json& doc, Validator& validator) {
     if (!is_loopback_address(std::string(listen)))
       validator.error("runtime.auth.mode",
                       "\"open\" mode (no authentication) is allowed only on a loopback address, but "
-                      "runtime.listen.address is " + dump(json(listen)) + "; use mode \"tokens\" or listen on 127.0.0.1");
+                      "runtime.listen.address is " +
+                          dump(json(listen)) + "; use mode \"tokens\" or listen on 127.0.0.1");
   }
 
   const json* metres = at(doc, {"agent", "min_obstacle_m"});
@@ -565,8 +563,8 @@ void check_cross_field_rules(const json& doc, Validator& validator) {
   if (metres && centimetres && metres->is_number() && centimetres->is_number()) {
     const double m = metres->get<double>(), cm = centimetres->get<double>();
     if (std::abs(m * 100.0 - cm) > 1e-6 * std::max(1.0, std::abs(cm)))
-      validator.warning("safety.obstacle_stop_cm", "disagrees with agent.min_obstacle_m (" + number_text(m) +
-                                                       " m); agent.min_obstacle_m is used");
+      validator.warning("safety.obstacle_stop_cm",
+                        "disagrees with agent.min_obstacle_m (" + number_text(m) + " m); agent.min_obstacle_m is used");
   }
 }
 
@@ -600,8 +598,8 @@ void validate_config(const json& doc, const std::map<std::string, SourceMark>& m
                      std::vector<ConfigDiagnostic>& out) {
   Validator validator(marks, file, out);
   if (!doc.is_object()) {
-    validator.error("", "expected a mapping of blocks (rcan_version, metadata, ...) at the top level, found " +
-                            describe(doc, false));
+    validator.error("",
+                    "expected a mapping of blocks (rcan_version, metadata, ...) at the top level, found " + describe(doc, false));
     return;
   }
   validator.check(kRootSpec, doc, "");
@@ -646,9 +644,9 @@ std::string config_reference() {
     type = type.substr(0, type.find(' '));   // "boolean (true or false)" -> "boolean"
     type.resize(std::max<std::size_t>(type.size(), 8) + 2, ' ');
     line += type;
-    std::string status = spec.required                     ? "required"
-                         : !spec.default_value.is_null()   ? "default " + config_detail::dump(spec.default_value)
-                                                           : "optional";
+    std::string status = spec.required                   ? "required"
+                         : !spec.default_value.is_null() ? "default " + config_detail::dump(spec.default_value)
+                                                         : "optional";
     status.resize(std::max<std::size_t>(status.size(), 32) + 2, ' ');
     line += status;
     line += spec.description;

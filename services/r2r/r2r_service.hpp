@@ -14,8 +14,8 @@
 #include <vector>
 
 #include "kernel/auth/authenticator.hpp"
-#include "libs/config/robot_config.hpp"
 #include "kernel/safety/estop.hpp"
+#include "libs/config/robot_config.hpp"
 #include "libs/http/handler.hpp"
 #include "libs/http/server_options.hpp"
 #include "libs/swarm/swarm_registry.hpp"

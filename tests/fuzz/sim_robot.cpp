@@ -12,10 +12,10 @@
 
 #include "fuzz_check.hpp"
 #include "kernel/api/api.hpp"
-#include "libs/config/robot_config.hpp"
 #include "kernel/kernel.hpp"
 #include "kernel/service.hpp"
 #include "libs/base/logging.hpp"
+#include "libs/config/robot_config.hpp"
 #include "libs/rcan/crypto.hpp"
 
 namespace rcand::fuzz {

@@ -284,8 +284,8 @@ TEST_CASE("two plugins made from the template with identical C++ names load and 
 TEST_CASE("a vendor .deb from the template installs into the packaged plugin directory and depends on the ABI") {
   REQUIRE_PACKAGES(p);
   const auto depends = run_tool(*p.dpkg_deb, {"--field", p.vendor_deb.string(), "Depends"});
-  const std::string abi_depends = std::string("rcand-plugin-abi-") + RCAND_ABI_MAJOR_TEXT + " (>= " + RCAND_ABI_MAJOR_TEXT +
-                                  "." + RCAND_ABI_MINOR_TEXT + ")";
+  const std::string abi_depends =
+      std::string("rcand-plugin-abi-") + RCAND_ABI_MAJOR_TEXT + " (>= " + RCAND_ABI_MAJOR_TEXT + "." + RCAND_ABI_MINOR_TEXT + ")";
   CHECK(depends.out.find(abi_depends) != std::string::npos);
   const fs::path vendor_root = p.scratch.path() / "vendor-root";
   REQUIRE(run_tool(*p.dpkg_deb, {"-x", p.vendor_deb.string(), vendor_root.string()}).exit_code == 0);
@@ -419,8 +419,8 @@ TEST_CASE("every binary package has a -dbgsym package with the debug info of its
     return;
   }
   const std::vector<std::pair<std::string, fs::path>> binaries{{"rcand", p.root / "usr/sbin/rcand"},
-                                                                {"rcand-plugins-core", p.plugin_dir / "rcand_nav.so"},
-                                                                {"rcand-plugins-hw", p.plugin_dir / "rcand_dynamixel.so"}};
+                                                               {"rcand-plugins-core", p.plugin_dir / "rcand_nav.so"},
+                                                               {"rcand-plugins-hw", p.plugin_dir / "rcand_dynamixel.so"}};
   for (const auto& binary : binaries) {
     const std::string& package = binary.first;
     INFO(package, ": ", binary.second.string());

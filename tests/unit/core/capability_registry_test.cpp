@@ -103,7 +103,8 @@ TEST_CASE("auto-detection follows §9.3 only when the list is omitted") {
     config.has_camera = config.has_agent = false;
     auto plan = plan_capabilities(config, installed_everything());
     CHECK(plan.names == std::vector<std::string>{"status", "arm"});
-    CHECK(std::any_of(plan.notes.begin(), plan.notes.end(), [](const std::string& n) { return n.find("read as an arm") != std::string::npos; }));
+    CHECK(std::any_of(plan.notes.begin(), plan.notes.end(),
+                      [](const std::string& n) { return n.find("read as an arm") != std::string::npos; }));
   }
   SUBCASE("dynamixel without kinematics: a drive (§9.3: teleop, and nav with physics)") {
     config.drivers = {{"d0", "dynamixel", {}}};

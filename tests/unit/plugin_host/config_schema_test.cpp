@@ -1,5 +1,5 @@
-#include "libs/config/robot_config.hpp"
 #include "kernel/plugins/settings_schema.hpp"
+#include "libs/config/robot_config.hpp"
 
 #include <doctest/doctest.h>
 
