@@ -529,8 +529,9 @@ std::vector<std::size_t> PluginRuntime::drivers_of(const std::string& id) {
   std::vector<std::size_t> out;
   for (std::size_t i = 0; i < drivers_.size(); ++i) {
     const auto& driver = drivers_[i];
-    const bool would_serve = driver.plugin_id.empty() && !host_.providers_of_driver(driver.protocol).empty() &&
-                             host_.providers_of_driver(driver.protocol).front() == record;
+    const auto providers =
+        driver.plugin_id.empty() ? host_.providers_of_driver(driver.protocol) : std::vector<const PluginRecord*>{};
+    const bool would_serve = !providers.empty() && providers.front() == record;  // it failed before it could
     if (driver.plugin_id == id || would_serve) out.push_back(i);
   }
   return out;
@@ -565,27 +566,19 @@ bool PluginRuntime::stop_drivers(const std::vector<DriverInstance*>& members) {
 void PluginRuntime::restart_after_reload(const std::vector<std::size_t>& driver_indices,
                                          const std::vector<CapabilityInstance*>& members, bool capabilities_stopped, bool stopped,
                                          const RobotConfig& config) {
-  constexpr const char* kStuck = "plugin reload: a call into the old version did not finish; restart rcand";
-  for (auto i : driver_indices) {
-    auto& instance = drivers_[i];
-    if (!capabilities_stopped) continue;  // never touched: still the old version, in service
-    instance.health.reset();
-    if (!stopped) instance.health.mark_failed(kStuck);
-    else try {
-        start_driver(instance, i, config);
-      } catch (const std::exception& e) {  // the new manifest's settings schema refuses the config
-        instance.health.mark_failed(std::string("plugin reload: ") + e.what());
-      }
-  }
-  for (auto* instance : members) {
-    instance->health.reset();
-    if (!stopped) instance->health.mark_failed(kStuck);
-    else try {
-        start_capability(*instance, config);
-      } catch (const std::exception& e) {
-        instance->health.mark_failed(std::string("plugin reload: ") + e.what());
-      }
-  }
+  // Each instance in service again on its new code, or failed with the reason when it could not be.
+  const auto restart = [stopped](InstanceHealth& health, const auto& start) {
+    health.reset();
+    if (!stopped) return health.mark_failed("plugin reload: a call into the old version did not finish; restart rcand");
+    try {
+      start();
+    } catch (const std::exception& e) {  // the new manifest's settings schema refuses the config
+      health.mark_failed(std::string("plugin reload: ") + e.what());
+    }
+  };
+  if (capabilities_stopped)  // else the drivers were never touched: still the old version, in service
+    for (auto i : driver_indices) restart(drivers_[i].health, [&] { start_driver(drivers_[i], i, config); });
+  for (auto* instance : members) restart(instance->health, [&] { start_capability(*instance, config); });
   start_crews();
 }
 
