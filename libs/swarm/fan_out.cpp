@@ -17,11 +17,14 @@
 #include <boost/beast/http/string_body.hpp>
 #include <boost/beast/http/write.hpp>
 
+#include <algorithm>
 #include <future>
 #include <map>
 #include <mutex>
 #include <thread>
+#include <utility>
 
+#include "libs/base/stop_path_priority.hpp"
 #include "libs/base/worker_thread.hpp"
 #include "libs/http/connection_stream.hpp"
 #include "libs/http/tls_context.hpp"
@@ -59,20 +62,30 @@ struct IdleConnection {
 // Owned by the FanOut (and kept alive by helper threads still about to post). Pending handlers in `io` hold the
 // PeerOps and the PeerOps only point at the loop: no cycle, so destroying the loop after stop() frees them all.
 struct FanOut::Loop : std::enable_shared_from_this<FanOut::Loop> {
-  // The thread "swarm.fanout"; declared first, so the connections below are closed before its io_context goes.
+  // The thread "swarm.deadline": the runs' deadline timers and nothing else, so they fire on time however much I/O
+  // the fan-out thread has queued. Declared first: runs held by the fan-out thread's pending handlers own timers on it.
+  WorkerThread deadlines{"swarm.deadline", nullptr};
+  // The thread "swarm.fanout"; declared before the connections below, so they are closed before its io_context goes.
   WorkerThread worker{"swarm.fanout", nullptr};
   net::io_context& io = worker.context();
   std::shared_ptr<HostResolver> resolver;                   // may be null: getaddrinfo for every host
   std::map<std::string, std::vector<IdleConnection>> idle;  // by "ip:port" ("https://ip:port"); the loop thread's only
   // TLS contexts by their files (and the files' times, so a renewed CA is read again); the loop thread's only.
   std::map<std::string, std::shared_ptr<net::ssl::context>> tls_contexts;
-  std::mutex mutex;                                         // guards `alive` against helper threads posting after stop()
+  std::mutex mutex;  // guards `alive` against helper threads posting after stop()
   bool alive = true;
 
   // Posts `fn` unless the loop was stopped (then it is dropped).
   template <class Fn> void post(Fn&& fn) {
     std::lock_guard lock(mutex);
     if (alive) net::post(io, std::forward<Fn>(fn));
+  }
+  // Arms `timer` (on `deadlines`) unless the loop was stopped.
+  template <class Fn> void arm(net::steady_timer& timer, Clock::time_point when, Fn&& fn) {
+    std::lock_guard lock(mutex);
+    if (!alive) return;
+    timer.expires_at(when);
+    timer.async_wait(std::forward<Fn>(fn));
   }
 };
 
@@ -81,6 +94,10 @@ namespace {
 // Well inside rcand's 60 s idle timeout, so a reused connection is rarely one the peer is closing.
 constexpr std::chrono::seconds kMaxIdle{20};
 constexpr std::size_t kMaxIdlePerPeer = 4;
+// What one answer's head may take (Beast's own default, stated), and what is buffered from the socket at a time: with
+// the body limit, everything a peer can make this robot hold per connection, whatever it sends.
+constexpr std::uint32_t kHeaderLimit = 8 * 1024;
+constexpr std::size_t kReadBufferLimit = 16 * 1024;
 
 // A failure on a reused connection before any byte of the answer: the peer had closed it while idle.
 bool is_stale(const beast::error_code& ec) {
@@ -108,40 +125,55 @@ std::string endpoint_text(const tcp::endpoint& endpoint) {
   return (address.is_v6() ? "[" + address.to_string() + "]" : address.to_string()) + ":" + std::to_string(endpoint.port());
 }
 
-// All results of one run; touched only on the fan-out thread. The run's own deadline timer closes it even when an
-// op is late (its socket's expiry waits behind other work on this thread): `done` runs at most once, and a result that
-// arrives after that is dropped.
+// All results of one run. The peers' results arrive on the fan-out thread; the run's deadline timer fires on the
+// deadline thread and answers with what is in, however late the fan-out thread is (its sockets' own expiries wait
+// behind its other work). `done` runs once, on whichever thread closes the run; a result that arrives later is dropped.
 struct Batch {
-  explicit Batch(net::io_context& io) : deadline(io) {}
+  Batch(net::io_context& deadline_io, std::size_t size, FanOut::Done done_)
+      : results(size), finished(size, false), remaining(size), done(std::move(done_)), deadline(deadline_io) {}
+  std::mutex mutex;  // results, finished, remaining, done
   std::vector<PeerResult> results;
   std::vector<bool> finished;
-  std::size_t remaining = 0;
+  std::size_t remaining;
   FanOut::Done done;
-  net::steady_timer deadline;
+  net::steady_timer deadline;  // armed once by run(), then touched only by its own handler
 
-  // Records one peer's result; the last one (or the deadline) answers.
+  // Records one peer's result; the last one answers.
   void complete(std::size_t index, PeerResult result) {
-    if (!done || finished[index]) return;
-    finished[index] = true;
-    results[index] = std::move(result);
-    if (--remaining == 0) close();
+    FanOut::Done answer;
+    std::vector<PeerResult> all;
+    {
+      std::lock_guard lock(mutex);
+      if (!done || finished[index]) return;
+      finished[index] = true;
+      results[index] = std::move(result);
+      if (--remaining != 0) return;
+      answer = take(all);
+    }
+    answer(std::move(all));
   }
   // Every peer still pending failed with `why`; answers now.
   void expire(const std::vector<std::string>& names, double elapsed_ms, const std::string& why) {
-    for (std::size_t i = 0; i < finished.size() && done; ++i) {
-      if (finished[i]) continue;
-      PeerResult late;
-      late.name = names[i];
-      late.error = why;
-      late.latency_ms = elapsed_ms;
-      complete(i, std::move(late));
+    FanOut::Done answer;
+    std::vector<PeerResult> all;
+    {
+      std::lock_guard lock(mutex);
+      if (!done) return;
+      for (std::size_t i = 0; i < finished.size(); ++i) {
+        if (finished[i]) continue;
+        results[i].name = names[i];
+        results[i].error = why;
+        results[i].latency_ms = elapsed_ms;
+      }
+      answer = take(all);
     }
+    answer(std::move(all));
   }
-  void close() {
-    deadline.cancel();
-    auto answer = std::move(done);
-    done = nullptr;
-    if (answer) answer(std::move(results));
+
+ private:
+  FanOut::Done take(std::vector<PeerResult>& all) {
+    all = std::move(results);
+    return std::exchange(done, nullptr);
   }
 };
 
@@ -313,6 +345,7 @@ class PeerOp : public std::enable_shared_from_this<PeerOp> {
   // Content-Length over the limit and reads the whole body anyway; read_header reports it.
   void receive() {
     parser_.emplace();
+    parser_->header_limit(kHeaderLimit);
     parser_->body_limit(request_.body_limit);
     bhttp::async_read_header(*stream_, buffer_, *parser_, [self = shared_from_this()](const beast::error_code& ec, std::size_t) {
       if (ec && self->reused_ && is_stale(ec) && !self->parser_->got_some()) {
@@ -371,7 +404,7 @@ class PeerOp : public std::enable_shared_from_this<PeerOp> {
   std::shared_ptr<net::ssl::context> tls_;  // set: HTTPS
   std::unique_ptr<http::ConnectionStream> stream_;
   net::steady_timer timer_;
-  beast::flat_buffer buffer_;
+  beast::flat_buffer buffer_{kReadBufferLimit};
   bhttp::request<bhttp::string_body> message_;
   std::optional<bhttp::response_parser<bhttp::string_body>> parser_;  // fresh for each attempt
   PeerResult result_;
@@ -382,8 +415,9 @@ class PeerOp : public std::enable_shared_from_this<PeerOp> {
 
 }  // namespace
 
-FanOut::FanOut(std::shared_ptr<HostResolver> resolver) : loop_(std::make_shared<Loop>()) {
+FanOut::FanOut(std::shared_ptr<HostResolver> resolver, int deadline_priority) : loop_(std::make_shared<Loop>()) {
   loop_->resolver = std::move(resolver);
+  if (deadline_priority > 0) loop_->deadlines.post([deadline_priority] { enter_stop_path_priority(deadline_priority); });
 }
 
 FanOut::~FanOut() { stop(); }
@@ -394,28 +428,28 @@ void FanOut::stop() noexcept {
     std::lock_guard lock(loop_->mutex);
     loop_->alive = false;
   }
-  loop_->worker.stop();  // what is in flight is abandoned, never answered
+  loop_->deadlines.stop();  // what is in flight is abandoned, never answered
+  loop_->worker.stop();
 }
 
-void FanOut::run(std::vector<PeerRequest> requests, std::chrono::milliseconds timeout, Done done) {
+void FanOut::run(std::vector<PeerRequest> requests, std::chrono::milliseconds timeout, Done done, Clock::time_point answer_by) {
   const auto start = Clock::now();
-  loop_->post([loop = loop_.get(), requests = std::move(requests), timeout, done = std::move(done), start]() mutable {
-    auto batch = std::make_shared<Batch>(loop->io);
-    batch->results.resize(requests.size());
-    batch->finished.assign(requests.size(), false);
-    batch->remaining = requests.size();
-    batch->done = std::move(done);
-    if (requests.empty()) return batch->close();
-    auto names = std::make_shared<std::vector<std::string>>();
-    for (const auto& request : requests) names->push_back(request.name);
-    batch->deadline.expires_at(start + timeout);
-    batch->deadline.async_wait([batch, names, start, timeout](const boost::system::error_code& ec) {
-      if (ec) return;
-      const double elapsed = std::chrono::duration<double, std::milli>(Clock::now() - start).count();
-      batch->expire(*names, elapsed, "timed out after " + std::to_string(timeout.count()) + " ms");
-    });
+  const auto deadline = std::min(start + timeout, answer_by);
+  // What a peer still pending at the deadline is told it had: the budget left of `timeout` when answer_by came first.
+  const auto budget = std::chrono::duration_cast<std::chrono::milliseconds>(std::max(deadline - start, Clock::duration::zero()));
+  if (requests.empty()) return loop_->post([done = std::move(done)] { done({}); });
+  auto batch = std::make_shared<Batch>(loop_->deadlines.context(), requests.size(), std::move(done));
+  std::vector<std::string> names;
+  for (const auto& request : requests) names.push_back(request.name);
+  // Armed here, not from the fan-out thread's queue: the deadline holds even when that queue is long.
+  loop_->arm(batch->deadline, deadline, [batch, names = std::move(names), start, budget](const boost::system::error_code& ec) {
+    if (ec) return;
+    const double elapsed = std::chrono::duration<double, std::milli>(Clock::now() - start).count();
+    batch->expire(names, elapsed, "timed out after " + std::to_string(budget.count()) + " ms");
+  });
+  loop_->post([loop = loop_.get(), requests = std::move(requests), batch, start, budget]() mutable {
     for (std::size_t i = 0; i < requests.size(); ++i)
-      std::make_shared<PeerOp>(*loop, batch, i, std::move(requests[i]), start, timeout)->start();
+      std::make_shared<PeerOp>(*loop, batch, i, std::move(requests[i]), start, budget)->start();
   });
 }
 

@@ -1,8 +1,10 @@
 // The swarm's parallel HTTP client: one request per peer, all in flight at once on one event loop of its own
 // (never the server's I/O threads), each bounded by the same deadline, so a dead, slow or refusing peer never
-// delays the others. Hostnames resolve on a helper thread each (getaddrinfo cannot be cancelled and must not
-// serialize peers), or through a HostResolver for the names it handles (mDNS "*.local"); when resolution fails or
-// takes more than half the deadline the static `ip` fallback is used.
+// delays the others. The deadline itself is kept by a second thread that does nothing else ("swarm.deadline",
+// real-time when asked): however busy the I/O loop is with many broadcasts and hostile peers, each run answers at its
+// deadline with the results that are in, the missing peers named as timed out (issue 28 #3). Hostnames resolve on a helper thread
+// each (getaddrinfo cannot be cancelled and must not serialize peers), or through a HostResolver for the names it handles (mDNS
+// "*.local"); when resolution fails or takes more than half the deadline the static `ip` fallback is used.
 #pragma once
 
 #include <chrono>
@@ -59,16 +61,21 @@ class FanOut {
  public:
   using Done = std::function<void(std::vector<PeerResult>)>;
 
-  // Starts the event-loop thread. `resolver` (optional) resolves the hosts it handles instead of getaddrinfo.
-  explicit FanOut(std::shared_ptr<HostResolver> resolver = nullptr);
+  // Starts the event-loop thread and the deadline thread. `resolver` (optional) resolves the hosts it handles instead
+  // of getaddrinfo. `deadline_priority` > 0: the deadline thread is SCHED_FIFO at that priority (rcand passes
+  // runtime.stop_path_priority: a broadcast stop's answer is on the stop path).
+  explicit FanOut(std::shared_ptr<HostResolver> resolver = nullptr, int deadline_priority = 0);
   ~FanOut();  // stop()
   FanOut(const FanOut&) = delete;
   FanOut& operator=(const FanOut&) = delete;
 
-  // Sends every request in parallel; `done` runs once on the fan-out thread with the results in request order,
-  // when each one answered, failed or reached `timeout` (the whole exchange, resolution included). Thread-safe.
+  // Sends every request in parallel; `done` runs once with the results in request order, when each one answered or
+  // failed (on the fan-out thread), or at the deadline (on the deadline thread, every peer still pending failed with
+  // "timed out after N ms"). The deadline is `timeout` from now (the whole exchange, resolution included), or
+  // `answer_by` when that comes first (a broadcast stop's budget counts from its request). Thread-safe.
   // After stop(), pending and later runs never call `done`.
-  void run(std::vector<PeerRequest> requests, std::chrono::milliseconds timeout, Done done);
+  void run(std::vector<PeerRequest> requests, std::chrono::milliseconds timeout, Done done,
+           std::chrono::steady_clock::time_point answer_by = std::chrono::steady_clock::time_point::max());
   // run() and wait for the results (for rcanctl; never call it on the fan-out thread).
   std::vector<PeerResult> run_and_wait(std::vector<PeerRequest> requests, std::chrono::milliseconds timeout);
   // Abandons what is in flight and joins the thread. Idempotent.

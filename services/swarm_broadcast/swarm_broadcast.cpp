@@ -26,6 +26,11 @@ using kernel::RouteHandler;
 // Per-peer deadlines: a stop must finish inside 500 ms overall even with dead peers (§15.5); a command may take as
 // long as a capability handler may.
 constexpr std::chrono::milliseconds kStopPeerTimeout{300};
+// A broadcast stop answers no later than this after its request reached the decorator, whatever the peers and however
+// many broadcasts overlap: the peers get 300 ms after the local stop, less when the local stop itself was late (many
+// stops queued on the accept thread). What is left of the 500 ms is for the request's wait before it was read and for
+// the answer's write.
+constexpr std::chrono::milliseconds kStopAnswerBudget{400};
 
 bool header_true(const http::Request& request, std::string_view name) {
   const auto value = request.header(name);
@@ -72,7 +77,8 @@ class SwarmBroadcast final : public kernel::Service {
       resolver_->start();
       resolver_->prefetch(mdns_hosts);
     }
-    fan_out_ = std::make_unique<swarm::FanOut>(resolver_);
+    // The deadline thread answers broadcast stops: real-time like the rest of the stop path.
+    fan_out_ = std::make_unique<swarm::FanOut>(resolver_, host.config.runtime.stop_path_priority);
     table_ = std::make_unique<SwarmTable>(host, *fan_out_);
   }
   ~SwarmBroadcast() override { stop(); }
@@ -97,6 +103,7 @@ class SwarmBroadcast final : public kernel::Service {
     bool is_stop;
     json body;  // the request's body, an object (or empty)
     std::vector<swarm::SwarmNode> peers;
+    std::chrono::steady_clock::time_point answer_by = std::chrono::steady_clock::time_point::max();
   };
 
   void stop_route(Call& call, Reply reply, const RouteHandler& next) {
@@ -108,9 +115,10 @@ class SwarmBroadcast final : public kernel::Service {
     const bool body_ok = body.error.empty() && body.value.is_object();
     if (call.request.header("x-swarm-forwarded") || !is_broadcast(call.request, body_ok, body.value))
       return next(call, std::move(reply));
+    const auto answer_by = std::chrono::steady_clock::now() + kStopAnswerBudget;
     http::Response local;  // the local stop first, inline, before anything is forwarded
     next(call, [&local](http::Response response) { local = std::move(response); });
-    broadcast({true, body_ok ? body.value : json::object(), {}}, call, std::move(reply), std::move(local));
+    broadcast({true, body_ok ? body.value : json::object(), {}, answer_by}, call, std::move(reply), std::move(local));
   }
 
   void command_route(Call& call, Reply reply, const RouteHandler& next) {
@@ -198,7 +206,7 @@ class SwarmBroadcast final : public kernel::Service {
       complete();
     };
     const auto timeout = b.is_stop ? kStopPeerTimeout : host_.handler_timeout + std::chrono::milliseconds(2000);
-    if (!requests.empty()) fan_out_->run(std::move(requests), timeout, std::move(remote_done));
+    if (!requests.empty()) fan_out_->run(std::move(requests), timeout, std::move(remote_done), b.answer_by);
     else remote_done({});
   }
 

@@ -10,6 +10,7 @@
 #include <atomic>
 #include <chrono>
 #include <condition_variable>
+#include <future>
 #include <memory>
 #include <mutex>
 #include <thread>
@@ -219,4 +220,49 @@ TEST_CASE("100 concurrent broadcast stops with a streaming peer: each refuses th
     CHECK(results[0].error.find("body limit") != std::string::npos);
     CHECK(results[1].status == 200);
   }
+}
+
+TEST_CASE("a run answers at its deadline while the fan-out thread is busy: the deadline is kept on a thread of its own") {
+  // Issue 28 #3: one loop thread did every broadcast's I/O and kept their deadline timers, so under load (100
+  // concurrent broadcast stops, hostile peers) the timers fired up to 225 ms late. Here one run's `done` holds the
+  // fan-out thread for 800 ms, as a long queue of I/O would; a second run must still answer at its 300 ms deadline,
+  // naming both of its peers as timed out (neither request could even be sent).
+  Peer a;
+  BlackHole silent;
+  swarm::FanOut fan_out;
+  std::promise<void> busy;
+  fan_out.run({to("a", a.port)}, 5s, [&busy](std::vector<swarm::PeerResult>) {
+    busy.set_value();
+    std::this_thread::sleep_for(800ms);  // the fan-out thread is busy: this is what it simulates
+  });
+  busy.get_future().wait();
+  const auto before = std::chrono::steady_clock::now();
+  auto results = fan_out.run_and_wait({to("silent", silent.port()), to("a", a.port)}, 300ms);
+  const auto elapsed = std::chrono::steady_clock::now() - before;
+  CHECK(elapsed < 500ms);  // generous; before the fix it was the busy thread's 800 ms
+  REQUIRE(results.size() == 2);
+  for (const auto& r : results) {
+    CHECK_FALSE(r.reachable);
+    CHECK(r.error.find("timed out after 300 ms") != std::string::npos);
+  }
+  CHECK(results[0].name == "silent");
+  CHECK(results[1].name == "a");
+}
+
+TEST_CASE("answer_by ends a run before its timeout: a broadcast stop's budget counts from its request") {
+  BlackHole silent;
+  Peer a;
+  swarm::FanOut fan_out;
+  std::promise<std::vector<swarm::PeerResult>> answered;
+  const auto before = std::chrono::steady_clock::now();
+  fan_out.run(
+      {to("silent", silent.port()), to("a", a.port)}, 5s,
+      [&answered](std::vector<swarm::PeerResult> results) { answered.set_value(std::move(results)); }, before + 200ms);
+  auto results = answered.get_future().get();
+  const auto elapsed = std::chrono::steady_clock::now() - before;
+  CHECK(elapsed >= 199ms);
+  CHECK(elapsed < 2s);  // far below the 5 s timeout
+  CHECK(results[0].error.find("timed out after") != std::string::npos);
+  CHECK(results[0].latency_ms < 1000.0);
+  CHECK(results[1].status == 200);  // a fast peer is unaffected
 }
