@@ -415,9 +415,10 @@ class PeerOp : public std::enable_shared_from_this<PeerOp> {
 
 }  // namespace
 
-FanOut::FanOut(std::shared_ptr<HostResolver> resolver, int deadline_priority) : loop_(std::make_shared<Loop>()) {
+FanOut::FanOut(std::shared_ptr<HostResolver> resolver, int deadline_priority, int io_priority) : loop_(std::make_shared<Loop>()) {
   loop_->resolver = std::move(resolver);
   if (deadline_priority > 0) loop_->deadlines.post([deadline_priority] { enter_stop_path_priority(deadline_priority); });
+  if (io_priority > 0) loop_->worker.post([io_priority] { enter_stop_path_priority(io_priority); });
 }
 
 FanOut::~FanOut() { stop(); }

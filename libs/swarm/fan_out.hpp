@@ -63,8 +63,10 @@ class FanOut {
 
   // Starts the event-loop thread and the deadline thread. `resolver` (optional) resolves the hosts it handles instead
   // of getaddrinfo. `deadline_priority` > 0: the deadline thread is SCHED_FIFO at that priority (rcand passes
-  // runtime.stop_path_priority: a broadcast stop's answer is on the stop path).
-  explicit FanOut(std::shared_ptr<HostResolver> resolver = nullptr, int deadline_priority = 0);
+  // runtime.stop_path_priority: a broadcast stop's answer is on the stop path). `io_priority` > 0: the event-loop thread
+  // too (rcand passes 1, below the stop path, so the peers' answers are read in time while the cores are saturated;
+  // its work is bounded by the per-connection limits and the deadlines).
+  explicit FanOut(std::shared_ptr<HostResolver> resolver = nullptr, int deadline_priority = 0, int io_priority = 0);
   ~FanOut();  // stop()
   FanOut(const FanOut&) = delete;
   FanOut& operator=(const FanOut&) = delete;

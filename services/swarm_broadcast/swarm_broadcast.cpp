@@ -77,8 +77,11 @@ class SwarmBroadcast final : public kernel::Service {
       resolver_->start();
       resolver_->prefetch(mdns_hosts);
     }
-    // The deadline thread answers broadcast stops: real-time like the rest of the stop path.
-    fan_out_ = std::make_unique<swarm::FanOut>(resolver_, host.config.runtime.stop_path_priority);
+    // The deadline thread answers broadcast stops: real-time like the rest of the stop path. The peers' I/O is
+    // real-time at the lowest priority, below every stop-path thread (issue 28 #3: at nice 0 on saturated cores it
+    // fell behind and healthy peers' answers missed the deadline).
+    const int stop_priority = host.config.runtime.stop_path_priority;
+    fan_out_ = std::make_unique<swarm::FanOut>(resolver_, stop_priority, stop_priority > 1 ? 1 : 0);
     table_ = std::make_unique<SwarmTable>(host, *fan_out_);
   }
   ~SwarmBroadcast() override { stop(); }
