@@ -151,6 +151,7 @@ void Kernel::State::load_plugins(const KernelOptions& options) {
   auto log = logger("kernel");
   auto plugin_paths = options.plugin_paths.value_or(config.runtime.plugin_paths);
   host.scan(plugin_paths.empty() ? default_plugin_paths() : plugin_paths);
+  host.set_reload_parent(config.runtime.state_dir);
   // A name other runtimes write is rcand's alias only while no installed plugin provides that name itself.
   for (auto& driver : config.drivers)
     if (!driver.written_protocol.empty() && !host.providers_of_driver(driver.written_protocol).empty()) {
