@@ -204,8 +204,7 @@ TEST_CASE("state dir: unusable or already in use is a startup error naming runti
     const auto file = scratch.write("not-a-dir", "x");
     config["runtime"]["state_dir"] = file.string();
     const auto config_file = scratch.write("robot.rcan.yaml", config.dump());
-    const auto result =
-        run_tool(rcand_binary(), {"--config", config_file.string(), "--port", "0", "--plugin-path", plugin_dir().string()});
+    const auto result = run_tool(rcand_binary(), {"--config", config_file.string(), "--port", "0", "--plugin-path", plugin_dir().string()});
     CHECK(result.exit_code == 1);
     CHECK(result.err.find("runtime.state_dir") != std::string::npos);
     CHECK(result.err.find(file.string()) != std::string::npos);
@@ -214,8 +213,7 @@ TEST_CASE("state dir: unusable or already in use is a startup error naming runti
     config["runtime"]["state_dir"] = (scratch.path() / "state").string();
     RcandProcess running(config);
     const auto config_file = scratch.write("robot.rcan.yaml", config.dump());
-    const auto result =
-        run_tool(rcand_binary(), {"--config", config_file.string(), "--port", "0", "--plugin-path", plugin_dir().string()});
+    const auto result = run_tool(rcand_binary(), {"--config", config_file.string(), "--port", "0", "--plugin-path", plugin_dir().string()});
     CHECK(result.exit_code == 1);
     CHECK(result.err.find("runtime.state_dir") != std::string::npos);
     CHECK(result.err.find("in use by another rcand") != std::string::npos);

@@ -137,6 +137,10 @@ TEST_CASE("PluginHost::reopen copies into a private directory: nothing planted i
     host.load_needed({kReloadFixture}, {});
     put_reload_fixture(folder, 2, "2.0.0");
     host.reopen(kReloadFixture);
+    std::ifstream in(victim);
+    std::stringstream text;
+    text << in.rdbuf();
+    CHECK(text.str() == "the victim's data\n");  // no planted link was followed
     REQUIRE(host.find(kReloadFixture)->state == PluginState::Loaded);
     CHECK(version_served(host) == "2.0.0");
     const auto name = reload_dir_name(dir.path() / "state");  // the private directory: rcand's alone, emptied
@@ -146,10 +150,6 @@ TEST_CASE("PluginHost::reopen copies into a private directory: nothing planted i
     CHECK((info.st_mode & 07777) == 0700);
     CHECK(fs::is_empty(dir.path() / "state" / name));
   }
-  std::ifstream in(victim);
-  std::stringstream text;
-  text << in.rdbuf();
-  CHECK(text.str() == "the victim's data\n");
   for (const auto& link : planted) fs::remove(link);
   CHECK(reload_dir_name(dir.path() / "state").empty());  // removed with the host
 }
