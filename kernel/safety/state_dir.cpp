@@ -14,6 +14,7 @@
 #include <fstream>
 #include <sstream>
 #include <stdexcept>
+#include <string_view>
 
 #include "libs/base/bounded_text.hpp"
 #include "libs/base/logging.hpp"
@@ -158,7 +159,8 @@ void StateDir::read_previous() {
   bool unreadable = false;
   for (const char* name : {kLatchFile, kSlotFile}) {
     const auto text = read_state_file(dir_ / name);
-    if (!text || text->find_first_not_of(" \n") == std::string::npos) continue;  // none, or a slot never written
+    const bool blank = text && text->find_first_not_of(" \n") == std::string::npos;
+    if (!text || (blank && std::string_view(name) == kSlotFile)) continue;  // none, or a slot reserved and never written
     std::uint64_t seq = 0;
     const auto record = parse(*text, &seq);
     if (!record) unreadable = true;

@@ -106,13 +106,16 @@ TEST_CASE("the writer records each change off the caller's thread; a pending one
   CHECK_FALSE(std::filesystem::exists(scratch.dir / "estop.json.tmp"));  // replaced atomically
 }
 
-TEST_CASE("an unreadable latch record counts as latched") {
+TEST_CASE("an unreadable latch record counts as latched; so does an empty one, but not a slot never written") {
   StateScratch scratch;
-  std::ofstream(scratch.dir / "estop.json") << "{\"latch";
-  StateDir state(scratch.dir);
-  REQUIRE(state.previous().latch.has_value());
-  CHECK(state.previous().latch->latched);
-  CHECK(state.previous().latch->reason.find("unreadable") != std::string::npos);
+  for (const char* text : {"{\"latch", ""}) {
+    std::ofstream(scratch.dir / "estop.json") << text;
+    std::ofstream(scratch.dir / "estop.slot") << std::string(StateDir::kSlotBytes, ' ');
+    StateDir state(scratch.dir);
+    REQUIRE(state.previous().latch.has_value());
+    CHECK(state.previous().latch->latched);
+    CHECK(state.previous().latch->reason.find("unreadable") != std::string::npos);
+  }
 }
 
 TEST_CASE("one rcand per state dir, told who holds it; an unusable one is an error naming runtime.state_dir") {
