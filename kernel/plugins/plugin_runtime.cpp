@@ -598,6 +598,10 @@ ReloadResult PluginRuntime::reload(const std::string& id, const RobotConfig& con
   for (auto i : driver_indices) drivers.push_back(&drivers_[i]);
   if (members.empty() && drivers.empty())
     return refuse(409, "NOT_IN_USE", "plugin " + id + " serves no driver or capability of this robot: nothing to reload");
+  if (host_.reopens_left(id) <= 0)  // refused before anything stops: the robot keeps running the version it has
+    return refuse(409, "RELOAD_LIMIT",
+                  "plugin " + id + " was reloaded " + std::to_string(PluginHost::kMaxReopens) +
+                      " times, the most one run of rcand allows (each reload keeps its old version mapped); restart rcand");
 
   halt_first();
   auto log = logger("kernel.plugins");
