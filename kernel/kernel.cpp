@@ -271,7 +271,7 @@ void Kernel::State::reload_plugin(const std::string& id, const std::string& prin
                  {"error", "plugin reload is off on this robot; development robots set runtime.plugins.allow_reload: true"}});
   reloader->post([this, id, principal, done = std::move(done)] {
     if (reloads_closed) return done(503, {{"code", "UNAVAILABLE"}, {"error", "rcand is shutting down"}});
-    nlohmann::json body{{"plugin", id}, {"estopped", false}};
+    nlohmann::json body{{"plugin", bounded_text(id)}, {"estopped", false}};  // the id is the caller's, from the path
     const ReloadResult result = runtime->reload(id, config, [&] {
       const auto halt = estop.latch("plugin reload: " + id, principal);
       body["estopped"] = true;

@@ -121,6 +121,8 @@ void driver(const KernelRouteDeps& d, Call& call, const Reply& reply) {
              {"plugin", instance.plugin_id},
              {"state", instance.health.failed() ? "failed" : "ok"}};
     if (instance.health.failed()) doc["reason"] = instance.health.reason();
+    else if (auto fault = status ? StatusBoard::reported_fault(*status) : std::nullopt)
+      doc.update({{"state", "error"}, {"reason", *fault}});
     if (status) doc["status"] = std::move(*status);
     reply(json_response(200, doc));
     return;

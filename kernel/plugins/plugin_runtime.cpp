@@ -7,6 +7,7 @@
 #include "kernel/plugins/bounded_call.hpp"
 #include "kernel/plugins/guarded.hpp"
 #include "kernel/plugins/settings_schema.hpp"
+#include "libs/base/bounded_text.hpp"
 #include "libs/base/closest_match.hpp"
 #include "libs/base/keep_forever.hpp"
 
@@ -591,7 +592,7 @@ ReloadResult PluginRuntime::reload(const std::string& id, const RobotConfig& con
     return result;
   };
   const PluginRecord* record = host_.find(id);
-  if (record == nullptr) return refuse(404, "NOT_FOUND", "no plugin '" + id + "' is installed");
+  if (record == nullptr) return refuse(404, "NOT_FOUND", "no plugin '" + bounded_text(id) + "' is installed");
   const auto members = instances_of(id);
   const auto driver_indices = drivers_of(id);
   std::vector<DriverInstance*> drivers;

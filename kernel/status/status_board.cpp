@@ -7,6 +7,7 @@
 #include <limits>
 #include <mutex>
 
+#include "libs/base/bounded_text.hpp"
 #include "libs/base/logging.hpp"
 #include "libs/base/worker_thread.hpp"
 #include "rcand/sdk/pose_source.hpp"
@@ -47,6 +48,7 @@ class StatusBoard::Impl final : public StatusSink, public std::enable_shared_fro
     bool nav_running = false;
     std::uint64_t changes = 0;  // changes_ when the round that built it began
     std::size_t failed = 0;     // instances marked failed when it was built
+    std::size_t faults = 0;     // instances whose status reported a fault (sdk/capability.hpp, "fault")
   };
 
   Impl(std::vector<Source> sources, KernelServices& services, json fixed, std::int64_t started_us)
@@ -120,8 +122,9 @@ class StatusBoard::Impl final : public StatusSink, public std::enable_shared_fro
 
   std::string robot_state() const {
     if (services_.estop.latched()) return "estop";
-    if (failed_now() > 0) return "error";
-    return current_.load()->nav_running ? "running" : "idle";
+    const auto snapshot = current_.load();
+    if (failed_now() > 0 || snapshot->faults > 0) return "error";
+    return snapshot->nav_running ? "running" : "idle";
   }
 
   void notify() noexcept { request_round(); }
@@ -272,6 +275,11 @@ class StatusBoard::Impl final : public StatusSink, public std::enable_shared_fro
         item["reason"] = source.health->reason();
         ++snapshot->failed;
       } else {
+        if (auto fault = entry->last ? reported_fault(*entry->last) : std::nullopt) {
+          item["state"] = "error";  // it runs, but cannot do its job: a camera with no picture
+          item["reason"] = std::move(*fault);
+          ++snapshot->faults;
+        }
         const std::int64_t age = now - (entry->last ? entry->last_us : created_us_);
         if (age > stale_after) {
           item["stale"] = true;
@@ -282,7 +290,7 @@ class StatusBoard::Impl final : public StatusSink, public std::enable_shared_fro
       if (source.driver) drivers.push_back(std::move(item));
       else capabilities[source.name] = std::move(item);
     }
-    const char* state = snapshot->failed > 0 ? "error" : nav_running ? "running" : "idle";
+    const char* state = snapshot->failed + snapshot->faults > 0 ? "error" : nav_running ? "running" : "idle";
     snapshot->nav_running = nav_running;
     doc["state"] = state;
     doc["estopped"] = false;
@@ -335,6 +343,13 @@ class StatusBoard::Impl final : public StatusSink, public std::enable_shared_fro
 };
 
 // ---- StatusBoard ------------------------------------------------------------------------------------------------
+
+std::optional<std::string> StatusBoard::reported_fault(const json& status) {
+  if (!status.is_object()) return std::nullopt;
+  const auto fault = status.find("fault");
+  if (fault == status.end() || !fault->is_string() || fault->get_ref<const std::string&>().empty()) return std::nullopt;
+  return bounded_text(fault->get_ref<const std::string&>(), kFaultTextBytes);
+}
 
 json StatusBoard::fixed_fields(const RobotIdentity& identity, const std::vector<std::string>& caps, const PluginHost& host,
                                std::string_view version) {

@@ -10,6 +10,10 @@
 // An entry that neither a publish nor an answer refreshed for two seconds gets "stale": true and "age_ms" in its
 // item: a plugin that stops publishing shows as stale, not as a slow endpoint.
 //
+// An instance whose status carries a top-level "fault" (a non-empty string; sdk/capability.hpp) runs but cannot do
+// its job - a camera with no picture: its item's state is "error" with the fault as "reason", and so is the robot's
+// state, until a status without one.
+//
 // The top-level "pose" and "nav_running" come from the PoseSource service (sdk/pose_source.hpp, offered by nav),
 // read on the status thread at each rebuild - never per request.
 #pragma once
@@ -56,6 +60,11 @@ class StatusBoard {
     std::function<std::optional<nlohmann::json>()> poll;  // its status(), through the status reader; empty: never
   };
 
+  static constexpr std::size_t kFaultTextBytes = 600;
+
+  // The fault a plugin's status reports (its top-level "fault", a non-empty string), cut and made safe; else nullopt.
+  static std::optional<std::string> reported_fault(const nlohmann::json& status);
+
   // What GET /api/status says that never changes while rcand runs: ruri, name, version, rcan_version, caps, plugins.
   static nlohmann::json fixed_fields(const RobotIdentity& identity, const std::vector<std::string>& caps, const PluginHost& host,
                                      std::string_view version);
@@ -87,8 +96,8 @@ class StatusBoard {
   void when_current(std::function<void(std::shared_ptr<const std::string>)> answer);
   // Any thread: the current document (for R2R status messages and telemetry), e-stop fields as now.
   nlohmann::json document() const;
-  // Any thread: idle | running | error | estop (docs/protocol.md §5); the e-stop and failures as now, the PoseSource's
-  // busy flag as of the current document.
+  // Any thread: idle | running | error | estop (docs/protocol.md §5); the e-stop and failures as now, reported faults
+  // and the PoseSource's busy flag as of the current document.
   std::string robot_state() const;
 
   // Any thread, never blocks: something the document shows changed without a publish (an instance marked failed,

@@ -10,7 +10,9 @@ using nlohmann::json;
 
 std::string_view item_state(const json& item) {
   if (!item.is_object()) return "failed";
-  if (item.value("state", std::string()) == "failed") return "failed";
+  const std::string state = item.value("state", std::string());
+  if (state == "failed") return "failed";
+  if (state == "error") return "error";
   return is_true(item, "stale") ? "stale" : "ok";
 }
 
