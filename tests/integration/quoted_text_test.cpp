@@ -25,8 +25,8 @@ json quoting_config() {
   auto config = sim_config();
   config["rcan_protocol"]["capabilities"] = {"status", "teleop", "chat", "arm", "com.acme.gripper"};
   config["agent"] = {{"provider", "grammar"}};
-  config["physics"]["kinematics"] = json::array({{{"joint", "shoulder"}, {"min_deg", -90}, {"max_deg", 90}},
-                                                 {{"joint", "elbow"}, {"min_deg", 0}, {"max_deg", 135}}});
+  config["physics"]["kinematics"] = json::array(
+      {{{"joint", "shoulder"}, {"min_deg", -90}, {"max_deg", 90}}, {{"joint", "elbow"}, {"min_deg", 0}, {"max_deg", 135}}});
   config["drivers"].push_back({{"id", "arm0"}, {"protocol", "sim_arm"}});
   config["runtime"]["capabilities"]["arm"] = {{"poses", {{"ready", {{"shoulder", 30}}}}}};
   config["runtime"]["plugins"] = {{"allow_reload", true}};
@@ -73,8 +73,8 @@ TEST_CASE("quoted text: 405, /dashboard/<name>, /api/thoughts/<id>, plugin reloa
   answer = rcand.json("POST", "/api/action", "user-token", json{{"type", "arm_pose"}, {"pose", mebibyte}}.dump(), &status);
   CHECK(status == 400);
   check_quoted("arm: unknown pose", answer);
-  answer = rcand.json("POST", "/api/action", "user-token", json{{"type", "arm_pose"}, {"joints", {{mebibyte, 10}}}}.dump(),
-                      &status);
+  answer =
+      rcand.json("POST", "/api/action", "user-token", json{{"type", "arm_pose"}, {"joints", {{mebibyte, 10}}}}.dump(), &status);
   CHECK(status == 400);
   check_quoted("arm: unknown joint", answer);
 }

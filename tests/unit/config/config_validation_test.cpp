@@ -396,8 +396,7 @@ TEST_CASE("the camera block: a misspelled key is an error at its line, other run
       REQUIRE(errors.size() == 1);
       CHECK(errors[0].mark.line == 9);
       CHECK(errors[0].mark.column == 3);
-      CHECK(errors[0].format() ==
-            "test.rcan.yaml:9:3: error: camera: unknown key '" + key + "'; did you mean '" + guess + "'?");
+      CHECK(errors[0].format() == "test.rcan.yaml:9:3: error: camera: unknown key '" + key + "'; did you mean '" + guess + "'?");
     }
   }
   SUBCASE("a wrong type names the key and its line") {
