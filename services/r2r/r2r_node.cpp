@@ -77,13 +77,16 @@ json r2r_bounded_peer_status(const json& p) {
   return out;
 }
 
-// The sender a transport knows, without its port: "192.0.2.7" for "192.0.2.7:5000", "::1" for "[::1]:5000"; empty
-// for MQTT (the broker hides who published) and the in-process test network.
+// The sender as the transport knows it: a UDP datagram's IP address ("192.0.2.7" for "192.0.2.7:5000", "::1" for
+// "[::1]:5000": its port costs a sender nothing to change); a WebSocket's connection (address and port: each
+// connection was authenticated at its upgrade, and their number is capped); empty for MQTT (the broker hides who
+// published) and the in-process test network.
 std::string r2r_transport_sender(const InboundMessage& message) {
-  if (message.transport != "udp" && message.transport != "ws") return {};
   const std::string& peer = message.peer;
-  if (!peer.empty() && peer.front() == '[') return peer.substr(1, peer.find(']') - 1);
-  return peer.substr(0, peer.rfind(':'));
+  if (message.transport == "ws") return "ws " + peer;
+  if (message.transport != "udp") return {};
+  if (!peer.empty() && peer.front() == '[') return "udp " + peer.substr(1, peer.find(']') - 1);
+  return "udp " + peer.substr(0, peer.rfind(':'));
 }
 
 constexpr std::size_t kSenderNameBytes = 128;  // a sender as the refusal throttle and its summary keep it
@@ -253,7 +256,7 @@ struct R2rNode::Impl {
   // A refused message (docs/protocol.md §11.12): counted, then logged (`line`) and answered with the `error` that
   // `answer` builds, each within the sender's budget (RefusalThrottle). Never answered when it came as a broadcast,
   // when it is itself an `error` (`answerable` false), or when no route leads back. `sender`: its source_id, or
-  // the transport's peer when it has none.
+  // the transport's peer when it has none; with the transport-level sender when there is one.
   void refuse(const InboundMessage& message, const std::string& sender, bool answerable, const std::string& line,
               const std::function<Wire()>& answer) {
     {
@@ -261,8 +264,10 @@ struct R2rNode::Impl {
       ++counters.rejected;
     }
     answerable = answerable && !message.broadcast;
-    const auto verdict =
-        refusals.admit(bounded_text(sender, kSenderNameBytes), r2r_transport_sender(message), answerable, deps.clock.now_us());
+    // A sender is its name over the transport it came by: nobody exhausts another connection's budget by its name.
+    const std::string address = r2r_transport_sender(message);
+    const std::string who = bounded_text(sender, kSenderNameBytes) + (address.empty() ? "" : " (" + address + ")");
+    const auto verdict = refusals.admit(who, address, answerable, deps.clock.now_us());
     if (verdict.log) log->info("r2r: {}", line);
     if (verdict.answer) transmit({answer()});
   }

@@ -1,10 +1,10 @@
 // How often one sender's refused R2R messages are logged and answered (docs/protocol.md §11.12; issue 28 #9, issue
 // 31): refusals cost the refusing robot a log line and an `error` on the wire, so a sender that keeps sending what
 // is refused - a flood of anonymous messages, a robot without the fleet's keys broadcasting its status every second
-// - would otherwise get one of each per message. Per sender (the message's source_id, or the transport-level
-// sender when it has none), and per transport-level sender as well (an IP address, for UDP and WebSocket; MQTT's
-// broker hides it), so cycling source_ids from one address gains nothing; and for all senders together, so cycling
-// them everywhere gains nothing either:
+// - would otherwise get one of each per message. Per sender (the message's source_id, with the transport-level
+// sender when there is one), and per transport-level sender as well (a UDP datagram's IP address, a WebSocket
+// connection; MQTT's broker hides it), so cycling source_ids from one address gains nothing; and for all senders
+// together, so cycling them everywhere gains nothing either:
 //   log lines      kLogBurst per sender, then one per kLogGap; kTotalLogBurst for everyone, then kTotalLogPerSecond
 //   error answers  kAnswerBurst per sender, then kAnswersPerSecond; kTotalAnswerBurst, then kTotalAnswersPerSecond
 // What was held back is summed up in one log line per kSummaryPeriod at most ("suppressed N refusals from 'x' (n),

@@ -143,3 +143,19 @@ TEST_CASE("r2r refusals: new source_ids for every message gain nothing - per add
   rig.node->tick();
   CHECK(rig.log_lines("other senders in the last 10 s") == 1);
 }
+
+TEST_CASE("r2r refusals: a name's budget is its own over each transport-level sender - nobody spends another's") {
+  RefusalRig rig;
+  const auto burst = static_cast<std::size_t>(RefusalThrottle::kLogBurst);
+  // A UDP sender calling itself "alice" spends the budget of "alice" at its address, not that of alice over MQTT.
+  for (int i = 0; i < 100; ++i) rig.deliver("alice", "status", true, false, "udp", "192.0.2.7:5000");
+  CHECK(rig.log_lines("unauthorized status from 'alice'") == burst);
+  rig.deliver("alice", "command", false, false, "mqtt", "r2r/bob");
+  CHECK(rig.log_lines("unauthorized command from 'alice'") == 1);
+  CHECK(rig.errors_sent() == 1);
+  // Two WebSocket connections from one host (robots sharing a machine or a NAT): each connection has its budget.
+  for (int i = 0; i < 100; ++i) rig.deliver("carol", "command", false, false, "ws", "127.0.0.1:40001");
+  CHECK(rig.log_lines("unauthorized command from 'carol'") == burst);
+  rig.deliver("dave", "command", false, false, "ws", "127.0.0.1:40002");
+  CHECK(rig.log_lines("unauthorized command from 'dave'") == 1);
+}
