@@ -243,6 +243,7 @@ void Kernel::State::start_plugins() {
   });
   estop.on_cleared([this] {
     if (auto* state = state_dir_live.load()) state->latch_changed();
+    audit.end_repeats();  // the next stop is no repeat: a new audit entry
   });
   if (config.estop_on_startup) estop.latch("safety.estop_on_startup", "config");
 }

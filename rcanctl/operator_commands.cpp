@@ -240,6 +240,13 @@ int run_plugins(std::span<const std::string> args) {
       std::cout, std::cerr);
 }
 
+// An entry's event; a stop repeated while latched is one entry (docs/protocol.md §6.3): "POST /api/stop (x2000)".
+static std::string audit_event_text(const json& entry) {
+  std::string event = text(entry.value("event", json()));
+  if (const auto count = entry.value("count", std::uint64_t{1}); count > 1) event += " (x" + std::to_string(count) + ")";
+  return event;
+}
+
 int run_audit(std::span<const std::string> args) {
   constexpr std::string_view usage =
       "usage: rcanctl audit [--limit N] [--follow]   the newest N audit entries (default 20), oldest first;\n"
@@ -277,8 +284,8 @@ int run_audit(std::span<const std::string> args) {
       if (options.json) std::cout << it->dump(-1, ' ', false, json::error_handler_t::replace) << "\n";
       else
         rows.push_back({text(it->value("seq", json())), text(it->value("timestamp_ms", json())),
-                        text(it->value("principal", json())), text(it->value("event", json())),
-                        text(it->value("outcome", json())), text(it->value("detail", json()))});
+                        text(it->value("principal", json())), audit_event_text(*it), text(it->value("outcome", json())),
+                        text(it->value("detail", json()))});
     }
     if (rows.size() > 0) print_text_table(rows, std::cout);
     std::cout.flush();

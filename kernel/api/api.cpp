@@ -164,9 +164,11 @@ void Api::serve(http::Request&& request, const Principal* authenticated, http::R
 
 void Api::dispatch(const Route& route, Call& call, Reply reply) {
   const RouteSpec& spec = route.spec;
-  if (spec.audited)
-    call.audit_seq =
-        audit_.begin(call.principal, call.message_id, call.request.method + " " + call.request.path, call.audit_note);
+  if (spec.audited) {
+    std::string event = call.request.method + " " + call.request.path;
+    call.audit_seq = spec.stop ? audit_.begin_stop(call.principal, call.message_id, std::move(event), estop_.latched())
+                               : audit_.begin(call.principal, call.message_id, std::move(event), call.audit_note);
+  }
   if (spec.motion && estop_.latched()) {
     if (spec.audited) audit_.finish(call.audit_seq, "blocked", "e-stop active");
     reply(error_response(423, "ESTOP_ACTIVE", "e-stop is latched; clear it with POST /api/estop/clear"));

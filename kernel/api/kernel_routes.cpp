@@ -138,7 +138,9 @@ void add_kernel_routes(Router& router, const KernelRouteDeps& deps) {
   router.add({"GET", "/health", Scope::None}, [d](Call&, Reply reply) { health(*d, reply); });
   router.add({"GET", "/api/status", Scope::Status}, [d](Call&, Reply reply) { status(*d, reply); });
   router.add({"GET", "/api/discovery", Scope::None}, [d](Call&, Reply reply) { reply(json_response(200, d->discovery())); });
-  router.add({"POST", "/api/stop", Scope::Status, true, false, false}, [d](Call& call, Reply reply) { stop(*d, call, reply); });
+  router.add(
+      {.method = "POST", .path = "/api/stop", .scope = Scope::Status, .audited = true, .rate_limited = false, .stop = true},
+      [d](Call& call, Reply reply) { stop(*d, call, reply); });
   router.add({"GET", "/api/estop", Scope::Status, false, false, false}, [d](Call&, Reply reply) { estop_state(*d, reply); });
   router.add({"POST", "/api/estop/clear", Scope::Config, true, false, false},
              [d](Call& call, Reply reply) { estop_clear(*d, call, reply); });

@@ -49,6 +49,8 @@ struct RouteSpec {
                              // finishes it (Call::audit_seq) with its outcome
   bool motion = false;       // 423 ESTOP_ACTIVE while latched, before the handler
   bool rate_limited = true;  // false only for the e-stop paths (docs/protocol.md §6.4)
+  bool stop = false;         // an audited stop: kept in the stops' retention, a repeat while latched coalesced into
+                             // the entry it repeats (AuditLog::begin_stop; Call::audit_seq is then 0)
 };
 
 using Decorator = std::function<void(Call&, Reply, const RouteHandler& next)>;

@@ -1,15 +1,9 @@
 #include "kernel/audit/audit_log.hpp"
 
-#include <fcntl.h>
-#include <sys/file.h>
-#include <sys/stat.h>
-#include <unistd.h>
-
-#include <cerrno>
+#include <algorithm>
 #include <chrono>
-#include <cstring>
 #include <optional>
-#include <stdexcept>
+#include <vector>
 
 #include "libs/base/bounded_text.hpp"
 
@@ -25,6 +19,11 @@ nlohmann::json audit_entry_json(const AuditEntry& entry) {
                       {"event", entry.event},
                       {"outcome", entry.outcome}};
   if (!entry.detail.empty()) item["detail"] = entry.detail;
+  if (entry.count > 1) {  // repeats coalesced into this entry
+    item["count"] = entry.count;
+    item["last_ms"] = entry.last_ms;
+    item["last_message_id"] = entry.last_message_id;
+  }
   if (entry.note.is_object())
     for (const auto& [key, value] : entry.note.items()) item.emplace(key, value);  // never over the entry's own
   return item;
@@ -34,31 +33,12 @@ std::int64_t audit_wall_ms() {
   return std::chrono::duration_cast<std::chrono::milliseconds>(std::chrono::system_clock::now().time_since_epoch()).count();
 }
 
-std::filesystem::path rotated_name(const std::filesystem::path& file, int index) {
-  return file.string() + "." + std::to_string(index);
-}
-
 // The highest "seq" among the complete lines at the end of `file` (its last 64 KiB), 0 when there is none.
+// Concurrent requests may write their lines slightly out of seq order, hence every line, not only the last.
 std::uint64_t last_audit_seq(const std::filesystem::path& file) {
-  const int fd = ::open(file.c_str(), O_RDONLY | O_CLOEXEC);
-  if (fd < 0) return 0;
-  struct stat info {};
-  std::string tail;
-  if (::fstat(fd, &info) == 0 && info.st_size > 0) {
-    const off_t size = info.st_size;
-    const off_t from = size > 65536 ? size - 65536 : 0;
-    tail.resize(static_cast<std::size_t>(size - from));
-    const ssize_t got = ::pread(fd, tail.data(), tail.size(), from);
-    tail.resize(got > 0 ? static_cast<std::size_t>(got) : 0);
-  }
-  ::close(fd);
-  // Every complete line of the tail (concurrent requests may write their lines slightly out of seq order; a last
-  // line without its newline was cut by a crash and is skipped, as is a first one cut by the 64 KiB window).
   std::uint64_t best = 0;
-  std::size_t begin = 0;
-  for (std::size_t end; (end = tail.find('\n', begin)) != std::string::npos; begin = end + 1) {
-    const auto line = nlohmann::json::parse(tail.begin() + static_cast<std::ptrdiff_t>(begin),
-                                            tail.begin() + static_cast<std::ptrdiff_t>(end), nullptr, false);
+  for (const auto& text : RotatingFile::tail_lines(file)) {
+    const auto line = nlohmann::json::parse(text, nullptr, false);
     if (line.is_object() && line.contains("seq") && line["seq"].is_number_unsigned())
       best = std::max(best, line["seq"].get<std::uint64_t>());
   }
@@ -85,16 +65,14 @@ void AuditLog::identify(std::string robot_ruri, const sdk::Clock& clock) {
   clock_ = &clock;
 }
 
-std::uint64_t AuditLog::begin(const std::string& principal, const std::string& message_id, std::string event,
-                              nlohmann::json note) {
-  const std::int64_t now_ms =
-      clock_ != nullptr
-          ? clock_->wall_ms()
-          : std::chrono::duration_cast<std::chrono::milliseconds>(std::chrono::system_clock::now().time_since_epoch()).count();
-  return record({0, principal, robot_ruri_, message_id, std::move(event), now_ms, "pending", {}, std::move(note)});
+std::int64_t AuditLog::now_ms() const { return clock_ != nullptr ? clock_->wall_ms() : audit_wall_ms(); }
+
+std::uint64_t AuditLog::begin(const std::string& principal, const std::string& message_id, std::string event, nlohmann::json note,
+                              AuditRetention retention) {
+  return record({0, principal, robot_ruri_, message_id, std::move(event), now_ms(), "pending", {}, std::move(note)}, retention);
 }
 
-std::uint64_t AuditLog::record(AuditEntry entry) {
+void AuditLog::bound_fields(AuditEntry& entry) const {
   // Every field may carry what a client sent (a message id, an action type, a path): bounded before it is kept.
   entry.principal = bounded_text(entry.principal, kFieldLimit);
   entry.ruri = bounded_text(entry.ruri, kFieldLimit);
@@ -102,152 +80,228 @@ std::uint64_t AuditLog::record(AuditEntry entry) {
   entry.event = bounded_text(entry.event, kEventLimit);
   entry.outcome = bounded_text(entry.outcome, kFieldLimit);
   entry.detail = bounded_text(entry.detail, kDetailLimit);
+}
+
+// Under mutex_: gives `entry` its seq and keeps it in its ring (the ring's oldest goes when it is full).
+std::uint64_t AuditLog::store_locked(AuditEntry& entry, AuditRetention retention) {
+  Ring& ring = retention == AuditRetention::Stop ? stops_ : records_;
+  entry.seq = next_seq_++;
+  if (ring.capacity == 0) {
+    ++ring.dropped;
+    return entry.seq;
+  }
+  if (ring.entries.size() >= ring.capacity) {
+    // A stop still pending when it leaves memory: its outcome line must still go to the stops file.
+    if (&ring == &stops_ && ring.entries.front().outcome == "pending") {
+      if (evicted_stops_.size() >= kMaxCoalesced) evicted_stops_.clear();
+      evicted_stops_.insert(ring.entries.front().seq);
+    }
+    ring.entries.pop_front();
+    ++ring.dropped;
+  }
+  ring.entries.push_back(entry);
+  return entry.seq;
+}
+
+std::uint64_t AuditLog::record(AuditEntry entry, AuditRetention retention) {
+  bound_fields(entry);
   std::uint64_t seq;
   {
     std::lock_guard lock(mutex_);
-    seq = entry.seq = next_seq_++;
-    if (entries_.size() == capacity_) {
-      entries_.pop_front();
-      ++dropped_;
-    }
-    entries_.push_back(entry);
+    seq = store_locked(entry, retention);
   }
-  if (persisting_.load(std::memory_order_acquire)) {
-    auto line = audit_entry_json(entry);
-    line["kind"] = "entry";
-    append_line(seq, line);  // before dispatch: a crash while the command runs leaves this pending line
-  }
+  write_entry(entry, retention);  // before dispatch: a crash while the command runs leaves this pending line
   if (log_line_allowed(entry.principal))
     logger("kernel.audit")->info("#{} {} by {} ({})", seq, entry.event, entry.principal, entry.message_id);
   return seq;
 }
 
+std::uint64_t AuditLog::begin_stop(const std::string& principal, const std::string& message_id, std::string event, bool latched,
+                                   std::string detail) {
+  AuditEntry entry{0, principal, robot_ruri_, message_id, std::move(event), now_ms(), "pending", std::move(detail), nullptr};
+  bound_fields(entry);
+  const std::string key = entry.principal + '\n' + entry.event;
+  std::optional<RepeatLine> due;
+  std::uint64_t seq = 0;
+  {
+    std::lock_guard lock(mutex_);
+    if (RepeatLine line; latched && coalesce_locked(key, entry.message_id, entry.timestamp_ms, line)) {
+      if (line.seq != 0) due = std::move(line);
+    } else {
+      seq = store_locked(entry, AuditRetention::Stop);
+      if (coalesced_.size() >= kMaxCoalesced && !coalesced_.contains(key)) coalesced_.clear();  // bounded: new entries
+      coalesced_[key] = {seq, 1, entry.timestamp_ms};
+    }
+  }
+  if (due) {  // a repeat: its count reaches the file at most once a second, and no log line
+    write_repeat(*due);
+    return 0;
+  }
+  if (seq == 0) return 0;
+  write_entry(entry, AuditRetention::Stop);
+  if (log_line_allowed(entry.principal))
+    logger("kernel.audit")->info("#{} {} by {} ({})", seq, entry.event, entry.principal, entry.message_id);
+  return seq;
+}
+
+// Under mutex_: counts a repeat into the open entry of `key`. False when there is none (or it left memory). `line`
+// gets the count to write when the last one written is kRepeatLineGapMs old (else its seq stays 0).
+bool AuditLog::coalesce_locked(const std::string& key, const std::string& message_id, std::int64_t now, RepeatLine& line) {
+  const auto open = coalesced_.find(key);
+  if (open == coalesced_.end()) return false;
+  AuditEntry* entry = find_locked(open->second.seq);
+  if (entry == nullptr) {
+    coalesced_.erase(open);
+    return false;
+  }
+  ++entry->count;
+  entry->last_ms = now;
+  entry->last_message_id = message_id;
+  Coalesced& state = open->second;
+  if (state.count_in_file == 1 || now - state.written_ms >= kRepeatLineGapMs) {
+    line = {entry->seq, entry->count, now, message_id};
+    state.count_in_file = entry->count;
+    state.written_ms = now;
+  }
+  return true;
+}
+
+void AuditLog::end_repeats() noexcept {
+  try {
+    std::vector<RepeatLine> pending;
+    {
+      std::lock_guard lock(mutex_);
+      for (const auto& [key, state] : coalesced_)
+        if (const AuditEntry* entry = find_locked(state.seq); entry != nullptr && entry->count != state.count_in_file)
+          pending.push_back({entry->seq, entry->count, entry->last_ms, entry->last_message_id});
+      coalesced_.clear();
+    }
+    for (const auto& line : pending) write_repeat(line);
+  } catch (...) {  // no memory: the counts stay in memory (GET /api/audit)
+  }
+}
+
+AuditEntry* AuditLog::find_locked(std::uint64_t seq, bool* is_stop) {
+  for (Ring* ring : {&records_, &stops_}) {
+    auto& entries = ring->entries;
+    const auto it =
+        std::lower_bound(entries.begin(), entries.end(), seq, [](const AuditEntry& e, std::uint64_t s) { return e.seq < s; });
+    if (it == entries.end() || it->seq != seq) continue;
+    if (is_stop != nullptr) *is_stop = ring == &stops_;
+    return &*it;
+  }
+  return nullptr;
+}
+
 void AuditLog::finish(std::uint64_t seq, std::string outcome, std::string detail) {
+  if (seq == 0) return;  // a coalesced repeat
   outcome = bounded_text(outcome, kFieldLimit);
   detail = bounded_text(detail, kDetailLimit);
   std::optional<AuditEntry> finished;
+  bool stop = false;
   {
     std::lock_guard lock(mutex_);
-    if (!entries_.empty() && seq >= entries_.front().seq && seq <= entries_.back().seq) {
-      auto& entry = entries_[seq - entries_.front().seq];
-      entry.outcome = outcome;
-      entry.detail = detail;
-      finished = entry;
+    if (AuditEntry* entry = find_locked(seq, &stop)) {
+      entry->outcome = outcome;
+      entry->detail = detail;
+      finished = *entry;
+    } else {
+      stop = evicted_stops_.erase(seq) > 0;
     }
   }
-  if (persisting_.load(std::memory_order_acquire)) {
-    nlohmann::json line;
-    if (finished) {
-      line = audit_entry_json(*finished);
-    } else {  // already rotated out of memory: the outcome alone, under the same seq
-      line = {{"seq", seq}, {"outcome", outcome}};
-      if (!detail.empty()) line["detail"] = detail;
-    }
-    line["kind"] = "outcome";
-    line["finished_ms"] = audit_wall_ms();
-    append_line(seq, line);
+  nlohmann::json line;
+  if (finished) {
+    line = audit_entry_json(*finished);
+  } else {  // already rotated out of memory: the outcome alone, under the same seq
+    line = {{"seq", seq}, {"outcome", outcome}};
+    if (!detail.empty()) line["detail"] = detail;
   }
+  line["kind"] = "outcome";
+  line["finished_ms"] = audit_wall_ms();
+  append_line(stop ? stops_file_ : records_file_, seq, line);
   if (log_line_allowed(finished ? finished->principal : std::string("?")))
     logger("kernel.audit")->info("#{} {}{}{}", seq, outcome, detail.empty() ? "" : ": ", detail);
 }
 
-AuditLog::~AuditLog() {
-  if (fd_ >= 0) {
-    ::fsync(fd_);
-    ::close(fd_);
+AuditLog::~AuditLog() { end_repeats(); }
+
+void AuditLog::write_entry(const AuditEntry& entry, AuditRetention retention) noexcept {
+  try {
+    RotatingFile& file = retention == AuditRetention::Stop ? stops_file_ : records_file_;
+    if (!file.is_open()) return;
+    auto line = audit_entry_json(entry);
+    line["kind"] = "entry";
+    append_line(file, entry.seq, line);
+  } catch (...) {
   }
+}
+
+void AuditLog::write_repeat(const RepeatLine& repeat) noexcept {
+  try {
+    if (stops_file_.is_open())
+      append_line(stops_file_, repeat.seq,
+                  {{"kind", "repeat"},
+                   {"seq", repeat.seq},
+                   {"count", repeat.count},
+                   {"last_ms", repeat.last_ms},
+                   {"last_message_id", repeat.last_message_id}});
+    logger("kernel.audit")
+        ->info("#{} repeated: {} stops so far, the last at {} ({})", repeat.seq, repeat.count, repeat.last_ms,
+               repeat.last_message_id);
+  } catch (...) {
+  }
+}
+
+std::filesystem::path AuditLog::stops_file_for(const std::filesystem::path& file) {
+  return file.parent_path() / (file.stem().string() + ".stops" + file.extension().string());
 }
 
 void AuditLog::persist_to(const std::filesystem::path& file, std::uintmax_t max_bytes, int keep) {
-  const int fd = ::open(file.c_str(), O_RDWR | O_APPEND | O_CREAT | O_CLOEXEC, 0640);
-  if (fd < 0) throw std::runtime_error("runtime.audit_file: cannot append to " + file.string() + ": " + std::strerror(errno));
-  // One rcand per audit file (one per robot): a second one is refused before it writes a byte.
-  if (::flock(fd, LOCK_EX | LOCK_NB) != 0) {
-    const int error = errno;
-    ::close(fd);
-    throw std::runtime_error("runtime.audit_file: " + file.string() +
-                             (error == EWOULDBLOCK
-                                  ? std::string(" is in use by another rcand; each robot keeps its own audit log")
-                                  : ": cannot lock it: " + std::string(std::strerror(error))));
+  const auto stops = stops_file_for(file);
+  records_file_.open(file, max_bytes, keep, "runtime.audit_file");
+  stops_file_.open(stops, max_bytes, keep, "runtime.audit_file (its stops file)");
+  // Continue the sequence: from the files, or from the last rotated ones when they were just started.
+  std::uint64_t last = 0;
+  for (const auto& name : {file, stops}) {
+    std::uint64_t found = last_audit_seq(name);
+    if (found == 0) found = last_audit_seq(RotatingFile::rotated_name(name, 1));
+    last = std::max(last, found);
   }
-  struct stat info {};
-  std::uintmax_t size = ::fstat(fd, &info) == 0 ? static_cast<std::uintmax_t>(info.st_size) : 0;
-  // A last line cut by a crash gets its newline, so the next entry starts a line of its own.
-  if (char last = '\n'; size > 0 && ::pread(fd, &last, 1, static_cast<off_t>(size - 1)) == 1 && last != '\n')
-    if (::write(fd, "\n", 1) == 1) ++size;
-  // Continue the sequence: from this file, or from the last rotated one when this one was just started.
-  std::uint64_t last = last_audit_seq(file);
-  if (last == 0) last = last_audit_seq(rotated_name(file, 1));
-  {
-    std::lock_guard lock(mutex_);
-    if (entries_.empty() && last >= next_seq_) next_seq_ = first_seq_ = last + 1;
-  }
-  std::lock_guard file_lock(file_mutex_);
-  if (fd_ >= 0) ::close(fd_);
-  fd_ = fd;
-  file_name_ = file.string();
-  file_bytes_ = size;
-  max_bytes_ = max_bytes;
-  keep_ = keep < 1 ? 1 : keep;
-  persisting_.store(true, std::memory_order_release);
+  std::lock_guard lock(mutex_);
+  if (records_.entries.empty() && stops_.entries.empty() && last >= next_seq_) next_seq_ = first_seq_ = last + 1;
 }
 
-int AuditLog::rotate_locked() noexcept {
-  // FILE.<keep> is dropped, FILE.<i> becomes FILE.<i+1>, FILE becomes FILE.1, and a new FILE is started. Renames
-  // and an open only: the old descriptor is fsync'd and closed by the caller outside the lock.
-  const std::filesystem::path file = file_name_;
-  std::error_code ec;
-  std::filesystem::remove(rotated_name(file, keep_), ec);
-  for (int i = keep_ - 1; i >= 1; --i) std::filesystem::rename(rotated_name(file, i), rotated_name(file, i + 1), ec);
-  if (::rename(file.c_str(), rotated_name(file, 1).c_str()) != 0) return -1;
-  const int fresh = ::open(file.c_str(), O_WRONLY | O_APPEND | O_CREAT | O_CLOEXEC, 0640);
-  if (fresh < 0) return -1;           // keeps appending to the renamed file: nothing is lost
-  ::flock(fresh, LOCK_EX | LOCK_NB);  // the new file is this rcand's too
-  const int old = fd_;
-  fd_ = fresh;
-  file_bytes_ = 0;
-  return old;
-}
-
-void AuditLog::append_line(std::uint64_t seq, const nlohmann::json& line_json) noexcept {
+void AuditLog::append_line(RotatingFile& file, std::uint64_t seq, const nlohmann::json& line_json) noexcept {
   try {
+    if (!file.is_open()) return;
     const std::string line = line_json.dump(-1, ' ', false, nlohmann::json::error_handler_t::replace) + "\n";
-    int retired = -1;
-    bool failed = false;
-    {
-      std::lock_guard lock(file_mutex_);
-      if (fd_ < 0) return;
-      if (file_bytes_ > 0 && file_bytes_ + line.size() > max_bytes_) retired = rotate_locked();
-      // One write per line, O_APPEND: a crash loses at most the line being written, never an earlier one.
-      const ssize_t written = ::write(fd_, line.data(), line.size());
-      if (written > 0) file_bytes_ += static_cast<std::uintmax_t>(written);
-      failed = written != static_cast<ssize_t>(line.size());
-    }
-    if (retired >= 0) {
-      ::fsync(retired);
-      ::close(retired);
-      const std::filesystem::path dir = std::filesystem::path(file_name_).parent_path();
-      if (const int dir_fd = ::open(dir.empty() ? "." : dir.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC); dir_fd >= 0) {
-        ::fsync(dir_fd);
-        ::close(dir_fd);
-      }
-    }
-    if (failed) logger("kernel.audit")->error("cannot write audit entry #{} to {}", seq, file_name_);
+    if (!file.append(line)) logger("kernel.audit")->error("cannot write audit entry #{} to {}", seq, file.name());
   } catch (...) {
   }
 }
 
 std::uint64_t AuditLog::dropped() const {
   std::lock_guard lock(mutex_);
-  return dropped_;
+  return records_.dropped + stops_.dropped;
 }
 
 nlohmann::json AuditLog::to_json(std::size_t limit) const {
   nlohmann::json list = nlohmann::json::array();
   std::lock_guard lock(mutex_);
-  for (auto it = entries_.rbegin(); it != entries_.rend() && list.size() < limit; ++it) list.push_back(audit_entry_json(*it));
-  nlohmann::json doc{{"entries", std::move(list)}, {"total", next_seq_ - first_seq_}, {"dropped", dropped_}};
-  if (persisting_.load(std::memory_order_acquire)) doc["file"] = file_name_;
+  auto record = records_.entries.rbegin();
+  auto stop = stops_.entries.rbegin();
+  while (list.size() < limit && (record != records_.entries.rend() || stop != stops_.entries.rend())) {
+    const bool take_stop = record == records_.entries.rend() || (stop != stops_.entries.rend() && stop->seq > record->seq);
+    list.push_back(audit_entry_json(take_stop ? *stop++ : *record++));
+  }
+  nlohmann::json doc{{"entries", std::move(list)},
+                     {"total", next_seq_ - first_seq_},
+                     {"dropped", records_.dropped + stops_.dropped},
+                     {"dropped_stops", stops_.dropped}};
+  if (records_file_.is_open()) {
+    doc["file"] = records_file_.name();
+    doc["stops_file"] = stops_file_.name();
+  }
   return doc;
 }
 

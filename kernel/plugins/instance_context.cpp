@@ -22,8 +22,9 @@ void InstanceEstop::request_estop(const std::string& reason) noexcept {
   std::uint64_t seq = 0;
   if (services_.audit != nullptr) {
     try {
-      seq = services_.audit->record({0, "plugin:" + plugin_id_, services_.ruri, "", "estop requested by " + source,
-                                     services_.clock.wall_ms(), "pending", reason, nullptr});
+      // A stop: the stops' retention, and a repeat while latched is counted into the entry it repeats.
+      seq = services_.audit->begin_stop("plugin:" + plugin_id_, "", "estop requested by " + source, services_.estop.latched(),
+                                        reason);
     } catch (...) {  // the audit entry is bookkeeping: the stop happens regardless
     }
   }

@@ -6,6 +6,7 @@
 
 #include <mutex>
 
+#include "libs/base/log_text.hpp"
 #include "libs/base/systemd_notify.hpp"
 
 namespace rcand {
@@ -29,21 +30,34 @@ class JournalPriority final : public spdlog::custom_flag_formatter {
   std::unique_ptr<custom_flag_formatter> clone() const override { return std::make_unique<JournalPriority>(); }
 };
 
+// %v : the message, through the one rule for log text (libs/base/log_text.hpp). It replaces spdlog's own %v, so
+// every pattern built here escapes and bounds every message, whoever logged it.
+class EscapedMessage final : public spdlog::custom_flag_formatter {
+ public:
+  void format(const spdlog::details::log_msg& msg, const std::tm&, spdlog::memory_buf_t& dest) override {
+    append_log_text(std::string_view(msg.payload.data(), msg.payload.size()), dest);
+  }
+  std::unique_ptr<custom_flag_formatter> clone() const override { return std::make_unique<EscapedMessage>(); }
+};
+
 }  // namespace
+
+std::unique_ptr<spdlog::formatter> make_log_formatter(bool journal) {
+  auto formatter = std::make_unique<spdlog::pattern_formatter>();
+  formatter->add_flag<EscapedMessage>('v');
+  // Under systemd, journald keeps each line's priority ("<N>" prefix, read at the start of a line only: a line
+  // always starts with rcand's own prefix, and a message can hold no line break) and adds its own timestamp;
+  // elsewhere (a terminal, the tests' logs) lines carry the time and a coloured level.
+  if (journal) formatter->add_flag<JournalPriority>('*').set_pattern("%*%l [%n] %v");
+  else formatter->set_pattern("%Y-%m-%dT%H:%M:%S.%e %^%l%$ [%n] %v");
+  return formatter;
+}
 
 void configure_logging(std::string_view level) {
   // Every log goes to stderr (journald captures it); stdout carries only the ready line.
   if (!spdlog::get("rcand")) spdlog::set_default_logger(spdlog::stderr_color_mt("rcand"));
   spdlog::set_level(spdlog::level::from_str(std::string(level)));
-  // Under systemd, journald keeps each line's priority ("<N>" prefix) and adds its own timestamp; elsewhere (a
-  // terminal, the tests' logs) lines carry the time and a coloured level.
-  if (stderr_is_journal()) {
-    auto formatter = std::make_unique<spdlog::pattern_formatter>();
-    formatter->add_flag<JournalPriority>('*').set_pattern("%*%l [%n] %v");
-    spdlog::set_formatter(std::move(formatter));
-  } else {
-    spdlog::set_pattern("%Y-%m-%dT%H:%M:%S.%e %^%l%$ [%n] %v");
-  }
+  spdlog::set_formatter(make_log_formatter(stderr_is_journal()));
 }
 
 std::shared_ptr<spdlog::logger> logger(const std::string& name) {

@@ -1,6 +1,7 @@
 // spdlog setup: "kernel.*" loggers for the kernel, "plugin.<id>" for plugins; one stderr sink, journald-friendly.
 #pragma once
 
+#include <spdlog/formatter.h>
 #include <spdlog/logger.h>
 
 #include <chrono>
@@ -15,8 +16,13 @@
 
 namespace rcand {
 
-// Sets the level ("trace".."error") and pattern for every logger made afterwards. Call once, early in main.
+// Sets the level ("trace".."error") and the formatter (make_log_formatter) of every logger, made before or after.
+// Call early in main, before anything is logged.
 void configure_logging(std::string_view level);
+
+// The formatter configure_logging installs: "<N>level [name] message" for journald, "time level [name] message"
+// elsewhere; the message always through the one rule for log text (libs/base/log_text.hpp: escaped, bounded).
+std::unique_ptr<spdlog::formatter> make_log_formatter(bool journal);
 
 // The named logger, created on first use with the shared sink.
 std::shared_ptr<spdlog::logger> logger(const std::string& name);

@@ -6,8 +6,10 @@
 #include <cmath>
 
 #include "libs/base/bounded_text.hpp"
+#include "libs/base/logging.hpp"
 #include "libs/rcan/ruri.hpp"
 #include "services/r2r/payload_schema.hpp"
+#include "services/r2r/refusal_throttle.hpp"
 #include "services/r2r/replay_guard.hpp"
 
 namespace rcand::kernel::r2r {
@@ -29,7 +31,7 @@ struct Wire {
   std::string bytes;
   std::string open_bytes;
   std::optional<std::string> target;
-  Route reply;  // preferred route for a direct answer (same connection), may be empty
+  Route reply;                        // preferred route for a direct answer (same connection), may be empty
   std::optional<MessageType> type{};  // for the message observer; unset for bytes passed on as received
 };
 
@@ -75,6 +77,20 @@ json r2r_bounded_peer_status(const json& p) {
   return out;
 }
 
+// The sender as the transport knows it: a UDP datagram's IP address ("192.0.2.7" for "192.0.2.7:5000", "::1" for
+// "[::1]:5000": its port costs a sender nothing to change); a WebSocket's connection (address and port: each
+// connection was authenticated at its upgrade, and their number is capped); empty for MQTT (the broker hides who
+// published) and the in-process test network.
+std::string r2r_transport_sender(const InboundMessage& message) {
+  const std::string& peer = message.peer;
+  if (message.transport == "ws") return "ws " + peer;
+  if (message.transport != "udp") return {};
+  if (!peer.empty() && peer.front() == '[') return "udp " + peer.substr(1, peer.find(']') - 1);
+  return "udp " + peer.substr(0, peer.rfind(':'));
+}
+
+constexpr std::size_t kSenderNameBytes = 128;  // a sender as the refusal throttle and its summary keep it
+
 }  // namespace
 
 struct R2rNode::Impl {
@@ -93,7 +109,7 @@ struct R2rNode::Impl {
   double started_s = 0.0;
 
   R2rNode::MessageObserver observer;  // set before start(), read without a lock
-  mutable std::mutex mutex;  // everything below
+  mutable std::mutex mutex;           // everything below
   ReplayGuard replays{deps.settings.auth.replay_window_s + deps.settings.auth.future_skew_s};
   std::map<std::uint64_t, std::pair<MessageType, Subscriber>> subscribers;
   std::uint64_t next_subscriber = 1;
@@ -108,6 +124,8 @@ struct R2rNode::Impl {
   std::int64_t last_status_us = 0;
   bool status_sent = false;
   NodeCounters counters;
+  RefusalThrottle refusals;     // its own locks
+  LogRateLimiter error_log{5};  // `error` messages peers send: log lines per sender and second
   std::mutex transports_mutex;  // guards transports and started (never held with `mutex`)
   std::vector<Transport*> transports;
   bool started = false;
@@ -235,12 +253,31 @@ struct R2rNode::Impl {
       if (transport->send(bytes, target)) return;
   }
 
+  // A refused message (docs/protocol.md §11.12): counted, then logged (`line`) and answered with the `error` that
+  // `answer` builds, each within the sender's budget (RefusalThrottle). Never answered when it came as a broadcast,
+  // when it is itself an `error` (`answerable` false), or when no route leads back. `sender`: its source_id, or
+  // the transport's peer when it has none; with the transport-level sender when there is one.
+  void refuse(const InboundMessage& message, const std::string& sender, bool answerable, const std::string& line,
+              const std::function<Wire()>& answer) {
+    {
+      std::lock_guard lock(mutex);
+      ++counters.rejected;
+    }
+    answerable = answerable && !message.broadcast;
+    // A sender is its name over the transport it came by: nobody exhausts another connection's budget by its name.
+    const std::string address = r2r_transport_sender(message);
+    const std::string who = bounded_text(sender, kSenderNameBytes) + (address.empty() ? "" : " (" + address + ")");
+    const auto verdict = refusals.admit(who, address, answerable, deps.clock.now_us());
+    if (verdict.log) log->info("r2r: {}", line);
+    if (verdict.answer) transmit({answer()});
+  }
+
   // A message for another robot (docs/protocol.md §11.3): passed on once, as received plus the hop marker, when
   // that robot is of the fleet or has been heard from. The sender's own credentials go with it unchanged (a
   // signature still verifies, the marker being outside what it covers; a token travels only where this robot's own
   // would); the relay adds no authority of its own. Otherwise - a relayed message, an unknown target, no transport
   // reaching it - the sender gets 101 (never for an `error`).
-  void relay_or_refuse(const Envelope& envelope, const json& clean_ref, const Route& reply) {
+  void relay_or_refuse(const InboundMessage& message, const Envelope& envelope, const json& clean_ref, const Route& reply) {
     const std::string& target = *envelope.target_id;
     std::string why;
     if (envelope.header_extra.contains(kRelayMarker)) {
@@ -266,13 +303,9 @@ struct R2rNode::Impl {
         why = "target robot '" + target + "' is known, but no transport reaches it now";
       }
     }
-    {
-      std::lock_guard lock(mutex);
-      ++counters.rejected;
-    }
-    if (envelope.type == MessageType::Error) return;
-    log->info("r2r: {} from '{}' not relayed: {}", type_name(envelope.type), envelope.source_id, why);
-    transmit({error_reply(ErrorCode::UnknownTarget, why, clean_ref, envelope.source_id, reply)});
+    refuse(message, envelope.source_id, envelope.type != MessageType::Error,
+           std::string(type_name(envelope.type)) + " from '" + envelope.source_id + "' not relayed: " + why,
+           [&] { return error_reply(ErrorCode::UnknownTarget, why, clean_ref, envelope.source_id, reply); });
   }
 
   // The way back to the sender of a relayed message that came without one (MQTT): through the robot that relayed it,
@@ -349,27 +382,18 @@ void R2rNode::receive(InboundMessage message) {
     std::lock_guard lock(s.mutex);
     ++s.counters.received;
   }
-  auto reject = [&](Wire wire) {
-    {
-      std::lock_guard lock(s.mutex);
-      ++s.counters.rejected;
-    }
-    s.transmit({std::move(wire)});
-  };
 
   auto parsed = parse_envelope(message.bytes);
   if (auto* bad = std::get_if<R2rError>(&parsed)) {
-    s.log->info("r2r: refused a message from {} via {}: {}{}{}", message.peer, message.transport, bad->message,
-                bad->field.empty() ? "" : " at ", bad->field);
     const bool answerable = bad->type != "error" && !(bad->source_id && s.is_self(*bad->source_id)) && (bad->source_id || reply);
-    if (!answerable) {
-      std::lock_guard lock(s.mutex);
-      ++s.counters.rejected;
-      return;
-    }
-    json extra = json::object();
-    if (!bad->field.empty()) extra["field"] = bad->field;  // rcand extension: where the fault is
-    reject(s.error_reply(bad->code, bad->message, bad->ref, bad->source_id, reply, extra));
+    s.refuse(message, bad->source_id.value_or(message.transport + " " + message.peer), answerable,
+             "refused a message from " + message.peer + " via " + message.transport + ": " + bad->message +
+                 (bad->field.empty() ? "" : " at " + bad->field),
+             [&] {
+               json extra = json::object();
+               if (!bad->field.empty()) extra["field"] = bad->field;  // rcand extension: where the fault is
+               return s.error_reply(bad->code, bad->message, bad->ref, bad->source_id, reply, extra);
+             });
     return;
   }
   Envelope envelope = std::move(std::get<Envelope>(parsed));
@@ -380,18 +404,17 @@ void R2rNode::receive(InboundMessage message) {
   json clean_ref = envelope.header_extra;  // the `ref` of any answer: the header, minus credentials
   clean_ref.erase("auth");
   clean_ref.erase("signature");
+  auto refuse_unauthorized = [&](const std::string& line, const std::string& why) {
+    s.refuse(message, source, !is_error, line,
+             [&] { return s.error_reply(ErrorCode::Unauthorized, why, clean_ref, source, reply); });
+  };
 
   const double now = s.now_s();
   auto who = s.auth.authorize(envelope, envelope.received, message.principal, required_scope(envelope.type), now);
   if (auto* failure = std::get_if<AuthFailure>(&who)) {
-    s.log->info("r2r: unauthorized {} from '{}' via {}: {}", type_name(envelope.type), source, message.transport,
-                failure->message);
-    if (is_error) {
-      std::lock_guard lock(s.mutex);
-      ++s.counters.rejected;
-      return;
-    }
-    reject(s.error_reply(ErrorCode::Unauthorized, failure->message, clean_ref, source, reply));
+    refuse_unauthorized("unauthorized " + std::string(type_name(envelope.type)) + " from '" + source + "' via " +
+                            message.transport + ": " + failure->message,
+                        failure->message);
     return;
   }
   const Principal principal = std::move(std::get<Principal>(who));
@@ -401,18 +424,14 @@ void R2rNode::receive(InboundMessage message) {
     if (envelope.timestamp < s.started_s) {
       const std::string why =
           "signed message timestamped before this robot started (" + json(s.started_s).dump() + "): refused as a possible replay";
-      s.log->info("r2r: refused a signed {} from '{}' via {}: {}", type_name(envelope.type), source, message.transport, why);
-      if (is_error) {
-        std::lock_guard lock(s.mutex);
-        ++s.counters.rejected;
-        return;
-      }
-      reject(s.error_reply(ErrorCode::Unauthorized, why, clean_ref, source, reply));
+      refuse_unauthorized("refused a signed " + std::string(type_name(envelope.type)) + " from '" + source + "' via " +
+                              message.transport + ": " + why,
+                          why);
       return;
     }
     // A copy of a signed message already handled: a replay, or the same broadcast over another transport. Keyed on
     // the canonical signed message, so no other spelling of it counts as new. Dropped without an answer (the
-    // original was answered).
+    // original was answered); a debug line only, as the same broadcast on two transports is no fault.
     const std::string key = replay_key(envelope.received);
     std::lock_guard lock(s.mutex);
     if (!s.replays.first_time(key, now)) {
@@ -427,7 +446,7 @@ void R2rNode::receive(InboundMessage message) {
       std::lock_guard lock(s.mutex);
       s.note_peer_locked(source, message.transport, reply);  // so the target's answer finds its way back
     }
-    s.relay_or_refuse(envelope, clean_ref, reply);
+    s.relay_or_refuse(message, envelope, clean_ref, reply);
     return;
   }
 
@@ -442,8 +461,11 @@ void R2rNode::receive(InboundMessage message) {
     switch (envelope.type) {
       case MessageType::Status: peer.status = r2r_bounded_peer_status(p); break;
       case MessageType::Error: {
+        // A peer's own text: logged within its budget (the formatter escapes and bounds it, as every message).
         const int code = p["code"].get<int>();
-        s.log->info("r2r: error {} ({}) from '{}': {}", code, error_code_name(code), source, p["message"].get<std::string>());
+        if (const auto verdict = s.error_log.admit(bounded_text(source, kSenderNameBytes)); verdict.log)
+          s.log->info("r2r: error {} ({}) from '{}': {}{}", code, error_code_name(code), source, p["message"].get<std::string>(),
+                      verdict.suppressed ? " (" + std::to_string(verdict.suppressed) + " earlier ones not logged)" : "");
         break;
       }
       case MessageType::Command: run_command = true; break;
@@ -458,13 +480,16 @@ void R2rNode::receive(InboundMessage message) {
   if (s.observer) s.observer(false, envelope.type, message.transport);
   if (run_command) {
     if (!s.deps.command_executor) {
-      reject(s.error_reply(ErrorCode::Unauthorized, "this robot does not accept R2R commands", clean_ref, source, reply));
+      refuse_unauthorized("command from '" + source + "' refused: this robot does not accept R2R commands",
+                          "this robot does not accept R2R commands");
       return;
     }
     std::weak_ptr<Impl> weak = impl_;
-    s.deps.command_executor(principal, envelope.payload, [weak, clean_ref, source, reply](int status, json body) {
+    const bool broadcast = message.broadcast;
+    s.deps.command_executor(principal, envelope.payload, [weak, clean_ref, source, reply, broadcast](int status, json body) {
       const auto self = weak.lock();
-      if (!self || (status >= 200 && status < 300)) return;
+      // Refused (405, 423, ...): the sender learns why, unless the command came as a broadcast (§11.12).
+      if (!self || (status >= 200 && status < 300) || broadcast) return;
       const std::string why = body.is_object() && body.contains("error") && body["error"].is_string()
                                   ? body["error"].get<std::string>()
                                   : "command failed";
@@ -511,6 +536,7 @@ void R2rNode::tick() {
     s.prune_peers_locked(s.deps.clock.wall_ms());
   }
   s.transmit(std::move(out));
+  if (const auto summary = s.refusals.summary(now_us)) s.log->info("{}", *summary);
 }
 
 std::variant<std::string, R2rError> R2rNode::send(MessageType type, json payload, const std::optional<std::string>& target) {

@@ -1,5 +1,7 @@
 // One robot's R2R endpoint (seed 004, docs/protocol.md §11). Parses every inbound message, authenticates it, checks its
-// target, dispatches it per type and answers with `error` messages as the rulings say; runs commands through the
+// target, dispatches it per type and answers with `error` messages as the rulings say (never to a message that came as
+// a broadcast; refusals logged and answered within each sender's budget, RefusalThrottle, summed up from tick());
+// runs commands through the
 // action path; sends `status` periodically and on change; keeps a peer table; hands validated messages to
 // subscribers (plugins: the fleet plugin runs the auctions, §11.7-§11.9, on what it receives and sends here). No
 // thread of its own: transports call receive() on their threads, the owner calls tick() periodically (every ~50-100
@@ -68,9 +70,9 @@ struct R2rNodeDeps {
   const sdk::Clock& clock;
   const Authenticator& authenticator;  // the robot's HTTP authenticator: header.auth.token is checked against it
   R2rSettings settings;
-  StatusSource status_source;           // may be empty: status says unknown everywhere
-  CommandExecutor command_executor;     // may be empty: every command is refused (code 103, "commands disabled")
-  std::vector<Transport*> transports;   // not owned; outlive the node. Also add_transport() later.
+  StatusSource status_source;          // may be empty: status says unknown everywhere
+  CommandExecutor command_executor;    // may be empty: every command is refused (code 103, "commands disabled")
+  std::vector<Transport*> transports;  // not owned; outlive the node. Also add_transport() later.
   // Whether `id` names another robot of this robot's fleet (swarm.yaml): a message for it is relayed (§11.3), as is
   // one for a robot in the peer table. May be empty (only heard peers are known). Any thread; must not block.
   std::function<bool(const std::string& id)> fleet_member;
@@ -106,7 +108,8 @@ class R2rNode {
 
   // The Deliver callback: any transport thread, never blocks.
   void receive(InboundMessage message);
-  // Periodic work against the clock: status every status_interval and on change, peer expiry.
+  // Periodic work against the clock: status every status_interval and on change, peer expiry, the summary of
+  // refusals held back.
   void tick();
 
   // Sends a message of `type` with `payload` to `target` (nullopt: broadcast) on every transport that accepts it,

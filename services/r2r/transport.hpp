@@ -24,6 +24,9 @@ struct InboundMessage {
   // False when the sender may not see this robot's bearer token in an answer (a WebSocket client below OWNER: a
   // guest watching the fleet must not learn the credential this robot acts with).
   bool trusted_with_secrets = true;
+  // Arrived as a broadcast (MQTT r2r/broadcast or r2r/status/#, any UDP datagram): never answered with an `error`
+  // (docs/protocol.md §11.12) - N robots would answer each other N·(N-1) times.
+  bool broadcast = false;
 };
 
 // A transport that may carry this robot's bearer token (header.auth.token): a WebSocket has an authenticated peer at

@@ -189,7 +189,8 @@ class SwarmBroadcast final : public kernel::Service {
     if (auto refusal = select_peers(b)) return reply(std::move(*refusal));
     json forwarded_body;
     auto requests = peer_requests(b, call, forwarded_body);
-    const auto seq = host_.audit.begin(call.principal, call.message_id, "swarm broadcast POST " + call.request.path);
+    const auto seq = host_.audit.begin(call.principal, call.message_id, "swarm broadcast POST " + call.request.path, nullptr,
+                                       b.is_stop ? kernel::AuditRetention::Stop : kernel::AuditRetention::Record);
     auto gather = std::make_shared<Gather>();
     auto complete = [audit = &host_.audit, directory = &host_.plugin_services, gather, seq, reply = std::move(reply)] {
       answer(*audit, *directory, *gather, seq, reply);

@@ -2,6 +2,7 @@
 
 #include <boost/asio/ip/address.hpp>
 
+#include <algorithm>
 #include <cmath>
 
 #include "kernel/api/answers.hpp"
@@ -76,7 +77,8 @@ void SwarmTable::add_routes(kernel::Router& router) {
   router.add({"GET", "/api/swarm", sdk::Scope::Status},
              [this](kernel::Call& call, kernel::Reply reply) { list(call, std::move(reply)); });
   router.add(
-      {.method = "POST", .path = std::string(kPrefix) + "*", .scope = sdk::Scope::Status, .audited = true, .rate_limited = false},
+      // Audited by the handler (before the stop is forwarded), once it knows whether the node exists.
+      {.method = "POST", .path = std::string(kPrefix) + "*", .scope = sdk::Scope::Status, .rate_limited = false},
       [this](kernel::Call& call, kernel::Reply reply) { stop_node(call, std::move(reply)); });
   declare_swarm_metrics(host_.plugin_services);
 }
@@ -110,15 +112,10 @@ void SwarmTable::stop_node(kernel::Call& call, kernel::Reply reply) {
   const std::string name = shaped ? path.substr(kPrefix.size(), path.size() - kPrefix.size() - kStopSuffix.size()) : "";
   const auto& swarm = current_swarm(host_);
   const swarm::SwarmNode* node = shaped ? swarm.find(name) : nullptr;
-  if (node == nullptr) {
-    host_.audit.finish(call.audit_seq, "error", shaped ? "no swarm node of that name" : "not a swarm route");
-    if (!shaped)
-      return reply(
-          kernel::error_response(404, "NOT_FOUND", "no route " + bounded_text(path, 200) + "; POST /api/swarm/<node>/stop"));
-    return reply(kernel::error_response(404, "SWARM_NODE_NOT_FOUND",
-                                        "no node '" + bounded_text(name, 200) + "' in the swarm file",
-                                        {{"field", "node"}, {"known_nodes", swarm.names()}}));
-  }
+  if (node == nullptr) return refuse_unknown(call, reply, shaped, name);
+  // docs/protocol.md §6.3: audited before it is forwarded, in the stops' retention (never displacing a command).
+  call.audit_seq =
+      host_.audit.begin(call.principal, call.message_id, call.request.method + " " + path, nullptr, kernel::AuditRetention::Stop);
   // Forwarded like a broadcast stop (docs/protocol.md §9.2): with the node's own token, never forwarded again.
   const JsonBody body = parse_json_body(call.request.body);
   std::string reason = "stopped from the swarm table of " + host_.registry.identity().ruri + " by " + call.principal;
@@ -145,6 +142,33 @@ void SwarmTable::stop_node(kernel::Call& call, kernel::Reply reply) {
             "node '" + name + "' " + (answered ? "did not confirm the stop: " : "could not be reached: ") + error,
             {{"node", entry}}));
       });
+}
+
+// Not a stop of any node: audited (a stop request all the same) and answered 404 while the principal's budget
+// lasts; beyond it 429, logged, not audited - so no principal can flood the audit log with names that stop nothing.
+void SwarmTable::refuse_unknown(kernel::Call& call, const kernel::Reply& reply, bool shaped, const std::string& name) {
+  const std::string& path = call.request.path;
+  if (const auto wait = unknown_node_limit_.admit(call.principal, host_.clock.now_us())) {
+    const auto retry_after_s = std::max<std::int64_t>(1, (wait->count() + 999) / 1000);
+    if (const auto verdict = refusal_log_.admit(call.principal); verdict.log)
+      logger("swarm")->warn("POST {} by {}: no such swarm node, over {} a second (429){}", bounded_text(path, 200),
+                            call.principal, kUnknownNodePerSecond,
+                            verdict.suppressed ? " (" + std::to_string(verdict.suppressed) + " more not logged)" : "");
+    auto response = kernel::error_response(
+        429, "RATE_LIMITED",
+        "too many stops of unknown swarm nodes from principal '" + call.principal + "' (stops of known nodes are never limited)",
+        {{"retry_after_s", retry_after_s}});
+    response.headers.emplace_back("Retry-After", std::to_string(retry_after_s));
+    return reply(std::move(response));
+  }
+  const auto seq =
+      host_.audit.begin(call.principal, call.message_id, call.request.method + " " + path, nullptr, kernel::AuditRetention::Stop);
+  host_.audit.finish(seq, "error", shaped ? "no swarm node of that name" : "not a swarm route");
+  if (!shaped)
+    return reply(
+        kernel::error_response(404, "NOT_FOUND", "no route " + bounded_text(path, 200) + "; POST /api/swarm/<node>/stop"));
+  reply(kernel::error_response(404, "SWARM_NODE_NOT_FOUND", "no node '" + bounded_text(name, 200) + "' in the swarm file",
+                               {{"field", "node"}, {"known_nodes", current_swarm(host_).names()}}));
 }
 
 }  // namespace rcand::services

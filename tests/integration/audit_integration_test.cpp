@@ -13,6 +13,7 @@
 
 #include "rcand_process.hpp"
 #include "sanitized_build.hpp"
+#include "swarm_lab.hpp"
 
 using namespace rcand::test;
 using nlohmann::json;
@@ -33,7 +34,6 @@ std::vector<json> audit_test_lines(const std::filesystem::path& file) {
     if (!line.empty()) lines.push_back(json::parse(line, nullptr, false));
   return lines;
 }
-
 
 std::uintmax_t audit_test_file_size(const std::filesystem::path& file) {
   std::error_code ec;
@@ -65,11 +65,11 @@ TEST_CASE("audit: 300 requests with a 1 MB \"type\" grow neither the audit file,
   const long rss_after = resident_kb(rcand.pid());
   const auto stderr_grew = audit_test_file_size(rcand.dir().path() / "stderr") - stderr_before;
   const auto audit_bytes = audit_test_file_size(audit_file);
-  MESSAGE("RSS before " << rss_before << " kB, after " << rss_after << " kB (+" << rss_after - rss_before
-                        << " kB); audit file " << audit_bytes << " bytes; stderr +" << stderr_grew << " bytes");
+  MESSAGE("RSS before " << rss_before << " kB, after " << rss_after << " kB (+" << rss_after - rss_before << " kB); audit file "
+                        << audit_bytes << " bytes; stderr +" << stderr_grew << " bytes");
   REQUIRE(rss_before > 0);
   if (!kSanitizedBuild) CHECK(rss_after - rss_before < 64 * 1024);  // was +314 MB: each entry kept the whole type
-  CHECK(audit_bytes < 2 * 1024 * 1024);        // was 315 MB: 610 entries x 2 lines, each bounded
+  CHECK(audit_bytes < 2 * 1024 * 1024);                             // was 315 MB: 610 entries x 2 lines, each bounded
   CHECK(stderr_grew < 2 * 1024 * 1024);
 
   const auto audit = rcand.json("GET", "/api/audit?limit=10", "owner-token");
@@ -113,7 +113,8 @@ TEST_CASE("audit: the file rotates by size, keeps runtime.audit_keep_files, and 
   std::uint64_t expected = kinds.begin()->first;
   for (const auto& [seq, seen] : kinds) {
     CHECK(seq == expected++);
-    if (seq != kinds.begin()->first) CHECK(seen == std::set<std::string>{"entry", "outcome"});  // the oldest may have lost its pending line
+    if (seq != kinds.begin()->first)
+      CHECK(seen == std::set<std::string>{"entry", "outcome"});  // the oldest may have lost its pending line
   }
 }
 
@@ -153,7 +154,8 @@ TEST_CASE("audit: seq continues across a restart, and an entry in flight at kill
     });
     // Wait for its pending line, which record() writes before dispatch (bounded against a hang).
     const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(10);
-    while (audit_test_read(audit_file).find("in-flight-at-kill") == std::string::npos && std::chrono::steady_clock::now() < deadline)
+    while (audit_test_read(audit_file).find("in-flight-at-kill") == std::string::npos &&
+           std::chrono::steady_clock::now() < deadline)
       std::this_thread::yield();
     second.kill_hard();
     in_flight.join();
@@ -178,4 +180,62 @@ TEST_CASE("audit: seq continues across a restart, and an entry in flight at kill
   const auto newest = third.json("GET", "/api/audit?limit=1", "owner-token")["entries"][0];
   CHECK(newest["event"] == "e-stop latched at startup");
   CHECK(newest["seq"] == pending_seq + 1);
+}
+
+// Issue 28 #7: 2,000 stops a second from one GUEST pushed a USER's move out of memory and out of the rotated files.
+TEST_CASE("audit: a GUEST's stop flood keeps a USER's move in memory and in the file; repeats are one entry") {
+  TempDir files;
+  const auto audit_file = files.path() / "audit.jsonl";
+  const auto swarm_file = files.write("swarm.yaml", swarm_yaml({{"bravo", "127.0.0.1", 9}}));
+  auto config = swarm_robot_config("alpha", swarm_file);
+  config["runtime"]["audit_file"] = audit_file.string();
+  config["runtime"]["audit_max_bytes"] = 4096;
+  config["runtime"]["audit_keep_files"] = 1;
+  RcandProcess robot(config);
+
+  const auto moved =
+      robot.request("POST", "/api/action", "user-token", R"({"type":"move","linear":0.1,"angular":0.0,"duration_ms":100})",
+                    {{"X-Message-Id", "user-move"}});
+  CHECK(moved.status == 200);
+  constexpr int kStops = 2000;
+  for (int i = 0; i < kStops; ++i)
+    REQUIRE(robot.request("POST", "/api/stop", "guest-token", "", {{"X-Message-Id", "g-" + std::to_string(i)}}).status == 200);
+  // Unknown swarm nodes: audited 404s while the principal's budget lasts, then 429 (logged, not audited).
+  int not_found = 0, limited = 0;
+  for (int i = 0; i < 200; ++i) {
+    const auto status = robot.request("POST", "/api/swarm/nobody-" + std::to_string(i) + "/stop", "guest-token").status;
+    not_found += status == 404;
+    limited += status == 429;
+  }
+  CHECK(not_found + limited == 200);
+  CHECK(limited > 0);
+  CHECK(not_found >= 10);
+
+  const auto audit = robot.json("GET", "/api/audit?limit=10000", "owner-token");
+  int moves = 0, stop_entries = 0, unknown_entries = 0;
+  for (const auto& entry : audit["entries"]) {
+    const std::string event = entry["event"];
+    if (entry["message_id"] == "user-move") ++moves;
+    if (event.starts_with("POST /api/swarm/nobody-")) ++unknown_entries;
+    if (event != "POST /api/stop") continue;
+    ++stop_entries;
+    CHECK(entry["principal"] == "guest-principal");
+    CHECK(entry["message_id"] == "g-0");  // the stop that latched; every later one repeats it
+    CHECK(entry["count"] == kStops);
+    CHECK(entry["last_message_id"] == "g-" + std::to_string(kStops - 1));
+    CHECK(entry["outcome"] == "ok");
+  }
+  CHECK(moves == 1);
+  CHECK(stop_entries == 1);
+  CHECK(unknown_entries == not_found);
+  CHECK(audit["dropped"] == 0);
+
+  // The move's lines are still in the main file (it was rotated out by the stops' lines before); the stops went to
+  // their own file, which rotated.
+  int move_lines = 0;
+  for (const auto& line : audit_test_lines(audit_file)) move_lines += line.value("message_id", "") == "user-move";
+  CHECK(move_lines == 2);  // pending, then its outcome
+  CHECK_FALSE(std::filesystem::exists(audit_file.string() + ".1"));
+  CHECK(std::filesystem::exists(files.path() / "audit.stops.jsonl"));
+  CHECK(audit["stops_file"] == (files.path() / "audit.stops.jsonl").string());
 }

@@ -112,10 +112,12 @@ TEST_CASE("rcanctl plugins and audit") {
   CHECK(plugins.out.find("loaded") != std::string::npos);
 
   CHECK(ctl({"stop"}, "guest-token").exit_code == 0);  // something to audit
+  CHECK(ctl({"stop"}, "guest-token").exit_code == 0);  // a repeat while latched: counted into that entry
   const auto audit = ctl({"audit", "--limit", "5"}, "owner-token");
   CHECK(audit.exit_code == 0);
   CHECK(audit.out.rfind("SEQ", 0) == 0);
   CHECK(audit.out.find("guest-principal") != std::string::npos);
+  CHECK(audit.out.find("POST /api/stop (x2)") != std::string::npos);
   const auto lines = ctl({"audit", "--json"}, "owner-token");
   CHECK(json::parse(lines.out.substr(0, lines.out.find('\n'))).contains("seq"));
   CHECK(ctl({"audit"}, "guest-token").exit_code == 1);  // the audit log needs the config scope

@@ -47,11 +47,15 @@ inline Answer stop_within_limit(const RcandProcess& rcand, const std::string& id
   return answer;
 }
 
-// The message ids of `ids` that GET /api/audit does not hold.
+// The message ids of `ids` that GET /api/audit does not hold. A stop repeated while latched is counted into the entry
+// it repeats (docs/protocol.md §6.3): the latest repeat's id is that entry's last_message_id.
 inline std::vector<std::string> missing_from_audit(const RcandProcess& rcand, const std::vector<std::string>& ids) {
   const auto audit = rcand.json("GET", "/api/audit?limit=10000", "owner-token");
   std::set<std::string> present;
-  for (const auto& entry : audit.value("entries", nlohmann::json::array())) present.insert(entry.value("message_id", ""));
+  for (const auto& entry : audit.value("entries", nlohmann::json::array())) {
+    present.insert(entry.value("message_id", ""));
+    present.insert(entry.value("last_message_id", ""));
+  }
   std::vector<std::string> missing;
   for (const auto& id : ids)
     if (!present.contains(id)) missing.push_back(id);
@@ -62,6 +66,23 @@ inline void check_audit_complete(const RcandProcess& rcand, const std::vector<st
   const auto missing = missing_from_audit(rcand, ids);
   CHECK_MESSAGE(missing.empty(), "audit entries lost: " << nlohmann::json(missing).dump());
   const auto audit = rcand.json("GET", "/api/audit?limit=1", "owner-token");
+  CHECK(audit.value("dropped", -1) == 0);
+}
+
+// Stops `ids`, sent in this order by one principal while the robot stayed latched: the first has its own audit entry,
+// every later one is counted into it (docs/protocol.md §6.3: a stop repeated while latched is coalesced), so that
+// entry's count is their number and its last_message_id the last; nothing rotated out of memory.
+inline void check_stops_audited(const RcandProcess& rcand, const std::vector<std::string>& ids,
+                                const std::string& token = "owner-token") {
+  REQUIRE(!ids.empty());
+  const auto audit = rcand.json("GET", "/api/audit?limit=10000", token);
+  nlohmann::json found;
+  for (const auto& entry : audit.value("entries", nlohmann::json::array()))
+    if (entry.value("message_id", "") == ids.front()) found = entry;
+  INFO("audit: " << audit.dump());
+  REQUIRE_MESSAGE(found.is_object(), "audit entry lost: " << ids.front());
+  CHECK(found.value("count", std::uint64_t{1}) == ids.size());
+  if (ids.size() > 1) CHECK(found.value("last_message_id", "") == ids.back());
   CHECK(audit.value("dropped", -1) == 0);
 }
 

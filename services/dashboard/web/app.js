@@ -354,7 +354,8 @@ async function refreshAudit() {
   }
   const entries = (answer.body.entries || []).slice().reverse();
   table($('audit'), ['#', 'time', 'principal', 'event', 'outcome'],
-        entries.map((e) => [e.seq, e.timestamp_ms ? new Date(e.timestamp_ms).toLocaleTimeString() : e.ts, e.principal, e.event, e.outcome]));
+        entries.map((e) => [e.seq, e.timestamp_ms ? new Date(e.timestamp_ms).toLocaleTimeString() : e.ts, e.principal,
+                            e.count > 1 ? `${e.event} (x${e.count})` : e.event, e.outcome]));  // repeated stops: one entry
 }
 
 // ---- start ---------------------------------------------------------------------------------------------------------

@@ -99,6 +99,7 @@ struct MqttTransport::State {
   const std::shared_ptr<spdlog::logger> log;
   mosquitto* client = nullptr;
   std::string own_topic, broadcast_topic;
+  std::string status_topics;  // "r2r/status/": status broadcasts, one topic per robot
 
   std::shared_mutex deliver_mutex;  // shared by deliveries, exclusive in stop()
   Deliver deliver;
@@ -150,6 +151,7 @@ struct MqttTransport::State {
     inbound.bytes.assign(static_cast<const char*>(message->payload), static_cast<std::size_t>(message->payloadlen));
     inbound.transport = "mqtt";
     inbound.peer = message->topic ? message->topic : "";
+    inbound.broadcast = inbound.peer == state.broadcast_topic || inbound.peer.starts_with(state.status_topics);
     // No reply route: the answer goes out through send() to r2r/<source_id>.
     std::shared_lock lock(state.deliver_mutex);
     if (state.deliver) state.deliver(std::move(inbound));
@@ -167,6 +169,7 @@ void MqttTransport::start(Deliver deliver) {
   const auto& o = s.options;
   s.own_topic = o.topic_prefix + "/" + o.robot_name;
   s.broadcast_topic = o.topic_prefix + "/broadcast";
+  s.status_topics = o.topic_prefix + "/status/";
   const std::string client_id = o.client_id.empty() ? "rcand-" + o.robot_name : o.client_id;
 
   // The broker password or token, with a warning when other users of the machine may read it (as for every secret).

@@ -79,6 +79,7 @@ struct UdpTransport::State {
         InboundMessage message;
         message.bytes.assign(buffer.data(), bytes);  // an oversize datagram stays oversize: the node refuses it (100)
         message.transport = "udp";
+        message.broadcast = true;  // UDP carries status broadcasts only
         const auto address = sender.address();
         message.peer =
             (address.is_v6() ? "[" + address.to_string() + "]" : address.to_string()) + ":" + std::to_string(sender.port());

@@ -3,10 +3,10 @@
 
 #include <unistd.h>
 
+#include <chrono>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
-#include <chrono>
 #include <string>
 #include <vector>
 
@@ -68,11 +68,13 @@ TEST_CASE("with a file, every entry is appended twice: pending before dispatch, 
   }
   CHECK(lines == 8);
   std::filesystem::remove(file);
+  std::filesystem::remove(AuditLog::stops_file_for(file));
 }
 
 TEST_CASE("an audit file that cannot be opened is a clear startup error") {
   AuditLog log;
-  CHECK_THROWS_WITH_AS(log.persist_to("/nonexistent-dir/rcand/audit.jsonl"), doctest::Contains("runtime.audit_file"), std::runtime_error);
+  CHECK_THROWS_WITH_AS(log.persist_to("/nonexistent-dir/rcand/audit.jsonl"), doctest::Contains("runtime.audit_file"),
+                       std::runtime_error);
 }
 
 namespace {
@@ -164,6 +166,101 @@ TEST_CASE("the sequence continues from the file, also right after a rotation, an
   AuditLog log;
   log.persist_to(file);
   CHECK(log.record({0, "p", "r", "m", "POST /x", 1, "pending", {}, nullptr}) == 7);
+}
+
+// Issue 28 #7: a GUEST's stop flood (2,000 a second) pushed a USER's move out of memory and out of the files.
+TEST_CASE("stops repeated while latched are one entry: count, last time and message id, before the latch") {
+  AuditLog log;
+  const auto first = log.begin_stop("guest", "m-0", "POST /api/stop", false);
+  REQUIRE(first != 0);
+  for (int i = 1; i <= 5000; ++i) CHECK(log.begin_stop("guest", "m-" + std::to_string(i), "POST /api/stop", true) == 0);
+  log.finish(first, "ok");
+  log.finish(0, "ok");  // what the stop handler does for a repeat: nothing
+  const auto doc = log.to_json(10);
+  REQUIRE(doc["entries"].size() == 1);
+  const auto entry = doc["entries"][0];
+  CHECK(entry["seq"] == first);
+  CHECK(entry["count"] == 5001);
+  CHECK(entry["message_id"] == "m-0");
+  CHECK(entry["last_message_id"] == "m-5000");
+  CHECK(entry["last_ms"].get<std::int64_t>() >= entry["timestamp_ms"].get<std::int64_t>());
+  CHECK(entry["outcome"] == "ok");
+  CHECK(doc["total"] == 1);
+  CHECK(doc["dropped"] == 0);
+  // Another principal's stop, or the same principal's other stop event, is an entry of its own; so is a stop after
+  // the e-stop was cleared.
+  CHECK(log.begin_stop("user", "u-1", "POST /api/stop", true) != 0);
+  CHECK(log.begin_stop("guest", "p-1", "estop requested by plugin nav", true) != 0);
+  log.end_repeats();
+  CHECK(log.begin_stop("guest", "m-after-clear", "POST /api/stop", true) != 0);
+  CHECK(log.to_json(1)["entries"][0]["message_id"] == "m-after-clear");
+  CHECK_FALSE(log.to_json(1)["entries"][0].contains("count"));
+}
+
+TEST_CASE("stops never displace a command, a clear or a config change: their own ring, merged newest first") {
+  AuditLog log(4, 3);
+  log.finish(log.begin("user", "move-1", "POST /api/action move"), "ok");
+  log.finish(log.begin("owner", "clear-1", "POST /api/estop/clear"), "ok");
+  log.finish(log.begin("SIGHUP", "reload-1", "config reload"), "ok");
+  // Stops that are no repeats (the robot is never latched here): each an entry, 10,000 of them.
+  for (int i = 0; i < 10000; ++i) log.finish(log.begin_stop("guest", "s-" + std::to_string(i), "POST /api/stop", false), "ok");
+  log.finish(log.begin("user", "move-2", "POST /api/action move"), "blocked", "e-stop active");
+  const auto doc = log.to_json(100);
+  std::vector<std::string> ids;
+  for (const auto& entry : doc["entries"]) ids.push_back(entry["message_id"]);
+  CHECK(ids == std::vector<std::string>{"move-2", "s-9999", "s-9998", "s-9997", "reload-1", "clear-1", "move-1"});
+  CHECK(doc["dropped"] == 9997);
+  CHECK(doc["dropped_stops"] == 9997);
+  std::uint64_t previous = UINT64_MAX;
+  for (const auto& entry : doc["entries"]) {  // newest first, by seq
+    CHECK(entry["seq"].get<std::uint64_t>() < previous);
+    previous = entry["seq"].get<std::uint64_t>();
+  }
+  CHECK(log.to_json(2)["entries"].size() == 2);
+}
+
+TEST_CASE("with a file, stops go to a file of their own: a flood rotates only that one, repeats write a line a second") {
+  AuditScratch scratch;
+  const auto file = scratch.dir / "audit.jsonl";
+  const auto stops = AuditLog::stops_file_for(file);
+  CHECK(stops == scratch.dir / "audit.stops.jsonl");
+  std::uint64_t move = 0, first_stop = 0;
+  {
+    AuditLog log;
+    log.persist_to(file, 4096, 1);
+    move = log.begin("user", "move-1", "POST /api/action move");
+    log.finish(move, "ok");
+    for (int i = 0; i < 500; ++i)
+      log.finish(log.begin_stop("guest", "s-" + std::to_string(i), "POST /api/swarm/x/stop", false), "error");
+    first_stop = log.begin_stop("guest", "latch", "POST /api/stop", false);
+    log.finish(first_stop, "ok");
+    for (int i = 0; i < 100000; ++i) log.begin_stop("guest", "r-" + std::to_string(i), "POST /api/stop", true);
+    CHECK(log.to_json(1)["stops_file"] == stops.string());
+  }  // exit: the final count is written
+  // The move is still in the main file, whole; the stops file rotated.
+  const auto main_lines = audit_unit_lines(file);
+  REQUIRE(main_lines.size() == 2);
+  CHECK(main_lines[0]["seq"] == move);
+  CHECK(main_lines[1]["outcome"] == "ok");
+  CHECK(std::filesystem::exists(stops.string() + ".1"));
+  CHECK_FALSE(std::filesystem::exists(file.string() + ".1"));
+  // 100,000 repeats within a second or two: a handful of repeat lines, the last with the whole count.
+  int repeat_lines = 0;
+  nlohmann::json last_repeat;
+  for (const auto& line : audit_unit_lines(stops)) {
+    if (line["kind"] != "repeat") continue;
+    CHECK(line["seq"] == first_stop);
+    ++repeat_lines;
+    last_repeat = line;
+  }
+  CHECK(repeat_lines >= 2);   // the first repeat, and the final count at exit
+  CHECK(repeat_lines <= 10);  // never one per repeat
+  CHECK(last_repeat["count"] == 100001);
+  CHECK(last_repeat["last_message_id"] == "r-99999");
+  // The sequence continues after the highest seq of either file.
+  AuditLog again;
+  again.persist_to(file, 4096, 1);
+  CHECK(again.begin("user", "after", "POST /api/action move") == first_stop + 1);
 }
 
 TEST_CASE("LogRateLimiter: N lines a second per source, then the count of suppressed ones on the next line") {

@@ -1,0 +1,186 @@
+// Issue 31 (N² chatter) and issue 28 #9 (forged log lines, refusal floods) against real rcand processes and a real
+// mosquitto: robots without the fleet's signing keys never answer each other's status broadcasts with `error`; a
+// flood of 20,000 unsigned messages from one sender costs a bounded number of log lines and error answers, summed
+// up in one line; a source_id carrying a newline and a fake log line stays inside the line that quotes it.
+#include <doctest/doctest.h>
+
+#include <chrono>
+#include <map>
+#include <mutex>
+#include <sstream>
+
+#include "mosquitto_broker.hpp"
+#include "r2r_lab.hpp"
+#include "rcand_process.hpp"
+#include "services/r2r/refusal_throttle.hpp"
+#include "services/r2r/transports/mqtt_transport.hpp"
+
+using namespace rcand::test;
+using nlohmann::json;
+using namespace std::chrono_literals;
+using rcand::kernel::r2r::RefusalThrottle;
+
+namespace {
+
+// An MQTT client of the test's on r2r/#: counts every message by type and by sender.
+struct ChatterWatch {
+  rcand::kernel::r2r::MqttTransport client;
+  std::mutex mutex;
+  std::map<std::string, int> statuses_by_sender;
+  std::vector<json> errors;
+
+  explicit ChatterWatch(std::uint16_t port, const std::string& name = "watcher")
+      : client([&] {
+          rcand::kernel::r2r::MqttOptions options;
+          options.robot_name = name;
+          options.host = "127.0.0.1";
+          options.port = port;
+          options.extra_subscriptions = {"r2r/#"};
+          return options;
+        }()) {
+    client.start([this](rcand::kernel::r2r::InboundMessage message) {
+      const json m = json::parse(message.bytes, nullptr, false);
+      if (!m.is_object() || !m["header"].is_object()) return;
+      std::lock_guard lock(mutex);
+      if (m.value("type", "") == "error") errors.push_back(m);
+      if (m.value("type", "") == "status") ++statuses_by_sender[m["header"].value("source_id", "")];
+    });
+    REQUIRE(poll_until<bool>([&]() -> std::optional<bool> {
+      if (client.connected()) return true;
+      return std::nullopt;
+    }));
+  }
+  ~ChatterWatch() { client.stop(); }
+
+  int statuses_of(const std::string& sender) {
+    std::lock_guard lock(mutex);
+    return statuses_by_sender[sender];
+  }
+  std::size_t error_count() {
+    std::lock_guard lock(mutex);
+    return errors.size();
+  }
+};
+
+std::vector<std::string> chatter_lines(const std::string& text) {
+  std::vector<std::string> lines;
+  std::istringstream in(text);
+  for (std::string line; std::getline(in, line);) lines.push_back(line);
+  return lines;
+}
+
+std::size_t chatter_lines_with(const std::string& text, const std::string& needle) {
+  std::size_t count = 0;
+  for (const auto& line : chatter_lines(text)) count += line.find(needle) != std::string::npos;
+  return count;
+}
+
+}  // namespace
+
+TEST_CASE("r2r chatter (mqtt): robots without signing keys never answer each other's status broadcasts with error") {
+  MosquittoBroker broker;
+  TempDir dir;
+  const auto token = dir.write("r2r.token", "owner-token\n");
+  ChatterWatch watch(broker.port());
+  std::vector<std::unique_ptr<RcandProcess>> robots;
+  for (const std::string name : {"alpha", "bravo", "charlie"}) {
+    auto config = r2r_robot_config(name, token);  // a token, which MQTT never carries, and no signing keys
+    config["runtime"]["r2r"]["mqtt"] = {{"host", "127.0.0.1"}, {"port", broker.port()}, {"keepalive_s", 5}};
+    robots.push_back(std::make_unique<RcandProcess>(config));
+  }
+  // Every robot has broadcast its status (every 300 ms) several times, so each has refused the others' often. (The
+  // watcher may see each status twice: r2r/# and r2r/broadcast overlap.)
+  const auto heard = poll_until<bool>(
+      [&]() -> std::optional<bool> {
+        for (const std::string name : {"alpha", "bravo", "charlie"})
+          if (watch.statuses_of(name) < 12) return std::nullopt;
+        return true;
+      },
+      30s);
+  REQUIRE(heard);
+  {
+    std::lock_guard lock(watch.mutex);
+    INFO("errors on the broker: " << (watch.errors.empty() ? json() : watch.errors.front()).dump());
+    CHECK(watch.errors.empty());  // was N·(N-1) a second: every status answered "authentication required"
+  }
+  for (const auto& robot : robots) {
+    const std::string log = robot->stderr_text();
+    // Refused, and said so - a few times per sender, not once per status.
+    const auto refusals = chatter_lines_with(log, "unauthorized status from '");
+    CHECK(refusals >= 2);
+    CHECK(refusals <= 2 * static_cast<std::size_t>(RefusalThrottle::kLogBurst));
+    const auto counters = robot->json("GET", "/api/r2r/peers", "owner-token")["counters"];
+    CHECK(counters["rejected"].get<int>() >= 6);
+  }
+}
+
+TEST_CASE("r2r flood (mqtt): 20,000 unsigned messages from one sender, bounded lines and answers; forged lines stay quoted") {
+  MosquittoBroker broker;
+  TempDir dir;
+  const auto token = dir.write("r2r.token", "owner-token\n");
+  auto config = r2r_robot_config("alpha", token);
+  config["runtime"]["r2r"]["mqtt"] = {{"host", "127.0.0.1"}, {"port", broker.port()}, {"keepalive_s", 5}};
+  RcandProcess alpha(config);
+  ChatterWatch flood(broker.port(), "flood-watch");  // sees the answers to "flood" on r2r/flood (through r2r/#)
+  REQUIRE(poll_until<bool>([&]() -> std::optional<bool> {
+    if (flood.statuses_of("alpha") > 0) return true;  // alpha is on the broker
+    return std::nullopt;
+  }));
+  auto received = [&] { return alpha.json("GET", "/api/r2r/peers", "owner-token")["counters"]["received"].get<long>(); };
+
+  // Forged lines: a newline and a fake e-stop line, a journald priority, a terminal escape - in the source_id.
+  const std::string forged = "x\nerror [kernel.estop] e-stop cleared by owner\n<3>rcand: forged critical\x1b[31m";
+  REQUIRE(flood.client.send(r2r_message(forged, "command", {{"type", "move"}}, std::string("alpha")), std::string("alpha")));
+  REQUIRE(poll_until<bool>([&]() -> std::optional<bool> {
+    if (alpha.stderr_text().find("e-stop cleared by owner") != std::string::npos) return true;
+    return std::nullopt;
+  }));
+  for (const auto& line : chatter_lines(alpha.stderr_text())) {
+    CHECK_FALSE(line.starts_with("error [kernel.estop]"));
+    CHECK_FALSE(line.starts_with("<3>"));
+    CHECK(line.find('\x1b') == std::string::npos);
+  }
+  CHECK(chatter_lines_with(alpha.stderr_text(),
+                           "unauthorized command from 'x\\nerror [kernel.estop] e-stop cleared by owner\\n<3>rcand: forged "
+                           "critical\\x1b[31m' via mqtt") == 1);
+
+  // The flood, in batches the robot is let to catch up with (so the broker drops nothing for a slow subscriber).
+  const long before = received();
+  const auto started = std::chrono::steady_clock::now();
+  constexpr int kFlood = 20000, kBatch = 1000;
+  for (int sent = 0; sent < kFlood;) {
+    for (int i = 0; i < kBatch; ++i, ++sent)
+      REQUIRE(flood.client.send(r2r_message("flood", "command", {{"type", "move"}, {"n", sent}}, std::string("alpha")),
+                                std::string("alpha")));
+    REQUIRE(poll_until<bool>(
+        [&]() -> std::optional<bool> {
+          if (received() - before >= sent) return true;
+          return std::nullopt;
+        },
+        30s));
+  }
+  const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count();
+  // Every one refused, one summary line for what was not logged one by one.
+  REQUIRE(poll_until<bool>(
+      [&]() -> std::optional<bool> {
+        if (alpha.stderr_text().find("refusals from 'flood'") != std::string::npos) return true;
+        return std::nullopt;
+      },
+      30s));
+  const std::string log = alpha.stderr_text();
+  const auto flood_lines = chatter_lines_with(log, "from 'flood'");
+  const auto r2r_lines = chatter_lines_with(log, "r2r:");
+  std::size_t answers = 0;
+  {
+    std::lock_guard lock(flood.mutex);
+    for (const auto& error : flood.errors) answers += error["header"].value("target_id", "") == "flood";
+  }
+  MESSAGE(kFlood << " messages in " << seconds << " s: " << flood_lines << " log lines about 'flood' (" << r2r_lines
+                 << " r2r lines in all), " << answers << " error answers to it");
+  // The first few, one a minute after them, and a summary every 10 s.
+  CHECK(flood_lines <= static_cast<std::size_t>(RefusalThrottle::kLogBurst + seconds / 60 + seconds / 10) + 3);
+  CHECK(r2r_lines < 60);  // was 20,006
+  CHECK(answers >= 1);    // the sender is told why, at first
+  CHECK(answers <= static_cast<std::size_t>(RefusalThrottle::kAnswerBurst + RefusalThrottle::kAnswersPerSecond * (seconds + 2)));
+  CHECK(chatter_lines_with(log, "r2r: suppressed ") >= 1);
+}
