@@ -79,7 +79,9 @@ struct StagedSdk {
                                               "-DRCAND_EXECUTABLE=" + rcand::test::rcand_binary(),
                                               "-DRCAND_DEV_PLUGIN_PATHS=" + rcand::test::plugin_dir().string()}),
                "configuring " + id);
-    require_ok(run_tool(RCAND_CMAKE_COMMAND, {"--build", build.string(), "-j2"}), "building " + id);
+    // A compile is slow, not hung, on a loaded 2-core machine: ctest's own 600 s timeout is the limit that matters.
+    require_ok(run_tool(RCAND_CMAKE_COMMAND, {"--build", build.string(), "-j2"}, {}, std::chrono::seconds(540)),
+               "building " + id);
     return source;
   }
 };

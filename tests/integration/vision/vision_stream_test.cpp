@@ -181,6 +181,12 @@ TEST_CASE("vision: a viewer that never reads does not lower another's frame rate
   MjpegClient reader(rcand.port());
   REQUIRE(reader.open("/api/stream/mjpeg", "user-token") == 200);
   REQUIRE(reader.next_part());
+  // Against the frames the camera captured meanwhile, not an absolute rate: a loaded machine slows the camera and
+  // the reader alike, while a hub held up by the stalled viewer would starve the reader alone.
+  const auto captured = [&] {
+    return rcand.json("GET", "/api/status", "guest-token")["capabilities"]["vision"]["status"]["frames_captured"].get<long>();
+  };
+  const long captured_before = captured();
   const auto started = std::chrono::steady_clock::now();
   int frames = 0;
   while (std::chrono::steady_clock::now() - started < 3s) {
@@ -189,9 +195,10 @@ TEST_CASE("vision: a viewer that never reads does not lower another's frame rate
     CHECK_FALSE(decode(part->body).empty());
     ++frames;
   }
-  const double fps = frames / std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count();
-  MESSAGE("reader fps beside a stalled viewer: " << fps);
-  CHECK(fps >= 27.0);
+  const long captured_during = captured() - captured_before;
+  MESSAGE("reader frames beside a stalled viewer: " << frames << " of " << captured_during << " captured");
+  REQUIRE(captured_during >= 30);  // the camera ran (about 90 frames in 3 s unloaded)
+  CHECK(frames >= 0.8 * static_cast<double>(captured_during));
   const auto status = vision_status(rcand, [](const json& s) { return s["viewers"].size() == 2; });
   CHECK(status["status"]["viewers"].size() == 2);
 }
