@@ -39,6 +39,86 @@ std::int64_t steady_us() {
 
 }  // namespace
 
+namespace board {
+
+struct DriverView {
+  std::string id, protocol, interface;
+  bool failed = false;
+  Fault fault;
+};
+
+struct Verdict {
+  std::string state = "ok";  // ok | degraded | error
+  Fault fault;               // why, when not ok: the reason names the drivers; device, OS error and hint of the first
+};
+
+// A capability's state from the drivers it needs: for an interface every provider of which failed, "error"; for one
+// some providers of which failed, "degraded". The first error wins, else the first degradation.
+Verdict follow_drivers(const std::vector<std::string>& needs, const std::vector<DriverView>& drivers) {
+  Verdict verdict;
+  for (const auto& interface : needs) {
+    std::vector<const DriverView*> providers, failed;
+    for (const auto& driver : drivers) {
+      if (driver.interface != interface) continue;
+      providers.push_back(&driver);
+      if (driver.failed) failed.push_back(&driver);
+    }
+    const bool error = !failed.empty() && failed.size() == providers.size();
+    if (failed.empty() || (!error && verdict.state != "ok")) continue;
+    std::string names;
+    for (const auto* driver : failed)
+      names += (names.empty() ? "" : "; ") + driver->id + " (" + driver->protocol + "): " + driver->fault.reason;
+    verdict.state = error ? "error" : "degraded";
+    verdict.fault = failed.front()->fault;
+    verdict.fault.reason = error ? (providers.size() == 1 ? "needs a " + interface + " actuator, and it failed: "
+                                                          : "needs a " + interface + " actuator, and every one failed: ") +
+                                       names
+                                 : std::to_string(failed.size()) + " of its " + std::to_string(providers.size()) + " " +
+                                       interface + " actuators failed: " + names;
+    if (error) break;
+  }
+  return verdict;
+}
+
+}  // namespace board
+
+void StatusBoard::add_fault(json& item, const Fault& fault) {
+  item["reason"] = fault.reason;
+  if (!fault.device.empty()) item["device"] = fault.device;
+  if (!fault.os_error.empty()) item["os_error"] = fault.os_error;
+  if (!fault.hint.empty()) item["hint"] = fault.hint;
+}
+
+json StatusBoard::instances_by_plugin(const json& doc) {
+  json out = json::object();
+  const auto add = [&out](const char* kind, const std::string& name, const json& item) {
+    const std::string plugin = item.value("plugin", "");
+    if (plugin.empty()) return;  // its plugin never loaded: the plugin's own entry says why
+    json instance{{kind, name}, {"state", item.value("state", "ok")}};
+    for (const char* key : {"reason", "device", "os_error", "hint", "stale"})
+      if (item.contains(key)) instance[key] = item[key];
+    out[plugin].push_back(std::move(instance));
+  };
+  if (const auto it = doc.find("drivers"); it != doc.end() && it->is_array())
+    for (const auto& item : *it) add("driver", item.value("id", ""), item);
+  if (const auto it = doc.find("capabilities"); it != doc.end() && it->is_object())
+    for (const auto& [name, item] : it->items()) add("capability", name, item);
+  return out;
+}
+
+std::string StatusBoard::plugin_health(std::string_view library_state, const json& instances) {
+  if (library_state != to_string(PluginState::Loaded))
+    return library_state == to_string(PluginState::InstalledNotEnabled) ? "unused" : "error";
+  if (!instances.is_array() || instances.empty()) return "unused";
+  std::string health = "ok";
+  for (const auto& instance : instances) {
+    const std::string state = instance.value("state", "ok");
+    if (state == "failed" || state == "error") return "error";
+    if (state == "degraded") health = "degraded";
+  }
+  return health;
+}
+
 class StatusBoard::Impl final : public StatusSink, public std::enable_shared_from_this<StatusBoard::Impl> {
  public:
   struct Snapshot {
@@ -254,33 +334,48 @@ class StatusBoard::Impl final : public StatusSink, public std::enable_shared_fro
     }
   }
 
+  // One instance's item: "failed" with its fault; a capability's state following the drivers it needs; "stale".
+  json item_of(const Entry& entry, const std::vector<board::DriverView>& drivers, std::int64_t now) const {
+    const auto& source = entry.source;
+    json item = source.item;
+    if (source.health != nullptr && source.health->failed()) {
+      item["state"] = "failed";
+      add_fault(item, source.health->fault());
+      return item;
+    }
+    const board::Verdict verdict = board::follow_drivers(source.needs, drivers);
+    item["state"] = verdict.state;
+    if (verdict.state != "ok") add_fault(item, verdict.fault);
+    const std::int64_t age = now - (entry.last ? entry.last_us : created_us_);
+    if (age > std::chrono::microseconds(kStaleAfter).count()) {
+      item["stale"] = true;
+      item["age_ms"] = age / 1000;
+    }
+    if (entry.last && !source.driver) item["status"] = *entry.last;
+    return item;
+  }
+
   std::shared_ptr<const Snapshot> build(std::uint64_t changes) const {
     auto snapshot = std::make_shared<Snapshot>();
     snapshot->changes = changes;
     const std::int64_t now = services_.clock.now_us();
-    const std::int64_t stale_after = std::chrono::microseconds(kStaleAfter).count();
     json doc = fixed_;
     json capabilities = json::object();
     json drivers = json::array();
     const bool nav_running = add_pose(services_.directory, doc);
+    std::vector<board::DriverView> views;  // what the capabilities' states follow
     for (const auto& entry : entries_) {
       const auto& source = entry->source;
+      if (!source.driver) continue;
       const bool failed = source.health != nullptr && source.health->failed();
-      json item = source.item;
-      item["state"] = failed ? "failed" : "ok";
-      if (failed) {
-        item["reason"] = source.health->reason();
-        ++snapshot->failed;
-      } else {
-        const std::int64_t age = now - (entry->last ? entry->last_us : created_us_);
-        if (age > stale_after) {
-          item["stale"] = true;
-          item["age_ms"] = age / 1000;
-        }
-        if (entry->last && !source.driver) item["status"] = *entry->last;
-      }
-      if (source.driver) drivers.push_back(std::move(item));
-      else capabilities[source.name] = std::move(item);
+      views.push_back({source.name, source.item.value("protocol", ""), source.item.value("interface", ""), failed,
+                       failed ? source.health->fault() : Fault{}});
+    }
+    for (const auto& entry : entries_) {
+      json item = item_of(*entry, views, now);
+      if (item["state"] == "failed") ++snapshot->failed;
+      if (entry->source.driver) drivers.push_back(std::move(item));
+      else capabilities[entry->source.name] = std::move(item);
     }
     const char* state = snapshot->failed > 0 ? "error" : nav_running ? "running" : "idle";
     snapshot->nav_running = nav_running;
@@ -290,6 +385,7 @@ class StatusBoard::Impl final : public StatusSink, public std::enable_shared_fro
     doc["drivers"] = std::move(drivers);
     doc["capabilities"] = std::move(capabilities);
     doc["nav_running"] = nav_running;
+    add_plugin_health(doc);
     snapshot->body[0] = dump(doc);
     doc["state"] = "estop";
     doc["estopped"] = true;
@@ -298,6 +394,16 @@ class StatusBoard::Impl final : public StatusSink, public std::enable_shared_fro
     doc["estopped"] = false;
     snapshot->doc = std::move(doc);
     return snapshot;
+  }
+
+  // Each plugins[] item's "health", from its library state and its instances in this document.
+  static void add_plugin_health(json& doc) {
+    if (!doc.contains("plugins") || !doc["plugins"].is_array()) return;
+    const json by_plugin = instances_by_plugin(doc);
+    for (auto& plugin : doc["plugins"]) {
+      const std::string id = plugin.value("id", "");
+      plugin["health"] = plugin_health(plugin.value("state", ""), by_plugin.contains(id) ? by_plugin[id] : json::array());
+    }
   }
 
   void answer_waiters(std::uint64_t seen) noexcept {
@@ -353,10 +459,11 @@ std::vector<StatusBoard::Source> StatusBoard::sources_of(PluginRuntime& runtime)
   const auto poll = [&runtime](const auto& instance) { return [&runtime, &instance] { return runtime.status_of(instance); }; };
   std::vector<Source> sources;
   for (const auto& instance : runtime.capabilities())
-    sources.push_back({instance.name, false, {{"plugin", instance.plugin_id}}, &instance.health, poll(instance)});
+    sources.push_back({instance.name, false, {{"plugin", instance.plugin_id}}, &instance.health, poll(instance), instance.needs});
   for (const auto& instance : runtime.drivers()) {
     nlohmann::json item{
         {"id", instance.id}, {"protocol", instance.protocol}, {"plugin", instance.plugin_id}, {"actuates", instance.actuates}};
+    if (!instance.interface.empty()) item["interface"] = instance.interface;
     sources.push_back({instance.id, true, std::move(item), &instance.health, poll(instance)});
   }
   return sources;

@@ -54,6 +54,9 @@ class StatusBoard {
     // made with this health (the instance's, a reload's new one too) feeds this entry. Null: it never publishes.
     const InstanceHealth* health = nullptr;
     std::function<std::optional<nlohmann::json>()> poll;  // its status(), through the status reader; empty: never
+    // A capability: the actuator interfaces it needs (its manifest's `requires`). Its state follows the drivers whose
+    // item names that "interface": "error" when every one of them failed, "degraded" when some did.
+    std::vector<std::string> needs = {};
   };
 
   // What GET /api/status says that never changes while rcand runs: ruri, name, version, rcan_version, caps, plugins.
@@ -62,6 +65,14 @@ class StatusBoard {
   // Every capability, then every driver, of a started runtime (which must outlive the board), polled through
   // PluginRuntime::status_of.
   static std::vector<Source> sources_of(PluginRuntime& runtime);
+  // From a status document: each plugin's instances, {"<plugin id>": [{"driver"|"capability": name, "state",
+  // "reason"?, "device"?, "os_error"?, "hint"?}]}, drivers first (the shape of a plugin reload's answer).
+  static nlohmann::json instances_by_plugin(const nlohmann::json& doc);
+  // A plugin's health: "error" when its library is not usable or an instance failed or is in error, "degraded" when
+  // one is, "unused" when it serves nothing here, else "ok".
+  static std::string plugin_health(std::string_view library_state, const nlohmann::json& instances);
+  // A failed instance's item fields: "reason", and "device", "os_error", "hint" when the fault has them.
+  static void add_fault(nlohmann::json& item, const Fault& fault);
 
   // Main thread, after the plugins started and before anything is served (it adds e-stop listeners). `services`
   // (its clock, e-stop and status sink) outlives the board; `started_us` is the kernel's start on that clock.

@@ -47,10 +47,11 @@ void write_status_metrics(MetricsText& out, const json& status) {
       if (plugin.is_object()) out.sample({{"plugin", text_of(plugin, "id")}, {"state", text_of(plugin, "state")}}, 1);
 
   out.family("rcand_capability_state", "gauge",
-             "each declared capability: ok, stale (its status not refreshed for 2 s) or failed; 1 for the current one");
+             "each declared capability: ok, stale (its status not refreshed for 2 s), degraded or error (drivers it needs "
+             "failed) or failed; 1 for the current one");
   if (const auto it = doc.find("capabilities"); it != doc.end() && it->is_object())
     for (const auto& [name, item] : it->items())
-      one_hot(out, {{"capability", name}}, item_state(item), {"ok", "stale", "failed"});
+      one_hot(out, {{"capability", name}}, item_state(item), {"ok", "stale", "degraded", "error", "failed"});
 
   out.family("rcand_driver_state", "gauge", "each configured driver: ok, stale or failed; 1 for the current one");
   if (const auto it = doc.find("drivers"); it != doc.end() && it->is_array())

@@ -10,7 +10,9 @@ using nlohmann::json;
 
 std::string_view item_state(const json& item) {
   if (!item.is_object()) return "failed";
-  if (item.value("state", std::string()) == "failed") return "failed";
+  const std::string state = item.value("state", std::string());
+  for (std::string_view bad : {"failed", "error", "degraded"})
+    if (state == bad) return bad;
   return is_true(item, "stale") ? "stale" : "ok";
 }
 
