@@ -123,15 +123,18 @@ struct Kernel::State {
   std::atomic<bool> reloads_closed{false};  // set by shutdown(): a queued reload answers 503
   std::unique_ptr<KernelRouteDeps> kernel_routes;
   std::unique_ptr<CapabilityRouteDeps> capability_routes;
-  std::unique_ptr<StatusBoard> status_board;  // GET /api/status, discovery, mDNS TXT and R2R status read it
-  std::unique_ptr<http::Server> server;
+  std::unique_ptr<StatusBoard> status_board;               // GET /api/status, discovery, mDNS TXT and R2R status read it
+  std::unique_ptr<http::Server> server;                    // bound by claim_robot(), serving from start()
+  std::vector<http::UpgradeHandler> upgrades;              // the services' WebSocket upgrades: set by start() before it serves
   std::unique_ptr<mdns::ServicePublisher> mdns_publisher;  // reads the status: destroyed before it
   bool shut_down = false;
-  // runtime.state_dir, opened by start() (a kernel that never serves, --check-config say, leaves it alone). Last:
+  // runtime.state_dir, locked by claim_robot() (an embedded kernel, --check-config's, leaves it alone). Last:
   // destroyed first, its writer reads the e-stop.
   std::unique_ptr<StateDir> state_dir;
   std::atomic<StateDir*> state_dir_live{nullptr};  // the e-stop listeners' view: set once the latch is restored
 
+  void claim_robot();
+  http::ServerOptions server_options();
   void load_plugins(const KernelOptions& options);
   void load_swarm();
   void create_services(const KernelOptions& options);
@@ -148,6 +151,7 @@ void Kernel::State::load_plugins(const KernelOptions& options) {
   auto log = logger("kernel");
   auto plugin_paths = options.plugin_paths.value_or(config.runtime.plugin_paths);
   host.scan(plugin_paths.empty() ? default_plugin_paths() : plugin_paths);
+  host.set_reload_parent(config.runtime.state_dir);
   // A name other runtimes write is rcand's alias only while no installed plugin provides that name itself.
   for (auto& driver : config.drivers)
     if (!driver.written_protocol.empty() && !host.providers_of_driver(driver.written_protocol).empty()) {
@@ -268,7 +272,7 @@ void Kernel::State::reload_plugin(const std::string& id, const std::string& prin
                  {"error", "plugin reload is off on this robot; development robots set runtime.plugins.allow_reload: true"}});
   reloader->post([this, id, principal, done = std::move(done)] {
     if (reloads_closed) return done(503, {{"code", "UNAVAILABLE"}, {"error", "rcand is shutting down"}});
-    nlohmann::json body{{"plugin", id}, {"estopped", false}};
+    nlohmann::json body{{"plugin", bounded_text(id)}, {"estopped", false}};  // the id is the caller's, from the path
     const ReloadResult result = runtime->reload(id, config, [&] {
       const auto halt = estop.latch("plugin reload: " + id, principal, {principal, "reload", id, {}});
       body["estopped"] = true;
@@ -289,6 +293,7 @@ Kernel::Kernel(RobotConfig config, KernelOptions options) : state_(std::make_uni
   s.address = cfg.runtime.listen_address;
   s.port = options.port.value_or(cfg.listen_port());
   s.started_us = s.clock.now_us();
+  if (!options.embedded) s.claim_robot();  // before anything that writes or opens a device (docs/protocol.md §6.9)
 
   s.services.ruri = robot_ruri(cfg.ruri, cfg.manufacturer, cfg.model, cfg.robot_uuid);
   s.auth = std::make_unique<Authenticator>(auth_settings(cfg, s.services.ruri, s.address));
@@ -353,11 +358,25 @@ Kernel::CheckReport Kernel::check(RobotConfig config, const KernelOptions& optio
   return report;
 }
 
-// runtime.state_dir (one rcand per state dir): the e-stop starts latched when the last run ended without a clean
-// shutdown or while latched, with the reason in GET /api/estop and the audit log. Before anything is served.
-void Kernel::State::restore_latch() {
+// One rcand per robot: runtime.state_dir's lock, then the listening port(s), each a StartupError naming what holds
+// it. Nothing else of the robot exists yet, so a refused start has opened no device and started no plugin.
+void Kernel::State::claim_robot() {
   try {
     state_dir = std::make_unique<StateDir>(config.runtime.state_dir);
+    server = std::make_unique<http::Server>(server_options(), [this](http::Request&& request, http::Respond respond) {
+      api->handle(std::move(request), std::move(respond));
+    });
+    port = server->bind();
+  } catch (const std::exception& e) {
+    throw StartupError(e.what());
+  }
+}
+
+// runtime.state_dir: the e-stop starts latched when the last run ended without a clean shutdown or while latched,
+// with the reason in GET /api/estop and the audit log. Before anything is served.
+void Kernel::State::restore_latch() {
+  try {
+    state_dir->mark_running();
   } catch (const std::runtime_error& e) {
     throw StartupError(e.what());
   }
@@ -386,35 +405,36 @@ void Kernel::State::restore_latch() {
   state_dir->latch_changed();  // the record says what this run starts with
 }
 
-std::uint16_t Kernel::start() {
-  auto& s = *state_;
-  if (!s.state_dir) s.restore_latch();
+http::ServerOptions Kernel::State::server_options() {
   http::ServerOptions options;
-  options.address = s.address;
-  options.port = s.port;
-  options.max_connections = connections_within_fd_limit(s.config.runtime.max_connections, options.busy_lane);
-  options.max_connections_per_address = s.config.runtime.max_connections_per_address;
-  options.tls = tls_settings(s.config);  // then plain HTTP on loopback only (http/server_options.hpp)
-  options.plain_loopback_port = s.config.runtime.plain_loopback_port;
+  options.address = address;
+  options.port = port;
+  options.max_connections = connections_within_fd_limit(config.runtime.max_connections, options.busy_lane);
+  options.max_connections_per_address = config.runtime.max_connections_per_address;
+  options.tls = tls_settings(config);  // then plain HTTP on loopback only (http/server_options.hpp)
+  options.plain_loopback_port = config.runtime.plain_loopback_port;
   // The e-stop is read and handled on the accept thread, ahead of any other work, and is answered even when every
   // connection slot is taken (issue 13: neither load nor a flood may delay or lock out a stop).
-  options.on_thread_start = [priority = s.config.runtime.stop_path_priority](bool accept_loop) {
+  options.on_thread_start = [priority = config.runtime.stop_path_priority](bool accept_loop) {
     if (accept_loop) enter_stop_path_priority(priority);
   };
   options.priority = [](const http::Request& request) {
     return (request.method == "POST" && request.path == "/api/stop") || (request.method == "GET" && request.path == "/api/estop");
   };
-  std::vector<http::UpgradeHandler> upgrades;  // WS /ws/r2r, /ws/telemetry on the robot's own port
-  for (auto& service : s.optional_services)
-    if (auto upgrade = service->upgrade()) upgrades.push_back(std::move(upgrade));
-  options.upgrade = [upgrades = std::move(upgrades)](const http::Request& request) {
-    for (const auto& upgrade : upgrades)  // each hook answers only for its own path: the first that does wins
+  options.upgrade = [this](const http::Request& request) {  // WS /ws/r2r, /ws/telemetry on the robot's own port
+    for (const auto& upgrade : upgrades)                    // each hook answers only for its own path: the first that does wins
       if (auto verdict = upgrade(request); verdict.take || verdict.refuse) return verdict;
     return http::UpgradeVerdict{};
   };
-  s.server = std::make_unique<http::Server>(options, [api = s.api.get()](http::Request&& request, http::Respond respond) {
-    api->handle(std::move(request), std::move(respond));
-  });
+  return options;
+}
+
+std::uint16_t Kernel::start() {
+  auto& s = *state_;
+  if (!s.server) throw std::logic_error("an embedded kernel (KernelOptions::embedded) does not serve");
+  if (!s.state_dir_live.load()) s.restore_latch();
+  for (auto& service : s.optional_services)
+    if (auto upgrade = service->upgrade()) s.upgrades.push_back(std::move(upgrade));
   try {
     s.port = s.server->start();
   } catch (const std::exception& e) {
@@ -465,10 +485,9 @@ void Kernel::shutdown() noexcept {
     }
     if (s.timers) s.timers->join();
     // Last: a shutdown that does not get here (a crash, the grace timer) leaves the running marker.
-    if (s.state_dir) {
-      s.state_dir_live.store(nullptr);
-      s.state_dir->clean_exit({before.estopped, before.reason, before.source, before.since_ms});
-    }
+    // Only a run that marked the state dir running says how it ended (a start refused later leaves it as it was).
+    if (auto* state_dir = s.state_dir_live.exchange(nullptr))
+      state_dir->clean_exit({before.estopped, before.reason, before.source, before.since_ms});
   } catch (const std::exception& e) {
     logger("kernel")->error("during shutdown: {}", e.what());
   }

@@ -33,7 +33,15 @@ struct KernelOptions {
   std::optional<std::uint16_t> port;                               // replaces the configured port
   // The optional services to run (kernel/service.hpp), in start order; rcand's main passes linked_services().
   std::vector<std::function<std::unique_ptr<Service>(ServiceHost&)>> services;
+  // A kernel that never serves (tests and fuzzers that embed it and call its Api directly): it claims neither the
+  // state dir nor a port, and start() refuses.
+  bool embedded = false;
 };
+inline KernelOptions embedded_kernel_options() {
+  KernelOptions options;
+  options.embedded = true;
+  return options;
+}
 
 // Admin-installed plugins first (they are found first, so they win), then the packaged ones.
 std::vector<std::filesystem::path> default_plugin_paths();
@@ -42,7 +50,10 @@ class Api;
 
 class Kernel {
  public:
-  // Loads plugins and plans capabilities. Throws ConfigError (with file:line:column) or StartupError.
+  // Claims the robot first - runtime.state_dir's lock (one rcand per robot) and the listening port(s), bound but
+  // not yet listening - so that a second rcand is refused before any plugin instance exists: it opens no device
+  // and writes nothing (not with KernelOptions::embedded). Then loads plugins, plans capabilities and starts every
+  // driver and capability. Throws ConfigError (with file:line:column) or StartupError.
   Kernel(RobotConfig config, KernelOptions options = {});
   ~Kernel();  // shutdown()
   Kernel(const Kernel&) = delete;
@@ -58,7 +69,8 @@ class Kernel {
   };
   static CheckReport check(RobotConfig config, const KernelOptions& options);
 
-  // Binds and serves; returns the bound port.
+  // Restores the e-stop latch from the state dir, then serves on the port claimed; returns it. std::logic_error for
+  // an embedded kernel.
   std::uint16_t start();
   // With runtime.listen.tls: the plain HTTP port on 127.0.0.1 (after start); else 0.
   std::uint16_t plain_loopback_port() const;

@@ -240,16 +240,20 @@ int main(int argc, char** argv) {
   raise_open_files_limit();
   std::vector<std::string> protocols;  // the drivers', for advice on one no plugin serves
   try {
-    LoadedConfig loaded = load_robot_config(options.config);
+    // --as-user: the files are also judged as trusted or not for that user, as the service running as it would.
+    std::optional<UserIdentity> user;
+    if (options.check_config && !options.as_user.empty() && !(user = lookup_user(options.as_user)))
+      return usage_error("--as-user: no user named '" + options.as_user + "'");
+    LoadOptions load_options = default_load_options();
+    if (user) load_options.user = user->uid;
+    LoadedConfig loaded = load_robot_config(options.config, load_options);
     for (const auto& driver : loaded.config.drivers) protocols.push_back(driver.protocol);
     print_warnings(loaded);
     configure_logging(loaded.config.runtime.log_level);
     const auto fragments = loaded.config.fragment_files;
     for (const auto& fragment : fragments) logger("kernel")->info("config: merged the conf.d fragment {}", fragment.string());
     if (!options.check_config) return serve(options, std::move(loaded), signals);
-    if (!options.as_user.empty()) {
-      const auto user = lookup_user(options.as_user);
-      if (!user) return usage_error("--as-user: no user named '" + options.as_user + "'");
+    if (user) {
       const auto problems = access_problems(loaded.config, options, *user);
       for (const auto& problem : problems) std::cerr << "rcand: --as-user " << options.as_user << ": " << problem << "\n";
       if (!problems.empty()) return 1;

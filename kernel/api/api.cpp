@@ -147,7 +147,7 @@ void Api::serve(http::Request&& request, const Principal* authenticated, http::R
     if (match.allowed.empty()) reply(error_response(404, "NOT_FOUND", "no endpoint " + bounded_text(call.request.path)));
     else
       reply(error_response(405, "METHOD_NOT_ALLOWED",
-                           bounded_text(call.request.method) + " is not allowed on " + call.request.path,
+                           bounded_text(call.request.method) + " is not allowed on " + bounded_text(call.request.path),
                            {{"allowed", match.allowed}}));
     return;
   }

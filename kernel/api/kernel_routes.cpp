@@ -6,6 +6,7 @@
 #include "kernel/safety/stop_summary.hpp"
 #include "libs/base/bounded_text.hpp"
 #include "libs/base/json_body.hpp"
+#include "libs/base/plugin_health.hpp"
 
 namespace rcand::kernel {
 namespace {
@@ -96,12 +97,7 @@ void audit_entries(const KernelRouteDeps& d, Call& call, const Reply& reply) {
 // health they add up to: a loaded library whose driver failed is not "ok".
 void plugins(const KernelRouteDeps& d, Call& call, const Reply& reply) {
   json plugins = d.host.to_json(sdk::role_grants(call.role, Scope::Config));
-  const json by_plugin = StatusBoard::instances_by_plugin(d.status.document());
-  for (auto& plugin : plugins) {
-    const std::string id = plugin.value("id", "");
-    plugin["instances"] = by_plugin.contains(id) ? by_plugin[id] : json::array();
-    plugin["health"] = StatusBoard::plugin_health(plugin.value("state", ""), plugin["instances"]);
-  }
+  add_plugin_health(plugins, d.status.document(), true);
   reply(json_response(200, {{"plugins", std::move(plugins)}}));
 }
 
@@ -135,6 +131,8 @@ void driver(const KernelRouteDeps& d, Call& call, const Reply& reply) {
              {"plugin", instance.plugin_id},
              {"state", instance.health.failed() ? "failed" : "ok"}};
     if (instance.health.failed()) StatusBoard::add_fault(doc, instance.health.fault());
+    else if (auto fault = status ? StatusBoard::reported_fault(*status) : std::nullopt)
+      doc.update({{"state", "error"}, {"reason", *fault}});
     if (status) doc["status"] = std::move(*status);
     reply(json_response(200, doc));
     return;

@@ -1,6 +1,7 @@
 #include "kernel/audit/audit_log.hpp"
 
 #include <fcntl.h>
+#include <sys/file.h>
 #include <sys/stat.h>
 #include <unistd.h>
 
@@ -160,6 +161,15 @@ AuditLog::~AuditLog() {
 void AuditLog::persist_to(const std::filesystem::path& file, std::uintmax_t max_bytes, int keep) {
   const int fd = ::open(file.c_str(), O_RDWR | O_APPEND | O_CREAT | O_CLOEXEC, 0640);
   if (fd < 0) throw std::runtime_error("runtime.audit_file: cannot append to " + file.string() + ": " + std::strerror(errno));
+  // One rcand per audit file (one per robot): a second one is refused before it writes a byte.
+  if (::flock(fd, LOCK_EX | LOCK_NB) != 0) {
+    const int error = errno;
+    ::close(fd);
+    throw std::runtime_error("runtime.audit_file: " + file.string() +
+                             (error == EWOULDBLOCK
+                                  ? std::string(" is in use by another rcand; each robot keeps its own audit log")
+                                  : ": cannot lock it: " + std::string(std::strerror(error))));
+  }
   struct stat info {};
   std::uintmax_t size = ::fstat(fd, &info) == 0 ? static_cast<std::uintmax_t>(info.st_size) : 0;
   // A last line cut by a crash gets its newline, so the next entry starts a line of its own.
@@ -191,7 +201,8 @@ int AuditLog::rotate_locked() noexcept {
   for (int i = keep_ - 1; i >= 1; --i) std::filesystem::rename(rotated_name(file, i), rotated_name(file, i + 1), ec);
   if (::rename(file.c_str(), rotated_name(file, 1).c_str()) != 0) return -1;
   const int fresh = ::open(file.c_str(), O_WRONLY | O_APPEND | O_CREAT | O_CLOEXEC, 0640);
-  if (fresh < 0) return -1;  // keeps appending to the renamed file: nothing is lost
+  if (fresh < 0) return -1;           // keeps appending to the renamed file: nothing is lost
+  ::flock(fresh, LOCK_EX | LOCK_NB);  // the new file is this rcand's too
   const int old = fd_;
   fd_ = fresh;
   file_bytes_ = 0;

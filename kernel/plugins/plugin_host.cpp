@@ -1,6 +1,8 @@
 #include "kernel/plugins/plugin_host.hpp"
 
 #include <dlfcn.h>
+#include <fcntl.h>
+#include <sys/statvfs.h>
 #include <unistd.h>
 
 #include <boost/dll/shared_library.hpp>
@@ -8,6 +10,9 @@
 #include <algorithm>
 #include <array>
 #include <atomic>
+#include <cerrno>
+#include <cstdlib>
+#include <cstring>
 #include <map>
 #include <sstream>
 
@@ -343,18 +348,71 @@ void PluginHost::reopen(std::string_view id) {
   *record = std::move(fresh);
 }
 
+PluginHost::~PluginHost() {
+  if (!reload_dir_.empty()) ::rmdir(reload_dir_.c_str());
+}
+
+void PluginHost::set_reload_parent(const fs::path& fallback) {
+  reload_parent_ = fallback;
+  const char* runtime = std::getenv("RUNTIME_DIRECTORY");  // systemd's RuntimeDirectory=; may list several
+  const std::string first = runtime == nullptr ? "" : std::string(runtime, std::strcspn(runtime, ":"));
+  struct statvfs mount {};
+  if (!first.empty() && ::statvfs(first.c_str(), &mount) == 0 && (mount.f_flag & ST_NOEXEC) == 0) reload_parent_ = first;
+}
+
+int PluginHost::reopens_left(std::string_view id) const {
+  const auto it = reopens_.find(id);
+  return kMaxReopens - (it == reopens_.end() ? 0 : it->second);
+}
+
+fs::path PluginHost::private_copy(const fs::path& library, std::string& error) {
+  if (reload_dir_.empty()) {
+    std::string pattern = (reload_parent_ / "plugin-reload-XXXXXX").string();
+    if (reload_parent_.empty() || ::mkdtemp(pattern.data()) == nullptr) {
+      error = "cannot make a private directory in '" + reload_parent_.string() + "': " + std::strerror(errno);
+      return {};
+    }
+    reload_dir_ = pattern;
+  }
+  const fs::path copy = reload_dir_ / (std::to_string(++copies_) + "-" + library.filename().string());
+  const int in = ::open(library.c_str(), O_RDONLY | O_CLOEXEC);
+  const int out = in < 0 ? -1 : ::open(copy.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_NOFOLLOW | O_CLOEXEC, 0600);
+  bool copied = out >= 0;
+  std::array<char, 64 * 1024> buffer;
+  while (copied) {
+    const ssize_t n = ::read(in, buffer.data(), buffer.size());
+    if (n < 0 && errno == EINTR) continue;
+    if (n <= 0) {
+      copied = n == 0;
+      break;
+    }
+    for (ssize_t done = 0, w = 0; copied && done < n; done += w) copied = (w = ::write(out, buffer.data() + done, n - done)) > 0;
+  }
+  error = copied ? "" : std::strerror(errno);
+  if (out >= 0 && ::close(out) != 0 && copied) copied = false, error = std::strerror(errno);
+  if (in >= 0) ::close(in);
+  if (copied) return copy;
+  if (out >= 0) ::unlink(copy.c_str());
+  return {};
+}
+
 void PluginHost::open_copy(PluginRecord& record) {
-  static std::atomic<unsigned> reloads{0};
   const fs::path original = record.manifest->library;
+  if (reopens_left(record.id) <= 0)
+    return set_state(record, PluginState::FailedToOpen,
+                     "reloaded " + std::to_string(kMaxReopens) + " times: each reload keeps its old version mapped",
+                     "restart rcand to reload it again");
   std::error_code ec;
-  const fs::path copy = fs::temp_directory_path(ec) / ("rcand-" + std::to_string(::getpid()) + "-reload-" +
-                                                       std::to_string(++reloads) + "-" + original.filename().string());
-  if (fs::exists(original, ec) && !fs::copy_file(original, copy, fs::copy_options::overwrite_existing, ec))
-    return set_state(record, PluginState::FailedToOpen, "cannot copy " + original.string() + " to reload it: " + ec.message(),
-                     "check the free space and permissions of " + copy.parent_path().string());
-  if (fs::exists(copy, ec)) record.manifest->library = copy;
+  if (!fs::exists(original, ec)) return open(record);  // named as at startup: "library ... not found"
+  std::string error;
+  const fs::path copy = private_copy(original, error);
+  if (copy.empty())
+    return set_state(record, PluginState::FailedToOpen, "cannot copy " + original.string() + " to reload it: " + error,
+                     "check the free space and permissions of " + reload_parent_.string());
+  ++reopens_[record.id];  // one more image mapped for good, whatever open() makes of it
+  record.manifest->library = copy;
   open(record);
-  fs::remove(copy, ec);  // mapped by now, or refused: the file is not needed any more
+  ::unlink(copy.c_str());  // mapped by now, or refused: the name is not needed any more
   record.manifest->library = original;
 }
 

@@ -7,6 +7,7 @@
 
 #include <chrono>
 #include <filesystem>
+#include <map>
 #include <memory>
 #include <mutex>
 #include <set>
@@ -26,6 +27,7 @@ class RecordingRegistrar;  // kernel/plugins/recording_registrar.hpp
 class PluginHost {
  public:
   PluginHost() = default;
+  ~PluginHost();  // removes the private reload directory (empty: each copy is unlinked once mapped)
   PluginHost(const PluginHost&) = delete;
   PluginHost& operator=(const PluginHost&) = delete;
 
@@ -49,8 +51,17 @@ class PluginHost {
   // A development reload of plugin `id`, once nothing of it runs (PluginRuntime::reload): its manifest re-read and
   // its library opened again from disk, through a private copy (a new file, so the loader cannot hand back the old
   // image; that one stays mapped, RTLD_NODELETE, so nothing the old version left behind can call into unmapped
-  // code). The record ends Loaded or in a named failure state, as at startup.
+  // code). The copy is made with O_EXCL|O_NOFOLLOW in a directory of rcand's own (mkdtemp, 0700, under the
+  // reload directory's parent) and unlinked once mapped. The record ends Loaded or in a named failure state, as at
+  // startup. Each reopen maps one more image for good: past kMaxReopens of one plugin it is refused
+  // (FailedToOpen, "restart rcand"), so reloads cannot grow rcand's memory without bound.
   void reopen(std::string_view id);
+  static constexpr int kMaxReopens = 16;
+  // How many more times reopen(id) will map a new image.
+  int reopens_left(std::string_view id) const;
+  // Where reopen() makes its private directory: $RUNTIME_DIRECTORY when set (and not mounted noexec, where no
+  // library could be mapped from), else `fallback` (rcand passes runtime.state_dir). Before the first reopen().
+  void set_reload_parent(const std::filesystem::path& fallback);
 
   // How long a plugin's register() may take (runtime.plugin_start_timeout_ms): one that overruns is recorded
   // registration-failed and left running on its own thread. Applies to plugins opened after the call.
@@ -72,6 +83,8 @@ class PluginHost {
  private:
   void open(PluginRecord& record);
   void open_copy(PluginRecord& record);  // open() from a fresh copy of the library (reopen)
+  // A private copy of `library` (see reopen); empty with `error` set when it cannot be made.
+  std::filesystem::path private_copy(const std::filesystem::path& library, std::string& error);
   // The loader's steps; each one that refuses sets the record's state and returns false (or null).
   bool open_library(PluginRecord& record);
   const rcand_plugin_descriptor* read_descriptor(PluginRecord& record);
@@ -81,6 +94,9 @@ class PluginHost {
   std::vector<std::unique_ptr<PluginRecord>> records_;
   mutable std::mutex mutex_;  // a record's contents, while reopen() replaces them (the list itself never changes then)
   std::chrono::milliseconds register_timeout_{10000};
+  std::filesystem::path reload_parent_, reload_dir_;  // reload_dir_: made by the first reopen()
+  unsigned copies_ = 0;
+  std::map<std::string, int, std::less<>> reopens_;  // per plugin id
 };
 
 }  // namespace rcand::kernel

@@ -7,6 +7,7 @@
 #include "kernel/plugins/bounded_call.hpp"
 #include "kernel/plugins/guarded.hpp"
 #include "kernel/plugins/settings_schema.hpp"
+#include "libs/base/bounded_text.hpp"
 #include "libs/base/closest_match.hpp"
 #include "libs/base/keep_forever.hpp"
 
@@ -596,13 +597,17 @@ ReloadResult PluginRuntime::reload(const std::string& id, const RobotConfig& con
     return result;
   };
   const PluginRecord* record = host_.find(id);
-  if (record == nullptr) return refuse(404, "NOT_FOUND", "no plugin '" + id + "' is installed");
+  if (record == nullptr) return refuse(404, "NOT_FOUND", "no plugin '" + bounded_text(id) + "' is installed");
   const auto members = instances_of(id);
   const auto driver_indices = drivers_of(id);
   std::vector<DriverInstance*> drivers;
   for (auto i : driver_indices) drivers.push_back(&drivers_[i]);
   if (members.empty() && drivers.empty())
     return refuse(409, "NOT_IN_USE", "plugin " + id + " serves no driver or capability of this robot: nothing to reload");
+  if (host_.reopens_left(id) <= 0)  // refused before anything stops: the robot keeps running the version it has
+    return refuse(409, "RELOAD_LIMIT",
+                  "plugin " + id + " was reloaded " + std::to_string(PluginHost::kMaxReopens) +
+                      " times, the most one run of rcand allows (each reload keeps its old version mapped); restart rcand");
 
   halt_first();
   auto log = logger("kernel.plugins");

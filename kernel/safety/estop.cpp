@@ -1,8 +1,15 @@
 #include "kernel/safety/estop.hpp"
 
+#include "libs/base/bounded_text.hpp"
 #include "libs/base/logging.hpp"
 
 namespace rcand::kernel {
+
+namespace {
+// A reason rcand composes (the restart's "latched when rcand last stopped: <reason> (by <source>)") quotes a
+// caller's bounded reason inside its own words: room for both.
+constexpr std::size_t kShownReasonBytes = 600;
+}  // namespace
 
 Estop::Estop(const sdk::Clock& clock, ActuatorTable& actuators) : clock_(clock), actuators_(actuators) {}
 
@@ -25,9 +32,17 @@ Estop::StopReport Estop::latch(const std::string& reason, const std::string& sou
   report.commands_in_flight = actuators_.wait_for_commands(deadline, latched_);
   report.latency_us = clock_.now_us() - start;
   try {
+    // Made safe here, after the halt, for everything that shows them: the log, GET /api/estop, /api/status,
+    // telemetry, the dashboard and the state dir's latch record (a reason may be any caller's or plugin's text).
+    const std::string shown_reason = bounded_text(reason, kShownReasonBytes), shown_source = bounded_text(source);
     if (report.newly_latched) {
       std::lock_guard lock(info_mutex_);
-      info_ = {true, clock_.wall_ms(), reason, source, origin};
+      info_ = {
+          true,
+          clock_.wall_ms(),
+          shown_reason,
+          shown_source,
+          {bounded_text(origin.principal), origin.kind, bounded_text(origin.from), bounded_text(origin.note, kShownReasonBytes)}};
     }
     for (const auto& id : report.commands_in_flight) {
       const std::string why = "a command that entered the motion gate before the latch was still running at the " +
@@ -51,7 +66,7 @@ Estop::StopReport Estop::latch(const std::string& reason, const std::string& sou
     for (auto& listener : listeners_) listener();
     if (report.newly_latched)
       logger("kernel.estop")
-          ->warn("e-stop latched by {}: {} ({} actuators halted in {} us)", source, reason, report.drivers.size(),
+          ->warn("e-stop latched by {}: {} ({} actuators halted in {} us)", shown_source, shown_reason, report.drivers.size(),
                  report.latency_us);
   } catch (...) {  // bookkeeping must never undo a stop that already happened
   }
@@ -99,8 +114,8 @@ bool Estop::clear() {
 void Estop::restate(std::string reason, std::string source) {
   std::lock_guard lock(info_mutex_);
   if (!latched_.load()) return;
-  info_.reason = std::move(reason);
-  info_.source = std::move(source);
+  info_.reason = bounded_text(reason, kShownReasonBytes);
+  info_.source = bounded_text(source);
   info_.origin = {{}, "startup", {}, {}};
 }
 

@@ -14,6 +14,7 @@
 
 #include "kernel/safety/actuator_table.hpp"
 #include "kernel/safety/deadline_crew.hpp"
+#include "libs/base/stop_origin.hpp"
 #include "rcand/sdk/estop_view.hpp"
 
 namespace rcand::kernel {
@@ -32,13 +33,7 @@ class Estop final : public sdk::EstopView {
     // (their entry in `drivers` says so too: not halted, state "command_in_flight").
     std::vector<std::string> commands_in_flight;
   };
-  // Who stopped the robot and how, for people (docs/protocol.md §6.7; stop_summary.hpp makes the sentence).
-  struct Origin {
-    std::string principal;  // the credential's principal; empty when rcand itself or a plugin latched
-    std::string kind;       // request | swarm | plugin | reload | startup | shutdown
-    std::string from;       // where: the caller's words ("the dashboard"), the forwarding robot, the plugin
-    std::string note;       // the caller's own reason; empty when it gave none
-  };
+  using Origin = StopOrigin;  // who stopped the robot and how (docs/protocol.md §6.7)
   struct Snapshot {
     bool estopped = false;
     std::int64_t since_ms = 0;

@@ -7,7 +7,9 @@
 #include <limits>
 #include <mutex>
 
+#include "libs/base/bounded_text.hpp"
 #include "libs/base/logging.hpp"
+#include "libs/base/plugin_health.hpp"
 #include "libs/base/worker_thread.hpp"
 #include "rcand/sdk/pose_source.hpp"
 
@@ -89,36 +91,6 @@ void StatusBoard::add_fault(json& item, const Fault& fault) {
   if (!fault.hint.empty()) item["hint"] = fault.hint;
 }
 
-json StatusBoard::instances_by_plugin(const json& doc) {
-  json out = json::object();
-  const auto add = [&out](const char* kind, const std::string& name, const json& item) {
-    const std::string plugin = item.value("plugin", "");
-    if (plugin.empty()) return;  // its plugin never loaded: the plugin's own entry says why
-    json instance{{kind, name}, {"state", item.value("state", "ok")}};
-    for (const char* key : {"reason", "device", "os_error", "hint", "stale"})
-      if (item.contains(key)) instance[key] = item[key];
-    out[plugin].push_back(std::move(instance));
-  };
-  if (const auto it = doc.find("drivers"); it != doc.end() && it->is_array())
-    for (const auto& item : *it) add("driver", item.value("id", ""), item);
-  if (const auto it = doc.find("capabilities"); it != doc.end() && it->is_object())
-    for (const auto& [name, item] : it->items()) add("capability", name, item);
-  return out;
-}
-
-std::string StatusBoard::plugin_health(std::string_view library_state, const json& instances) {
-  if (library_state != to_string(PluginState::Loaded))
-    return library_state == to_string(PluginState::InstalledNotEnabled) ? "unused" : "error";
-  if (!instances.is_array() || instances.empty()) return "unused";
-  std::string health = "ok";
-  for (const auto& instance : instances) {
-    const std::string state = instance.value("state", "ok");
-    if (state == "failed" || state == "error") return "error";
-    if (state == "degraded") health = "degraded";
-  }
-  return health;
-}
-
 class StatusBoard::Impl final : public StatusSink, public std::enable_shared_from_this<StatusBoard::Impl> {
  public:
   struct Snapshot {
@@ -127,6 +99,7 @@ class StatusBoard::Impl final : public StatusSink, public std::enable_shared_fro
     bool nav_running = false;
     std::uint64_t changes = 0;  // changes_ when the round that built it began
     std::size_t failed = 0;     // instances marked failed when it was built
+    std::size_t faults = 0;     // instances whose status reported a fault (sdk/capability.hpp, "fault")
   };
 
   Impl(std::vector<Source> sources, KernelServices& services, json fixed, std::int64_t started_us)
@@ -200,8 +173,9 @@ class StatusBoard::Impl final : public StatusSink, public std::enable_shared_fro
 
   std::string robot_state() const {
     if (services_.estop.latched()) return "estop";
-    if (failed_now() > 0) return "error";
-    return current_.load()->nav_running ? "running" : "idle";
+    const auto snapshot = current_.load();
+    if (failed_now() > 0 || snapshot->faults > 0) return "error";
+    return snapshot->nav_running ? "running" : "idle";
   }
 
   void notify() noexcept { request_round(); }
@@ -343,9 +317,14 @@ class StatusBoard::Impl final : public StatusSink, public std::enable_shared_fro
       add_fault(item, source.health->fault());
       return item;
     }
-    const board::Verdict verdict = board::follow_drivers(source.needs, drivers);
-    item["state"] = verdict.state;
-    if (verdict.state != "ok") add_fault(item, verdict.fault);
+    if (auto fault = entry.last ? reported_fault(*entry.last) : std::nullopt) {
+      item["state"] = "error";  // it runs, but cannot do its job: a camera with no picture
+      item["reason"] = std::move(*fault);
+    } else {
+      const board::Verdict verdict = board::follow_drivers(source.needs, drivers);
+      item["state"] = verdict.state;
+      if (verdict.state != "ok") add_fault(item, verdict.fault);
+    }
     const std::int64_t age = now - (entry.last ? entry.last_us : created_us_);
     if (age > std::chrono::microseconds(kStaleAfter).count()) {
       item["stale"] = true;
@@ -368,16 +347,19 @@ class StatusBoard::Impl final : public StatusSink, public std::enable_shared_fro
       const auto& source = entry->source;
       if (!source.driver) continue;
       const bool failed = source.health != nullptr && source.health->failed();
-      views.push_back({source.name, source.item.value("protocol", ""), source.item.value("interface", ""), failed,
-                       failed ? source.health->fault() : Fault{}});
+      std::optional<std::string> reported = !failed && entry->last ? reported_fault(*entry->last) : std::nullopt;
+      views.push_back({source.name, source.item.value("protocol", ""), source.item.value("interface", ""),
+                       failed || reported.has_value(),
+                       failed ? source.health->fault() : Fault{reported.value_or(""), {}, {}, {}}});
     }
     for (const auto& entry : entries_) {
       json item = item_of(*entry, views, now);
       if (item["state"] == "failed") ++snapshot->failed;
+      if (item["state"] == "error") ++snapshot->faults;
       if (entry->source.driver) drivers.push_back(std::move(item));
       else capabilities[entry->source.name] = std::move(item);
     }
-    const char* state = snapshot->failed > 0 ? "error" : nav_running ? "running" : "idle";
+    const char* state = snapshot->failed + snapshot->faults > 0 ? "error" : nav_running ? "running" : "idle";
     snapshot->nav_running = nav_running;
     doc["state"] = state;
     doc["estopped"] = false;
@@ -385,7 +367,7 @@ class StatusBoard::Impl final : public StatusSink, public std::enable_shared_fro
     doc["drivers"] = std::move(drivers);
     doc["capabilities"] = std::move(capabilities);
     doc["nav_running"] = nav_running;
-    add_plugin_health(doc);
+    if (doc.contains("plugins")) add_plugin_health(doc["plugins"], doc, false);  // a loaded library may not be ok
     snapshot->body[0] = dump(doc);
     doc["state"] = "estop";
     doc["estopped"] = true;
@@ -394,16 +376,6 @@ class StatusBoard::Impl final : public StatusSink, public std::enable_shared_fro
     doc["estopped"] = false;
     snapshot->doc = std::move(doc);
     return snapshot;
-  }
-
-  // Each plugins[] item's "health", from its library state and its instances in this document.
-  static void add_plugin_health(json& doc) {
-    if (!doc.contains("plugins") || !doc["plugins"].is_array()) return;
-    const json by_plugin = instances_by_plugin(doc);
-    for (auto& plugin : doc["plugins"]) {
-      const std::string id = plugin.value("id", "");
-      plugin["health"] = plugin_health(plugin.value("state", ""), by_plugin.contains(id) ? by_plugin[id] : json::array());
-    }
   }
 
   void answer_waiters(std::uint64_t seen) noexcept {
@@ -441,6 +413,13 @@ class StatusBoard::Impl final : public StatusSink, public std::enable_shared_fro
 };
 
 // ---- StatusBoard ------------------------------------------------------------------------------------------------
+
+std::optional<std::string> StatusBoard::reported_fault(const json& status) {
+  if (!status.is_object()) return std::nullopt;
+  const auto fault = status.find("fault");
+  if (fault == status.end() || !fault->is_string() || fault->get_ref<const std::string&>().empty()) return std::nullopt;
+  return bounded_text(fault->get_ref<const std::string&>(), kFaultTextBytes);
+}
 
 json StatusBoard::fixed_fields(const RobotIdentity& identity, const std::vector<std::string>& caps, const PluginHost& host,
                                std::string_view version) {

@@ -10,6 +10,14 @@
 // An entry that neither a publish nor an answer refreshed for two seconds gets "stale": true and "age_ms" in its
 // item: a plugin that stops publishing shows as stale, not as a slow endpoint.
 //
+// An instance whose status carries a top-level "fault" (a non-empty string; sdk/capability.hpp) runs but cannot do
+// its job - a camera with no picture: its item's state is "error" with the fault as "reason", and so is the robot's
+// state, until a status without one.
+//
+// A capability's state also follows the actuator interfaces its manifest requires (Source::needs): "error" when every
+// driver providing one is failed or reports a fault, "degraded" when some are, with a reason naming those drivers and
+// the first one's device, OS error and hint (sdk/device_fault.hpp).
+//
 // The top-level "pose" and "nav_running" come from the PoseSource service (sdk/pose_source.hpp, offered by nav),
 // read on the status thread at each rebuild - never per request.
 #pragma once
@@ -59,18 +67,17 @@ class StatusBoard {
     std::vector<std::string> needs = {};
   };
 
+  static constexpr std::size_t kFaultTextBytes = 600;
+
+  // The fault a plugin's status reports (its top-level "fault", a non-empty string), cut and made safe; else nullopt.
+  static std::optional<std::string> reported_fault(const nlohmann::json& status);
+
   // What GET /api/status says that never changes while rcand runs: ruri, name, version, rcan_version, caps, plugins.
   static nlohmann::json fixed_fields(const RobotIdentity& identity, const std::vector<std::string>& caps, const PluginHost& host,
                                      std::string_view version);
   // Every capability, then every driver, of a started runtime (which must outlive the board), polled through
   // PluginRuntime::status_of.
   static std::vector<Source> sources_of(PluginRuntime& runtime);
-  // From a status document: each plugin's instances, {"<plugin id>": [{"driver"|"capability": name, "state",
-  // "reason"?, "device"?, "os_error"?, "hint"?}]}, drivers first (the shape of a plugin reload's answer).
-  static nlohmann::json instances_by_plugin(const nlohmann::json& doc);
-  // A plugin's health: "error" when its library is not usable or an instance failed or is in error, "degraded" when
-  // one is, "unused" when it serves nothing here, else "ok".
-  static std::string plugin_health(std::string_view library_state, const nlohmann::json& instances);
   // A failed instance's item fields: "reason", and "device", "os_error", "hint" when the fault has them.
   static void add_fault(nlohmann::json& item, const Fault& fault);
 
@@ -98,8 +105,8 @@ class StatusBoard {
   void when_current(std::function<void(std::shared_ptr<const std::string>)> answer);
   // Any thread: the current document (for R2R status messages and telemetry), e-stop fields as now.
   nlohmann::json document() const;
-  // Any thread: idle | running | error | estop (docs/protocol.md §5); the e-stop and failures as now, the PoseSource's
-  // busy flag as of the current document.
+  // Any thread: idle | running | error | estop (docs/protocol.md §5); the e-stop and failures as now, reported faults
+  // and the PoseSource's busy flag as of the current document.
   std::string robot_state() const;
 
   // Any thread, never blocks: something the document shows changed without a publish (an instance marked failed,

@@ -1,5 +1,6 @@
 #include "libs/config/robot_config.hpp"
 
+#include "libs/base/file_trust.hpp"
 #include "libs/config/config_defaults.hpp"
 #include "libs/config/config_fragments.hpp"
 #include "libs/config/config_schema.hpp"
@@ -8,13 +9,16 @@
 
 #include <rcand/sdk/scope.hpp>
 
+#include <fcntl.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
 #include <algorithm>
 #include <atomic>
 #include <cctype>
 #include <cerrno>
 #include <cstdlib>
 #include <cstring>
-#include <fstream>
 #include <tuple>
 
 namespace rcand::kernel {
@@ -194,24 +198,36 @@ void sort_by_position(std::vector<ConfigDiagnostic>& diagnostics) {
   });
 }
 
-std::string read_config_text(const fs::path& file) {
-  const std::string display = file.string();
-  std::error_code ec;
-  const auto status = fs::status(file, ec);
-  if (status.type() == fs::file_type::not_found) fail_file(display, "cannot read the config file: no such file");
-  if (ec) fail_file(display, "cannot read the config file: " + ec.message());
-  if (fs::is_directory(status)) fail_file(display, "cannot read the config file: it is a directory");
+ConfigDiagnostic refusal(const std::string& file, const std::string& what, const std::string& problem) {
+  return ConfigDiagnostic{ConfigDiagnostic::Severity::Error, SourceMark{file, 0, 0}, "",
+                          "refused: " + what + " that a user other than root or rcand's own could change: " + problem};
+}
 
-  std::ifstream in(file, std::ios::binary);
-  if (!in) fail_file(display, std::string("cannot read the config file: ") + std::strerror(errno));
-  std::string text;
+// The file's text, read through the descriptor its owner and mode were checked on (no swap between check and read).
+// One that another user could change is added to `refused` (docs/protocol.md §10.5); one that cannot be read at
+// all throws.
+std::string read_config_text(const fs::path& file, uid_t user, std::vector<ConfigDiagnostic>& refused) {
+  const std::string display = file.string();
+  const int fd = ::open(file.c_str(), O_RDONLY | O_CLOEXEC);
+  if (fd < 0)
+    fail_file(display, errno == ENOENT ? std::string("cannot read the config file: no such file")
+                                       : std::string("cannot read the config file: ") + std::strerror(errno));
+  struct stat info {};
+  std::string text, error;
+  if (::fstat(fd, &info) != 0) error = std::string("cannot read the config file: ") + std::strerror(errno);
+  else if (S_ISDIR(info.st_mode)) error = "cannot read the config file: it is a directory";
   char buffer[64 * 1024];
-  while (in.read(buffer, sizeof buffer) || in.gcount() > 0) {
-    text.append(buffer, static_cast<std::size_t>(in.gcount()));
+  for (ssize_t n = 0; error.empty() && (n = ::read(fd, buffer, sizeof buffer)) != 0;) {
+    if (n < 0 && errno == EINTR) continue;
+    if (n < 0) error = std::string("cannot read the config file: ") + std::strerror(errno);
+    else text.append(buffer, static_cast<std::size_t>(n));
     if (text.size() > kMaxFileBytes)
-      fail_file(display, "the config file is larger than " + std::to_string(kMaxFileBytes / (1024 * 1024)) + " MiB");
+      error = "the config file is larger than " + std::to_string(kMaxFileBytes / (1024 * 1024)) + " MiB";
   }
-  if (in.bad()) fail_file(display, "cannot read the config file: read error");
+  ::close(fd);
+  if (!error.empty()) fail_file(display, error);
+  if (auto problem = untrusted_writers(file, info, user); !problem.empty())
+    refused.push_back(refusal(display, "a config file", problem));
   return text;
 }
 
@@ -269,13 +285,23 @@ LoadedConfig parse_robot_config(std::string_view yaml, const std::string& displa
 }
 
 LoadedConfig load_robot_config(const fs::path& file, LoadOptions options) {
-  const std::string text = read_config_text(file);
+  // As sshd's StrictModes: nothing another user could have written is loaded, the directories that decide which
+  // files are read included (one who can write conf.d adds a fragment; a sticky directory keeps our file ours).
+  const uid_t user = options.user.value_or(::geteuid());
+  std::vector<ConfigDiagnostic> refused;
+  const std::string text = read_config_text(file, user, refused);
   std::error_code ec;
   const fs::path absolute = fs::absolute(file, ec);
   const fs::path source = ec ? file : absolute.lexically_normal();
+  if (auto problem = untrusted_writers(source.parent_path(), user, true); !problem.empty())
+    refused.push_back(refusal(source.parent_path().string(), "the config file's directory", problem));
+  if (const fs::path conf_d = source.parent_path() / "conf.d"; fs::is_directory(conf_d, ec))
+    if (auto problem = untrusted_writers(conf_d, user); !problem.empty())
+      refused.push_back(refusal(conf_d.string(), "a conf.d directory (it decides which fragments are merged)", problem));
   const std::vector<fs::path> fragment_files = config_fragment_files(source);
   std::vector<ConfigFragmentText> fragments;
-  for (const auto& fragment : fragment_files) fragments.push_back({read_config_text(fragment), fragment.string()});
+  for (const auto& fragment : fragment_files) fragments.push_back({read_config_text(fragment, user, refused), fragment.string()});
+  if (!refused.empty()) throw ConfigError(std::move(refused));
   LoadedConfig loaded = parse_robot_config(text, file.string(), source.parent_path(), options, fragments);
   loaded.config.source_file = source;
   loaded.config.fragment_files = fragment_files;

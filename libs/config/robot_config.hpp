@@ -2,6 +2,7 @@
 // settings.
 #pragma once
 
+#include <sys/types.h>
 #include <nlohmann/json.hpp>
 
 #include <cstdint>
@@ -111,8 +112,12 @@ struct LoadedConfig {
 // How a file is judged. A config written for another runtime loads with warnings for what rcand supplies, reads
 // differently or ignores (docs/protocol.md §10.3); `strict` (rcand --strict) makes every such warning an error, so
 // only a file that says exactly what rcand runs is accepted.
+//
+// Trust: the file, its conf.d fragments, conf.d itself and the file's directory are refused (each named, with the
+// chmod or chown that fixes it) when a user other than root or `user` could change them (libs/base/file_trust.hpp).
 struct LoadOptions {
   bool strict = false;
+  std::optional<uid_t> user = std::nullopt;  // whose files are trusted besides root's; unset: the user this process runs as
 };
 // The options every load uses unless it passes its own: rcand's main sets them once from the command line, so the
 // start, --check-config and each SIGHUP reload judge a file alike.

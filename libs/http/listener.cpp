@@ -27,15 +27,13 @@ constexpr std::chrono::milliseconds kAcceptBackoff{100};
 }  // namespace
 
 Listener::Listener(ServerCore& core, const tcp::endpoint& endpoint, std::string_view shown, bool tls)
-    : core_(core), tls_(tls), acceptor_(core.slots.front()->ioc), backoff_(core.slots.front()->ioc) {
+    : core_(core), tls_(tls), shown_(shown), acceptor_(core.slots.front()->ioc), backoff_(core.slots.front()->ioc) {
   boost::system::error_code ec;
   acceptor_.open(endpoint.protocol(), ec);
   if (ec) fail(shown, ec);
   acceptor_.set_option(net::socket_base::reuse_address(true), ec);
   if (ec) fail(shown, ec);
   acceptor_.bind(endpoint, ec);
-  if (ec) fail(shown, ec);
-  acceptor_.listen(net::socket_base::max_listen_connections, ec);
   if (ec) fail(shown, ec);
 }
 
@@ -46,6 +44,9 @@ std::uint16_t Listener::port() const {
 }
 
 void Listener::start() {
+  boost::system::error_code ec;
+  acceptor_.listen(net::socket_base::max_listen_connections, ec);
+  if (ec) fail(shown_, ec);
   net::post(core_.slots.front()->ioc, [this] { accept(); });
 }
 

@@ -10,6 +10,7 @@
 #include <cstdint>
 #include <deque>
 #include <memory>
+#include <string>
 #include <string_view>
 
 #include "libs/http/server_core.hpp"
@@ -19,12 +20,13 @@ namespace rcand::http::detail {
 
 class Listener {
  public:
-  // Binds and listens at once (caller's thread). Throws std::runtime_error "cannot listen on <shown>: <reason>".
+  // Binds at once (caller's thread), without listening yet: the address is taken, connections are refused until
+  // start(). Throws std::runtime_error "cannot listen on <shown>: <reason>".
   // `tls`: every connection speaks TLS (core.tls_context) and goes straight to a worker loop, where its handshake
   // runs; none is read on the accept loop and none joins the busy lane.
   Listener(ServerCore& core, const boost::asio::ip::tcp::endpoint& endpoint, std::string_view shown, bool tls = false);
   std::uint16_t port() const;
-  // Queues the first accept; the loop then runs on slot 0's thread.
+  // Listens and queues the first accept; the loop then runs on slot 0's thread. Throws as the constructor does.
   void start();
   // Slot 0's thread only.
   void close() noexcept;
@@ -37,6 +39,7 @@ class Listener {
 
   ServerCore& core_;
   const bool tls_;
+  const std::string shown_;
   boost::asio::ip::tcp::acceptor acceptor_;
   boost::asio::steady_timer backoff_;  // after accept errors such as EMFILE, so a full fd table does not spin us
   // A full lane evicts one waiter for a newcomer from `newcomer` (the rule: busy_lane.hpp); false: refuse it.

@@ -86,9 +86,14 @@ Server::Server(ServerOptions options, Handler handler) {
 
 Server::~Server() { stop(); }
 
-std::uint16_t Server::start() {
+std::uint16_t Server::bind() {
   std::lock_guard lock(lifecycle_);
   if (started_) throw std::runtime_error("http server already started");
+  return bind_locked();
+}
+
+std::uint16_t Server::bind_locked() {
+  if (listener_) return listener_->port();
   const auto& options = core_->options;
   const std::string shown = shown_address(options);
   const auto endpoint = resolve_listen_endpoint(options, shown);
@@ -109,9 +114,18 @@ std::uint16_t Server::start() {
     core_->slots.clear();
     throw;
   }
-  started_ = true;
+  return listener_->port();
+}
+
+std::uint16_t Server::start() {
+  std::lock_guard lock(lifecycle_);
+  if (started_) throw std::runtime_error("http server already started");
+  const auto& options = core_->options;
+  const std::string shown = shown_address(options);
+  bind_locked();
   listener_->start();
   if (plain_listener_) plain_listener_->start();
+  started_ = true;
   try {
     for (std::size_t i = 0; i < core_->slots.size(); ++i) {
       threads_.emplace_back([core = core_, slot = core_->slots[i].get(), i] {

@@ -35,6 +35,11 @@ class Server {
   // ServerOptions::tls first reads its files (TlsError naming the setting, libs/http/tls_context.hpp) and also binds
   // the loopback plain port.
   std::uint16_t start();
+  // start()'s first half, for a caller that must hold the port before doing anything else (rcand claims it before
+  // any plugin starts): resolves, reads the TLS files and binds the socket(s) without listening, so connections are
+  // refused until start() and a second bind of the port (by a process already listening there) fails here. Returns
+  // the bound port; throws as start() does. start() after it only listens and serves.
+  std::uint16_t bind();
   // With ServerOptions::tls: the plain HTTP port bound on 127.0.0.1; 0 without TLS or before start.
   std::uint16_t plain_loopback_port() const;
   // With ServerOptions::tls, after start: reads `settings` anew (renewed files, other paths) for the connections
@@ -52,6 +57,7 @@ class Server {
 
  private:
   void stop_locked() noexcept;
+  std::uint16_t bind_locked();
 
   // Declaration order is destruction order in reverse: the listener (an acceptor on the core's first event loop)
   // goes before the core, which may outlive the Server while a Respond still holds it.

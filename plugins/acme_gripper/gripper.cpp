@@ -1,4 +1,6 @@
 // com.acme.gripper: the simulated gripper driver, the capability, and the registration.
+#include <rcand/sdk/bounded_text.hpp>  // quotes the caller's value back: cut to 200 bytes, no controls
+
 #include <algorithm>
 #include <cmath>
 
@@ -102,13 +104,14 @@ Response GripperCapability::grip(const rcand::sdk::Request& request) {
   if (has_state) {
     const Json& s = body["state"];
     if (!s.is_string() || (s != "open" && s != "close"))
-      return Response::error(400, "BAD_REQUEST", "state must be \"open\" or \"close\", found " + s.dump(),
+      return Response::error(400, "BAD_REQUEST",
+                             "state must be \"open\" or \"close\", found " + rcand::sdk::bounded_text(s.dump()),
                              {{"field", "state"}, {"allowed", {"open", "close"}}});
     target = s == "open" ? 1.0 : 0.0;
   } else {
     const Json& o = body["opening"];
     if (!o.is_number() || !std::isfinite(o.get<double>()) || o.get<double>() < 0.0 || o.get<double>() > 1.0)
-      return Response::bad_request("opening", "opening must be a number in [0, 1], found " + o.dump());
+      return Response::bad_request("opening", "opening must be a number in [0, 1], found " + rcand::sdk::bounded_text(o.dump()));
     target = o.get<double>();
   }
 

@@ -1,5 +1,7 @@
 #include "arm.hpp"
 
+#include <rcand/sdk/bounded_text.hpp>
+
 #include <cmath>
 
 namespace rcand::plugins::arm {
@@ -99,9 +101,11 @@ Response ArmCapability::arm_pose(const sdk::Request& request) {
     Json allowed = Json::array();
     for (const auto& [known, pose] : poses_) allowed.push_back(known);
     const auto it = name.is_string() ? poses_.find(name.get<std::string>()) : poses_.end();
-    if (it == poses_.end())
+    if (it == poses_.end())  // the caller's name, quoted cut to 200 bytes and without controls
       return Response::error(400, "BAD_REQUEST",
-                             "unknown pose " + name.dump() + " (configured in runtime.capabilities.arm.poses)",
+                             (name.is_string() ? "unknown pose '" + sdk::bounded_text(name.get<std::string>()) + "'"
+                                               : "pose must be a string, found " + std::string(name.type_name())) +
+                                 " (configured in runtime.capabilities.arm.poses)",
                              Json{{"field", "pose"}, {"allowed", allowed}});
     move_request.targets = it->second;
     move_request.field = "pose." + it->first;
@@ -109,18 +113,21 @@ Response ArmCapability::arm_pose(const sdk::Request& request) {
   } else {
     const Json& joints = body["joints"];
     if (!joints.is_object() || joints.empty())
-      return Response::bad_request("joints",
-                                   "joints must be a non-empty object of joint name to degrees, found " + joints.dump());
+      return Response::bad_request("joints", "joints must be a non-empty object of joint name to degrees, found " +
+                                                 (joints.is_object() ? std::string("{}") : std::string(joints.type_name())));
     for (const auto& [joint, value] : joints.items()) {
-      if (!value.is_number())
-        return Response::bad_request("joints." + joint, "joint '" + joint + "' target must be a number of degrees, found " +
-                                                            std::string(value.type_name()));
+      if (!value.is_number()) {
+        const std::string quoted = sdk::bounded_text(joint);
+        return Response::bad_request("joints." + quoted, "joint '" + quoted + "' target must be a number of degrees, found " +
+                                                             std::string(value.type_name()));
+      }
       move_request.targets.emplace_back(joint, value.get<double>());
     }
   }
   if (body.contains("velocity_dps") && !body["velocity_dps"].is_null()) {
     if (!body["velocity_dps"].is_number())
-      return Response::bad_request("velocity_dps", "velocity_dps must be a number > 0, found " + body["velocity_dps"].dump());
+      return Response::bad_request("velocity_dps", "velocity_dps must be a number of degrees per second, found " +
+                                                       std::string(body["velocity_dps"].type_name()));
     move_request.velocity_dps = body["velocity_dps"].get<double>();
   }
   return move(move_request, std::move(answer));
@@ -132,8 +139,11 @@ Response ArmCapability::grip(const sdk::Request& request) {
   const auto found = body.find("state");
   const Json state = found != body.end() ? *found : Json();
   if (!state.is_string() || (state != "open" && state != "close"))
-    return Response::error(400, "BAD_REQUEST", "state must be \"open\" or \"close\", found " + state.dump(),
-                           {{"field", "state"}, {"allowed", {"open", "close"}}});
+    return Response::error(
+        400, "BAD_REQUEST",
+        "state must be \"open\" or \"close\", found " +
+            (state.is_string() ? "'" + sdk::bounded_text(state.get<std::string>()) + "'" : std::string(state.type_name())),
+        {{"field", "state"}, {"allowed", {"open", "close"}}});
   if (!gripper_joint_)
     return Response::error(400, "BAD_REQUEST", "this arm has no gripper: set runtime.capabilities.arm.gripper_joint",
                            {{"field", "type"}});

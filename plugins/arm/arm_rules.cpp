@@ -1,5 +1,7 @@
 #include "arm_rules.hpp"
 
+#include <rcand/sdk/bounded_text.hpp>
+
 #include <algorithm>
 #include <cmath>
 #include <sstream>
@@ -39,18 +41,26 @@ std::variant<std::vector<sdk::JointTarget>, Response> plan_move(const MoveReques
                                                                 const std::vector<sdk::JointState>& present,
                                                                 const std::string& limits_from) {
   if (request.targets.empty()) return Response::bad_request(request.field, request.field + " names no joint");
-  if (request.velocity_dps && (!std::isfinite(*request.velocity_dps) || *request.velocity_dps <= 0.0))
-    return Response::bad_request("velocity_dps", "velocity_dps must be a number > 0, found " + shortest(*request.velocity_dps));
+  if (request.velocity_dps && !(*request.velocity_dps >= JointLimit::kMinVelocityDps))  // NaN too
+    return Response::error(400, "BAD_REQUEST",
+                           "velocity_dps must be at least " + shortest(JointLimit::kMinVelocityDps) +
+                               " deg/s and at most the moved joints' max_velocity_dps, found " + shortest(*request.velocity_dps),
+                           Json{{"field", "velocity_dps"},
+                                {"limit", "min_velocity_dps"},
+                                {"limit_value", JointLimit::kMinVelocityDps},
+                                {"requested", *request.velocity_dps}});
 
   std::vector<sdk::JointTarget> out;
   for (const auto& [joint, target] : request.targets) {
-    const std::string field = request.field + "." + joint;
     const JointLimit* limit = find_joint(limits, joint);
-    if (limit == nullptr) {
+    if (limit == nullptr) {  // the name is the caller's: quoted cut and made safe, in the text and the field
       Json allowed = Json::array();
       for (const auto& j : limits) allowed.push_back(j.joint);
-      return Response::error(400, "BAD_REQUEST", "unknown joint '" + joint + "'", Json{{"field", field}, {"allowed", allowed}});
+      const std::string quoted = sdk::bounded_text(joint);
+      return Response::error(400, "BAD_REQUEST", "unknown joint '" + quoted + "'",
+                             Json{{"field", request.field + "." + quoted}, {"allowed", allowed}});
     }
+    const std::string field = request.field + "." + joint;
     const std::string range = "[" + shortest(limit->min_deg) + ", " + shortest(limit->max_deg) + "]";
     if (!std::isfinite(target))
       return Response::bad_request(field, "joint '" + joint + "' target must be a finite number of degrees in " + range);
@@ -73,7 +83,7 @@ std::variant<std::vector<sdk::JointTarget>, Response> plan_move(const MoveReques
       return Response::error(503, "UNAVAILABLE",
                              "the arm driver has no joint '" + joint + "' (configured in " + limits_from + ")",
                              Json{{"joint", joint}});
-    if (!state->position_deg)
+    if (!state->position_deg || !std::isfinite(*state->position_deg))  // NaN would pass every step check
       return Response::error(503, "UNAVAILABLE",
                              "joint '" + joint + "' position could not be read; it is not moved from an unknown position",
                              Json{{"joint", joint}});
@@ -92,10 +102,12 @@ long long eta_ms(const std::vector<sdk::JointTarget>& targets, const std::vector
   double slowest_s = 0.0;
   for (const auto& t : targets) {
     const sdk::JointState* state = find_state(present, t.joint);
-    if (state == nullptr || !state->position_deg || t.velocity_dps <= 0.0) continue;
+    if (state == nullptr || !state->position_deg || !std::isfinite(*state->position_deg) || !(t.velocity_dps > 0.0)) continue;
     slowest_s = std::max(slowest_s, std::abs(t.position_deg - *state->position_deg) / t.velocity_dps);
   }
-  return static_cast<long long>(std::ceil(slowest_s * 1000.0));
+  const double ms = std::ceil(slowest_s * 1000.0);
+  // Converting a double beyond long long's range is undefined behaviour: saturate first (NaN, infinity included).
+  return ms < static_cast<double>(kMaxEtaMs) ? static_cast<long long>(ms) : kMaxEtaMs;
 }
 
 }  // namespace rcand::plugins::arm

@@ -18,7 +18,7 @@ namespace rcand::plugins::arm {
 
 struct MoveRequest {
   std::vector<std::pair<std::string, double>> targets;  // joint -> degrees, in request order
-  std::optional<double> velocity_dps;                   // absent: each joint's own max_velocity_dps
+  std::optional<double> velocity_dps;  // absent: each joint's own max_velocity_dps; else in [kMinVelocityDps, it]
   bool cap_step = true;                                 // false for grip: opening a gripper is a full-range move
   std::string field = "joints";                         // the body field named in a refusal
 };
@@ -31,7 +31,11 @@ std::variant<std::vector<sdk::JointTarget>, sdk::Response> plan_move(const MoveR
                                                                      const std::vector<sdk::JointState>& present,
                                                                      const std::string& limits_from);
 
-// The time the slowest joint needs, in ms (rounded up).
+// Longest eta_ms reported: 2^53 - 1, exact in a double and in every JSON reader. Only an absurd config (a range of
+// 1e300 degrees) gets near it; the computation saturates there instead of overflowing the integer.
+inline constexpr long long kMaxEtaMs = 9'007'199'254'740'991;
+
+// The time the slowest joint needs, in ms (rounded up), at most kMaxEtaMs.
 long long eta_ms(const std::vector<sdk::JointTarget>& targets, const std::vector<sdk::JointState>& present);
 
 // "12.5", "120", "-90": numbers as people write them in errors.

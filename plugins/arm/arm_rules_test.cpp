@@ -1,6 +1,9 @@
 // The arm's limit rules alone: range, step, speed, unknown joints, unreadable positions, and the config parser.
 #include <doctest/doctest.h>
 
+#include <cmath>
+#include <string>
+
 #include "arm_rules.hpp"
 #include "joint_limits.hpp"
 
@@ -142,4 +145,63 @@ TEST_CASE("unknown joints, missing driver joints and unreadable positions are re
   CHECK(r.body["error"].get<std::string>().find("could not be read") != std::string::npos);
   CHECK(refused(move({{"elbow", std::nan("")}})).body["field"] == "joints.elbow");
   CHECK(refused(MoveRequest{}).body["field"] == "joints");
+}
+
+TEST_CASE("a speed below the slowest allowed is refused: 1e-300 deg/s would make an endless move") {
+  for (const double slow : {1e-300, 1e-9, 0.5, std::nextafter(JointLimit::kMinVelocityDps, 0.0)}) {
+    CAPTURE(slow);
+    const auto r = refused(move({{"elbow", 10.0}}, slow));
+    CHECK(r.status == 400);
+    CHECK(r.body["field"] == "velocity_dps");
+    CHECK(r.body["limit"] == "min_velocity_dps");
+    CHECK(r.body["limit_value"] == JointLimit::kMinVelocityDps);
+  }
+  CHECK(refused(move({{"elbow", 10.0}}, std::nan(""))).body["limit"] == "min_velocity_dps");
+  CHECK(refused(move({{"elbow", 10.0}}, HUGE_VAL)).body["limit"] == "max_velocity_dps");
+  const auto slowest = planned(move({{"elbow", 10.0}}, JointLimit::kMinVelocityDps));
+  CHECK(rcand::plugins::arm::eta_ms(slowest, at(0, 0)) == 10'000);
+}
+
+TEST_CASE("eta_ms saturates instead of converting an out-of-range double to an integer") {
+  using rcand::plugins::arm::eta_ms;
+  using rcand::plugins::arm::kMaxEtaMs;
+  CHECK(eta_ms({{"elbow", 10.0, 1e-300}}, at(0, 0)) == kMaxEtaMs);
+  CHECK(eta_ms({{"elbow", 1e308, 1.0}}, {{"elbow", -1e308, -1e308, 0, false, true}}) == kMaxEtaMs);  // the distance is inf
+  CHECK(eta_ms({{"elbow", 10.0, 1.0}}, {{"elbow", std::nan(""), 0, 0, false, true}}) == 0);          // unreadable: no estimate
+  CHECK(eta_ms({{"elbow", 10.0, 0.0}}, at(0, 0)) == 0);                                              // no speed: no estimate
+  CHECK(eta_ms({{"elbow", 10.0, 1.0}}, at(0, 0)) == 10'000);
+}
+
+TEST_CASE("a position the driver reports as NaN or infinite is unreadable: the joint is not moved") {
+  for (const double bad : {std::nan(""), HUGE_VAL, -HUGE_VAL}) {
+    const auto r = refused(move({{"elbow", 10.0}}), {{"shoulder", 0.0, 0, 0, false, true}, {"elbow", bad, 0, 0, false, true}});
+    CHECK(r.status == 503);
+    CHECK(r.body["error"].get<std::string>().find("could not be read") != std::string::npos);
+  }
+}
+
+TEST_CASE("an unknown joint's name is quoted cut to 200 bytes with its control characters replaced") {
+  std::string name(1 << 20, 'j');
+  name.replace(0, 8, "\x1b[2J\r\n\xe2\x80\xae");
+  const auto r = refused(move({{name, 10.0}}));
+  CHECK(r.status == 400);
+  const std::string error = r.body["error"], field = r.body["field"];
+  CHECK(error.size() <= 250);
+  CHECK(field.size() <= 210);
+  for (const std::string& text : {error, field}) {
+    CHECK(text.find('\x1b') == std::string::npos);
+    CHECK(text.find('\n') == std::string::npos);
+    CHECK(text.find("\xe2\x80\xae") == std::string::npos);
+  }
+  CHECK(error.rfind("unknown joint '?[2J???", 0) == 0);
+}
+
+TEST_CASE("a joint's max_velocity_dps below the slowest speed a command may ask for is a config error") {
+  try {
+    parse_joint_limits(json::parse(R"([{"joint": "a", "min_deg": 0, "max_deg": 9, "max_velocity_dps": 0.5}])"),
+                       "physics.kinematics");
+    FAIL("accepted");
+  } catch (const rcand::sdk::ConfigError& e) {
+    CHECK(std::string(e.what()).find("physics.kinematics[0].max_velocity_dps: 0.5 is below") == 0);
+  }
 }

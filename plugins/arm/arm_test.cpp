@@ -190,6 +190,46 @@ TEST_CASE("bad bodies are 400s naming the field; roles below user are 403") {
   CHECK(f.sim().commands() == 0);
 }
 
+TEST_CASE("velocity_dps: 1e-300 and anything below 1 deg/s are refused; nothing reaches the driver") {
+  Fixture f;
+  for (const double slow : {1e-300, 4.9e-324, 0.25}) {
+    CAPTURE(slow);
+    const auto r = f.action({{"type", "arm_pose"}, {"joints", {{"shoulder", 45}}}, {"velocity_dps", slow}});
+    CHECK(r.status == 400);
+    CHECK(r.body["field"] == "velocity_dps");
+    CHECK(r.body["limit"] == "min_velocity_dps");
+  }
+  const auto huge = f.action({{"type", "arm_pose"}, {"joints", {{"shoulder", 45}}}, {"velocity_dps", 1e308}});
+  CHECK(huge.status == 400);
+  CHECK(huge.body["limit"] == "max_velocity_dps");
+  CHECK(f.sim().commands() == 0);
+  const auto slowest = f.action({{"type", "arm_pose"}, {"joints", {{"shoulder", 45}}}, {"velocity_dps", 1}});
+  REQUIRE(slowest.status == 200);
+  CHECK(slowest.body["eta_ms"] == 45'000);
+}
+
+TEST_CASE("an unknown pose or joint name of 1 MiB is quoted back cut to 200 bytes, its controls replaced") {
+  Fixture f;
+  std::string name(1 << 20, 'p');
+  name.replace(0, 9, "\x1b[31m\n\xc2\x9b\xe2\x80\xae");
+  const auto pose = f.action({{"type", "arm_pose"}, {"pose", name}});
+  const auto joint = f.action({{"type", "arm_pose"}, {"joints", {{name, 10}}}});
+  const auto typed = f.action({{"type", "arm_pose"}, {"joints", {{name, "ten"}}}});
+  const auto grip = f.action({{"type", "grip"}, {"state", name}});
+  for (const auto& r : {pose, joint, typed, grip}) {
+    CHECK(r.status == 400);
+    const std::string answer = r.body.dump();
+    CAPTURE(answer.substr(0, 300));
+    CHECK(answer.size() < 1000);
+    for (const char* forbidden : {"\\u001b", "\\n", "\xc2\x9b", "\xe2\x80\xae", "\\u009b"})
+      CHECK(answer.find(forbidden) == std::string::npos);
+    CHECK(answer.find("?[31m???") != std::string::npos);
+  }
+  CHECK(pose.body["error"].get<std::string>().rfind("unknown pose '?[31m???pppp", 0) == 0);
+  CHECK(joint.body["field"].get<std::string>().rfind("joints.?[31m???ppp", 0) == 0);
+  CHECK(f.sim().commands() == 0);
+}
+
 TEST_CASE("GET /api/arm/joints: live positions, targets, limits and poses") {
   Fixture f;
   REQUIRE(f.action({{"type", "arm_pose"}, {"joints", {{"shoulder", 30}}}}).status == 200);

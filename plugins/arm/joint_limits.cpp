@@ -52,6 +52,9 @@ std::vector<JointLimit> parse_joint_limits(const json& items, const std::string&
     j.min_deg = *min;
     j.max_deg = *max;
     j.max_velocity_dps = positive_at(item, "max_velocity_dps", at, JointLimit::kDefaultVelocityDps);
+    if (j.max_velocity_dps < JointLimit::kMinVelocityDps)
+      throw sdk::ConfigError(at + ".max_velocity_dps: " + json(j.max_velocity_dps).dump() + " is below the slowest speed a " +
+                             "command may ask for, " + json(JointLimit::kMinVelocityDps).dump() + " deg/s");
     j.max_step_deg = positive_at(item, "max_step_deg", at, JointLimit::kDefaultStepDeg);
     j.home_deg = number_at(item, "home_deg", at).value_or(std::clamp(0.0, j.min_deg, j.max_deg));
     if (j.home_deg < j.min_deg || j.home_deg > j.max_deg)

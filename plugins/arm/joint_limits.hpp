@@ -13,6 +13,9 @@ namespace rcand::plugins::arm {
 
 struct JointLimit {
   static constexpr double kDefaultVelocityDps = 90.0;  // a hobby servo's no-load speed is 300-600 dps: 90 is gentle
+  // The slowest speed a command may ask for. Slower looks stopped to an operator, servos cannot resolve it (a
+  // Dynamixel X's velocity unit is 1.37 dps), and a speed near zero would turn every move into an endless one.
+  static constexpr double kMinVelocityDps = 1.0;
   static constexpr double kDefaultStepDeg = 45.0;
 
   std::string joint;
@@ -25,7 +28,8 @@ struct JointLimit {
 
 // Parses `items` (a JSON array) found at `where` ("physics.kinematics", "drivers[arm0].joints"). Throws
 // sdk::ConfigError naming the item and key ("physics.kinematics[1].max_deg: ...") on a wrong type, a missing
-// bound, min >= max, a non-positive speed or step, a home outside the range, or a duplicate joint.
+// bound, min >= max, a speed below kMinVelocityDps, a non-positive step, a home outside the range, or a duplicate
+// joint.
 std::vector<JointLimit> parse_joint_limits(const nlohmann::json& items, const std::string& where);
 
 // The joints a robot config declares for the arm on driver `driver_id`: physics.kinematics when it names any

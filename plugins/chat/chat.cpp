@@ -1,5 +1,6 @@
 #include "chat.hpp"
 
+#include <rcand/sdk/bounded_text.hpp>
 #include <rcand/sdk/pose_source.hpp>
 #include <rcand/sdk/request_dispatcher.hpp>
 
@@ -438,7 +439,7 @@ void Chat::authorize(const sdk::Request& request, const std::shared_ptr<sdk::Str
   }
   timer_.cancel(taken->timer);
   taken->decide(decision == "approve" ? HitlQueue::Decision::Approve : HitlQueue::Decision::Deny, request.principal,
-                body.value("reason", ""), [writer](const Response& r) { writer->respond(r); });
+                sdk::bounded_text(body.value("reason", ""), 500), [writer](const Response& r) { writer->respond(r); });
 }
 
 Response Chat::thought(const sdk::Request& request) const {
@@ -449,7 +450,7 @@ Response Chat::thought(const sdk::Request& request) const {
     return Response::error(
         404, "NOT_FOUND",
         "no such thought (ids look like th-0123456789abcdef; the last " + std::to_string(thoughts_.capacity()) + " are kept)",
-        Json{{"thought_id", id}});
+        Json{{"thought_id", sdk::bounded_text(id)}});  // the caller's path, quoted back
   return Response::ok(*found);
 }
 

@@ -1,5 +1,7 @@
 #include "auctions.hpp"
 
+#include <rcand/sdk/bounded_text.hpp>
+
 #include <cmath>
 #include <exception>
 #include <utility>
@@ -346,7 +348,7 @@ void Auctions::Service::open(const Json& body, Answer answer) const noexcept {
 sdk::Response Auctions::Service::result(std::string_view task_id) const noexcept {
   try {
     if (auto result = auctions_.auction_result(std::string(task_id))) return sdk::Response::ok(std::move(*result));
-    return sdk::Response::error(404, "NOT_FOUND", "this robot never opened an auction '" + std::string(task_id) + "'");
+    return sdk::Response::error(404, "NOT_FOUND", "this robot never opened an auction '" + sdk::bounded_text(task_id) + "'");
   } catch (...) {
     return {500, nullptr};
   }

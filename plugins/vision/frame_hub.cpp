@@ -114,7 +114,10 @@ void FrameHub::source_opened(const std::string& description, double fps) {
   std::lock_guard lock(mutex_);
   source_ = description;
   source_fps_ = std::isfinite(fps) && fps > 0 ? fps : 0;
-  const auto periods = source_fps_ > 0 ? std::chrono::milliseconds(static_cast<std::int64_t>(2500.0 / source_fps_)) : 0ms;
+  // Two frame periods: one late frame is jitter, a second missing one is a stall. source_fps_ is 0 or >= 1e-300, so
+  // the quotient is finite, but may exceed any integer: capped at a minute before the conversion.
+  const double period_ms = source_fps_ > 0 ? std::min(2000.0 / source_fps_, 60'000.0) : 0.0;
+  const auto periods = std::chrono::milliseconds(static_cast<std::int64_t>(std::ceil(period_ms)));
   stall_after_ = std::max(options_.signal_timeout, periods);
   alive_at_ = Clock::now();  // from here the first frame has stall_after_ to come
   dirty_ = true;
@@ -315,7 +318,9 @@ sdk::Json FrameHub::status_locked() const {
                        {"dropped", counters.dropped},
                        {"since_ms", viewer->since_ms}});
   }
-  return {{"camera",
+  // "fault" at the top: the SDK's convention for "running, but cannot do its job" (the kernel shows state "error").
+  return {{"fault", live_ || fault_.empty() ? sdk::Json() : sdk::Json(fault_)},
+          {"camera",
            {{"source", source_},
             {"state", state_},
             {"fault", fault_.empty() ? sdk::Json() : sdk::Json(fault_)},

@@ -3,8 +3,10 @@
 // copied per viewer) to every viewer whose ?fps= lets it have this frame. The writers hold at most one pending frame
 // per viewer (rcand/sdk/stream.hpp), so a slow viewer skips frames and never holds up the others or this thread.
 //
-// When the capture thread reports the source lost, or no frame arrived for signal_timeout, the hub delivers generated
-// NO SIGNAL frames instead (at no_signal_fps), and its status says why, until frames come again.
+// When the capture thread reports the source lost, or no frame arrived for two frame periods (at least
+// signal_timeout, 250 ms), the hub delivers generated NO SIGNAL frames instead (at no_signal_fps) - never the last
+// picture again - and its status says why in a top-level "fault", which the kernel shows as the capability's state
+// "error" in GET /api/status and telemetry (sdk/capability.hpp), until frames come again.
 #pragma once
 
 #include <rcand/sdk/stream.hpp>
@@ -30,7 +32,7 @@ Encoder jpeg_encoder(int quality);
 
 struct HubOptions {
   std::size_t max_viewers = 32;
-  std::chrono::milliseconds signal_timeout{800};  // no frame for this long (or 2.5 frame periods, if longer): NO SIGNAL
+  std::chrono::milliseconds signal_timeout{250};  // no frame for this long (or 2 frame periods, if longer): NO SIGNAL
   double no_signal_fps = 5.0;
   int width = 640, height = 480;  // of NO SIGNAL frames until the camera delivered one
   std::string source = "camera";  // what the status calls it until the source opened

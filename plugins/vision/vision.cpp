@@ -117,7 +117,7 @@ VisionSettings read_settings(const ConfigView& camera, const ConfigView& own) {
   v.source = read_source(camera, own);
   v.jpeg_quality = own.get_or<int>("jpeg_quality", 80);
   v.hub.max_viewers = static_cast<std::size_t>(own.get_or<int>("max_viewers", 32));
-  v.hub.signal_timeout = std::chrono::milliseconds(own.get_or<int>("signal_timeout_ms", 800));
+  v.hub.signal_timeout = std::chrono::milliseconds(own.get_or<int>("signal_timeout_ms", 250));
   v.hub.width = v.source.width;
   v.hub.height = v.source.height;
   v.hub.source = std::string(kind_name(v.source.kind)) + (v.source.location.empty() ? "" : " " + redact_url(v.source.location));

@@ -75,6 +75,7 @@ struct Script {
   std::deque<cv::Mat> frames;
   bool fail = false, released = false;
   int open_failures = 0, opens = 0;
+  double fps = 30;  // what the source reports; set before the rig starts
 
   void push(int shade) {
     std::lock_guard lock(mutex);
@@ -118,7 +119,7 @@ class ScriptedSource final : public FrameSource {
     return true;
   }
   bool paced() const noexcept override { return false; }
-  double fps() const noexcept override { return 30; }
+  double fps() const noexcept override { return script_->fps; }
   std::string describe() const override { return "scripted camera"; }
 
  private:
@@ -359,6 +360,31 @@ TEST_CASE("vision: a source whose read() hangs is NO SIGNAL within 1 s of its la
   CHECK(rig.camera_status()["fault"].get<std::string>().find("no frame from scripted camera") != std::string::npos);
 }
 
+TEST_CASE("vision: a stall is two frame periods without a frame, at least 250 ms; the status's top-level fault says so") {
+  for (const auto& [fps, threshold] :
+       std::vector<std::pair<double, std::string>>{{30, "250 ms"}, {4, "500 ms"}, {1e-300, "60000 ms"}}) {
+    CAPTURE(fps);
+    auto script = std::make_shared<Script>();
+    script->fps = fps;
+    Rig rig(scripted_camera(), {}, {{}, [script] { return std::make_unique<ScriptedSource>(script); }});
+    ReleaseOnExit release{script};
+    auto viewer = rig.get("/api/stream/mjpeg");
+    script->push(1);
+    REQUIRE(viewer->wait_until(signal_live, 2s));
+    CHECK(rig.vision->status()["fault"].is_null());  // live: nothing for the kernel to report
+    if (fps < 1) continue;                           // a minute: not waited for here
+    REQUIRE(viewer->wait_until(signal_none, 3s));    // read() never returns
+    const std::string fault = "no frame from scripted camera for " + threshold;
+    CHECK(rig.camera_status()["fault"] == fault);
+    CHECK(rig.vision->status()["fault"] == fault);  // the SDK's convention: the kernel shows the capability as error
+    REQUIRE(eventually([&] { return rig.host.last_published_status("vision").value_or(json())["fault"] == fault; }, 2s));
+    script->push(2);
+    REQUIRE(viewer->wait_until(signal_live, 2s));
+    CHECK(rig.vision->status()["fault"].is_null());
+    REQUIRE(eventually([&] { return rig.host.last_published_status("vision").value_or(json())["fault"].is_null(); }, 2s));
+  }
+}
+
 TEST_CASE("vision: a generated video file plays in a loop, and its disappearance is NO SIGNAL until it returns") {
   rcand::test::TempDir dir;
   const auto file = dir.path() / "clip.avi";
@@ -462,7 +488,13 @@ TEST_CASE("vision: a URL camera that accepts and never answers hangs neither sta
           REQUIRE(viewer->wait_until(signal_none, 3s));  // a live stream of NO SIGNAL frames meanwhile
           CHECK(rig.camera_status()["state"] == "no_signal");
           if (open_timeout_ms == 500) {
-            REQUIRE(eventually([&] { return rig.camera_status()["fault"].is_string(); }, 2s));
+            // A stall (no frame for 250 ms) is reported first; the failed open replaces it at 500 ms.
+            REQUIRE(eventually(
+                [&] {
+                  const json fault = rig.camera_status()["fault"];
+                  return fault.is_string() && fault.get<std::string>().starts_with("camera URL");
+                },
+                2s));
             CHECK(rig.camera_status()["fault"] == "camera URL " + url + " did not open within 500 ms, or is not a video stream");
           }
         }

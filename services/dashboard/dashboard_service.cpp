@@ -5,6 +5,7 @@
 #include <map>
 
 #include "kernel/api/answers.hpp"
+#include "libs/base/bounded_text.hpp"
 #include "libs/base/logging.hpp"
 #include "services/dashboard/dashboard_assets.hpp"
 
@@ -63,7 +64,7 @@ class DashboardService final : public kernel::Service {
   void serve(const std::string& name, const Call& call, const Reply& reply) const {
     const auto it = files_.find(name);
     if (it == files_.end()) {
-      reply(kernel::error_response(404, "NOT_FOUND", "no dashboard file " + name));
+      reply(kernel::error_response(404, "NOT_FOUND", "no dashboard file " + bounded_text(name)));
       return;
     }
     http::Response response;

@@ -3,6 +3,7 @@
 #include <nlohmann/json.hpp>
 
 #include "kernel/api/answers.hpp"
+#include "libs/base/bounded_text.hpp"
 #include "libs/base/json_body.hpp"
 #include "services/r2r/r2r_service.hpp"
 
@@ -83,7 +84,8 @@ void handle(R2rService* service, AuditLog& audit, Call& call, const Reply& respo
                     "no type");
     const auto type = r2r::parse_message_type(b["type"].get<std::string>());
     if (!type)
-      return refuse(failure(400, "BAD_REQUEST", "unknown R2R message type '" + b["type"].get<std::string>() + "'", "type"),
+      return refuse(failure(400, "BAD_REQUEST",
+                            "unknown R2R message type '" + bounded_text(b["type"].get<std::string>(), 64) + "'", "type"),
                     "unknown type");
     std::optional<std::string> target;
     if (b.contains("target") && !b["target"].is_null()) {

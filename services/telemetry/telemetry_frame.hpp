@@ -10,7 +10,7 @@
 //   battery_v       the first numeric "battery_v" a capability publishes in its status, else null (none does today)
 // rcand adds: "type":"telemetry", "seq" (frames built since start: a gap shows frames this client missed), "event"
 // ("tick", or "estop_latched"/"estop_cleared" for a frame pushed at once), "state", "uptime_s", "pose" (nav's
-// dead-reckoned pose or null), "capabilities" and "drivers" ({name: "ok"|"stale"|"failed"}), and "estop"
+// dead-reckoned pose or null), "capabilities" and "drivers" ({name: "ok"|"stale"|"error"|"failed"}), and "estop"
 // ({"since_ms","reason","source"} while latched, else null).
 #pragma once
 
@@ -36,8 +36,8 @@ nlohmann::json telemetry_frame(const nlohmann::json& status, const FrameContext&
 // The "obstacles" field from a reading: null without a source or without fresh data.
 nlohmann::json obstacles_field(const sdk::ObstacleSource* source);
 
-// "ok", "stale", "degraded", "error" or "failed" for one capability or driver item of the status document (a
-// capability is degraded or in error when drivers it needs failed; docs/protocol.md §7.2).
+// "ok", "stale", "degraded", "error" or "failed" for one capability or driver item of the status document (error: it
+// reports a fault, or every actuator a capability needs failed; degraded: some did; docs/protocol.md §7.2).
 std::string_view item_state(const nlohmann::json& item);
 
 }  // namespace rcand::services::telemetry

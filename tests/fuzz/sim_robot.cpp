@@ -78,6 +78,7 @@ struct Robot {
     auto loaded = kernel::load_robot_config(dir / "robot.rcan.yaml");
     kernel::KernelOptions options;
     options.services = kernel::linked_services();  // swarm broadcasts and R2R, as in rcand
+    options.embedded = true;                       // its Api is called directly: no state dir, no port
     instance = std::make_unique<kernel::Kernel>(std::move(loaded.config), std::move(options));
     fs::remove_all(dir);
   }

@@ -1,13 +1,16 @@
 // The e-stop latch across restarts (runtime.state_dir): a crash (kill -9) or a stop while latched brings rcand back
 // latched, with the reason in GET /api/estop and an audit entry; a clean stop while unlatched comes back unlatched;
-// safety.estop_on_startup still forces the latch; an unusable or shared state dir is a startup error naming the key.
+// safety.estop_on_startup still forces the latch; a disk that fills up loses no stop's reason; an unusable or shared
+// state dir is a startup error naming the key.
 #include <doctest/doctest.h>
 
 #include <fstream>
 #include <sstream>
 #include <string>
 
+#include "eventually.hpp"
 #include "rcand_process.hpp"
+#include "small_filesystem.hpp"
 
 using namespace rcand::test;
 using nlohmann::json;
@@ -148,6 +151,49 @@ TEST_CASE("state dir: a stop latched just before kill -9 is named at the restart
   // The latch record is written off the stop path, so it may or may not have made it before the kill; the
   // running marker alone is what makes this start latched.
   CHECK(second.json("GET", "/api/estop", "guest-token")["estopped"] == true);
+}
+
+TEST_CASE("state dir: a stop while the disk is full is named at the restart, after a crash and after a clean stop") {
+  TempDir shared;
+  SmallFilesystem disk(shared.path() / "small", 256 * 1024);
+  if (!disk.mounted()) {
+    REQUIRE_MESSAGE(!disk.root(), disk.why_not());  // as root (CI) the small filesystem must be made: never skipped
+    MESSAGE("SKIPPED: " << disk.why_not());
+    return;
+  }
+  auto config = sim_config();
+  config["runtime"]["state_dir"] = (disk.path() / "state").string();
+  const auto stop_on_full_disk = [&disk](const RcandProcess& rcand, const std::string& reason) {
+    const auto failed_writes = [&rcand] { return rcand.stderr_text().find("No space left on device") != std::string::npos; };
+    REQUIRE_FALSE(failed_writes());
+    REQUIRE(disk.fill());
+    int status = 0;
+    rcand.json("POST", "/api/stop", "guest-token", json{{"reason", reason}}.dump(), &status);
+    REQUIRE(status == 200);
+    REQUIRE(eventually(failed_writes));  // estop.json could not be replaced: the disk is full
+  };
+  {
+    RcandProcess first(config);
+    stop_on_full_disk(first, "bumper hit on a full disk");
+    first.kill_hard();
+  }
+  disk.unfill();  // the operator makes room and starts it again
+  {
+    RcandProcess second(config);
+    const auto reason = second.json("GET", "/api/estop", "guest-token")["reason"].get<std::string>();
+    CHECK(reason.find("without a clean shutdown") != std::string::npos);
+    CHECK(reason.find("bumper hit on a full disk") != std::string::npos);
+    int status = 0;
+    second.json("POST", "/api/estop/clear", "owner-token", "", &status);
+    REQUIRE(status == 200);
+    stop_on_full_disk(second, "cliff sensor on a full disk");
+    CHECK(second.stop() == 0);
+  }
+  disk.unfill();
+  RcandProcess third(config);
+  const auto reason = third.json("GET", "/api/estop", "guest-token")["reason"].get<std::string>();
+  CHECK(reason.rfind("latched when rcand last stopped: cliff sensor on a full disk", 0) == 0);
+  CHECK(reason.find("clean shutdown") == std::string::npos);  // the record was kept, so the stop counted as clean
 }
 
 TEST_CASE("state dir: unusable or already in use is a startup error naming runtime.state_dir") {

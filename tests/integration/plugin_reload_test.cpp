@@ -302,3 +302,31 @@ TEST_CASE("rcanctl plugins reload: a table, or JSON with --json; exit 0 when rel
   CHECK(unknown.exit_code == 1);
   CHECK(run_tool(rcanctl_binary(), {"plugins", "reload", "--help"}).exit_code == 0);
 }
+
+TEST_CASE("plugin reload: bounded - past the limit a reload is refused (409 RELOAD_LIMIT) before anything stops") {
+  TempDir dir;
+  const auto folder = dir.path() / "plugins";
+  install_reload_fixture(folder, 1, "1.0.0");
+  RcandProcess rcand(reload_config(true), {plugin_dir(), folder});
+  int status = 0;
+  for (int i = 0; i < 16; ++i) {  // PluginHost::kMaxReopens: each reload keeps its old image mapped for good
+    rcand.json("POST", kReloadPath, "owner-token", {}, &status);
+    REQUIRE(status == 200);
+  }
+  REQUIRE(rcand.request("POST", "/api/estop/clear", "owner-token").status == 200);
+  const json refused = rcand.json("POST", kReloadPath, "owner-token", {}, &status);
+  CHECK(status == 409);
+  CHECK(refused["code"] == "RELOAD_LIMIT");
+  CHECK(refused["error"].get<std::string>().find("restart rcand") != std::string::npos);
+  CHECK(refused["estopped"] == false);  // nothing was stopped for it
+  CHECK(rcand.json("GET", "/api/estop", "guest-token")["estopped"] == false);
+  CHECK(served_version(rcand) == "1.0.0");  // the version it had still serves
+  // The private reload directory is in the state dir, and empty: every copy was unlinked once mapped.
+  std::size_t private_dirs = 0;
+  for (const auto& entry : std::filesystem::directory_iterator(rcand.dir().path() / "state"))
+    if (entry.path().filename().string().starts_with("plugin-reload-")) {
+      ++private_dirs;
+      CHECK(std::filesystem::is_empty(entry.path()));
+    }
+  CHECK(private_dirs == 1);
+}

@@ -25,9 +25,10 @@ namespace beast = boost::beast;
 namespace bhttp = boost::beast::http;
 using net::ip::tcp;
 
-namespace {
-
+// Outside the anonymous namespace: HostilePeers::Listener (external linkage) holds one.
 enum class Misbehaviour { Sleeper, ByteByByte, Garbage, Chunked, Headers, Rst, Mistyped };
+
+namespace {
 
 constexpr std::array<std::pair<const char*, Misbehaviour>, 7> kServed{{{"sleeper", Misbehaviour::Sleeper},
                                                                        {"byte_by_byte", Misbehaviour::ByteByByte},

@@ -137,7 +137,8 @@ int wait_exit(pid_t pid) {
 
 }  // namespace
 
-ProcessResult run_tool(const std::string& binary, const std::vector<std::string>& args, const std::string& stdin_text) {
+ProcessResult run_tool(const std::string& binary, const std::vector<std::string>& args, const std::string& stdin_text,
+                       std::chrono::milliseconds limit) {
   TempDir scratch;
   const auto err_file = scratch.path() / "stderr";
   auto child = spawn(binary, args, err_file, true);
@@ -148,17 +149,25 @@ ProcessResult run_tool(const std::string& binary, const std::vector<std::string>
   close(child.stdin_fd);
   ProcessResult result;
   std::array<char, 4096> buffer;
-  for (ssize_t n; (n = ::read(child.stdout_fd, buffer.data(), buffer.size())) != 0;) {
-    if (n < 0) {
-      if (errno == EINTR) continue;
-      break;
+  const auto deadline = std::chrono::steady_clock::now() + limit;
+  bool killed = false;
+  for (;;) {
+    const auto left = std::chrono::duration_cast<std::chrono::milliseconds>(deadline - std::chrono::steady_clock::now());
+    if (!killed && left.count() <= 0) {
+      ::kill(child.pid, SIGKILL);  // its stdout closes with it
+      killed = true;
     }
-    result.out.append(buffer.data(), static_cast<std::size_t>(n));
+    pollfd ready{child.stdout_fd, POLLIN, 0};
+    if (::poll(&ready, 1, killed ? -1 : static_cast<int>(left.count()) + 1) <= 0) continue;  // EINTR, or the deadline
+    const ssize_t n = ::read(child.stdout_fd, buffer.data(), buffer.size());
+    if (n == 0 || (n < 0 && errno != EINTR)) break;
+    if (n > 0) result.out.append(buffer.data(), static_cast<std::size_t>(n));
   }
   close(child.stdout_fd);
   result.exit_code = wait_exit(child.pid);
   result.err = slurp(err_file);
   abort_on_sanitizer_report(binary, result.err);
+  if (killed) result.err += "\n(run_tool: still running after " + std::to_string(limit.count()) + " ms: killed)\n";
   return result;
 }
 

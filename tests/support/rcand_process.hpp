@@ -29,8 +29,11 @@ struct ProcessResult {
   int exit_code = -1;
   std::string out, err;
 };
-// Runs rcand (or rcanctl) to completion with `args`; for --check-config, --check-plugins, --version.
-ProcessResult run_tool(const std::string& binary, const std::vector<std::string>& args, const std::string& stdin_text = {});
+// Runs rcand (or rcanctl) to completion with `args`; for --check-config, --check-plugins, --version, and starts
+// expected to be refused. One still running after `limit` (an rcand that serves where a refusal was expected) is
+// killed (exit_code 128+9), so such a test fails instead of hanging.
+ProcessResult run_tool(const std::string& binary, const std::vector<std::string>& args, const std::string& stdin_text = {},
+                       std::chrono::milliseconds limit = std::chrono::seconds(120));
 std::string rcand_binary();
 std::string rcanctl_binary();
 // The in-tree plugin directory, and the fixture plugins' directory.

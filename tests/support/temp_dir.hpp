@@ -25,11 +25,21 @@ class TempDir {
   TempDir& operator=(const TempDir&) = delete;
 
   const std::filesystem::path& path() const noexcept { return path_; }
-  // Writes `content` to `relative` (subdirectories made as needed) in the directory; returns its path.
+  static void safe_mode(const std::filesystem::path& path) {
+    std::filesystem::permissions(path, std::filesystem::perms::group_write | std::filesystem::perms::others_write,
+                                 std::filesystem::perm_options::remove);
+  }
+  // Writes `content` to `relative` (subdirectories made as needed) in the directory; returns its path. Neither the
+  // file nor a directory made for it is writable by group or others, whatever the umask: rcand refuses a config
+  // another user could change (libs/base/file_trust.hpp), and a test's config must not be that by accident.
   std::filesystem::path write(const std::filesystem::path& relative, const std::string& content) const {
     const auto file = path_ / relative;
-    std::filesystem::create_directories(file.parent_path());
+    if (!std::filesystem::exists(file.parent_path())) {
+      std::filesystem::create_directories(file.parent_path());
+      for (auto dir = file.parent_path(); dir != path_ && dir != dir.parent_path(); dir = dir.parent_path()) safe_mode(dir);
+    }
     std::ofstream(file, std::ios::binary) << content;
+    safe_mode(file);
     return file;
   }
 

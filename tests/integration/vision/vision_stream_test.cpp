@@ -209,7 +209,8 @@ TEST_CASE("vision: a missing camera is a named fault in /api/status, and the str
     CHECK(image.rows == 480);
   }
   const auto vision = vision_status(rcand, [](const json& s) { return s["camera"]["state"] == "no_signal"; });
-  CHECK(vision["state"] == "ok");  // the capability runs; its camera is what is down
+  CHECK(vision["state"] == "error");  // the capability runs, but shows no picture: never "ok" (issue 28 item 4)
+  CHECK(vision["reason"] == "camera device /dev/video97 does not exist");
   CHECK(vision["status"]["camera"]["fault"] == "camera device /dev/video97 does not exist");
   CHECK(vision["status"]["camera"]["source"] == "v4l2 /dev/video97");
   CHECK(count_of(rcand.stderr_text(), "camera device /dev/video97 does not exist") >= 1);

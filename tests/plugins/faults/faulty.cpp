@@ -75,7 +75,9 @@ class FaultyCapability final : public rcand::sdk::Capability {
   Json status() const override {
     fault_.strike("status");
     if (fault_.garbage("status")) return invalid_utf8();
-    return {{"hook", fault_.hook}, {"fault", fault_.kind}};
+    // "injected", not "fault": a top-level "fault" reports the instance in error (sdk/capability.hpp), and the drills
+    // check the kernel's own verdict (ok or failed).
+    return {{"hook", fault_.hook}, {"injected", fault_.kind}};
   }
   void on_estop() noexcept override { strike_noexcept(fault_, "on_estop"); }
   void shutdown() noexcept override { strike_noexcept(fault_, "shutdown"); }
@@ -93,7 +95,9 @@ class FaultyDrive final : public rcand::sdk::DifferentialDrive {
   Json status() const override {
     fault_.strike("status");
     if (fault_.garbage("status")) return Json(std::numeric_limits<double>::quiet_NaN());
-    return {{"hook", fault_.hook}, {"fault", fault_.kind}};
+    // "injected", not "fault": a top-level "fault" reports the instance in error (sdk/capability.hpp), and the drills
+    // check the kernel's own verdict (ok or failed).
+    return {{"hook", fault_.hook}, {"injected", fault_.kind}};
   }
   void shutdown() noexcept override { strike_noexcept(fault_, "shutdown"); }
 

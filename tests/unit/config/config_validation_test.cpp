@@ -5,6 +5,7 @@
 #include <doctest/doctest.h>
 
 #include <algorithm>
+#include <tuple>
 
 using namespace config_test;
 using rcand::kernel::ConfigDiagnostic;
@@ -228,7 +229,6 @@ TEST_CASE("free-form places accept any key without a warning") {
            "    channels: {left: 0, whatever: {deep: 1}}",
            "camera:",
            "  device: /dev/video0",
-           "  fancy_option: true",
            "network: {wifi: {ssid: x}}",
            "physics:",
            "  kinematics:",
@@ -376,5 +376,48 @@ TEST_CASE("open auth mode: only a literal loopback listen address validates, the
     CAPTURE(address);
     CHECK_THROWS_AS(parse_robot_config(with_listen(address), "robot.rcan.yaml", "."), ConfigError);
     CHECK_FALSE(rcand::is_loopback_address(address));
+  }
+}
+
+// Issue 28 item 4: the camera block was free-form, so `framrate: 5` was dropped without a word and the camera ran at 30.
+TEST_CASE("the camera block: a misspelled key is an error at its line, other runtimes' keys a warning, ours accepted") {
+  SUBCASE("typos") {
+    for (const auto& [line, key, guess] : std::vector<std::tuple<std::string, std::string, std::string>>{
+             {"  framrate: 5", "framrate", "framerate"},
+             {"  tyep: usb", "tyep", "type"},
+             {"  devcie: /dev/video2", "devcie", "device"},
+             {"  resolutoin: [320, 240]", "resolutoin", "resolution"}}) {
+      CAPTURE(line);
+      auto lines = minimal_lines();
+      lines.emplace_back("camera:");  // line 7
+      lines.emplace_back("  fps: 15");
+      lines.push_back(line);  // line 9
+      const auto errors = errors_only(parse_errors(join(lines)));
+      REQUIRE(errors.size() == 1);
+      CHECK(errors[0].mark.line == 9);
+      CHECK(errors[0].mark.column == 3);
+      CHECK(errors[0].format() == "test.rcan.yaml:9:3: error: camera: unknown key '" + key + "'; did you mean '" + guess + "'?");
+    }
+  }
+  SUBCASE("a wrong type names the key and its line") {
+    auto lines = minimal_lines();
+    lines.emplace_back("camera:");
+    lines.emplace_back("  fps: fast");
+    const auto errors = errors_only(parse_errors(join(lines)));
+    REQUIRE(errors.size() == 1);
+    CHECK(errors[0].key_path == "camera.fps");
+    CHECK(errors[0].mark.line == 8);
+  }
+  SUBCASE("every key the vision plugin reads, and the reference runtime's own keys") {
+    auto lines = minimal_lines();
+    for (const char* line :
+         {"camera:", "  type: usb", "  device: 2", "  url: http://cam/stream", "  path: a.avi", "  file: a.avi",
+          "  resolution: [320, 240]", "  width: 320", "  height: 240", "  fps: 15", "  framerate: 15", "  fourcc: MJPG",
+          "  depth: synthetic", "  depth_enabled: true", "  camera_required: false"})
+      lines.emplace_back(line);
+    const auto loaded = parse_ok(join(lines));
+    REQUIRE(loaded.warnings.size() == 1);  // the one warning listing ignored keys
+    CHECK(contains(loaded.warnings[0].message, "camera.depth_enabled (line 20; another runtime's, rcand reads camera.depth)"));
+    CHECK(contains(loaded.warnings[0].message, "camera.camera_required (line 21"));
   }
 }

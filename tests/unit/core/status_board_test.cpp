@@ -339,6 +339,31 @@ TEST_CASE("an instance marked failed shows at the next read through when_current
   CHECK(drivers[0]["reason"] == "halt threw");
 }
 
+TEST_CASE("a status reporting a fault makes its item and the robot error, with the fault made safe, until it clears") {
+  Rig rig;
+  rig.board->start();
+  rig.nav.publish_status({{"running", false}, {"fault", "camera device /dev/video3 does not exist\n\xe2\x80\xae"}});
+  json doc = rig.current();
+  CHECK(doc["capabilities"]["nav"]["state"] == "error");
+  CHECK(doc["capabilities"]["nav"]["reason"] == "camera device /dev/video3 does not exist??");
+  CHECK(doc["state"] == "error");
+  CHECK(rig.board->robot_state() == "error");
+
+  rig.drive_context.publish_status({{"moving", false}, {"fault", std::string(5000, 'x')}});  // a driver, and a long fault
+  doc = rig.current();
+  CHECK(doc["drivers"][0]["state"] == "error");
+  CHECK(doc["drivers"][0]["reason"].get<std::string>().size() <= StatusBoard::kFaultTextBytes);
+
+  rig.nav.publish_status({{"running", false}, {"fault", nullptr}});  // null or "" is no fault
+  rig.drive_context.publish_status({{"moving", false}, {"fault", ""}});
+  doc = rig.current();
+  CHECK(doc["capabilities"]["nav"]["state"] == "ok");
+  CHECK_FALSE(doc["capabilities"]["nav"].contains("reason"));
+  CHECK(doc["drivers"][0]["state"] == "ok");
+  CHECK(doc["state"] == "idle");
+  CHECK(rig.board->robot_state() == "idle");
+}
+
 TEST_CASE("publishes coalesce; a driver's published status keeps it fresh without being listed") {
   Rig rig;
   rig.board->start();

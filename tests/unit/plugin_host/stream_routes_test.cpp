@@ -105,7 +105,7 @@ std::string header_of(const http::Response& response, const std::string& name) {
 }  // namespace
 
 TEST_CASE("stream routes through a real kernel: bodies, streams, refusals, timeouts and failures") {
-  Kernel kernel(streamer_robot());
+  Kernel kernel(streamer_robot(), embedded_kernel_options());
   for (const auto& record : kernel.plugins().records()) {
     CAPTURE(record->id);
     CHECK(to_string(record->state) == to_string(PluginState::Loaded));
@@ -148,7 +148,7 @@ TEST_CASE("stream routes through a real kernel: bodies, streams, refusals, timeo
 }
 
 TEST_CASE("a plugin that declares ABI minor 1 keeps its JSON routes, and the kernel never calls stream_routes()") {
-  Kernel kernel(streamer_robot());
+  Kernel kernel(streamer_robot(), embedded_kernel_options());
   Api& api = kernel.api();
   const std::string base = "/api/cap/org.rcand.test.stream_minor_one";
   CHECK(stream_call(api, base + "/ping").status == 200);  // its stream_routes() throws: had it been called, it would be failed

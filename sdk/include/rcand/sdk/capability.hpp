@@ -36,7 +36,11 @@ class RCAND_INTERFACE Capability {
   // Main thread, once, after start(). The routes this capability serves.
   virtual std::vector<Route> routes() = 0;
   // The instance's status thread, for GET /api/status (under "capabilities.<name>"). Thread-safe; must not block:
-  // one that has not returned after 250 ms fails the instance and is never called again.
+  // one that has not returned after 250 ms fails the instance and is never called again. A status (returned or
+  // published) with a top-level "fault" - a non-empty string, the fault in words an operator can act on ("camera
+  // device /dev/video3 does not exist") - says the instance runs but cannot do its job: GET /api/status and telemetry
+  // show its state as "error" with the fault as "reason" (cut to 600 bytes), and the robot's state as "error", until
+  // a status without one (null or absent). Drivers' statuses follow the same rule.
   virtual Json status() const { return Json::object(); }
   // The stop path, right after every actuating driver halted. Cancel running jobs; must not block.
   virtual void on_estop() noexcept {}

@@ -99,7 +99,7 @@ const json kMove{{"type", "move"}, {"linear", 0.2}, {"angular", 0.0}, {"duration
 }  // namespace
 
 TEST_CASE("Api::execute_action: the action route as the principal; 423 while e-stopped and no motion; audited") {
-  Kernel kernel(sim_rover());
+  Kernel kernel(sim_rover(), embedded_kernel_options());
   Api& api = kernel.api();
 
   const int before = drive_commands(api);
@@ -131,7 +131,7 @@ TEST_CASE("Api::execute_action: the action route as the principal; 423 while e-s
 }
 
 TEST_CASE("an R2R command to an e-stopped robot is answered 105 by the node, through the real action path") {
-  Kernel kernel(sim_rover());
+  Kernel kernel(sim_rover(), embedded_kernel_options());
   Api& api = kernel.api();
   rcand::sdk::testing::ManualClock clock;
   r2r_test::LoopbackNetwork net;
@@ -216,7 +216,7 @@ rcand::sdk::Response dispatched(const KernelRequestDispatcher& dispatcher, rcand
 // the kernel's own path, so the caller's role is checked, the e-stop pre-check applies and the audit names the caller
 // under the message id the plugin chose.
 TEST_CASE("KernelRequestDispatcher: a plugin's request on a caller's behalf runs as that caller's HTTP request") {
-  Kernel kernel(sim_rover());
+  Kernel kernel(sim_rover(), embedded_kernel_options());
   Api& api = kernel.api();
   const KernelRequestDispatcher dispatcher(api);
   auto dispatch = [&](rcand::sdk::Request request) { return dispatched(dispatcher, std::move(request)); };
@@ -259,7 +259,7 @@ TEST_CASE("KernelRequestDispatcher: a plugin's request on a caller's behalf runs
 // The note a plugin adds to the audit entry of its request (the chat's "ai" block): recorded with the entry when it
 // keeps the SDK's rules, and the request refused unrun when it breaks them (a plugin bug must not forge an entry).
 TEST_CASE("KernelRequestDispatcher: a plugin's audit note joins the entry; a note breaking the rules runs nothing") {
-  Kernel kernel(sim_rover());
+  Kernel kernel(sim_rover(), embedded_kernel_options());
   Api& api = kernel.api();
   const KernelRequestDispatcher dispatcher(api);
   auto dispatch = [&](std::string id, json note) {

@@ -11,6 +11,7 @@
 #include <string_view>
 #include <vector>
 
+#include "rcand/sdk/bounded_text.hpp"
 #include "rcand/sdk/http.hpp"
 #include "rcand/sdk/scope.hpp"
 
@@ -79,24 +80,28 @@ inline Scope route_scope(Scope declared, std::string_view method, bool custom) n
 }
 
 // ---- the answers both hosts give ---------------------------------------------------------------------------
+// What the caller sent (a type, a capability name, a path, a method) is quoted through bounded_text here, so both
+// hosts quote it the same way, cut and made safe.
 
 inline Response missing_action_type(std::vector<std::string> allowed) {
   return Response::error(400, "BAD_REQUEST", "body needs a string \"type\"",
                          Json{{"field", "type"}, {"allowed", std::move(allowed)}});
 }
 inline Response unknown_action_type(const std::string& type, std::vector<std::string> allowed) {
-  return Response::error(400, "BAD_REQUEST", "unknown action type '" + type + "'",
+  return Response::error(400, "BAD_REQUEST", "unknown action type '" + bounded_text(type) + "'",
                          Json{{"field", "type"}, {"allowed", std::move(allowed)}});
 }
 inline Response not_declared(const std::string& capability, std::vector<std::string> declared) {
-  return Response::error(404, "CAPABILITY_NOT_FOUND", "this robot does not declare the '" + capability + "' capability",
-                         Json{{"capability", capability}, {"capabilities", std::move(declared)}});
+  const std::string quoted = bounded_text(capability);
+  return Response::error(404, "CAPABILITY_NOT_FOUND", "this robot does not declare the '" + quoted + "' capability",
+                         Json{{"capability", quoted}, {"capabilities", std::move(declared)}});
 }
 inline Response no_endpoint(const std::string& capability, const std::string& path) {
-  return Response::error(404, "NOT_FOUND", "capability '" + capability + "' has no endpoint " + path);
+  return Response::error(404, "NOT_FOUND", "capability '" + bounded_text(capability) + "' has no endpoint " + bounded_text(path));
 }
 inline Response method_not_allowed(const std::string& method, const std::string& path, std::vector<std::string> allowed) {
-  return Response::error(405, "METHOD_NOT_ALLOWED", method + " is not allowed on " + path, Json{{"allowed", std::move(allowed)}});
+  return Response::error(405, "METHOD_NOT_ALLOWED", bounded_text(method) + " is not allowed on " + bounded_text(path),
+                         Json{{"allowed", std::move(allowed)}});
 }
 inline Response insufficient_scope(const std::string& who, Scope scope) {
   return Response::error(403, "INSUFFICIENT_PRIVILEGES", who + " lacks scope '" + std::string(scope_name(scope)) + "'",

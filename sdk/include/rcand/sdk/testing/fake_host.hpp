@@ -34,6 +34,7 @@
 #include <vector>
 
 #include "rcand/sdk/abi.h"
+#include "rcand/sdk/bounded_text.hpp"
 #include "rcand/sdk/capability.hpp"
 #include "rcand/sdk/context.hpp"
 #include "rcand/sdk/contract/requests.hpp"
@@ -773,7 +774,7 @@ class FakeHost {
         for (auto mount : cap.mounts)
           if (mount.ends_with('*') ? request.path.rfind(mount.substr(0, mount.size() - 1), 0) == 0 : request.path == mount)
             capability = std::string(cap.name);
-      if (capability.empty()) return Response::error(404, "NOT_FOUND", "no endpoint " + request.path);
+      if (capability.empty()) return Response::error(404, "NOT_FOUND", "no endpoint " + bounded_text(request.path));
     }
     slot = find_capability(capability);
     if (slot == nullptr || slot->custom != custom) {
