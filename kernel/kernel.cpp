@@ -245,7 +245,8 @@ void Kernel::State::start_plugins() {
     if (auto* state = state_dir_live.load()) state->latch_changed();
     audit.end_repeats();  // the next stop is no repeat: a new audit entry
   });
-  if (config.estop_on_startup) estop.latch("safety.estop_on_startup", "config");
+  if (config.estop_on_startup)
+    estop.latch("safety.estop_on_startup", "config", {{}, "startup", {}, "safety.estop_on_startup is set"});
 }
 
 // The route table: the kernel's rows, the capabilities' rows, then each service's (which may wrap the others).
@@ -274,7 +275,7 @@ void Kernel::State::reload_plugin(const std::string& id, const std::string& prin
     if (reloads_closed) return done(503, {{"code", "UNAVAILABLE"}, {"error", "rcand is shutting down"}});
     nlohmann::json body{{"plugin", bounded_text(id)}, {"estopped", false}};  // the id is the caller's, from the path
     const ReloadResult result = runtime->reload(id, config, [&] {
-      const auto halt = estop.latch("plugin reload: " + id, principal);
+      const auto halt = estop.latch("plugin reload: " + id, principal, {principal, "reload", id, {}});
       body["estopped"] = true;
       body["motors_stopped"] = std::all_of(halt.drivers.begin(), halt.drivers.end(), [](const auto& d) { return d.halted; });
     });
@@ -392,7 +393,7 @@ void Kernel::State::restore_latch() {
   if (!why.empty()) {
     why = bounded_text(why, 600);
     if (estop.latched()) estop.restate(why + "; safety.estop_on_startup is set as well", "startup");
-    else estop.latch(why, "startup");
+    else estop.latch(why, "startup", {{}, "startup", {}, {}});
     const auto seq = audit.begin("rcand", "startup-" + std::to_string(clock.wall_ms()), "e-stop latched at startup");
     audit.finish(seq, "ok", why);
     logger("kernel.estop")->warn("starting latched: {}", why);
@@ -465,8 +466,8 @@ void Kernel::shutdown() noexcept {
   auto& s = *state_;
   s.shut_down = true;
   try {
-    const auto before = s.estop.snapshot();          // what the state dir keeps: the latch as it was, not this one
-    s.estop.latch("rcand shutting down", "kernel");  // motors stop first, whatever else happens
+    const auto before = s.estop.snapshot();  // what the state dir keeps: the latch as it was, not this one
+    s.estop.latch("rcand shutting down", "kernel", {{}, "shutdown", {}, {}});  // motors stop first, whatever else happens
     // Then the services, in reverse: no R2R message is handled or sent, no broadcast goes out.
     for (auto it = s.optional_services.rbegin(); it != s.optional_services.rend(); ++it) (*it)->stop();
     s.reloads_closed = true;

@@ -3,8 +3,10 @@
 #include <charconv>
 
 #include "kernel/api/answers.hpp"
+#include "kernel/safety/stop_summary.hpp"
 #include "libs/base/bounded_text.hpp"
 #include "libs/base/json_body.hpp"
+#include "libs/base/plugin_health.hpp"
 
 namespace rcand::kernel {
 namespace {
@@ -19,11 +21,21 @@ constexpr std::size_t kMaxAuditLimit = 10000;
 void stop(const KernelRouteDeps& d, Call& call, const Reply& reply) {
   // On the kernel's steady clock (the sim drive's timeline clock), so a test can compare it with the halt events.
   const std::int64_t received_us = d.clock.now_us();
-  std::string reason = "POST /api/stop";
-  if (auto body = parse_json_body(call.request.body);
-      body.error.empty() && body.value.is_object() && body.value.contains("reason") && body.value["reason"].is_string())
-    reason = bounded_text(body.value["reason"].get<std::string>());  // never cut inside a UTF-8 character
-  const auto report = d.estop.latch(reason, call.principal);
+  // Who and from where, for GET /api/estop's summary (docs/protocol.md §6.7): the body's optional "reason" and "from".
+  Estop::Origin origin{call.principal, "request", {}, {}};
+  if (auto body = parse_json_body(call.request.body); body.error.empty() && body.value.is_object()) {
+    const auto text = [&body](const char* key, std::size_t limit) {
+      const auto it = body.value.find(key);  // never cut inside a UTF-8 character
+      return it != body.value.end() && it->is_string() ? bounded_text(it->get<std::string>(), limit) : std::string();
+    };
+    origin.note = text("reason", 200);
+    origin.from = text("from", 80);
+  }
+  if (const auto peer = call.request.header("x-swarm-forwarded")) {  // a peer's broadcast (docs/protocol.md §9.2)
+    origin.kind = "swarm";
+    origin.from = bounded_text(std::string(*peer), 200);
+  }
+  const auto report = d.estop.latch(origin.note.empty() ? "POST /api/stop" : origin.note, call.principal, origin);
   json drivers = json::array();
   bool all_halted = true;
   for (const auto& halt : report.drivers) {
@@ -41,13 +53,7 @@ void stop(const KernelRouteDeps& d, Call& call, const Reply& reply) {
                             {"received_us", received_us}}));
 }
 
-void estop_state(const KernelRouteDeps& d, const Reply& reply) {
-  const auto state = d.estop.snapshot();
-  reply(json_response(200, {{"estopped", state.estopped},
-                            {"since_ms", state.estopped ? json(state.since_ms) : json()},
-                            {"reason", state.estopped ? json(state.reason) : json()},
-                            {"source", state.estopped ? json(state.source) : json()}}));
-}
+void estop_state(const KernelRouteDeps& d, const Reply& reply) { reply(json_response(200, estop_document(d.estop.snapshot()))); }
 
 void estop_clear(const KernelRouteDeps& d, Call& call, const Reply& reply) {
   const bool was = d.estop.clear();
@@ -87,8 +93,12 @@ void audit_entries(const KernelRouteDeps& d, Call& call, const Reply& reply) {
   reply(json_response(200, d.audit.to_json(limit)));
 }
 
+// Each plugin's library record, with its driver and capability instances as the status snapshot shows them and the
+// health they add up to: a loaded library whose driver failed is not "ok".
 void plugins(const KernelRouteDeps& d, Call& call, const Reply& reply) {
-  reply(json_response(200, {{"plugins", d.host.to_json(sdk::role_grants(call.role, Scope::Config))}}));
+  json plugins = d.host.to_json(sdk::role_grants(call.role, Scope::Config));
+  add_plugin_health(plugins, d.status.document(), true);
+  reply(json_response(200, {{"plugins", std::move(plugins)}}));
 }
 
 // POST /api/plugins/<id>/reload (docs/protocol.md §7.15): answered when the reload is over; audited either way.
@@ -120,7 +130,7 @@ void driver(const KernelRouteDeps& d, Call& call, const Reply& reply) {
              {"protocol", instance.protocol},
              {"plugin", instance.plugin_id},
              {"state", instance.health.failed() ? "failed" : "ok"}};
-    if (instance.health.failed()) doc["reason"] = instance.health.reason();
+    if (instance.health.failed()) StatusBoard::add_fault(doc, instance.health.fault());
     else if (auto fault = status ? StatusBoard::reported_fault(*status) : std::nullopt)
       doc.update({{"state", "error"}, {"reason", *fault}});
     if (status) doc["status"] = std::move(*status);

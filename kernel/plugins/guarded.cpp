@@ -29,11 +29,12 @@ std::shared_ptr<spdlog::logger> plugins_logger() noexcept {
 
 namespace detail {
 
-void record_plugin_throw(std::string_view who, std::string_view what, std::string& failure, std::string_view message) noexcept {
+void record_plugin_throw(std::string_view who, std::string_view what, Fault& failure, std::string_view message,
+                         const std::exception* exception) noexcept {
   try {
-    failure.assign(message);
+    failure = exception != nullptr ? fault_of(*exception) : Fault{std::string(message), {}, {}, {}};
   } catch (...) {
-    failure.clear();  // cannot allocate the copy: leave a recognisable empty failure
+    failure = {};  // cannot allocate the copy: leave a recognisable empty failure
   }
   try {
     plugins_logger()->error("{}: {} threw: {}", who, what, message);

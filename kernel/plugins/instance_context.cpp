@@ -28,7 +28,7 @@ void InstanceEstop::request_estop(const std::string& reason) noexcept {
     } catch (...) {  // the audit entry is bookkeeping: the stop happens regardless
     }
   }
-  services_.estop.latch(reason, source);
+  services_.estop.latch(reason, source, {{}, "plugin", source, reason});
   if (seq != 0) {
     try {
       services_.audit->finish(seq, "ok", reason);

@@ -60,18 +60,18 @@ std::unique_ptr<Object> create_and_start(const std::string& who,
     std::mutex mutex;
     bool abandoned = false;
     std::unique_ptr<Object> object;
-    std::string failure;  // empty: everything returned normally
+    Fault failure;  // no reason: everything returned normally
   };
   auto startup = std::make_shared<Startup>();
   const bool finished = bounded_call("plugin.start", timeout, [startup, who, &factory, &context, more = std::move(more)] {
-    std::string failure;
+    Fault failure;
     std::unique_ptr<Object> made;
     if (auto object = guarded_result(who, "factory", failure, [&] { return factory(context); }); object && *object) {
       made = std::move(*object);
       if (guarded_call(who, "start", failure, [&] { made->start(); }) && more)
         guarded_call(who, "routes", failure, [&] { more(*made); });
-    } else if (failure.empty()) {
-      failure = "factory returned nothing";
+    } else if (failure.reason.empty()) {
+      failure.reason = "factory returned nothing";
     }
     std::lock_guard lock(startup->mutex);
     if (startup->abandoned) {
@@ -91,7 +91,7 @@ std::unique_ptr<Object> create_and_start(const std::string& who,
     logger("kernel.plugins")->error("{}: {}", who, health.reason());
     return nullptr;
   }
-  if (!startup->failure.empty()) health.mark_failed(startup->failure);
+  if (!startup->failure.reason.empty()) health.mark_failed(std::move(startup->failure));
   return std::move(startup->object);
 }
 
@@ -149,6 +149,9 @@ void PluginRuntime::start_driver(DriverInstance& instance, std::size_t index, co
   auto [registered, plugin] =
       find_loaded(host_, host_.providers_of_driver(entry.protocol), &PluginRecord::drivers, entry.protocol);
   if (registered == nullptr) {
+    if (plugin != nullptr && plugin->manifest)  // what it would have been: a capability that needs it follows it
+      for (const auto& item : plugin->manifest->provides)
+        if (item.kind == "driver" && item.name == entry.protocol && item.actuates) instance.interface = item.interface;
     instance.health.mark_failed(plugin == nullptr ? "no installed plugin provides driver protocol '" + entry.protocol + "'"
                                                   : "plugin " + plugin->id + " is " + std::string(to_string(plugin->state)) +
                                                         ": " + plugin->reason);
@@ -157,6 +160,7 @@ void PluginRuntime::start_driver(DriverInstance& instance, std::size_t index, co
   }
   instance.plugin_id = plugin->id;
   instance.actuates = registered->info.actuates;
+  if (instance.actuates) instance.interface = registered->info.interface;
   auto settings = validated_settings(config, *plugin, entry.settings, true, "drivers[" + std::to_string(index) + "]");
   instance.context = std::make_unique<InstanceContext>(plugin->id, entry.id, services_, std::move(settings), instance.health);
 
@@ -215,6 +219,7 @@ void PluginRuntime::start_capability(CapabilityInstance& instance, const RobotCo
     }
     instance.plugin_id = plugin->id;
     instance.actuates = registered->info.actuates;
+    if (plugin->manifest) instance.needs = plugin->manifest->requires_;
     if (const auto missing = missing_requirement(*plugin)) {
       instance.health.mark_failed("requires a " + *missing + " actuator, and no configured driver provides one");
       log->error("capability {}: {}", name, instance.health.reason());
@@ -346,7 +351,7 @@ std::optional<std::string> PluginRuntime::missing_requirement(const PluginRecord
   if (!plugin.manifest) return std::nullopt;
   for (const auto& interface : plugin.manifest->requires_) {
     bool provided = false;
-    for (const auto& slot : actuators_.slots()) provided = provided || slot.interface == interface;
+    for (const auto& driver : drivers_) provided = provided || driver.interface == interface;
     if (!provided) return interface;
   }
   return std::nullopt;

@@ -30,6 +30,7 @@ struct DriverInstance {
   std::string id, protocol, plugin_id;
   std::string who;  // "plugin <id> driver <id>", for the trampoline's log lines
   bool actuates = false;
+  std::string interface;  // actuating drivers: the interface their registration names, failed or not
   InstanceHealth health;
   std::unique_ptr<InstanceContext> context;
   std::unique_ptr<sdk::Driver> object;   // null when it could not be created
@@ -40,13 +41,14 @@ struct CapabilityInstance {
   std::string name, plugin_id;
   std::string who;  // "plugin <id> capability <name>", for the trampoline's log lines
   bool actuates = false;
+  std::vector<std::string> needs;  // the actuator interfaces its manifest requires: its state follows those drivers
   InstanceHealth health;
   std::unique_ptr<InstanceContext> context;
   std::unique_ptr<sdk::Capability> object;  // null when it could not be created
   std::vector<sdk::Route> routes;
-  std::vector<sdk::StreamRoute> stream_routes;   // ABI 1.2 plugins only (Capability::stream_routes())
-  std::unique_ptr<WorkerThread> handler_worker;  // "cap.<name>": handlers run here, one at a time
-  std::size_t status_index = kNoStatus;          // its source in the status reader
+  std::vector<sdk::StreamRoute> stream_routes;                        // ABI 1.2 plugins only (Capability::stream_routes())
+  std::unique_ptr<WorkerThread> handler_worker;                       // "cap.<name>": handlers run here, one at a time
+  std::size_t status_index = kNoStatus;                               // its source in the status reader
   std::shared_ptr<ReloadGate> gate = std::make_shared<ReloadGate>();  // closed while its plugin is reloaded
 };
 
@@ -126,7 +128,8 @@ class PluginRuntime {
   // `members` (of plugin `id`) held closed, drained, out of the crews, shut down and destroyed; false when one of
   // them could not be stopped (its objects are then left alive, never destroyed under a running call).
   bool stop_capabilities(const std::vector<CapabilityInstance*>& members, const std::string& id, std::chrono::milliseconds drain);
-  // The first interface the plugin's manifest `requires` that no started actuator implements.
+  // The first interface the plugin's manifest `requires` that no configured driver implements (a driver that failed
+  // counts: the capability starts, and its state follows that driver's).
   std::optional<std::string> missing_requirement(const PluginRecord& plugin) const;
 
   PluginHost& host_;

@@ -18,9 +18,9 @@ bool Estop::sleep_unless_latched(std::chrono::microseconds duration) const {
   return !sleepers_.wait_for(lock, duration, [this] { return latched_.load(); });
 }
 
-void Estop::request_estop(const std::string& reason) noexcept { latch(reason, "plugin"); }
+void Estop::request_estop(const std::string& reason) noexcept { latch(reason, "plugin", {{}, "plugin", "a plugin", reason}); }
 
-Estop::StopReport Estop::latch(const std::string& reason, const std::string& source) noexcept {
+Estop::StopReport Estop::latch(const std::string& reason, const std::string& source, const Origin& origin) noexcept {
   StopReport report;
   const auto start = clock_.now_us();
   const auto deadline = std::chrono::steady_clock::now() + kHaltDeadline;
@@ -37,7 +37,12 @@ Estop::StopReport Estop::latch(const std::string& reason, const std::string& sou
     const std::string shown_reason = bounded_text(reason, kShownReasonBytes), shown_source = bounded_text(source);
     if (report.newly_latched) {
       std::lock_guard lock(info_mutex_);
-      info_ = {true, clock_.wall_ms(), shown_reason, shown_source};
+      info_ = {
+          true,
+          clock_.wall_ms(),
+          shown_reason,
+          shown_source,
+          {bounded_text(origin.principal), origin.kind, bounded_text(origin.from), bounded_text(origin.note, kShownReasonBytes)}};
     }
     for (const auto& id : report.commands_in_flight) {
       const std::string why = "a command that entered the motion gate before the latch was still running at the " +
@@ -111,6 +116,7 @@ void Estop::restate(std::string reason, std::string source) {
   if (!latched_.load()) return;
   info_.reason = bounded_text(reason, kShownReasonBytes);
   info_.source = bounded_text(source);
+  info_.origin = {{}, "startup", {}, {}};
 }
 
 void Estop::on_cleared(std::function<void()> listener) { clear_listeners_.push_back(std::move(listener)); }

@@ -14,6 +14,7 @@
 
 #include "kernel/safety/actuator_table.hpp"
 #include "kernel/safety/deadline_crew.hpp"
+#include "libs/base/stop_origin.hpp"
 #include "rcand/sdk/estop_view.hpp"
 
 namespace rcand::kernel {
@@ -32,10 +33,12 @@ class Estop final : public sdk::EstopView {
     // (their entry in `drivers` says so too: not halted, state "command_in_flight").
     std::vector<std::string> commands_in_flight;
   };
+  using Origin = StopOrigin;  // who stopped the robot and how (docs/protocol.md §6.7)
   struct Snapshot {
     bool estopped = false;
     std::int64_t since_ms = 0;
     std::string reason, source;
+    Origin origin;
   };
 
   Estop(const sdk::Clock& clock, ActuatorTable& actuators);
@@ -58,10 +61,12 @@ class Estop final : public sdk::EstopView {
   // entry is "command_in_flight"): for it the guarantee is only that the gate halts the actuator when it returns.
   // A stop requested from inside a command (request_estop) does not wait for the command it is called from. If the
   // latch is cleared while latch() waits, the wait ends (the gate still halts every command older than the stop).
-  StopReport latch(const std::string& reason, const std::string& source) noexcept;
+  // `origin` is recorded with the reason (copied after the halt, like the reason).
+  StopReport latch(const std::string& reason, const std::string& source, const Origin& origin = {}) noexcept;
   // Returns true when it was latched.
   bool clear();
-  // Startup only, while latched: replaces the reason and source shown (rcand starts latched for several causes).
+  // Startup only, while latched: replaces the reason and source shown (rcand starts latched for several causes);
+  // the origin becomes "startup".
   void restate(std::string reason, std::string source);
   Snapshot snapshot() const;
   // Startup only. Listeners run on the stop path after the halt (they cancel jobs) and must not block.

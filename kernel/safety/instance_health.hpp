@@ -1,38 +1,60 @@
 // Whether one plugin instance (a capability or a driver) is still in service. An exception from plugin code
 // marks it failed once, with the first reason; it stays failed until rcand restarts (or its plugin is reloaded).
+// A fault a driver reported as an sdk::DeviceFault keeps its device, OS error and hint beside the reason.
 #pragma once
 
 #include <atomic>
+#include <exception>
 #include <mutex>
 #include <string>
 
+#include "rcand/sdk/device_fault.hpp"
+
 namespace rcand::kernel {
+
+// Why an instance failed: the reason for people, and for a device fault what it names (any of them may be empty).
+struct Fault {
+  std::string reason, device, os_error, hint;
+};
+
+// What plugin code threw, as a Fault: an sdk::DeviceFault keeps its parts apart (RTTI across the plugin boundary, as
+// for the driver interfaces: the type keeps default visibility); anything else is its what().
+inline Fault fault_of(const std::exception& e) {
+  if (const auto* device = dynamic_cast<const sdk::DeviceFault*>(&e))
+    return {device->message(), device->device(), device->os_error(), device->hint()};
+  return {e.what(), {}, {}, {}};
+}
 
 class InstanceHealth {
  public:
   bool failed() const noexcept { return failed_.load(); }
-  void mark_failed(std::string why) {
+  void mark_failed(std::string why) { mark_failed(Fault{std::move(why), {}, {}, {}}); }
+  void mark_failed(Fault fault) {
     {
       std::lock_guard lock(mutex_);
-      if (reason_.empty()) reason_ = std::move(why);
+      if (fault_.reason.empty()) fault_ = std::move(fault);
     }
     failed_.store(true);
   }
   // In service again: only for a plugin reload, once nothing of the failed instance runs any more.
   void reset() {
     std::lock_guard lock(mutex_);
-    reason_.clear();
+    fault_ = {};
     failed_.store(false);
   }
   std::string reason() const {
     std::lock_guard lock(mutex_);
-    return reason_;
+    return fault_.reason;
+  }
+  Fault fault() const {
+    std::lock_guard lock(mutex_);
+    return fault_;
   }
 
  private:
   std::atomic<bool> failed_{false};
-  mutable std::mutex mutex_;  // guards reason_ only
-  std::string reason_;
+  mutable std::mutex mutex_;  // guards fault_ only
+  Fault fault_;
 };
 
 }  // namespace rcand::kernel

@@ -27,7 +27,7 @@ sdk::GateStatus KernelMotionGate::actuate(std::string_view actuator_id,
     command(*driver);
   } catch (const std::exception& e) {
     driver->halt();
-    if (slot->health) slot->health->mark_failed(e.what());
+    if (slot->health) slot->health->mark_failed(fault_of(e));
     logger("kernel.motion")->error("actuator {} ({}) threw: {}; halted and out of service", slot->id, slot->plugin_id, e.what());
     return sdk::GateStatus::ActuatorFailed;
   } catch (...) {

@@ -9,6 +9,7 @@
 
 #include "libs/base/bounded_text.hpp"
 #include "libs/base/logging.hpp"
+#include "libs/base/plugin_health.hpp"
 #include "libs/base/worker_thread.hpp"
 #include "rcand/sdk/pose_source.hpp"
 
@@ -39,6 +40,56 @@ std::int64_t steady_us() {
 }
 
 }  // namespace
+
+namespace board {
+
+struct DriverView {
+  std::string id, protocol, interface;
+  bool failed = false;
+  Fault fault;
+};
+
+struct Verdict {
+  std::string state = "ok";  // ok | degraded | error
+  Fault fault;               // why, when not ok: the reason names the drivers; device, OS error and hint of the first
+};
+
+// A capability's state from the drivers it needs: for an interface every provider of which failed, "error"; for one
+// some providers of which failed, "degraded". The first error wins, else the first degradation.
+Verdict follow_drivers(const std::vector<std::string>& needs, const std::vector<DriverView>& drivers) {
+  Verdict verdict;
+  for (const auto& interface : needs) {
+    std::vector<const DriverView*> providers, failed;
+    for (const auto& driver : drivers) {
+      if (driver.interface != interface) continue;
+      providers.push_back(&driver);
+      if (driver.failed) failed.push_back(&driver);
+    }
+    const bool error = !failed.empty() && failed.size() == providers.size();
+    if (failed.empty() || (!error && verdict.state != "ok")) continue;
+    std::string names;
+    for (const auto* driver : failed)
+      names += (names.empty() ? "" : "; ") + driver->id + " (" + driver->protocol + "): " + driver->fault.reason;
+    verdict.state = error ? "error" : "degraded";
+    verdict.fault = failed.front()->fault;
+    verdict.fault.reason = error ? (providers.size() == 1 ? "needs a " + interface + " actuator, and it failed: "
+                                                          : "needs a " + interface + " actuator, and every one failed: ") +
+                                       names
+                                 : std::to_string(failed.size()) + " of its " + std::to_string(providers.size()) + " " +
+                                       interface + " actuators failed: " + names;
+    if (error) break;
+  }
+  return verdict;
+}
+
+}  // namespace board
+
+void StatusBoard::add_fault(json& item, const Fault& fault) {
+  item["reason"] = fault.reason;
+  if (!fault.device.empty()) item["device"] = fault.device;
+  if (!fault.os_error.empty()) item["os_error"] = fault.os_error;
+  if (!fault.hint.empty()) item["hint"] = fault.hint;
+}
 
 class StatusBoard::Impl final : public StatusSink, public std::enable_shared_from_this<StatusBoard::Impl> {
  public:
@@ -257,38 +308,56 @@ class StatusBoard::Impl final : public StatusSink, public std::enable_shared_fro
     }
   }
 
+  // One instance's item: "failed" with its fault; a capability's state following the drivers it needs; "stale".
+  json item_of(const Entry& entry, const std::vector<board::DriverView>& drivers, std::int64_t now) const {
+    const auto& source = entry.source;
+    json item = source.item;
+    if (source.health != nullptr && source.health->failed()) {
+      item["state"] = "failed";
+      add_fault(item, source.health->fault());
+      return item;
+    }
+    if (auto fault = entry.last ? reported_fault(*entry.last) : std::nullopt) {
+      item["state"] = "error";  // it runs, but cannot do its job: a camera with no picture
+      item["reason"] = std::move(*fault);
+    } else {
+      const board::Verdict verdict = board::follow_drivers(source.needs, drivers);
+      item["state"] = verdict.state;
+      if (verdict.state != "ok") add_fault(item, verdict.fault);
+    }
+    const std::int64_t age = now - (entry.last ? entry.last_us : created_us_);
+    if (age > std::chrono::microseconds(kStaleAfter).count()) {
+      item["stale"] = true;
+      item["age_ms"] = age / 1000;
+    }
+    if (entry.last && !source.driver) item["status"] = *entry.last;
+    return item;
+  }
+
   std::shared_ptr<const Snapshot> build(std::uint64_t changes) const {
     auto snapshot = std::make_shared<Snapshot>();
     snapshot->changes = changes;
     const std::int64_t now = services_.clock.now_us();
-    const std::int64_t stale_after = std::chrono::microseconds(kStaleAfter).count();
     json doc = fixed_;
     json capabilities = json::object();
     json drivers = json::array();
     const bool nav_running = add_pose(services_.directory, doc);
+    std::vector<board::DriverView> views;  // what the capabilities' states follow
     for (const auto& entry : entries_) {
       const auto& source = entry->source;
+      if (!source.driver) continue;
       const bool failed = source.health != nullptr && source.health->failed();
-      json item = source.item;
-      item["state"] = failed ? "failed" : "ok";
-      if (failed) {
-        item["reason"] = source.health->reason();
-        ++snapshot->failed;
-      } else {
-        if (auto fault = entry->last ? reported_fault(*entry->last) : std::nullopt) {
-          item["state"] = "error";  // it runs, but cannot do its job: a camera with no picture
-          item["reason"] = std::move(*fault);
-          ++snapshot->faults;
-        }
-        const std::int64_t age = now - (entry->last ? entry->last_us : created_us_);
-        if (age > stale_after) {
-          item["stale"] = true;
-          item["age_ms"] = age / 1000;
-        }
-        if (entry->last && !source.driver) item["status"] = *entry->last;
-      }
-      if (source.driver) drivers.push_back(std::move(item));
-      else capabilities[source.name] = std::move(item);
+      std::optional<std::string> reported = !failed && entry->last ? reported_fault(*entry->last) : std::nullopt;
+      views.push_back({source.name, source.item.value("protocol", ""), source.item.value("interface", ""),
+                       failed || reported.has_value(),
+                       failed ? source.health->fault() : Fault{reported.value_or(""), {}, {}, {}}});
+    }
+    for (const auto& entry : entries_) {
+      json item = item_of(*entry, views, now);
+      if (item["state"] == "failed") ++snapshot->failed;
+      if (item["state"] == "error") ++snapshot->faults;
+      if (entry->source.driver) drivers.push_back(std::move(item));
+      else capabilities[entry->source.name] = std::move(item);
     }
     const char* state = snapshot->failed + snapshot->faults > 0 ? "error" : nav_running ? "running" : "idle";
     snapshot->nav_running = nav_running;
@@ -298,6 +367,7 @@ class StatusBoard::Impl final : public StatusSink, public std::enable_shared_fro
     doc["drivers"] = std::move(drivers);
     doc["capabilities"] = std::move(capabilities);
     doc["nav_running"] = nav_running;
+    if (doc.contains("plugins")) add_plugin_health(doc["plugins"], doc, false);  // a loaded library may not be ok
     snapshot->body[0] = dump(doc);
     doc["state"] = "estop";
     doc["estopped"] = true;
@@ -368,10 +438,11 @@ std::vector<StatusBoard::Source> StatusBoard::sources_of(PluginRuntime& runtime)
   const auto poll = [&runtime](const auto& instance) { return [&runtime, &instance] { return runtime.status_of(instance); }; };
   std::vector<Source> sources;
   for (const auto& instance : runtime.capabilities())
-    sources.push_back({instance.name, false, {{"plugin", instance.plugin_id}}, &instance.health, poll(instance)});
+    sources.push_back({instance.name, false, {{"plugin", instance.plugin_id}}, &instance.health, poll(instance), instance.needs});
   for (const auto& instance : runtime.drivers()) {
     nlohmann::json item{
         {"id", instance.id}, {"protocol", instance.protocol}, {"plugin", instance.plugin_id}, {"actuates", instance.actuates}};
+    if (!instance.interface.empty()) item["interface"] = instance.interface;
     sources.push_back({instance.id, true, std::move(item), &instance.health, poll(instance)});
   }
   return sources;

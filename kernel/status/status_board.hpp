@@ -14,6 +14,10 @@
 // its job - a camera with no picture: its item's state is "error" with the fault as "reason", and so is the robot's
 // state, until a status without one.
 //
+// A capability's state also follows the actuator interfaces its manifest requires (Source::needs): "error" when every
+// driver providing one is failed or reports a fault, "degraded" when some are, with a reason naming those drivers and
+// the first one's device, OS error and hint (sdk/device_fault.hpp).
+//
 // The top-level "pose" and "nav_running" come from the PoseSource service (sdk/pose_source.hpp, offered by nav),
 // read on the status thread at each rebuild - never per request.
 #pragma once
@@ -58,6 +62,9 @@ class StatusBoard {
     // made with this health (the instance's, a reload's new one too) feeds this entry. Null: it never publishes.
     const InstanceHealth* health = nullptr;
     std::function<std::optional<nlohmann::json>()> poll;  // its status(), through the status reader; empty: never
+    // A capability: the actuator interfaces it needs (its manifest's `requires`). Its state follows the drivers whose
+    // item names that "interface": "error" when every one of them failed, "degraded" when some did.
+    std::vector<std::string> needs = {};
   };
 
   static constexpr std::size_t kFaultTextBytes = 600;
@@ -71,6 +78,8 @@ class StatusBoard {
   // Every capability, then every driver, of a started runtime (which must outlive the board), polled through
   // PluginRuntime::status_of.
   static std::vector<Source> sources_of(PluginRuntime& runtime);
+  // A failed instance's item fields: "reason", and "device", "os_error", "hint" when the fault has them.
+  static void add_fault(nlohmann::json& item, const Fault& fault);
 
   // Main thread, after the plugins started and before anything is served (it adds e-stop listeners). `services`
   // (its clock, e-stop and status sink) outlives the board; `started_us` is the kernel's start on that clock.

@@ -101,8 +101,17 @@ TEST_CASE("hardware error: the Alert bit on every reply, Hardware Error Status, 
   CHECK_FALSE(alert);
 }
 
-TEST_CASE("serial: a missing device is a named fault") {
-  CHECK_THROWS_WITH_AS(PosixSerial("/dev/ttyUSB-rcand-none", 1000000),
-                       doctest::Contains("cannot open /dev/ttyUSB-rcand-none: No such file or directory: is the USB adapter"),
-                       SerialError);
+TEST_CASE("serial: a missing device is a named fault, with the device, the OS error and a hint apart") {
+  CHECK_THROWS_WITH_AS(
+      PosixSerial("/dev/ttyUSB-rcand-none", 1000000),
+      doctest::Contains("cannot open /dev/ttyUSB-rcand-none: No such file or directory (is the U2D2 plugged in?"), SerialError);
+  try {
+    PosixSerial("/dev/ttyUSB-rcand-none", 1000000);
+    FAIL("opened a device that does not exist");
+  } catch (const rcand::sdk::DeviceFault& fault) {  // what the kernel shows apart (GET /api/status)
+    CHECK(fault.message() == "cannot open /dev/ttyUSB-rcand-none: No such file or directory");
+    CHECK(fault.device() == "/dev/ttyUSB-rcand-none");
+    CHECK(fault.os_error() == "No such file or directory");
+    CHECK(fault.hint().starts_with("is the U2D2 plugged in? ls /dev/serial/by-id/"));
+  }
 }

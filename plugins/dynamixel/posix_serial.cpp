@@ -30,16 +30,17 @@ PosixSerial::PosixSerial(std::string path, int baud_rate) : path_(std::move(path
   fd_ = ::open(path_.c_str(), O_RDWR | O_NOCTTY | O_NONBLOCK | O_CLOEXEC);
   if (fd_ < 0) {
     const int error = errno;
-    std::string hint = error == EACCES   ? ": add the rcand user to the dialout group"
-                       : error == ENOENT ? ": is the USB adapter (U2D2) plugged in? ls /dev/serial/by-id/"
+    std::string hint = error == EACCES   ? "add the rcand user to the dialout group"
+                       : error == ENOENT ? "is the U2D2 plugged in? ls /dev/serial/by-id/ lists the USB serial adapters"
                                          : "";
-    throw SerialError("cannot open " + path_ + ": " + errno_text(error) + hint);
+    throw SerialError("cannot open " + path_ + ": " + errno_text(error), path_, errno_text(error), hint);
   }
   termios2 tio{};
   if (::ioctl(fd_, TCGETS2, &tio) != 0) {
     const int error = errno;
     ::close(fd_);
-    throw SerialError(path_ + " is not a serial port: " + errno_text(error));
+    throw SerialError(path_ + " is not a serial port: " + errno_text(error), path_, errno_text(error),
+                      "set the driver's port to the adapter's tty (ls /dev/serial/by-id/)");
   }
   // Raw: no echo, no line editing, no translation of CR/LF or of 0x11/0x13, 8 data bits, no parity, one stop bit.
   tio.c_iflag &= ~static_cast<tcflag_t>(IGNBRK | BRKINT | PARMRK | ISTRIP | INLCR | IGNCR | ICRNL | IXON | IXOFF | IXANY);

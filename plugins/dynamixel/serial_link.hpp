@@ -9,11 +9,14 @@
 #include <stdexcept>
 #include <string>
 
+#include <rcand/sdk/device_fault.hpp>
+
 namespace rcand::plugins::dynamixel {
 
-class SerialError : public std::runtime_error {
+// A device fault (rcand/sdk/device_fault.hpp): opening the port names the path, the OS error and a hint.
+class SerialError : public sdk::DeviceFault {
  public:
-  using std::runtime_error::runtime_error;
+  using sdk::DeviceFault::DeviceFault;
 };
 // A wait cut short by interrupt(): the transaction is abandoned, not failed.
 class Interrupted : public std::runtime_error {

@@ -9,11 +9,14 @@
 #include <string>
 #include <variant>
 
+#include <rcand/sdk/device_fault.hpp>
+
 namespace rcand::plugins::gpio_motor {
 
-class GpioError : public std::runtime_error {
+// A device fault (rcand/sdk/device_fault.hpp): the chip or file, the OS error and a hint where there is one.
+class GpioError : public sdk::DeviceFault {
  public:
-  using std::runtime_error::runtime_error;
+  using sdk::DeviceFault::DeviceFault;
 };
 
 // A line by offset on its chip (17) or by name ("GPIO17", as the Raspberry Pi's device tree names them).

@@ -34,8 +34,9 @@ std::unique_ptr<LibgpiodChip> LibgpiodChip::open(const std::optional<std::string
   if (selector) {
     if (gpiod_chip* chip = gpiod_chip_open_lookup(selector->c_str()))
       return std::unique_ptr<LibgpiodChip>(new LibgpiodChip(chip));
-    throw GpioError("no GPIO chip '" + *selector + "' (tried it as a label, a name, a path and a number): " + errno_text(errno) +
-                    "; gpiodetect lists the chips");
+    const std::string error = errno_text(errno);
+    throw GpioError("no GPIO chip '" + *selector + "' (tried it as a label, a name, a path and a number): " + error, *selector,
+                    error, "gpiodetect lists the chips");
   }
   if (line_name) {
     if (gpiod_line* line = gpiod_line_find(line_name->c_str())) {

@@ -22,8 +22,8 @@ void write_file(const std::string& path, const std::string& value) {
   if (fd < 0 || ::write(fd, value.data(), value.size()) != static_cast<ssize_t>(value.size())) {
     const int error = errno;
     if (fd >= 0) ::close(fd);
-    throw GpioError("cannot write " + value + " to " + path + ": " + std::strerror(error) +
-                    (error == EACCES ? " (add the rcand user to the gpio group, or a udev rule for the pwm class)" : ""));
+    throw GpioError("cannot write " + value + " to " + path + ": " + std::strerror(error), path, std::strerror(error),
+                    error == EACCES ? "add the rcand user to the gpio group, or a udev rule for the pwm class" : "");
   }
   ::close(fd);
 }
@@ -36,7 +36,7 @@ SysfsPwm::SysfsPwm(unsigned chip, unsigned channel, double frequency_hz, const s
   period_ns_ = std::llround(1e9 / frequency_hz);
   const std::string chip_dir = sysfs_root + "/class/pwm/pwmchip" + std::to_string(chip);
   if (!std::filesystem::exists(chip_dir))
-    throw GpioError("no " + chip_dir + ": enable the PWM overlay (Raspberry Pi: dtoverlay=pwm-2chan in config.txt)");
+    throw GpioError("no " + chip_dir, chip_dir, "", "enable the PWM overlay (Raspberry Pi: dtoverlay=pwm-2chan in config.txt)");
   dir_ = chip_dir + "/pwm" + std::to_string(channel);
   if (!std::filesystem::exists(dir_)) {
     write_file(chip_dir + "/export", std::to_string(channel));

@@ -9,11 +9,17 @@
 #include <cstring>
 #include <stdexcept>
 
+#include <rcand/sdk/device_fault.hpp>
+
 namespace rcand::plugins::pca9685 {
 
 GpioLine::GpioLine(std::string chip_path, unsigned line, bool initial_high) : chip_path_(std::move(chip_path)), line_(line) {
   const int chip = ::open(chip_path_.c_str(), O_RDWR | O_CLOEXEC);
-  if (chip < 0) throw std::runtime_error("cannot open " + chip_path_ + ": " + std::strerror(errno));
+  if (chip < 0) {
+    const int error = errno;
+    throw sdk::DeviceFault("cannot open " + chip_path_ + ": " + std::strerror(error), chip_path_, std::strerror(error),
+                           error == EACCES ? "add the rcand user to the gpio group" : "gpiodetect lists the GPIO chips");
+  }
   gpiohandle_request request{};
   request.lineoffsets[0] = line_;
   request.lines = 1;

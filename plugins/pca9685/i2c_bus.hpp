@@ -7,17 +7,22 @@
 #include <span>
 #include <stdexcept>
 #include <string>
+#include <utility>
+
+#include <rcand/sdk/device_fault.hpp>
 
 namespace rcand::plugins::pca9685 {
 
-class I2cError : public std::runtime_error {
+// A device fault (rcand/sdk/device_fault.hpp): opening the bus names the path, the OS error and a hint.
+class I2cError : public sdk::DeviceFault {
  public:
   enum class Kind {
     NoAck,    // nothing answered at the address: no power, wrong address, wrong bus, loose cable
     Timeout,  // the transfer did not finish: a wedged bus (SDA held low) or a stretched clock
     Io,       // anything else (the device file is missing, permission, ...)
   };
-  I2cError(Kind kind, const std::string& message) : std::runtime_error(message), kind_(kind) {}
+  I2cError(Kind kind, const std::string& message, std::string device = {}, std::string os_error = {}, std::string hint = {})
+      : sdk::DeviceFault(message, std::move(device), std::move(os_error), std::move(hint)), kind_(kind) {}
   Kind kind() const noexcept { return kind_; }
 
  private:

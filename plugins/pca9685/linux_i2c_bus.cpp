@@ -30,10 +30,10 @@ LinuxI2cBus::LinuxI2cBus(std::string path, std::chrono::milliseconds timeout) : 
   fd_ = ::open(path_.c_str(), O_RDWR | O_CLOEXEC);
   if (fd_ < 0) {
     const int error = errno;
-    std::string hint = error == ENOENT   ? " (enable I2C: dtparam=i2c_arm=on on a Raspberry Pi, then modprobe i2c-dev)"
-                       : error == EACCES ? " (add the rcand user to the i2c group)"
+    std::string hint = error == ENOENT   ? "enable I2C: dtparam=i2c_arm=on on a Raspberry Pi, then modprobe i2c-dev"
+                       : error == EACCES ? "add the rcand user to the i2c group"
                                          : "";
-    throw I2cError(I2cError::Kind::Io, "cannot open " + path_ + ": " + std::strerror(error) + hint);
+    throw I2cError(I2cError::Kind::Io, "cannot open " + path_ + ": " + std::strerror(error), path_, std::strerror(error), hint);
   }
   // I2C_TIMEOUT is in units of 10 ms; at least one unit. No retries: a retry doubles the time a halt may wait.
   const unsigned long units = static_cast<unsigned long>(std::max<long long>(1, (timeout.count() + 9) / 10));
@@ -47,7 +47,8 @@ LinuxI2cBus::~LinuxI2cBus() {
 
 void LinuxI2cBus::fail(std::uint8_t address, int error, const char* what) const {
   // Adapters disagree on how they report a NACK: bcm2835 says EREMOTEIO, i2c-gpio ENXIO, some EIO.
-  if (error == ENXIO || error == EREMOTEIO || error == EIO) throw I2cError(I2cError::Kind::NoAck, no_ack_message(address, path_));
+  if (error == ENXIO || error == EREMOTEIO || error == EIO)
+    throw I2cError(I2cError::Kind::NoAck, no_ack_message(address, path_), path_, std::strerror(error));
   if (error == ETIMEDOUT || error == EAGAIN)
     throw I2cError(I2cError::Kind::Timeout,
                    std::string(what) + " on " + path_ + " timed out: the bus may be wedged (SDA held low)");

@@ -47,11 +47,12 @@ void write_status_metrics(MetricsText& out, const json& status) {
       if (plugin.is_object()) out.sample({{"plugin", text_of(plugin, "id")}, {"state", text_of(plugin, "state")}}, 1);
 
   out.family("rcand_capability_state", "gauge",
-             "each declared capability: ok, stale (its status not refreshed for 2 s), error (it runs but reports a fault, "
-             "such as a camera with no picture) or failed; 1 for the current one");
+             "each declared capability: ok, stale (its status not refreshed for 2 s), degraded (some actuators it needs "
+             "failed), error (every actuator it needs failed, or it runs but reports a fault, such as a camera with no "
+             "picture) or failed; 1 for the current one");
   if (const auto it = doc.find("capabilities"); it != doc.end() && it->is_object())
     for (const auto& [name, item] : it->items())
-      one_hot(out, {{"capability", name}}, item_state(item), {"ok", "stale", "error", "failed"});
+      one_hot(out, {{"capability", name}}, item_state(item), {"ok", "stale", "degraded", "error", "failed"});
 
   out.family("rcand_driver_state", "gauge", "each configured driver: ok, stale, error or failed; 1 for the current one");
   if (const auto it = doc.find("drivers"); it != doc.end() && it->is_array())

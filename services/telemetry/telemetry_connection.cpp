@@ -22,7 +22,8 @@ using nlohmann::json;
 namespace {
 // Answers queued for a client that sends faster than it reads: past this it is dropped like a slow reader.
 constexpr std::size_t kMaxAnswers = 8;
-constexpr std::string_view kDefaultStopReason = "WS /ws/telemetry {\"cmd\":\"stop\"}";
+// Where a stop came from when the client does not say (GET /api/estop's "from"; docs/protocol.md §6.7).
+constexpr std::string_view kDefaultStopFrom = "a telemetry client (WebSocket)";
 }  // namespace
 
 Connection::Connection(std::weak_ptr<TelemetryHub> hub, http::UpgradeStream stream, std::string remote, Credential credential,
@@ -133,14 +134,17 @@ void Connection::on_message(const std::string& text, bool binary) {
   if (cmd == body.value.end() || !cmd->is_string()) return error("BAD_REQUEST", R"("cmd" must be a string, such as "stop")");
   if (*cmd != "stop")
     return error("UNKNOWN_COMMAND", "unknown cmd '" + bounded_text(cmd->get<std::string>(), 64) + R"('; the only one is "stop")");
-  const auto reason = body.value.find("reason");
-  request_stop(reason != body.value.end() && reason->is_string() ? bounded_text(reason->get<std::string>())
-                                                                 : std::string(kDefaultStopReason));
+  json stop = json::object();  // POST /api/stop's body: the client's "reason" and "from", when they are strings
+  for (const char* key : {"reason", "from"})
+    if (const auto it = body.value.find(key); it != body.value.end() && it->is_string())
+      stop[key] = bounded_text(it->get<std::string>());
+  if (!stop.contains("from")) stop["from"] = kDefaultStopFrom;
+  request_stop(std::move(stop));
 }
 
 // POST /api/stop's row, through the Api, with this client's credential and address: the scope check (status), the
 // audit entry and the latch are exactly an HTTP stop's. The stop handler runs inline, here, now.
-void Connection::request_stop(std::string reason) {
+void Connection::request_stop(json body) {
   auto hub = hub_.lock();
   if (!hub) return;
   http::Request request;
@@ -148,7 +152,7 @@ void Connection::request_stop(std::string reason) {
   request.target = request.path = "/api/stop";
   request.remote = remote_;
   if (!credential_.bearer.empty()) request.headers["authorization"] = "Bearer " + credential_.bearer;
-  request.body = json{{"reason", std::move(reason)}}.dump(-1, ' ', false, json::error_handler_t::replace);
+  request.body = body.dump(-1, ' ', false, json::error_handler_t::replace);
   hub->stats().stops.fetch_add(1);
   hub->api().handle(std::move(request), [weak = weak_from_this()](http::Response response) {
     auto self = weak.lock();

@@ -49,7 +49,7 @@ class Connection : public std::enable_shared_from_this<Connection> {
   void write_next();
   void read();
   void on_message(const std::string& text, bool binary);
-  void request_stop(std::string reason);
+  void request_stop(nlohmann::json body);  // POST /api/stop with this body, as this client
   void answer(const nlohmann::json& message);
   void error(std::string_view code, const std::string& message);
   bool credential_holds();

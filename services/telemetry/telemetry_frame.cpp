@@ -11,8 +11,8 @@ using nlohmann::json;
 std::string_view item_state(const json& item) {
   if (!item.is_object()) return "failed";
   const std::string state = item.value("state", std::string());
-  if (state == "failed") return "failed";
-  if (state == "error") return "error";
+  for (std::string_view bad : {"failed", "error", "degraded"})
+    if (state == bad) return bad;
   return is_true(item, "stale") ? "stale" : "ok";
 }
 

@@ -36,7 +36,8 @@ nlohmann::json telemetry_frame(const nlohmann::json& status, const FrameContext&
 // The "obstacles" field from a reading: null without a source or without fresh data.
 nlohmann::json obstacles_field(const sdk::ObstacleSource* source);
 
-// "ok", "stale", "error" (it reports a fault) or "failed" for one capability or driver item of the status document.
+// "ok", "stale", "degraded", "error" or "failed" for one capability or driver item of the status document (error: it
+// reports a fault, or every actuator a capability needs failed; degraded: some did; docs/protocol.md §7.2).
 std::string_view item_state(const nlohmann::json& item);
 
 }  // namespace rcand::services::telemetry

@@ -3,6 +3,7 @@
 #include <atomic>
 
 #include "kernel/kernel.hpp"
+#include "kernel/safety/stop_summary.hpp"
 #include "libs/config/config_schema.hpp"
 #include "libs/http/server.hpp"
 #include "rcand/sdk/obstacle_source.hpp"
@@ -121,8 +122,10 @@ class TelemetryService final : public kernel::Service {
     context.ts_ms = host_.clock.wall_ms();
     context.seq = seq;
     context.event = event;
-    if (const auto estop = host_.estop.snapshot(); estop.estopped)
-      context.estop = {{"since_ms", estop.since_ms}, {"reason", estop.reason}, {"source", estop.source}};
+    if (const auto estop = host_.estop.snapshot(); estop.estopped) {
+      context.estop = kernel::estop_document(estop);  // GET /api/estop's fields: who, how, and the summary
+      context.estop.erase("estopped");
+    }
     context.obstacles = obstacles_field(sdk::find<sdk::ObstacleSource>(host_.plugin_services));
     return telemetry_frame(host_.status_document(), context).dump(-1, ' ', false, json::error_handler_t::replace);
   }

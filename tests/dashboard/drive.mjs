@@ -58,7 +58,7 @@ try {
 
   // 2. The robot's capabilities, and the live link.
   await page.waitForFunction(() => document.querySelectorAll('#capabilities li').length > 0);
-  const caps = await page.$$eval('#capabilities li', (items) => items.map((li) => li.textContent));
+  const caps = await page.$$eval('#capabilities li', (items) => items.map((li) => li.dataset.name));
   check('capabilities shown', caps.includes('teleop') && caps.includes('nav'), caps.join(','));
   await page.waitForFunction(() => document.getElementById('link').textContent === 'live', null, { timeout: 5000 });
   check('live telemetry link', true);

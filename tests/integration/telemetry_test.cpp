@@ -140,6 +140,12 @@ TEST_CASE("telemetry: {\"cmd\":\"stop\"} latches through POST /api/stop's row; b
   CHECK(estop["estopped"] == true);
   CHECK(estop["source"] == "user-principal");
   CHECK(estop["reason"] == "operator pressed the dashboard button");
+  // Who and from where, in words (issue 29 item 4): a client that names no "from" is "a telemetry client".
+  CHECK(estop["principal"] == "user-principal");
+  CHECK(estop["origin"] == "request");
+  CHECK(estop["from"] == "a telemetry client (WebSocket)");
+  CHECK(estop["summary"] ==
+        "Stopped by user-principal from a telemetry client (WebSocket): operator pressed the dashboard button");
   // The same audit entry as an HTTP stop.
   const json audit = robot.json("GET", "/api/audit", "owner-token");
   bool audited = false;

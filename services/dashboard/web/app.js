@@ -12,6 +12,8 @@ let declared = new Set();
 let socket = null;
 let retryTimer = null;
 let drive = null;        // the held pad direction: {linear, angular, timer, button}
+let details = { capabilities: {}, drivers: {} };  // GET /api/status's items by name: state, reason, device, hint
+let detailsPending = false;
 
 // ---- HTTP ----------------------------------------------------------------------------------------------------------
 async function api(method, path, body) {
@@ -79,7 +81,6 @@ async function login(candidate, remember) {
   $('login').hidden = true;
   $('app').hidden = false;
   $('who').textContent = `${session.principal} (${session.role})`;
-  $('clear').hidden = session.role !== 'OWNER' && session.role !== 'CREATOR';
   await loadStatus();
   connect();
   refreshAudit();
@@ -122,32 +123,106 @@ async function loadStatus() {
   // <img> cannot send headers: the stream takes ?token= (docs/protocol.md §3).
   if (declared.has('vision')) $('camera').src = `/api/stream/mjpeg?token=${encodeURIComponent(token)}`;
   if (declared.has('arm')) refreshArm();
+  keepDetails(s);
+  const estopAnswer = s.estopped ? await api('GET', '/api/estop') : null;  // who stopped it, for the banner
   showFrame({ estopped: s.estopped, state: s.state, pose: s.pose, nav_running: s.nav_running,
-              capabilities: Object.fromEntries(Object.entries(s.capabilities || {}).map(([k, v]) => [k, v.state])),
-              drivers: Object.fromEntries((s.drivers || []).map((d) => [d.id, d.state])) });
+              estop: estopAnswer && estopAnswer.status === 200 ? estopAnswer.body : null,
+              capabilities: Object.fromEntries(Object.entries(s.capabilities || {}).map(([k, v]) => [k, itemState(v)])),
+              drivers: Object.fromEntries((s.drivers || []).map((d) => [d.id, itemState(d)])) });
 }
 
-function chips(el, states) {
+// ---- health: each capability and driver with its state, and why when it is not ok (docs/protocol.md §7.2) ------------
+function itemState(item) {
+  if (['failed', 'error', 'degraded'].includes(item.state)) return item.state;
+  return item.stale ? 'stale' : 'ok';
+}
+
+function keepDetails(s) {
+  details = { capabilities: s.capabilities || {},
+              drivers: Object.fromEntries((s.drivers || []).map((d) => [d.id, d])) };
+}
+
+// A frame carries states only; when one differs from what the reasons were read with, read them again.
+async function refreshDetails() {
+  if (detailsPending || Date.now() - refreshDetails.lastMs < 1000) return;  // at most once a second
+  refreshDetails.lastMs = Date.now();
+  detailsPending = true;
+  try {
+    const answer = await api('GET', '/api/status');
+    if (answer.status === 200) keepDetails(answer.body);
+  } finally {
+    detailsPending = false;
+  }
+  renderHealth($('capabilities'), showFrame.capabilities, details.capabilities);
+  renderHealth($('drivers'), showFrame.drivers, details.drivers);
+}
+
+refreshDetails.lastMs = 0;
+
+function whyText(item) {
+  if (!item || !item.reason) return '';
+  const parts = [item.reason];
+  if (item.hint) parts.push(`Try: ${item.hint}`);
+  return parts.join(' — ');
+}
+
+// Returns false when a state shown has no reason read for it yet.
+function renderHealth(el, states, known) {
   el.replaceChildren();
+  let complete = true;
   for (const [name, state] of Object.entries(states || {})) {
+    const item = known[name];
     const li = document.createElement('li');
-    li.textContent = name;
-    li.className = state === 'ok' ? '' : state;
-    li.title = state;
+    li.dataset.name = name;
+    li.dataset.state = state;
+    const label = document.createElement('span');
+    label.className = 'name';
+    label.textContent = name;
+    const tag = document.createElement('span');
+    tag.className = 'state';
+    tag.textContent = state;
+    li.append(label, tag);
+    if (state !== 'ok' && state !== 'stale') {
+      if (!item || itemState(item) !== state) complete = false;
+      const why = document.createElement('p');
+      why.className = 'why';
+      why.textContent = item && itemState(item) === state ? whyText(item) : '…';
+      li.appendChild(why);
+    }
     el.appendChild(li);
   }
+  return complete;
+}
+
+function canClear() { return !!session && (session.role === 'OWNER' || session.role === 'CREATOR'); }
+
+// The latch banner: who stopped the robot, when, and why, in words (GET /api/estop's "summary" and "since_ms").
+function showLatch(latched, estop) {
+  $('banner').hidden = !latched;
+  $('clear').hidden = !(latched && canClear());
+  if (!latched) return;
+  const when = estop && estop.since_ms ? new Date(estop.since_ms).toLocaleTimeString() : null;
+  $('banner-title').textContent = when ? `STOPPED at ${when}` : 'STOPPED';
+  $('banner-text').textContent = estop ? (estop.summary || estop.reason || '') : '';
+  $('banner-text').textContent += canClear() ? '. Nothing moves until you clear the e-stop.'
+                                              : '. Nothing moves until an owner clears the e-stop.';
 }
 
 function showFrame(f) {
   const latched = !!f.estopped;
   document.body.dataset.estopped = latched;
-  $('state').textContent = latched ? 'E-STOPPED' : (f.state || 'ok');
-  $('state').className = `badge ${latched ? 'latched' : ''}`;
+  const state = latched ? 'estop' : (f.state || 'idle');
+  $('state').textContent = latched ? 'E-STOPPED' : state;
+  $('state').className = `badge state-${state}${latched ? ' latched' : ''}`;
+  $('state').dataset.state = state;
   $('estop').classList.toggle('latched', latched);
-  $('estop-reason').textContent = latched && f.estop && f.estop.reason ? f.estop.reason : '';
+  showLatch(latched, f.estop);
   if (latched) stopDriving();
-  if (f.capabilities) chips($('capabilities'), f.capabilities);
-  if (f.drivers) chips($('drivers'), f.drivers);
+  if (f.capabilities) showFrame.capabilities = f.capabilities;
+  if (f.drivers) showFrame.drivers = f.drivers;
+  const complete = renderHealth($('capabilities'), showFrame.capabilities, details.capabilities) &
+                   renderHealth($('drivers'), showFrame.drivers, details.drivers);
+  if (!complete) refreshDetails();
   if (f.pose) {
     $('pose').textContent = `pose x ${f.pose.x_m.toFixed(2)} m, y ${f.pose.y_m.toFixed(2)} m, ` +
                             `heading ${f.pose.heading_deg.toFixed(0)}°`;
@@ -183,8 +258,8 @@ function connect() {
 async function estop() {
   stopDriving();
   // The WebSocket is already open: a stop there skips the TCP and HTTP set-up. HTTP as well, in case it is not.
-  if (socket && socket.readyState === WebSocket.OPEN) socket.send(JSON.stringify({ cmd: 'stop' }));
-  const answer = await api('POST', '/api/stop', { reason: `dashboard (${session ? session.principal : '?'})` });
+  if (socket && socket.readyState === WebSocket.OPEN) socket.send(JSON.stringify({ cmd: 'stop', from: 'the dashboard' }));
+  const answer = await api('POST', '/api/stop', { from: 'the dashboard' });
   if (answer.status !== 200) failure('stop', answer);
 }
 
