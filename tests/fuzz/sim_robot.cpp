@@ -111,10 +111,24 @@ struct Robot {
   }
 };
 
+Robot* the_fuzz_robot = nullptr;
+
+// At exit, before the scratch directory goes and before spdlog's registry is destroyed (both were set up earlier, so
+// their exit handlers run later): without it the kernel's latch writer, woken by the last input's stop or clear,
+// failed to write into the removed state directory and logged through the destroyed registry - a SEGV after the
+// run that libFuzzer blamed on the empty input (crash-da39a3ee...).
+void shut_down_fuzz_robot() {
+  if (the_fuzz_robot != nullptr) the_fuzz_robot->instance->shutdown();
+}
+
 Robot& robot() {
   // Built once and never destroyed: libFuzzer may exit from any thread, and the kernel's threads must not race
-  // static destructors then (a global pointer keeps it reachable, so it is no leak either).
-  static Robot* instance = new Robot;
+  // static destructors then (a global pointer keeps it reachable, so it is no leak either). Shut down at exit.
+  static Robot* instance = [] {
+    the_fuzz_robot = new Robot;
+    std::atexit(shut_down_fuzz_robot);
+    return the_fuzz_robot;
+  }();
   return *instance;
 }
 
