@@ -172,7 +172,7 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   const json entry = json::parse(rest.substr(0, nul), nullptr, false);
   // The kernel hands a plugin one drivers[] item, a mapping (with id and protocol), and the robot's config, a mapping.
   const bool wellformed = entry.is_object() || (data[0] % 3 == 2 && entry.is_array() && !entry.empty() && entry[0].is_object() &&
-                                                 (entry.size() == 1 || entry[1].is_object()));
+                                                (entry.size() == 1 || entry[1].is_object()));
   if (!wellformed) return 0;
   const auto speeds = speeds_of(nul == std::string_view::npos ? std::string_view{} : rest.substr(nul + 1));
   try {
