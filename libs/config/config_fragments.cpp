@@ -66,7 +66,10 @@ void merge_config_fragment(yaml::YamlDocument& base, const yaml::YamlDocument& f
                            std::string("a conf.d fragment must be a mapping of config keys, found ") + fragment.doc.type_name()});
     return;
   }
-  if (!base.doc.is_object()) base.doc = nlohmann::json::object();
+  if (!base.doc.is_object()) {  // RFC 7396: a patch over a non-mapping starts from {}; the old items' marks go too
+    base.doc = nlohmann::json::object();
+    std::erase_if(base.marks, [](const auto& entry) { return !entry.first.empty(); });
+  }
   merge_mapping(base.doc, fragment.doc, "", base.marks, fragment.marks);
 }
 

@@ -79,6 +79,15 @@ TEST_CASE("settings: lines by offset or name, active-low, PWM; errors name the k
   CHECK(bad([](json& c) { c["channels"]["right"]["in2"] = 17; }) == "channels.right.in2: line 17 is used twice");
   CHECK(bad([](json& c) { c["channels"]["left"]["pwm"]["frequency_hz"] = 0; }).find("channels.left.pwm.frequency_hz") == 0);
   CHECK(bad([](json& c) { c["chip"] = true; }).find("chip: expected a chip label") == 0);
+  // One PWM channel for both motors (found by fuzzing): a command to one would set the other's speed.
+  CHECK(bad([](json& c) {
+          c["channels"]["right"]["pwm"] = {{"chip", 0}, {"channel", 0}};
+        }) == "channels.right.pwm: pwmchip0 channel 0 is used twice: each motor needs its own PWM channel");
+  CHECK_NOTHROW(GpioMotorSettings::from(rcand::sdk::ConfigView([] {
+    json c = config();
+    c["channels"]["right"]["pwm"] = {{"chip", 0}, {"channel", 1}};
+    return c;
+  }())));
 }
 
 TEST_CASE("start: every line requested inactive, the enable first; the active-low enable high from its request") {

@@ -98,6 +98,10 @@ GpioMotorSettings GpioMotorSettings::from(const sdk::ConfigView& config) {
       if (!seen.insert(describe(l->line)).second)
         throw ConfigError(std::string("channels.") + side + "." + key + ": " + describe(l->line) + " is used twice");
     }
+  // Likewise a PWM channel: the second motor's duty would overwrite the first's.
+  if (s.left.pwm && s.right.pwm && s.left.pwm->chip == s.right.pwm->chip && s.left.pwm->channel == s.right.pwm->channel)
+    throw ConfigError("channels.right.pwm: pwmchip" + std::to_string(s.right.pwm->chip) + " channel " +
+                      std::to_string(s.right.pwm->channel) + " is used twice: each motor needs its own PWM channel");
   return s;
 }
 

@@ -74,6 +74,15 @@ Pca9685Settings Pca9685Settings::from(const sdk::ConfigView& config) {
                            json(frequency_of(kMinPrescale, s.oscillator_hz)).dump() + " Hz)");
   s.prescale = *prescale;
   s.motors = parse_motor_layout(raw.contains("channels") ? raw["channels"] : json());
+  // An ESC's pulse must fit in the PWM period: a longer one is a constant high (full on), which is no pulse at all,
+  // so the neutral that halt() writes would stop nothing.
+  const double period_us = 1e6 / frequency_of(s.prescale, s.oscillator_hz);
+  for (const auto& [side, motor] : {std::pair{"left", &s.motors.left}, std::pair{"right", &s.motors.right}})
+    if (motor->kind == Motor::Kind::Esc && motor->max_us >= period_us)
+      throw sdk::ConfigError("pwm_frequency_hz: " + json(s.frequency_hz).dump() + " Hz gives a period of " +
+                             std::to_string(static_cast<long long>(period_us)) + " us, too short for the pulses of channels." +
+                             side + " (up to max_us " + json(motor->max_us).dump() +
+                             " us): an ESC or servo needs 50..400 Hz (the default is 50)");
   s.oe_chip = config.get<std::string>("oe_chip");
   if (const auto line = config.get<long long>("oe_line")) {
     if (*line < 0 || *line > 1023)

@@ -92,6 +92,22 @@ TEST_CASE("settings: address, port, frequency and /OE, with errors naming the ke
   CHECK(bad("channels", json::object()).find("channels.left: required") == 0);
 }
 
+TEST_CASE("settings: an ESC at a PWM frequency whose period is shorter than its pulses is refused (found by fuzzing)") {
+  // At 1000 Hz (1017 Hz with its prescale) the period is 983 us: a 1500 us neutral would be a constant high.
+  json c = json::parse(R"({"channels": {"left": {"esc": 0}, "right": {"esc": 1}}, "pwm_frequency_hz": 1000})");
+  CHECK(error_of([&] { settings_of(c); }) ==
+        "pwm_frequency_hz: 1000.0 Hz gives a period of 983 us, too short for the pulses of channels.left (up to max_us 2000.0 "
+        "us): an ESC or servo needs 50..400 Hz (the default is 50)");
+  c["pwm_frequency_hz"] = 400;  // 2500 us: the pulses fit
+  CHECK(settings_of(c).prescale == 14);
+  c["channels"]["left"] = {{"in1", 2}, {"in2", 3}};  // bridges have no pulse: any frequency the chip makes
+  c["channels"]["right"] = {{"esc", 1}, {"max_us", 1900}};
+  c["pwm_frequency_hz"] = 520;  // prescale 11: 1966 us
+  CHECK_NOTHROW(settings_of(c));
+  c["pwm_frequency_hz"] = 560;  // prescale 10: 1802 us
+  CHECK(error_of([&] { settings_of(c); }).find("too short for the pulses of channels.right") != std::string::npos);
+}
+
 TEST_CASE("start: probe, the datasheet wake-up, PRE_SCALE verified, outputs stopped") {
   Board board;
   board.drive->start();

@@ -35,15 +35,8 @@ export ASAN_OPTIONS="${ASAN_OPTIONS:-detect_leaks=1:abort_on_error=1}"
 export UBSAN_OPTIONS="${UBSAN_OPTIONS:-print_stacktrace=1:halt_on_error=1}"
 export ASAN_SYMBOLIZER_PATH="${ASAN_SYMBOLIZER_PATH:-$(command -v llvm-symbolizer-14 || command -v llvm-symbolizer || true)}"
 
-dict_for() {
-  case "$1" in
-    http_request) echo "$here/dict/http.dict" ;;
-    json_bodies) echo "$here/dict/json.dict" ;;
-    rcan_yaml | swarm_yaml) echo "$here/dict/yaml.dict" ;;
-    manifest) echo "$here/dict/json.dict" ;;
-    r2r_envelope) echo "$here/dict/r2r.dict" ;;
-  esac
-}
+# target_options NAME: its dictionary and flags.
+source "$here/target_options.sh"
 
 # What libFuzzer saves when an input crashes, leaks, hangs or runs out of memory.
 artifacts() { find "$1" -maxdepth 1 \( -name 'crash-*' -o -name 'leak-*' -o -name 'timeout-*' -o -name 'oom-*' \); }
@@ -51,12 +44,11 @@ artifacts() { find "$1" -maxdepth 1 \( -name 'crash-*' -o -name 'leak-*' -o -nam
 # One target: its log, its row of the table, and its crash count in $work/<name>/.
 fuzz_one() {
   local bin="$1" name="${1#fuzz_}" status=0
-  local seeds="$here/corpus/$name" dict log="$work/$name/log"
-  dict="$(dict_for "$name")"
+  local seeds="$here/corpus/$name" log="$work/$name/log"
   mkdir -p "$work/$name/corpus"
   local args=(-max_total_time="$seconds" -timeout=20 -rss_limit_mb=2048 -print_final_stats=1
               -artifact_prefix="$work/$name/")
-  [ -n "$dict" ] && args+=(-dict="$dict")
+  mapfile -t -O "${#args[@]}" args < <(target_options "$name")
   "$bin_dir/$bin" "${args[@]}" "$work/$name/corpus" "$seeds" > "$log" 2>&1 || status=$?
   local execs rate cov ft corpus crashes
   # A crashed target may print no stats: a missing figure shows as "?".
@@ -67,7 +59,7 @@ fuzz_one() {
   corpus=$(find "$work/$name/corpus" "$seeds" -type f | wc -l)
   crashes=$(artifacts "$work/$name" | wc -l)
   if [ "$status" -ne 0 ] && [ "$crashes" -eq 0 ]; then crashes=1; fi
-  printf '%-14s %6s %12s %8s %7s %7s %6s %7s\n' "$name" "$seconds" "${execs:-?}" "${rate:-?}" "${cov:-?}" "${ft:-?}" \
+  printf '%-16s %6s %12s %8s %7s %7s %6s %7s\n' "$name" "$seconds" "${execs:-?}" "${rate:-?}" "${cov:-?}" "${ft:-?}" \
          "$corpus" "$crashes" > "$work/$name/row"
   echo "$status $crashes" > "$work/$name/result"
 }
@@ -82,7 +74,7 @@ done
 wait
 
 failed=0
-printf '%-14s %6s %12s %8s %7s %7s %6s %7s\n' target seconds executions exec/s cov ft corpus crashes
+printf '%-16s %6s %12s %8s %7s %7s %6s %7s\n' target seconds executions exec/s cov ft corpus crashes
 for bin in "${targets[@]}"; do
   name="${bin#fuzz_}"
   status=1 crashes=1

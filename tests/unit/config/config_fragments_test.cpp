@@ -106,3 +106,18 @@ TEST_CASE("conf.d merge: a replaced or removed key takes its marks along") {
   CHECK(base.marks.count("a.c") == 0);
   CHECK(base.marks.at("a.d.f").file == "patch.yaml");
 }
+
+// Found by fuzz_conf_d: a main file that is a list left its items' marks ("[0]") after the merge replaced it by {}.
+TEST_CASE("conf.d merge: a fragment over a main file that is not a mapping leaves no marks of the old items") {
+  std::vector<rcand::kernel::ConfigDiagnostic> diagnostics;
+  auto base = rcand::yaml::yaml_to_json("- 1\n- {a: 2}\n", "base.yaml", diagnostics);
+  const auto patch = rcand::yaml::yaml_to_json("b: 3\n", "patch.yaml", diagnostics);
+  REQUIRE(diagnostics.empty());
+  REQUIRE(base.marks.count("[1].a") == 1);
+  rcand::kernel::merge_config_fragment(base, patch, "patch.yaml", diagnostics);
+  CHECK(base.doc == nlohmann::json{{"b", 3}});
+  CHECK(base.marks.count("[0]") == 0);
+  CHECK(base.marks.count("[1]") == 0);
+  CHECK(base.marks.count("[1].a") == 0);
+  CHECK(base.marks.at("b").file == "patch.yaml");
+}
