@@ -21,6 +21,13 @@ using contract::kCustomPrefix;
 
 bool is_read(std::string_view method) { return method == "GET" || method == "HEAD"; }
 
+// docs/protocol.md §7.16: a request handler that throws fails that request (500 INTERNAL, logged by the trampoline),
+// not its capability. Handlers run one at a time on the capability's worker, so the throw interrupted no other request;
+// the usual cause is a body the handler did not check (json::type_error), and failing the instance would let any
+// caller with the route's scope take the capability - its stop and cancel routes too - out of service until a restart.
+// Hangs (the worker is stuck) and lifecycle hooks still fail the instance.
+void count_handler_throw(CapabilityInstance& instance) { instance.health.count_handler_error(); }
+
 // The contract's answers (the fake host gives the same ones) as HTTP responses.
 http::Response answer(const sdk::Response& response) { return json_response(response.status, response.body); }
 
@@ -126,13 +133,12 @@ class CapabilityRoutes {
         [finish, target = instance, handler = route->handler, request, pending, writer, pass = std::move(pass)]() mutable {
           if (pending->answered.load()) return;  // timed out while queued
           std::string failure;
-          // The handler gets a copy: ours outlives a throw, so the capability is failed before any answer (a dropped
-          // writer's 500) can reach the client and let its next request in.
+          // The handler gets a copy: ours outlives a throw, so the 500 below answers before a dropped writer's would.
           const bool ok = guarded_call(target->who, "stream handler", failure, [&] { handler(*request, writer); });
           pending->returned = true;
           if (ok) return;
-          target->health.mark_failed("stream handler threw: " + failure);
-          finish(answer(contract::handler_threw(target->name)), "error", failure);
+          count_handler_throw(*target);
+          finish(answer(contract::handler_threw(target->name)), "error", bounded_text(failure));
         });
   }
 
@@ -261,8 +267,8 @@ void CapabilityRoutes::dispatch(CapabilityInstance& instance, const sdk::Route& 
     pending->returned = true;
     timers->cancel(pending->timer);
     if (!result) {
-      target->health.mark_failed("request handler threw: " + failure);
-      finish(answer(contract::handler_threw(target->name)), "error", failure);
+      count_handler_throw(*target);
+      finish(answer(contract::handler_threw(target->name)), "error", bounded_text(failure));
       return;
     }
     const std::string outcome = result->status < 300 ? "ok" : result->status == 423 ? "blocked" : "error";

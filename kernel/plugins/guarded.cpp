@@ -2,6 +2,8 @@
 
 #include <spdlog/sinks/null_sink.h>
 
+#include "libs/base/bounded_text.hpp"
+
 #include <mutex>
 
 namespace rcand::kernel {
@@ -28,15 +30,18 @@ std::shared_ptr<spdlog::logger> plugins_logger() noexcept {
 }
 
 namespace detail {
+namespace {
+constexpr std::size_t kFailureTextLimit = 1000;
+}  // namespace
 
 void record_plugin_throw(std::string_view who, std::string_view what, std::string& failure, std::string_view message) noexcept {
   try {
-    failure.assign(message);
+    failure = bounded_text(message, kFailureTextLimit);  // a plugin may quote a client's megabyte in its exception
   } catch (...) {
     failure.clear();  // cannot allocate the copy: leave a recognisable empty failure
   }
   try {
-    plugins_logger()->error("{}: {} threw: {}", who, what, message);
+    plugins_logger()->error("{}: {} threw: {}", who, what, failure);
   } catch (...) {  // logging never throws into the caller
   }
 }

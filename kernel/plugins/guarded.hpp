@@ -19,12 +19,12 @@ namespace rcand::kernel {
 std::shared_ptr<spdlog::logger> plugins_logger() noexcept;
 
 namespace detail {
-// Logs "<who>: <what> threw: <message>" and stores the message; never throws (falls back to a fixed text).
+// Logs "<who>: <what> threw: <message>" and stores the message (bounded: 1,000 bytes, valid UTF-8); never throws.
 void record_plugin_throw(std::string_view who, std::string_view what, std::string& failure, std::string_view message) noexcept;
 }  // namespace detail
 
 // Runs fn(); on a throw of any type logs "<who>: <what> threw: <message>" on "kernel.plugins", copies the
-// message into `failure` and returns false. Returns true (leaving `failure` untouched) when fn returns.
+// message (bounded) into `failure` and returns false. Returns true (leaving `failure` untouched) when fn returns.
 template <class F> bool guarded_call(std::string_view who, std::string_view what, std::string& failure, F&& fn) noexcept {
   try {
     std::forward<F>(fn)();

@@ -268,6 +268,8 @@ class StatusBoard::Impl final : public StatusSink, public std::enable_shared_fro
       const bool failed = source.health != nullptr && source.health->failed();
       json item = source.item;
       item["state"] = failed ? "failed" : "ok";
+      if (source.health != nullptr && source.health->handler_errors() > 0)
+        item["handler_errors"] = source.health->handler_errors();  // requests answered 500: the handler threw
       if (failed) {
         item["reason"] = source.health->reason();
         ++snapshot->failed;

@@ -356,6 +356,12 @@ class FakeHost {
       if (slot->name == name) return slot->failed;
     throw HostError("no capability '" + std::string(name) + "'");
   }
+  // How many of the capability's request handlers threw (each answered 500 INTERNAL; it stays in service).
+  std::uint64_t handler_errors(std::string_view name) const {
+    for (const auto& slot : capabilities_)
+      if (slot->name == name) return slot->handler_errors;
+    throw HostError("no capability '" + std::string(name) + "'");
+  }
 
  private:
   class Context;
@@ -382,6 +388,7 @@ class FakeHost {
     std::string name;
     bool custom = false;
     bool failed = false;
+    std::uint64_t handler_errors = 0;  // request handlers that threw (each answered 500; the instance stays)
     std::unique_ptr<Context> context;
     std::unique_ptr<Capability> instance;
     std::vector<Route> routes;
@@ -797,15 +804,15 @@ class FakeHost {
     const Scope scope = contract::route_scope(route->scope, method, custom);
     if (!role_grants(role, scope)) return contract::insufficient_scope("role " + std::string(role_name(role)), scope);
     if (route->motion && estop_.latched()) return contract::estop_active();
-    if (slot->failed) return contract::out_of_service(slot->name, "a handler threw");
+    // As the kernel (docs/protocol.md §7.16): a throw fails this request only, counted in handler_errors().
     try {
       return contract::normalized(route->handler(request));
     } catch (const std::exception& e) {
-      slot->failed = true;
-      kernel_log_.error("capability '", slot->name, "' handler threw and is marked failed: ", e.what());
+      ++slot->handler_errors;
+      kernel_log_.error("capability '", slot->name, "' request handler threw: ", e.what());
     } catch (...) {
-      slot->failed = true;
-      kernel_log_.error("capability '", slot->name, "' handler threw and is marked failed");
+      ++slot->handler_errors;
+      kernel_log_.error("capability '", slot->name, "' request handler threw");
     }
     return contract::handler_threw(slot->name);
   }
