@@ -5,6 +5,8 @@
 #include <memory>
 
 #include "kernel/api/answers.hpp"
+#include "kernel/api/api.hpp"
+#include "kernel/auth/caller_credential.hpp"
 #include "kernel/plugins/guarded.hpp"
 #include "libs/base/bounded_text.hpp"
 #include "libs/base/json_body.hpp"
@@ -51,6 +53,9 @@ std::shared_ptr<sdk::Request> make_request(const Call& call, json body) {
   request->principal = call.principal;
   request->role = call.role;
   request->message_id = call.message_id;
+  request->scopes = call.scopes;
+  // For a plugin that acts on this caller's behalf later (RequestDispatcher authorizes the caller again from it).
+  if (!call.peer) request->credential = std::make_shared<const CallerCredential>(request_credential(call.request));
   return request;
 }
 

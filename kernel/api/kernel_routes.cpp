@@ -88,7 +88,8 @@ void audit_entries(const KernelRouteDeps& d, Call& call, const Reply& reply) {
 }
 
 void plugins(const KernelRouteDeps& d, Call& call, const Reply& reply) {
-  reply(json_response(200, {{"plugins", d.host.to_json(sdk::role_grants(call.role, Scope::Config))}}));
+  // File paths only for a credential granting config (its scopes: an OWNER JWT narrowed to status does not).
+  reply(json_response(200, {{"plugins", d.host.to_json(call.has_scope(Scope::Config))}}));
 }
 
 // POST /api/plugins/<id>/reload (docs/protocol.md §7.15): answered when the reload is over; audited either way.
