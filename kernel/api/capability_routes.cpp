@@ -284,6 +284,13 @@ void CapabilityRoutes::dispatch(CapabilityInstance& instance, const sdk::Route& 
   });
 }
 
+// Whether a standard capability's route at `path` lies inside its mounts (custom capabilities' always do).
+bool within_mounts(const StandardCapability* standard, const std::string& path) {
+  return !standard || std::any_of(standard->mounts.begin(), standard->mounts.end(), [&](std::string_view mount) {
+    return mount.ends_with('*') ? path.starts_with(mount.substr(0, mount.size() - 1)) : path == mount;
+  });
+}
+
 // Rows for the routes a running capability registered (JSON and stream ones); a route outside its capability's
 // mounts is never served.
 void add_instance_routes(Router& router, const std::shared_ptr<const CapabilityRoutes>& routes,
@@ -291,10 +298,7 @@ void add_instance_routes(Router& router, const std::shared_ptr<const CapabilityR
   const StandardCapability* standard = find_standard_capability(instance.name);
   auto add = [&](const std::string& method, const std::string& route_path, Scope declared, bool motion, RouteHandler handler) {
     const std::string path = contract::served_path(instance.name, route_path);
-    const bool mounted = !standard || std::any_of(standard->mounts.begin(), standard->mounts.end(), [&](std::string_view mount) {
-      return mount.ends_with('*') ? path.starts_with(mount.substr(0, mount.size() - 1)) : path == mount;
-    });
-    if (!mounted) {
+    if (!within_mounts(standard, path)) {
       logger("kernel.api")->warn("capability {}: route {} {} is outside its endpoints; not served", instance.name, method, path);
       return;
     }
@@ -321,6 +325,29 @@ void add_instance_routes(Router& router, const std::shared_ptr<const CapabilityR
 }
 
 }  // namespace
+
+json served_routes(const CapabilityInstance& instance) {
+  const StandardCapability* standard = find_standard_capability(instance.name);
+  json list = json::array();
+  auto add = [&](const std::string& method, const std::string& path, Scope declared, bool motion, const char* kind) {
+    json row{{"method", method}, {"path", path}, {"scope", sdk::scope_name(contract::route_scope(declared, method, !standard))}};
+    if (motion) row["motion"] = true;
+    if (kind != nullptr) row[kind] = true;
+    list.push_back(std::move(row));
+  };
+  for (const auto& route : instance.routes) {
+    if (!route.action_type.empty()) {  // POST /api/action, picked by the body's type
+      add(route.method, route.path, route.scope, route.motion, nullptr);
+      list.back()["type"] = route.action_type;
+    } else if (const std::string path = contract::served_path(instance.name, route.path); within_mounts(standard, path)) {
+      add(route.method, path, route.scope, route.motion, nullptr);
+    }
+  }
+  for (const auto& route : instance.stream_routes)
+    if (const std::string path = contract::served_path(instance.name, route.path); within_mounts(standard, path))
+      add(route.method, path, route.scope, false, "stream");
+  return list;
+}
 
 void add_capability_routes(Router& router, const CapabilityRouteDeps& deps) {
   auto routes = std::make_shared<const CapabilityRoutes>(deps);

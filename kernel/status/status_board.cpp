@@ -7,6 +7,7 @@
 #include <limits>
 #include <mutex>
 
+#include "kernel/api/capability_routes.hpp"
 #include "libs/base/logging.hpp"
 #include "libs/base/worker_thread.hpp"
 #include "rcand/sdk/pose_source.hpp"
@@ -354,8 +355,12 @@ std::vector<StatusBoard::Source> StatusBoard::sources_of(PluginRuntime& runtime)
   // Polled through the runtime even without an object now: a reload may start one (status_of answers nullopt until).
   const auto poll = [&runtime](const auto& instance) { return [&runtime, &instance] { return runtime.status_of(instance); }; };
   std::vector<Source> sources;
-  for (const auto& instance : runtime.capabilities())
-    sources.push_back({instance.name, false, {{"plugin", instance.plugin_id}}, &instance.health, poll(instance)});
+  for (const auto& instance : runtime.capabilities())  // the routes as served from startup (rows never change)
+    sources.push_back({instance.name,
+                       false,
+                       {{"plugin", instance.plugin_id}, {"routes", served_routes(instance)}},
+                       &instance.health,
+                       poll(instance)});
   for (const auto& instance : runtime.drivers()) {
     nlohmann::json item{
         {"id", instance.id}, {"protocol", instance.protocol}, {"plugin", instance.plugin_id}, {"actuates", instance.actuates}};
