@@ -2,6 +2,8 @@
 #include <algorithm>
 #include <cmath>
 
+#include <rcand/sdk/request_body.hpp>
+
 #include "gripper_capability.hpp"
 #include "sim_gripper.hpp"
 
@@ -102,13 +104,13 @@ Response GripperCapability::grip(const rcand::sdk::Request& request) {
   if (has_state) {
     const Json& s = body["state"];
     if (!s.is_string() || (s != "open" && s != "close"))
-      return Response::error(400, "BAD_REQUEST", "state must be \"open\" or \"close\", found " + s.dump(),
+      return Response::error(400, "BAD_REQUEST", "state must be \"open\" or \"close\", found " + rcand::sdk::describe_value(s),
                              {{"field", "state"}, {"allowed", {"open", "close"}}});
     target = s == "open" ? 1.0 : 0.0;
   } else {
     const Json& o = body["opening"];
     if (!o.is_number() || !std::isfinite(o.get<double>()) || o.get<double>() < 0.0 || o.get<double>() > 1.0)
-      return Response::bad_request("opening", "opening must be a number in [0, 1], found " + o.dump());
+      return Response::bad_request("opening", "opening must be a number in [0, 1], found " + rcand::sdk::describe_value(o));
     target = o.get<double>();
   }
 

@@ -1,5 +1,7 @@
 #include "arm.hpp"
 
+#include <rcand/sdk/request_body.hpp>
+
 #include <cmath>
 
 namespace rcand::plugins::arm {
@@ -9,6 +11,8 @@ namespace {
 using sdk::GateStatus;
 using sdk::Json;
 using sdk::Response;
+
+constexpr std::size_t kMaxJointName = 64;
 
 std::vector<JointLimit> read_limits(const sdk::PluginContext& ctx, const std::optional<std::string>& driver, std::string& where) {
   auto limits = joint_limits_from(ctx.robot_config(), driver, where);
@@ -101,7 +105,7 @@ Response ArmCapability::arm_pose(const sdk::Request& request) {
     const auto it = name.is_string() ? poses_.find(name.get<std::string>()) : poses_.end();
     if (it == poses_.end())
       return Response::error(400, "BAD_REQUEST",
-                             "unknown pose " + name.dump() + " (configured in runtime.capabilities.arm.poses)",
+                             "unknown pose " + sdk::describe_value(name) + " (configured in runtime.capabilities.arm.poses)",
                              Json{{"field", "pose"}, {"allowed", allowed}});
     move_request.targets = it->second;
     move_request.field = "pose." + it->first;
@@ -109,9 +113,12 @@ Response ArmCapability::arm_pose(const sdk::Request& request) {
   } else {
     const Json& joints = body["joints"];
     if (!joints.is_object() || joints.empty())
-      return Response::bad_request("joints",
-                                   "joints must be a non-empty object of joint name to degrees, found " + joints.dump());
+      return Response::bad_request(
+          "joints", "joints must be a non-empty object of joint name to degrees, found " + sdk::describe_value(joints));
     for (const auto& [joint, value] : joints.items()) {
+      if (joint.size() > kMaxJointName)  // every later message names the joint: never a client's megabyte
+        return Response::bad_request("joints", "a joint name is at most " + std::to_string(kMaxJointName) + " bytes, found " +
+                                                   std::to_string(joint.size()));
       if (!value.is_number())
         return Response::bad_request("joints." + joint, "joint '" + joint + "' target must be a number of degrees, found " +
                                                             std::string(value.type_name()));
@@ -120,7 +127,8 @@ Response ArmCapability::arm_pose(const sdk::Request& request) {
   }
   if (body.contains("velocity_dps") && !body["velocity_dps"].is_null()) {
     if (!body["velocity_dps"].is_number())
-      return Response::bad_request("velocity_dps", "velocity_dps must be a number > 0, found " + body["velocity_dps"].dump());
+      return Response::bad_request("velocity_dps",
+                                   "velocity_dps must be a number > 0, found " + sdk::describe_value(body["velocity_dps"]));
     move_request.velocity_dps = body["velocity_dps"].get<double>();
   }
   return move(move_request, std::move(answer));
@@ -132,7 +140,7 @@ Response ArmCapability::grip(const sdk::Request& request) {
   const auto found = body.find("state");
   const Json state = found != body.end() ? *found : Json();
   if (!state.is_string() || (state != "open" && state != "close"))
-    return Response::error(400, "BAD_REQUEST", "state must be \"open\" or \"close\", found " + state.dump(),
+    return Response::error(400, "BAD_REQUEST", "state must be \"open\" or \"close\", found " + sdk::describe_value(state),
                            {{"field", "state"}, {"allowed", {"open", "close"}}});
   if (!gripper_joint_)
     return Response::error(400, "BAD_REQUEST", "this arm has no gripper: set runtime.capabilities.arm.gripper_joint",
