@@ -34,16 +34,16 @@ http::Response too_many_requests(const std::string& who, double per_s, std::chro
   return response;
 }
 
+}  // namespace
+
 // docs/protocol.md §3: ?token= only where clients cannot set headers (a browser's <img>, a WebSocket).
-std::optional<std::string_view> credential(const http::Request& request) {
+std::optional<std::string_view> request_credential(const http::Request& request) {
   if (auto header = request.header("authorization")) return bearer_token(*header);
   const auto token = request.query.find("token");
   if (token != request.query.end() && (request.path == "/api/stream/mjpeg" || request.path.starts_with("/ws/")))
     return token->second;
   return std::nullopt;
 }
-
-}  // namespace
 
 Api::Api(const RuntimeConfig& config, const Authenticator& auth, AuditLog& audit, const Estop& estop, const sdk::Clock& clock)
     : auth_(auth),
@@ -82,6 +82,10 @@ void Api::execute(const Principal& principal, http::Request request, http::Respo
   serve(std::move(request), &principal, std::move(respond), std::move(audit_note));
 }
 
+void Api::execute_for_caller(http::Request request, http::Respond respond, json audit_note) {
+  serve(std::move(request), nullptr, std::move(respond), std::move(audit_note), /*address_limited=*/false);
+}
+
 bool Api::admit_address(const http::Request& request, const Reply& reply) {
   const std::string address = client_address(request.remote);
   const auto wait = address_limiter_.admit(address, clock_.now_us());
@@ -102,6 +106,7 @@ bool Api::admit_principal(const Call& call, const Reply& reply) {
 
 bool Api::authenticate(Call& call, const Principal* authenticated, Scope scope, const Reply& reply) {
   if (authenticated != nullptr) {  // an R2R peer, authenticated by the R2R node: only its scopes are checked here
+    call.peer = true;
     call.principal = authenticated->name;
     call.role = authenticated->role;
     call.scopes = authenticated->scopes;
@@ -111,7 +116,7 @@ bool Api::authenticate(Call& call, const Principal* authenticated, Scope scope, 
                          {{"required_scope", sdk::scope_name(scope)}}));
     return false;
   }
-  auto verdict = auth_.authorize(credential(call.request), scope, clock_.wall_ms() / 1000);
+  auto verdict = auth_.authorize(request_credential(call.request), scope, clock_.wall_ms() / 1000);
   if (auto* failure = std::get_if<AuthError>(&verdict)) {
     log_refusal("kernel.auth", call.request, std::to_string(failure->status) + " (" + failure->message + ")");
     json extra = json::object();
@@ -126,7 +131,8 @@ bool Api::authenticate(Call& call, const Principal* authenticated, Scope scope, 
   return true;
 }
 
-void Api::serve(http::Request&& request, const Principal* authenticated, http::Respond respond, json audit_note) {
+void Api::serve(http::Request&& request, const Principal* authenticated, http::Respond respond, json audit_note,
+                bool address_limited) {
   Call call;
   call.audit_note = std::move(audit_note);
   if (auto id = request.header("x-message-id"); id && valid_message_id(*id)) call.message_id = std::string(*id);
@@ -142,7 +148,7 @@ void Api::serve(http::Request&& request, const Principal* authenticated, http::R
   // docs/protocol.md §6.4: the e-stop paths are never rate-limited; an R2R command comes from the R2R node, which
   // bounds its peers itself.
   const bool limited = match.route == nullptr || match.route->spec.rate_limited;
-  if (limited && authenticated == nullptr && !admit_address(call.request, reply)) return;
+  if (limited && address_limited && authenticated == nullptr && !admit_address(call.request, reply)) return;
   if (match.route == nullptr) {
     if (match.allowed.empty()) reply(error_response(404, "NOT_FOUND", "no endpoint " + bounded_text(call.request.path)));
     else

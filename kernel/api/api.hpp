@@ -22,6 +22,10 @@
 
 namespace rcand::kernel {
 
+// The bearer credential of a request: the Authorization header, or ?token= where docs/protocol.md §3 allows it
+// (GET /api/stream/mjpeg, WebSocket upgrades); nullopt when it has none.
+std::optional<std::string_view> request_credential(const http::Request& request);
+
 class Api {
  public:
   Api(const RuntimeConfig& config, const Authenticator& auth, AuditLog& audit, const Estop& estop, const sdk::Clock& clock);
@@ -40,9 +44,15 @@ class Api {
   // everything after authentication runs as for HTTP. An invalid or missing x-message-id header gets one made.
   // `audit_note` joins the request's audit entry (AuditEntry::note).
   void execute(const Principal& principal, http::Request request, http::Respond respond, nlohmann::json audit_note = nullptr);
+  // A request a plugin makes on a caller's behalf (RequestDispatcher), carrying that caller's credential in its
+  // Authorization header: authenticated and authorized again exactly as the caller's own HTTP request would be now
+  // (401 for a credential no longer accepted, 403 for scopes that no longer cover the route); only the per-address
+  // rate limit is skipped (every such request comes from "plugin").
+  void execute_for_caller(http::Request request, http::Respond respond, nlohmann::json audit_note = nullptr);
 
  private:
-  void serve(http::Request&& request, const Principal* authenticated, http::Respond respond, nlohmann::json audit_note = nullptr);
+  void serve(http::Request&& request, const Principal* authenticated, http::Respond respond, nlohmann::json audit_note = nullptr,
+             bool address_limited = true);
   // The audit entry, the e-stop pre-check and the handler (after the row's decorator, if any).
   void dispatch(const Route& route, Call& call, Reply reply);
   // The principal for `scope` (the R2R peer's own when `authenticated`), else answers 401/403 and returns false.

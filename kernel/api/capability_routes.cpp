@@ -5,6 +5,8 @@
 #include <memory>
 
 #include "kernel/api/answers.hpp"
+#include "kernel/api/api.hpp"
+#include "kernel/auth/caller_credential.hpp"
 #include "kernel/plugins/guarded.hpp"
 #include "libs/base/bounded_text.hpp"
 #include "libs/base/json_body.hpp"
@@ -20,6 +22,13 @@ namespace contract = sdk::contract;
 using contract::kCustomPrefix;
 
 bool is_read(std::string_view method) { return method == "GET" || method == "HEAD"; }
+
+// docs/protocol.md §7.16: a request handler that throws fails that request (500 INTERNAL, logged by the trampoline),
+// not its capability. Handlers run one at a time on the capability's worker, so the throw interrupted no other request;
+// the usual cause is a body the handler did not check (json::type_error), and failing the instance would let any
+// caller with the route's scope take the capability - its stop and cancel routes too - out of service until a restart.
+// Hangs (the worker is stuck) and lifecycle hooks still fail the instance.
+void count_handler_throw(CapabilityInstance& instance) { instance.health.count_handler_error(); }
 
 // The contract's answers (the fake host gives the same ones) as HTTP responses.
 http::Response answer(const sdk::Response& response) { return json_response(response.status, response.body); }
@@ -44,6 +53,9 @@ std::shared_ptr<sdk::Request> make_request(const Call& call, json body) {
   request->principal = call.principal;
   request->role = call.role;
   request->message_id = call.message_id;
+  request->scopes = call.scopes;
+  // For a plugin that acts on this caller's behalf later (RequestDispatcher authorizes the caller again from it).
+  if (!call.peer) request->credential = std::make_shared<const CallerCredential>(request_credential(call.request));
   return request;
 }
 
@@ -126,13 +138,12 @@ class CapabilityRoutes {
         [finish, target = instance, handler = route->handler, request, pending, writer, pass = std::move(pass)]() mutable {
           if (pending->answered.load()) return;  // timed out while queued
           std::string failure;
-          // The handler gets a copy: ours outlives a throw, so the capability is failed before any answer (a dropped
-          // writer's 500) can reach the client and let its next request in.
+          // The handler gets a copy: ours outlives a throw, so the 500 below answers before a dropped writer's would.
           const bool ok = guarded_call(target->who, "stream handler", failure, [&] { handler(*request, writer); });
           pending->returned = true;
           if (ok) return;
-          target->health.mark_failed("stream handler threw: " + failure);
-          finish(answer(contract::handler_threw(target->name)), "error", failure);
+          count_handler_throw(*target);
+          finish(answer(contract::handler_threw(target->name)), "error", bounded_text(failure));
         });
   }
 
@@ -261,8 +272,8 @@ void CapabilityRoutes::dispatch(CapabilityInstance& instance, const sdk::Route& 
     pending->returned = true;
     timers->cancel(pending->timer);
     if (!result) {
-      target->health.mark_failed("request handler threw: " + failure);
-      finish(answer(contract::handler_threw(target->name)), "error", failure);
+      count_handler_throw(*target);
+      finish(answer(contract::handler_threw(target->name)), "error", bounded_text(failure));
       return;
     }
     const std::string outcome = result->status < 300 ? "ok" : result->status == 423 ? "blocked" : "error";
@@ -273,6 +284,13 @@ void CapabilityRoutes::dispatch(CapabilityInstance& instance, const sdk::Route& 
   });
 }
 
+// Whether a standard capability's route at `path` lies inside its mounts (custom capabilities' always do).
+bool within_mounts(const StandardCapability* standard, const std::string& path) {
+  return !standard || std::any_of(standard->mounts.begin(), standard->mounts.end(), [&](std::string_view mount) {
+    return mount.ends_with('*') ? path.starts_with(mount.substr(0, mount.size() - 1)) : path == mount;
+  });
+}
+
 // Rows for the routes a running capability registered (JSON and stream ones); a route outside its capability's
 // mounts is never served.
 void add_instance_routes(Router& router, const std::shared_ptr<const CapabilityRoutes>& routes,
@@ -280,10 +298,7 @@ void add_instance_routes(Router& router, const std::shared_ptr<const CapabilityR
   const StandardCapability* standard = find_standard_capability(instance.name);
   auto add = [&](const std::string& method, const std::string& route_path, Scope declared, bool motion, RouteHandler handler) {
     const std::string path = contract::served_path(instance.name, route_path);
-    const bool mounted = !standard || std::any_of(standard->mounts.begin(), standard->mounts.end(), [&](std::string_view mount) {
-      return mount.ends_with('*') ? path.starts_with(mount.substr(0, mount.size() - 1)) : path == mount;
-    });
-    if (!mounted) {
+    if (!within_mounts(standard, path)) {
       logger("kernel.api")->warn("capability {}: route {} {} is outside its endpoints; not served", instance.name, method, path);
       return;
     }
@@ -310,6 +325,29 @@ void add_instance_routes(Router& router, const std::shared_ptr<const CapabilityR
 }
 
 }  // namespace
+
+json served_routes(const CapabilityInstance& instance) {
+  const StandardCapability* standard = find_standard_capability(instance.name);
+  json list = json::array();
+  auto add = [&](const std::string& method, const std::string& path, Scope declared, bool motion, const char* kind) {
+    json row{{"method", method}, {"path", path}, {"scope", sdk::scope_name(contract::route_scope(declared, method, !standard))}};
+    if (motion) row["motion"] = true;
+    if (kind != nullptr) row[kind] = true;
+    list.push_back(std::move(row));
+  };
+  for (const auto& route : instance.routes) {
+    if (!route.action_type.empty()) {  // POST /api/action, picked by the body's type
+      add(route.method, route.path, route.scope, route.motion, nullptr);
+      list.back()["type"] = route.action_type;
+    } else if (const std::string path = contract::served_path(instance.name, route.path); within_mounts(standard, path)) {
+      add(route.method, path, route.scope, route.motion, nullptr);
+    }
+  }
+  for (const auto& route : instance.stream_routes)
+    if (const std::string path = contract::served_path(instance.name, route.path); within_mounts(standard, path))
+      add(route.method, path, route.scope, false, "stream");
+  return list;
+}
 
 void add_capability_routes(Router& router, const CapabilityRouteDeps& deps) {
   auto routes = std::make_shared<const CapabilityRoutes>(deps);

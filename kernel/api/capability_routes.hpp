@@ -28,4 +28,8 @@ struct CapabilityRouteDeps {
 // Startup, after the capabilities started. The dependencies outlive the router's use of them.
 void add_capability_routes(Router& router, const CapabilityRouteDeps& deps);
 
+// The rows add_capability_routes serves for `instance`, for GET /api/status (docs/protocol.md §7.2):
+// [{"method", "path", "scope", "type"? (POST /api/action rows), "motion"?, "stream"?}].
+nlohmann::json served_routes(const CapabilityInstance& instance);
+
 }  // namespace rcand::kernel

@@ -96,7 +96,8 @@ void audit_entries(const KernelRouteDeps& d, Call& call, const Reply& reply) {
 // Each plugin's library record, with its driver and capability instances as the status snapshot shows them and the
 // health they add up to: a loaded library whose driver failed is not "ok".
 void plugins(const KernelRouteDeps& d, Call& call, const Reply& reply) {
-  json plugins = d.host.to_json(sdk::role_grants(call.role, Scope::Config));
+  // File paths only for a credential granting config (its scopes: an OWNER JWT narrowed to status does not).
+  json plugins = d.host.to_json(call.has_scope(Scope::Config));
   add_plugin_health(plugins, d.status.document(), true);
   reply(json_response(200, {{"plugins", std::move(plugins)}}));
 }

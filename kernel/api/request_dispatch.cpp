@@ -1,8 +1,8 @@
 #include "kernel/api/request_dispatch.hpp"
 
+#include "kernel/auth/caller_credential.hpp"
 #include "libs/base/bounded_text.hpp"
 #include "libs/base/logging.hpp"
-#include "libs/rcan/role_scopes.hpp"
 
 #include <algorithm>
 #include <array>
@@ -43,16 +43,29 @@ void KernelRequestDispatcher::dispatch(sdk::Request request, sdk::Json audit_not
       done(sdk::Response::error(500, "INVALID_AUDIT_NOTE", "request not dispatched: " + fault));
       return;
     }
-    const Principal principal{request.principal, request.role, default_scopes(request.role), "plugin"};
+    // The caller is authorized again, now, from the credential its own request came with: never from the principal
+    // and role the plugin names (a HiTL approval may come long after the caller's token was revoked).
+    const auto* caller = dynamic_cast<const CallerCredential*>(request.credential.get());
+    if (caller == nullptr) {
+      logger("kernel.api")
+          ->error("a plugin's request {} {} was not run: it carries no caller credential", bounded_text(request.method, 16),
+                  bounded_text(request.path, 200));
+      done(sdk::Response::error(401, "UNAUTHORIZED",
+                                "request not dispatched: it carries no caller credential (Request::credential of the "
+                                "request it acts for)"));
+      return;
+    }
     http::Request http;
     http.method = std::move(request.method);
     http.target = http.path = std::move(request.path);
     http.query = std::move(request.query);
+    http.query.erase("token");  // the caller's credential, and nothing else, authorizes it
     if (!request.body.is_null()) http.body = request.body.dump(-1, ' ', false, nlohmann::json::error_handler_t::replace);
     http.remote = "plugin";
+    if (caller->bearer()) http.headers["authorization"] = "Bearer " + *caller->bearer();
     if (!request.message_id.empty()) http.headers["x-message-id"] = std::move(request.message_id);
-    api_.execute(
-        principal, std::move(http),
+    api_.execute_for_caller(
+        std::move(http),
         [done](http::Response response) {
           // A stream or a binary body (a snapshot JPEG) has no JSON to hand back: the caller learns what it was.
           if (response.stream != nullptr || response.content_type != "application/json") {

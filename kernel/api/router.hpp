@@ -27,6 +27,7 @@ struct Call {
   sdk::Role role = sdk::Role::Guest;
   std::string message_id;
   std::vector<sdk::Scope> scopes;  // what the principal's credential grants
+  bool peer = false;               // authenticated by its transport (an R2R node), not by a credential of its own
   std::uint64_t audit_seq = 0;     // 0: this row is not audited by the middleware
   nlohmann::json audit_note;       // what a plugin's RequestDispatcher call adds to the audit entry (AuditEntry::note)
 

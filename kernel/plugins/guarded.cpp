@@ -2,6 +2,8 @@
 
 #include <spdlog/sinks/null_sink.h>
 
+#include "libs/base/bounded_text.hpp"
+
 #include <mutex>
 
 namespace rcand::kernel {
@@ -28,16 +30,20 @@ std::shared_ptr<spdlog::logger> plugins_logger() noexcept {
 }
 
 namespace detail {
+namespace {
+constexpr std::size_t kFailureTextLimit = 1000;
+}  // namespace
 
 void record_plugin_throw(std::string_view who, std::string_view what, Fault& failure, std::string_view message,
                          const std::exception* exception) noexcept {
   try {
     failure = exception != nullptr ? fault_of(*exception) : Fault{std::string(message), {}, {}, {}};
+    failure.reason = bounded_text(failure.reason, kFailureTextLimit);  // a plugin may quote a client's megabyte
   } catch (...) {
     failure = {};  // cannot allocate the copy: leave a recognisable empty failure
   }
   try {
-    plugins_logger()->error("{}: {} threw: {}", who, what, message);
+    plugins_logger()->error("{}: {} threw: {}", who, what, failure.reason);
   } catch (...) {  // logging never throws into the caller
   }
 }

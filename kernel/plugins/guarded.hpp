@@ -21,8 +21,8 @@ namespace rcand::kernel {
 std::shared_ptr<spdlog::logger> plugins_logger() noexcept;
 
 namespace detail {
-// Logs "<who>: <what> threw: <message>" and stores why (`exception`, when there is one: fault_of() it); never throws
-// (falls back to an empty reason).
+// Logs "<who>: <what> threw: <message>" and stores why (`exception`, when there is one: fault_of() it), the reason
+// bounded (1,000 bytes, valid UTF-8); never throws (falls back to an empty reason).
 void record_plugin_throw(std::string_view who, std::string_view what, Fault& failure, std::string_view message,
                          const std::exception* exception = nullptr) noexcept;
 }  // namespace detail

@@ -1,9 +1,12 @@
-// Whether one plugin instance (a capability or a driver) is still in service. An exception from plugin code
-// marks it failed once, with the first reason; it stays failed until rcand restarts (or its plugin is reloaded).
-// A fault a driver reported as an sdk::DeviceFault keeps its device, OS error and hint beside the reason.
+// Whether one plugin instance (a capability or a driver) is still in service. An exception from a lifecycle hook or a
+// driver, or a handler that hangs, marks it failed once, with the first reason; it stays failed until rcand restarts
+// (or its plugin is reloaded). An exception from a request handler only fails that request (docs/protocol.md §7.16):
+// it is counted here and shown as the capability's handler_errors. A fault a driver reported as an sdk::DeviceFault
+// keeps its device, OS error and hint beside the reason.
 #pragma once
 
 #include <atomic>
+#include <cstdint>
 #include <exception>
 #include <mutex>
 #include <string>
@@ -50,9 +53,13 @@ class InstanceHealth {
     std::lock_guard lock(mutex_);
     return fault_;
   }
+  // A request handler threw: that request got 500 INTERNAL; the instance stays in service.
+  void count_handler_error() noexcept { handler_errors_.fetch_add(1, std::memory_order_relaxed); }
+  std::uint64_t handler_errors() const noexcept { return handler_errors_.load(std::memory_order_relaxed); }
 
  private:
   std::atomic<bool> failed_{false};
+  std::atomic<std::uint64_t> handler_errors_{0};
   mutable std::mutex mutex_;  // guards fault_ only
   Fault fault_;
 };

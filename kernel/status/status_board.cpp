@@ -7,6 +7,7 @@
 #include <limits>
 #include <mutex>
 
+#include "kernel/api/capability_routes.hpp"
 #include "libs/base/bounded_text.hpp"
 #include "libs/base/logging.hpp"
 #include "libs/base/plugin_health.hpp"
@@ -312,6 +313,8 @@ class StatusBoard::Impl final : public StatusSink, public std::enable_shared_fro
   json item_of(const Entry& entry, const std::vector<board::DriverView>& drivers, std::int64_t now) const {
     const auto& source = entry.source;
     json item = source.item;
+    if (source.health != nullptr && source.health->handler_errors() > 0)
+      item["handler_errors"] = source.health->handler_errors();  // requests answered 500: the handler threw
     if (source.health != nullptr && source.health->failed()) {
       item["state"] = "failed";
       add_fault(item, source.health->fault());
@@ -437,8 +440,13 @@ std::vector<StatusBoard::Source> StatusBoard::sources_of(PluginRuntime& runtime)
   // Polled through the runtime even without an object now: a reload may start one (status_of answers nullopt until).
   const auto poll = [&runtime](const auto& instance) { return [&runtime, &instance] { return runtime.status_of(instance); }; };
   std::vector<Source> sources;
-  for (const auto& instance : runtime.capabilities())
-    sources.push_back({instance.name, false, {{"plugin", instance.plugin_id}}, &instance.health, poll(instance), instance.needs});
+  for (const auto& instance : runtime.capabilities())  // the routes as served from startup (rows never change)
+    sources.push_back({instance.name,
+                       false,
+                       {{"plugin", instance.plugin_id}, {"routes", served_routes(instance)}},
+                       &instance.health,
+                       poll(instance),
+                       instance.needs});
   for (const auto& instance : runtime.drivers()) {
     nlohmann::json item{
         {"id", instance.id}, {"protocol", instance.protocol}, {"plugin", instance.plugin_id}, {"actuates", instance.actuates}};

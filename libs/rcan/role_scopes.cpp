@@ -1,13 +1,10 @@
 #include "libs/rcan/role_scopes.hpp"
 
+#include "rcand/sdk/http.hpp"
+
 namespace rcand {
 
-std::vector<sdk::Scope> default_scopes(sdk::Role role) {
-  std::vector<sdk::Scope> scopes;
-  for (sdk::Scope scope : {sdk::Scope::Status, sdk::Scope::Control, sdk::Scope::Config, sdk::Scope::Training, sdk::Scope::Admin})
-    if (sdk::role_grants(role, scope)) scopes.push_back(scope);
-  return scopes;
-}
+std::vector<sdk::Scope> default_scopes(sdk::Role role) { return sdk::default_scopes_of(role); }
 
 std::vector<sdk::Scope> granted_scopes(sdk::Role role, const std::vector<std::string>& claimed) {
   std::vector<sdk::Scope> scopes;

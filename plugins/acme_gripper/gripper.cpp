@@ -4,6 +4,8 @@
 #include <algorithm>
 #include <cmath>
 
+#include <rcand/sdk/request_body.hpp>
+
 #include "gripper_capability.hpp"
 #include "sim_gripper.hpp"
 
@@ -144,14 +146,14 @@ void register_gripper(rcand::sdk::Registrar& registrar) {
   registrar.add_capability({"com.acme.gripper", true}, [](rcand::sdk::PluginContext& ctx) {
     return std::make_unique<acme::gripper::GripperCapability>(ctx);
   });
-  registrar.add_driver({"acme_gripper_sim", true, std::string(acme::gripper::Gripper::kInterface)},
-                       [](rcand::sdk::PluginContext& ctx) -> std::unique_ptr<rcand::sdk::Driver> {
-                         const double object_size = ctx.config().get_or("object_size", 0.0);
-                         if (!std::isfinite(object_size) || object_size < 0.0 || object_size > 1.0)
-                           throw rcand::sdk::ConfigError("object_size: expected a number in [0, 1], found " +
-                                                         std::to_string(object_size));
-                         return std::make_unique<acme::gripper::SimGripper>(object_size);
-                       });
+  registrar.add_driver(
+      {"acme_gripper_sim", true, std::string(acme::gripper::Gripper::kInterface)},
+      [](rcand::sdk::PluginContext& ctx) -> std::unique_ptr<rcand::sdk::Driver> {
+        const double object_size = ctx.config().get_or("object_size", 0.0);
+        if (!std::isfinite(object_size) || object_size < 0.0 || object_size > 1.0)
+          throw rcand::sdk::ConfigError("object_size: expected a number in [0, 1], found " + std::to_string(object_size));
+        return std::make_unique<acme::gripper::SimGripper>(object_size);
+      });
 }
 
 }  // namespace

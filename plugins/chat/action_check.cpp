@@ -1,6 +1,7 @@
 #include "action_check.hpp"
 
 #include <rcand/sdk/contract/requests.hpp>
+#include <rcand/sdk/request_body.hpp>
 
 #include <algorithm>
 #include <cmath>
@@ -113,7 +114,7 @@ std::variant<CheckedAction, sdk::Response> check_action(const Json& action, cons
     const auto type = c.body.find("type");
     if (type == c.body.end() || !type->is_string()) return rejected("body.type", "an action needs a type");
     const auto* standard = contract::capability_of_action(type->get<std::string>());
-    if (standard == nullptr) return rejected("body.type", "unknown action type " + type->dump());
+    if (standard == nullptr) return rejected("body.type", "unknown action type " + sdk::describe_value(*type));
     c.capability = std::string(standard->name);
     if (*type == "stop") c.motion = false;
     if (*type == "move")

@@ -143,3 +143,67 @@ TEST_CASE("the API key stays out of chat's answers, thoughts, status and logs") 
   CHECK(everything.find("sk-chain-secret") == std::string::npos);
   for (const auto& line : f.host.log_lines()) CHECK_MESSAGE(line.find("sk-chain-secret") == std::string::npos, line);
 }
+
+TEST_CASE("a model server that echoes the API key into any field: the key reaches no answer, thought, dispatch or log") {
+  ScriptedModelServer primary(ScriptedModelServer::Wire::OpenAI);
+  ScriptedModelServer backup(ScriptedModelServer::Wire::Ollama);
+  const std::string key = "sk-echoed-secret-0123456789";
+  ::setenv("RCAND_TEST_ECHO_KEY", key.c_str(), 1);
+  Fixture f(rover_config(brains(primary, backup, {{"api_key_env", "RCAND_TEST_ECHO_KEY"}}), {{"provider", "primary"}}));
+  f.host.run_pending();
+  // Not understood: the key in the reply, the reasoning and every suggestion (what a USER is answered).
+  primary.then(ScriptedModelServer::answer({{"reply", "your key is " + key},
+                                            {"reasoning", key},
+                                            {"action", nullptr},
+                                            {"confidence", 0.2},
+                                            {"suggestions", {"try " + key, key + " again", "x" + key + "y"}}}));
+  // An action carrying the key in its body (and as an object key): dispatched to a declared custom capability.
+  primary.then(ScriptedModelServer::answer(answer_with({{"method", "POST"},
+                                                        {"path", "/api/cap/com.acme.gripper/grip"},
+                                                        {"body", {{"state", "close"}, {"note", "key " + key}, {key, true}}}})));
+  const auto refused = f.say("what is my key", Role::User);
+  REQUIRE(refused->status() == 422);
+  CHECK(refused->json()["suggestions"].size() == 3);
+  CHECK(refused->json()["suggestions"][0] == "try [api key]");
+  const auto dispatched = f.say("close it with the key", Role::User);
+  REQUIRE(dispatched->status() == 200);
+  REQUIRE(f.dispatcher.requests.size() == 1);
+  CHECK(f.dispatcher.requests[0].body["note"] == "key [api key]");
+  std::string everything = refused->json().dump() + dispatched->json().dump() + f.dispatcher.requests[0].body.dump();
+  for (const auto& w : {refused, dispatched})
+    everything += f.get("/api/thoughts/" + w->json()["thought_id"].get<std::string>(), Role::Owner).body.dump();
+  INFO(everything);
+  CHECK(everything.find(key) == std::string::npos);
+  CHECK(everything.find("sk-echoed") == std::string::npos);  // no half key either
+  for (const auto& line : f.host.log_lines()) CHECK_MESSAGE(line.find("sk-echoed") == std::string::npos, line);
+}
+
+TEST_CASE("a hostile model's texts are bounded: a 200 KB confidence, a 100 KB reply, huge suggestions") {
+  ScriptedModelServer primary(ScriptedModelServer::Wire::OpenAI);
+  ScriptedModelServer backup(ScriptedModelServer::Wire::Ollama);
+  Fixture f(rover_config(brains(primary, backup), {{"provider", "primary"}}));
+  f.host.run_pending();
+  // The case: a string confidence of 200 KB was quoted whole in the answer, the thought and the log line.
+  primary.then(
+      ScriptedModelServer::answer({{"reply", "ok"}, {"action", waypoint(1, 0)}, {"confidence", std::string(200 * 1024, '9')}}));
+  primary.then(ScriptedModelServer::answer({{"reply", std::string(100 * 1024, 'r')},
+                                            {"reasoning", std::string(50 * 1024, 'w')},
+                                            {"action", nullptr},
+                                            {"confidence", 0.1},
+                                            {"suggestions", {std::string(30 * 1024, 's'), std::string(30 * 1024, 't')}}}));
+  const auto failed = f.say("go forward 1 metre");  // the model failed: the grammar brain answered
+  REQUIRE(failed->status() == 200);
+  CHECK(failed->json()["brain"] == "grammar");
+  CHECK(failed->json()["attempts"][0]["error"].get<std::string>().find("confidence") != std::string::npos);
+  const auto huge = f.say("do the thing");
+  REQUIRE(huge->status() == 422);
+  CHECK(huge->json()["raw_text"].get<std::string>().size() <= 4003);
+  for (const auto& s : huge->json()["suggestions"]) CHECK(s.get<std::string>().size() <= 203);
+  for (const auto& w : {failed, huge}) {
+    const auto body = w->json().dump();
+    CHECK_MESSAGE(body.size() < 16 * 1024, body.size());
+    const auto thought = f.get("/api/thoughts/" + w->json()["thought_id"].get<std::string>(), Role::Owner).body.dump();
+    CHECK_MESSAGE(thought.size() < 24 * 1024, thought.size());
+  }
+  for (const auto& line : f.host.log_lines()) CHECK_MESSAGE(line.size() < 8 * 1024, line.substr(0, 200));
+}

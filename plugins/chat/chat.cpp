@@ -2,6 +2,7 @@
 
 #include <rcand/sdk/bounded_text.hpp>
 #include <rcand/sdk/pose_source.hpp>
+#include <rcand/sdk/request_body.hpp>
 #include <rcand/sdk/request_dispatcher.hpp>
 
 #include <random>
@@ -10,6 +11,7 @@
 #include "action_check.hpp"
 #include "brain_metrics.hpp"
 #include "injection_scan.hpp"
+#include "proposal_guard.hpp"
 
 namespace rcand::plugins::chat {
 namespace {
@@ -42,6 +44,47 @@ Response refusal(int status, std::string code, std::string message, const Json& 
   return Response::error(status, std::move(code), std::move(message), std::move(body));
 }
 
+// rcand's answer when it did not run a dispatched request because the caller's credential no longer allows it.
+bool caller_unauthorized(const Json& body) {
+  const auto code = body.is_object() ? body.find("code") : body.end();
+  return code != body.end() && (*code == "UNAUTHORIZED" || *code == "INSUFFICIENT_PRIVILEGES");
+}
+
+// What the approver is answered when rcand refused the instruction's caller at dispatch: not the 401/403 itself (the
+// approver's own credential is fine, and a client that sees 401 drops its token), but 409 naming the caller.
+Response caller_refused(Response r, const std::string& caller) {
+  Json body = std::move(r.body);
+  body["caller_status"] = r.status;
+  body["caller_code"] = body.value("code", "");
+  return Response::error(409, "CALLER_UNAUTHORIZED",
+                         "the instruction's caller '" + caller + "' is no longer authorized for this action (" +
+                             std::to_string(r.status) + "); nothing was dispatched",
+                         std::move(body));
+}
+
+// A dispatch's outcome for the thought log.
+std::string dispatched_state(const Response& r) { return caller_unauthorized(r.body) ? "refused" : "dispatched"; }
+
+// Why an action was not put in the HiTL queue (docs/protocol.md §7.5: a share per principal).
+Response hitl_refusal(HitlQueue::Admission why, const HitlQueue::Limits& limits, const Json& answer, const std::string& reason) {
+  const Json hitl{{"state", "refused"}, {"reason", reason}};
+  switch (why) {
+    case HitlQueue::Admission::OverShare:
+      return refusal(429, "TOO_MANY_PENDING",
+                     "you already have " + std::to_string(limits.per_principal) +
+                         " actions waiting for approval (runtime.capabilities.chat.hitl_per_principal)",
+                     answer, Json{{"hitl", hitl}, {"limit", limits.per_principal}});
+    case HitlQueue::Admission::Reserved:
+      return refusal(503, "HITL_SLOTS_RESERVED",
+                     "the human-in-the-loop queue's last " + std::to_string(limits.reserved) +
+                         " slots are kept for OWNER and CREATOR (runtime.capabilities.chat.hitl_reserved)",
+                     answer, Json{{"hitl", hitl}, {"limit", limits.limit}});
+    default:
+      return refusal(503, "UNAVAILABLE", "the human-in-the-loop queue is full (runtime.capabilities.chat.hitl_limit)", answer,
+                     Json{{"hitl", hitl}, {"limit", limits.limit}});
+  }
+}
+
 }  // namespace
 
 struct Chat::Thought {
@@ -59,11 +102,12 @@ Chat::Chat(sdk::PluginContext& ctx)
       settings_(read_chat_settings(ctx.config(), ctx.robot_config())),
       pool_(ctx, settings_.workers, settings_.queue_limit),
       thoughts_(settings_.thought_log_size),
-      hitl_(settings_.hitl_limit),
+      hitl_({settings_.hitl_limit, settings_.hitl_per_principal, settings_.hitl_reserved}),
       timer_(ctx.worker("deadline")),
       canceller_(ctx.worker("estop")) {
   for (const auto& brain : settings_.model_brains) {
     model_brains_.push_back(std::make_unique<ModelBrain>(brain));
+    if (!brain.api_key.empty()) secrets_.push_back(brain.api_key);
     // Never the key: where it comes from is enough to debug with.
     ctx_.log().info("brain '", brain.provider, "': ", brain.format == WireFormat::OpenAI ? "OpenAI-compatible" : "Ollama", " at ",
                     brain.url, ", model ", brain.model, ", timeout ", brain.timeout.count(), " ms",
@@ -237,6 +281,9 @@ sdk::Proposal Chat::ask_brains(const Thought& thought, const sdk::BrainContext& 
       }
     }
     if (p.brain.empty()) p.brain = provider;
+    // The one place every brain's answer passes before anything stores, logs, answers or dispatches it: every API key
+    // chat knows redacted from every text and the action, every text bounded (proposal_guard.hpp).
+    p = guard_proposal(std::move(p), secrets_);
     const double ms = std::chrono::duration<double, std::milli>(Clock::now() - started).count();
     attempts.push_back({{"brain", provider}, {"latency_ms", ms}, {"error", p.error.empty() ? Json(nullptr) : Json(p.error)}});
     record_brain_call(ctx_, provider, p, Clock::now() >= request.deadline, attempts.size() > 1, Clock::now() - started);
@@ -338,7 +385,10 @@ void Chat::think(const std::shared_ptr<Thought>& thought, const sdk::CancelToken
            hitl ? hitl->timeout : settings_.escalation_timeout, hitl ? hitl->approve_on_timeout : false);
       return;
     }
-    dispatch(thought, answer_body, action, [this, thought](Response r) { answer(*thought, "dispatched", std::move(r)); });
+    dispatch(thought, answer_body, action, [this, thought](Response r) {
+      const std::string state = dispatched_state(r);
+      answer(*thought, state, std::move(r));
+    });
   } catch (const std::exception& e) {
     ctx_.log().error("thought ", thought->id, ": ", e.what());
     answer(*thought, "failed",
@@ -370,9 +420,10 @@ void Chat::hold(const std::shared_ptr<Thought>& thought, const Json& answer_body
       dispatch(thought, answer_body, action, [this, thought, hitl, reply](Response r) {
         thoughts_.update(
             thought->id,
-            {{"state", "dispatched"}, {"status", r.status}, {"result", bounded_json(r.body.value("result", Json()))}});
+            {{"state", dispatched_state(r)}, {"status", r.status}, {"result", bounded_json(r.body.value("result", Json()))}});
         ctx_.publish_status(status());
         if (!reply) return;
+        if (caller_unauthorized(r.body)) r = caller_refused(std::move(r), thought->request.principal);
         r.body["hitl"] = hitl;
         reply(std::move(r));
       });
@@ -388,11 +439,10 @@ void Chat::hold(const std::shared_ptr<Thought>& thought, const Json& answer_body
                     "; nothing was dispatched");
     if (reply) reply(Response::ok({{"thought_id", thought->id}, {"dispatched", false}, {"hitl", hitl}}));
   };
-  if (!hitl_.add(id, summary, decide, thought->epoch)) {
-    answer(*thought, "refused",
-           refusal(503, "UNAVAILABLE", "the human-in-the-loop queue is full (runtime.capabilities.chat.hitl_limit)", answer_body,
-                   Json{{"hitl", {{"state", "refused"}, {"reason", reason}}}}),
-           {{"Retry-After", "5"}});
+  const bool privileged = static_cast<int>(thought->request.role) >= static_cast<int>(sdk::Role::Owner);
+  if (const auto admitted = hitl_.add(id, summary, decide, thought->epoch, thought->request.principal, privileged);
+      admitted != HitlQueue::Admission::Added) {
+    answer(*thought, "refused", hitl_refusal(admitted, hitl_.limits(), answer_body, reason), {{"Retry-After", "5"}});
     return;
   }
   ++counters_.held;
@@ -419,33 +469,29 @@ void Chat::authorize(const sdk::Request& request, const std::shared_ptr<sdk::Str
   const auto refuse = [&writer](const Response& r) { writer->respond(r); };
   if (static_cast<int>(request.role) < static_cast<int>(sdk::Role::Owner))
     return refuse(Response::error(403, "FORBIDDEN", "approving a brain's action needs the OWNER role or higher"));
-  const Json& body = request.body;
-  if (!body.is_object()) return refuse(Response::bad_request("body", "expected {\"thought_id\", \"decision\"}"));
-  if (!body.contains("thought_id") || !body["thought_id"].is_string())
-    return refuse(Response::bad_request("thought_id", "thought_id is required: the id POST /api/command answered"));
-  const std::string decision = body.value("decision", "");
-  if (decision != "approve" && decision != "deny")
-    return refuse(Response::bad_request("decision", "decision must be \"approve\" or \"deny\""));
-  if (body.contains("reason") && (!body["reason"].is_string() || body["reason"].get<std::string>().size() > 500))
-    return refuse(Response::bad_request("reason", "reason is a string of at most 500 characters"));
-  const std::string id = body["thought_id"];
-  auto taken = hitl_.take(id);
+  sdk::BodyReader in(request.body, "{\"thought_id\", \"decision\": \"approve\" | \"deny\", \"reason\"?}");
+  const auto id = in.string("thought_id", sdk::Field::Required, 64, /*non_empty=*/true);
+  const auto decision = in.one_of("decision", {"approve", "deny"}, sdk::Field::Required);
+  const auto why = in.string("reason", sdk::Field::Optional, 500);
+  if (in.error()) return refuse(*in.error());
+  auto taken = hitl_.take(*id);
   if (!taken) {
-    const auto known = is_thought_id(id) ? thoughts_.get(id, false) : std::nullopt;
+    const auto known = is_thought_id(*id) ? thoughts_.get(*id, false) : std::nullopt;
     if (known)
       return refuse(Response::error(409, "NOT_PENDING", "this thought is not waiting for approval",
-                                    Json{{"thought_id", id}, {"state", known->value("state", "")}}));
+                                    Json{{"thought_id", *id}, {"state", known->value("state", "")}}));
     return refuse(Response::error(404, "NOT_FOUND", "no thought waits under this id", Json{{"field", "thought_id"}}));
   }
   timer_.cancel(taken->timer);
-  taken->decide(decision == "approve" ? HitlQueue::Decision::Approve : HitlQueue::Decision::Deny, request.principal,
-                sdk::bounded_text(body.value("reason", ""), 500), [writer](const Response& r) { writer->respond(r); });
+  taken->decide(*decision == "approve" ? HitlQueue::Decision::Approve : HitlQueue::Decision::Deny, request.principal,
+                why.value_or(""), [writer](const Response& r) { writer->respond(r); });
 }
 
 Response Chat::thought(const sdk::Request& request) const {
   const std::string id = request.path.size() > kThoughtsPrefix.size() ? request.path.substr(kThoughtsPrefix.size()) : "";
-  // The reasoning may quote the prompt and what others asked: only for roles with scope config.
-  const auto found = is_thought_id(id) ? thoughts_.get(id, sdk::role_grants(request.role, sdk::Scope::Config)) : std::nullopt;
+  // The reasoning may quote the prompt and what others asked: only for callers whose credential grants scope config
+  // (its scopes, not its role: an OWNER JWT narrowed to status and control has no config).
+  const auto found = is_thought_id(id) ? thoughts_.get(id, request.has_scope(sdk::Scope::Config)) : std::nullopt;
   if (!found)
     return Response::error(
         404, "NOT_FOUND",
@@ -468,12 +514,22 @@ void Chat::dispatch(const std::shared_ptr<Thought>& thought, const Json& answer_
   request.body = action.body;
   request.principal = thought->request.principal;
   request.role = thought->request.role;
+  request.scopes = thought->request.scopes;
+  // The caller's own credential: rcand authorizes the caller again now, so an approval that comes after the caller's
+  // token was revoked (or its JWT expired, or its role was lowered) runs nothing.
+  request.credential = thought->request.credential;
   request.message_id = thought->id;
   const std::string route = action.method + " " + action.path;
-  auto done = [reply, answer = Json(answer_body), &log = ctx_.log(), id = thought->id, route](Response result) mutable {
-    answer["dispatched"] = true;
+  auto done = [reply, answer = Json(answer_body), &log = ctx_.log(), id = thought->id, route,
+               who = thought->request.principal](Response result) mutable {
+    // 401/403 from rcand's own authorization: the caller no longer holds what the action needs; nothing ran.
+    const bool unauthorized = caller_unauthorized(result.body);
+    answer["dispatched"] = !unauthorized;
     answer["result"] = result.body;
-    log.info("thought ", id, ": ", route, " answered ", result.status);
+    if (unauthorized)
+      log.warn("thought ", id, ": ", route, " not run: the caller '", who, "' is no longer authorized for it (", result.status,
+               ")");
+    else log.info("thought ", id, ": ", route, " answered ", result.status);
     if (result.status < 300) {
       reply(Response::ok(std::move(answer)));
       return;

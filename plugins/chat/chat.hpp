@@ -75,6 +75,7 @@ class Chat final : public sdk::Capability {
   const ChatSettings settings_;
   const GrammarBrain grammar_;
   std::vector<std::unique_ptr<ModelBrain>> model_brains_;
+  std::vector<std::string> secrets_;  // every HTTP brain's API key: redacted from whatever any brain returns
   BrainPool pool_;
   ThoughtLog thoughts_;
   HitlQueue hitl_;

@@ -8,6 +8,7 @@
 #include <rcand/sdk/testing/fake_host.hpp>
 #include <rcand/sdk/testing/recording_stream.hpp>
 
+#include <algorithm>
 #include <fstream>
 #include <mutex>
 
@@ -43,14 +44,27 @@ inline json rover_config(json chat = json::object(), json agent = {{"provider", 
           {"runtime", {{"capabilities", {{"chat", chat}}}}}};
 }
 
-// rcand's RequestDispatcher as a double: records each request and answers `answer` at once.
+// The credential a Fixture request carries, as rcand attaches its own (opaque to chat).
+inline std::shared_ptr<const sdk::Credential> credential_of(const std::string& principal, Role role) {
+  auto c = std::make_shared<FakeHost::TestCredential>();
+  c->principal = principal;
+  c->role = role;
+  return c;
+}
+
+// rcand's RequestDispatcher as a double: records each request and answers `answer` at once - or, as rcand does when it
+// authorizes the caller again, 401 for a request without a credential or with one in `revoked`.
 struct Dispatcher final : sdk::RequestDispatcher {
   mutable std::vector<sdk::Request> requests;
   mutable std::vector<json> audit_notes;
   Response answer = Response::ok({{"ok", true}});
+  std::vector<std::string> revoked;  // principals whose credential no longer authorizes anything
   void dispatch(sdk::Request request, json audit_note, std::function<void(Response)> done) const noexcept override {
     requests.push_back(request);
     audit_notes.push_back(std::move(audit_note));
+    const auto* caller = dynamic_cast<const FakeHost::TestCredential*>(request.credential.get());
+    if (caller == nullptr || std::find(revoked.begin(), revoked.end(), caller->principal) != revoked.end())
+      return done(Response::error(401, "UNAUTHORIZED", "unknown or invalid token"));
     done(answer);
   }
 };
@@ -94,13 +108,15 @@ struct Fixture {
   rcand::plugins::chat::Chat& chat() { return host.capability<rcand::plugins::chat::Chat>("chat"); }
 
   // POST /api/command as the kernel hands it to the stream route; the brain runs only on run_pending().
-  std::shared_ptr<RecordingStream> post(json body, Role role = Role::User, bool run = true) {
+  std::shared_ptr<RecordingStream> post(json body, Role role = Role::User, bool run = true, std::string principal = "alice") {
     sdk::Request request;
     request.method = "POST";
     request.path = "/api/command";
     request.body = std::move(body);
-    request.principal = "alice";
+    request.principal = principal;
     request.role = role;
+    request.scopes = sdk::default_scopes_of(role);
+    request.credential = credential_of(principal, role);
     request.message_id = "m-42";
     auto writer = std::make_shared<RecordingStream>();
     stream_route("POST", "/api/command").handler(request, writer);
@@ -114,12 +130,15 @@ struct Fixture {
     return {};
   }
   // A plain route of chat's (GET /api/thoughts/*, GET /api/hitl/pending), called as the kernel would.
-  Response get(const std::string& path, Role role = Role::User) {
+  // `scopes`: what the caller's credential grants (default: every scope of `role`; a narrowed JWT grants fewer).
+  Response get(const std::string& path, Role role = Role::User, std::optional<std::vector<sdk::Scope>> scopes = std::nullopt) {
     sdk::Request request;
     request.method = "GET";
     request.path = path;
     request.role = role;
+    request.scopes = scopes ? *scopes : sdk::default_scopes_of(role);
     request.principal = "reader";
+    request.credential = credential_of(request.principal, role);
     for (auto& r : chat().routes()) {
       const bool prefix = r.path.ends_with('*');
       if (r.method == "GET" && (prefix ? path.rfind(r.path.substr(0, r.path.size() - 1), 0) == 0 : path == r.path))
@@ -136,12 +155,16 @@ struct Fixture {
     request.body = std::move(body);
     request.principal = "olivia";
     request.role = role;
+    request.scopes = sdk::default_scopes_of(role);
+    request.credential = credential_of(request.principal, role);
     auto writer = std::make_shared<RecordingStream>();
     stream_route("POST", "/api/hitl/authorize").handler(request, writer);
     host.run_pending();
     return writer;
   }
-  std::shared_ptr<RecordingStream> say(const std::string& instruction) { return post({{"instruction", instruction}}); }
+  std::shared_ptr<RecordingStream> say(const std::string& instruction, Role role = Role::User, std::string principal = "alice") {
+    return post({{"instruction", instruction}}, role, true, std::move(principal));
+  }
 };
 
 }  // namespace chat_test

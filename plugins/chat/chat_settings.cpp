@@ -99,6 +99,11 @@ ChatSettings read_chat_settings(const sdk::ConfigView& own, const sdk::ConfigVie
   s.hitl_gates = read_hitl_gates(robot);
   s.thought_log_size = static_cast<std::size_t>(own.get_or<long long>("thought_log_size", 256));
   s.hitl_limit = static_cast<std::size_t>(own.get_or<long long>("hitl_limit", 32));
+  s.hitl_per_principal = static_cast<std::size_t>(own.get_or<long long>("hitl_per_principal", 8));
+  s.hitl_reserved = static_cast<std::size_t>(own.get_or<long long>("hitl_reserved", static_cast<long long>(s.hitl_limit / 4)));
+  if (s.hitl_reserved > 0 && s.hitl_reserved >= s.hitl_limit)
+    throw ConfigError("runtime.capabilities.chat.hitl_reserved: must be below hitl_limit (" + std::to_string(s.hitl_limit) +
+                      "): principals below OWNER need at least one slot");
   s.escalation_timeout = std::chrono::milliseconds(own.get_or<long long>("escalation_timeout_ms", 30000));
 
   ActionLimits& l = s.limits;

@@ -45,6 +45,8 @@ struct ChatSettings {
   std::vector<HitlGate> hitl_gates;
   std::size_t thought_log_size = 256;                   // thoughts GET /api/thoughts/<id> still knows
   std::size_t hitl_limit = 32;                          // actions waiting for approval at once
+  std::size_t hitl_per_principal = 8;                   // of one principal below OWNER
+  std::size_t hitl_reserved = 8;                        // the last slots, for OWNER and CREATOR only (default: a quarter)
   std::chrono::milliseconds escalation_timeout{30000};  // an escalated action's wait when no HiTL gate names it
   ActionLimits limits;
 };

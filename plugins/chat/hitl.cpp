@@ -56,11 +56,17 @@ const HitlGate* matching_hitl_gate(const std::vector<HitlGate>& gates, sdk::Scop
   return nullptr;
 }
 
-bool HitlQueue::add(const std::string& thought_id, sdk::Json summary, Decide decide, std::uint64_t epoch) {
+HitlQueue::Admission HitlQueue::add(const std::string& thought_id, sdk::Json summary, Decide decide, std::uint64_t epoch,
+                                    const std::string& principal, bool privileged) {
   std::lock_guard lock(mutex_);
-  if (waits_.size() >= limit_) return false;
-  waits_[thought_id] = Wait{++seq_, std::move(summary), std::move(decide), 0, epoch};
-  return true;
+  if (waits_.size() >= limits_.limit) return Admission::Full;
+  if (!privileged) {
+    if (waits_.size() + limits_.reserved >= limits_.limit) return Admission::Reserved;
+    const auto held = std::count_if(waits_.begin(), waits_.end(), [&](const auto& w) { return w.second.principal == principal; });
+    if (static_cast<std::size_t>(held) >= limits_.per_principal) return Admission::OverShare;
+  }
+  waits_[thought_id] = Wait{++seq_, std::move(summary), std::move(decide), 0, epoch, principal};
+  return Admission::Added;
 }
 
 bool HitlQueue::set_timer(const std::string& thought_id, std::uint64_t timer) {

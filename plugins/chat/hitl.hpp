@@ -42,18 +42,31 @@ const HitlGate* matching_hitl_gate(const std::vector<HitlGate>& gates, sdk::Scop
 
 // The waiting actions. Thread-safe; never blocks beyond a brief lock. Exactly one decision reaches each wait: the
 // first take() of its id wins (an approval racing the timeout or an e-stop).
+//
+// Shares (docs/protocol.md §7.5): the queue holds `limit` waits. A principal below OWNER holds at most `per_principal`
+// of them, and the last `reserved` slots are only for OWNER and CREATOR - so one USER (or a few) can never fill the
+// queue and have the OWNER's own gated instructions refused.
 class HitlQueue {
  public:
   enum class Decision { Approve, Deny, Timeout, Estop, Shutdown };
+  enum class Admission { Added, Full, OverShare, Reserved };
+  struct Limits {
+    std::size_t limit = 32;         // waits at once
+    std::size_t per_principal = 8;  // of one principal below OWNER
+    std::size_t reserved = 8;       // the last slots, for OWNER and CREATOR only
+  };
   // Runs the decision (on the deciding thread, never blocking); `by` is the deciding principal ("" for a timeout or
   // the e-stop); `reply`, when set, answers the approver (POST /api/hitl/authorize).
   using Reply = std::function<void(sdk::Response)>;
   using Decide = std::function<void(Decision, const std::string& by, const std::string& reason, Reply reply)>;
 
-  explicit HitlQueue(std::size_t limit) : limit_(limit) {}
-  // false: the queue is full.
+  explicit HitlQueue(Limits limits) : limits_(limits) {}
+  // Added, or why not: Full (no slot left), OverShare (`principal` holds its share already), Reserved (only reserved
+  // slots are left and `privileged` - OWNER or CREATOR - is false).
   // `epoch`: the e-stop epoch the instruction came in under (take_all() reaches only older ones).
-  bool add(const std::string& thought_id, sdk::Json summary, Decide decide, std::uint64_t epoch = 0);
+  Admission add(const std::string& thought_id, sdk::Json summary, Decide decide, std::uint64_t epoch,
+                const std::string& principal, bool privileged);
+  const Limits& limits() const noexcept { return limits_; }
   // Attaches the wait's timeout timer; false when it was decided meanwhile (the caller cancels the timer).
   bool set_timer(const std::string& thought_id, std::uint64_t timer);
   // The wait's decision function and its timer, removed; nullopt when it is not waiting (unknown, or decided).
@@ -74,8 +87,9 @@ class HitlQueue {
     Decide decide;
     std::uint64_t timer;
     std::uint64_t epoch;
+    std::string principal;
   };
-  const std::size_t limit_;
+  const Limits limits_;
   mutable std::mutex mutex_;
   std::uint64_t seq_ = 0;
   std::map<std::string, Wait> waits_;

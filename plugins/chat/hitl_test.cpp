@@ -168,3 +168,99 @@ TEST_CASE("thought log: GET /api/thoughts/<id>; the reasoning only for scope con
   CHECK(f.get("/api/thoughts/th-nonsense").status == 404);
   CHECK(f.get("/api/thoughts/th-0123456789abcdef").status == 404);
 }
+
+TEST_CASE("hitl: a share per principal - one USER cannot fill the queue; the OWNER's gated instructions still wait") {
+  Fixture f(gated(json{{"timeout_ms", 60000}}));  // hitl_limit 32: 8 per principal below OWNER, the last 8 for OWNER+
+  int waiting = 0, over_share = 0;
+  for (int i = 0; i < 40; ++i) {  // the issue's attack: one USER sends gated instructions until refused
+    const auto w = f.say("turn left", Role::User, "mallory");
+    if (w->status() == 202) ++waiting;
+    else if (w->status() == 429 && w->json()["code"] == "TOO_MANY_PENDING") ++over_share;
+  }
+  CHECK(waiting == 8);
+  CHECK(over_share == 32);
+  const auto owner = f.say("turn left", Role::Owner, "olivia");
+  CHECK(owner->status() == 202);  // without a share, mallory held all 32 and this was 503
+
+  // More USERs fill what is not reserved: 8 (mallory) + 1 (olivia) + 8 (bob) + 7 (carol) = 24 = 32 - 8 reserved.
+  for (int i = 0; i < 8; ++i) CHECK(f.say("turn left", Role::User, "bob")->status() == 202);
+  for (int i = 0; i < 7; ++i) CHECK(f.say("turn left", Role::User, "carol")->status() == 202);
+  for (const std::string user : {"carol", "dave"}) {
+    const auto reserved = f.say("turn left", Role::User, user);
+    CHECK(reserved->status() == 503);
+    CHECK(reserved->json()["code"] == "HITL_SLOTS_RESERVED");
+  }
+  for (int i = 0; i < 8; ++i) CHECK(f.say("turn left", Role::Owner, "olivia")->status() == 202);  // 32 of 32
+  const auto full = f.say("turn left", Role::Owner, "olivia");
+  CHECK(full->status() == 503);
+  CHECK(full->json()["code"] == "UNAVAILABLE");
+  CHECK(f.get("/api/hitl/pending").body["pending"].size() == 32);
+  CHECK(f.dispatcher.requests.empty());
+}
+
+TEST_CASE("hitl: an approval authorizes the instruction's caller again; a caller revoked meanwhile runs nothing") {
+  Fixture f(gated());
+  const std::string id = pending_id(f.say("go forward 1 metre"));
+  f.dispatcher.revoked = {"alice"};  // e.g. alice's token left the config (SIGHUP) while the action waited
+  const auto w = f.authorize({{"thought_id", id}, {"decision", "approve"}});
+  CHECK(w->status() == 409);  // the approver's own credential is fine: not a 401 to them
+  CHECK(w->json()["code"] == "CALLER_UNAUTHORIZED");
+  CHECK(w->json()["caller_status"] == 401);
+  CHECK(w->json()["caller_code"] == "UNAUTHORIZED");
+  CHECK(w->json()["dispatched"] == false);
+  CHECK(w->json()["hitl"]["state"] == "approved");
+  REQUIRE(f.dispatcher.requests.size() == 1);
+  // What chat handed rcand to authorize: alice's own credential, never the approver's.
+  const auto* caller = dynamic_cast<const FakeHost::TestCredential*>(f.dispatcher.requests[0].credential.get());
+  REQUIRE(caller != nullptr);
+  CHECK(caller->principal == "alice");
+  const auto thought = f.get("/api/thoughts/" + id, Role::Owner).body;
+  CHECK(thought["state"] == "refused");
+  CHECK(thought["status"] == 401);
+}
+
+TEST_CASE("hitl: POST /api/hitl/authorize with type-confused fields answers 400 naming the field; chat keeps serving") {
+  Fixture f(gated());
+  const std::string id = pending_id(f.say("go forward 1 metre"));
+  const std::vector<json> confused{nullptr,
+                                   5,
+                                   1.5,
+                                   true,
+                                   "",
+                                   json::array(),
+                                   json::array({"approve"}),
+                                   json::object(),
+                                   json{{"a", 1}},
+                                   std::string(100000, 'a')};
+  for (const auto& value : confused) {
+    CAPTURE(value.dump().substr(0, 40));
+    // The issue's case: a non-string decision threw json::type_error out of the handler (500, chat out of service).
+    for (const std::string field : {"decision", "thought_id", "reason"}) {
+      json body{{"thought_id", id}, {"decision", "deny"}};
+      body[field] = value;
+      if (field == "reason" && (value.is_null() || (value.is_string() && value.get<std::string>().size() <= 500))) continue;
+      std::shared_ptr<RecordingStream> w;
+      REQUIRE_NOTHROW(w = f.authorize(body));
+      CHECK(w->status() == 400);
+      CHECK(w->json()["field"] == field);
+      CHECK(w->json().dump().size() < 1024);  // the 100 KB value is not quoted back
+    }
+  }
+  CHECK(f.get("/api/hitl/pending").body["pending"].size() == 1);  // still waiting, nothing decided
+  CHECK(f.authorize({{"thought_id", id}, {"decision", "deny"}})->status() == 200);
+}
+
+TEST_CASE("thought log: the reasoning goes by the caller's scopes, not its role (an OWNER JWT narrowed to status+control)") {
+  Fixture f(rover_config(json::object(), {{"provider", "spy"}}));
+  f.spy.answer = [](const sdk::BrainRequest&, sdk::CancelToken) {
+    auto p = spy_says(waypoint(1, 0), 0.9);
+    p.reasoning = "what other principals asked";
+    return p;
+  };
+  const std::string id = f.say("go")->json()["thought_id"];
+  const auto narrowed =
+      f.get("/api/thoughts/" + id, Role::Owner, std::vector<sdk::Scope>{sdk::Scope::Status, sdk::Scope::Control});
+  REQUIRE(narrowed.status == 200);
+  CHECK_FALSE(narrowed.body.contains("reasoning"));
+  CHECK(f.get("/api/thoughts/" + id, Role::Owner).body["reasoning"] == "what other principals asked");
+}

@@ -1,17 +1,20 @@
 #include "model_answer.hpp"
 
+#include <rcand/sdk/request_body.hpp>
+
 #include <cmath>
+
+#include "proposal_guard.hpp"
 
 namespace rcand::plugins::chat {
 namespace {
 
 using sdk::Json;
 
-constexpr std::size_t kMaxText = 4000;  // longer texts are cut: they are shown and logged, never acted on
-
-std::string bounded(std::string text) {
-  if (text.size() > kMaxText) text.resize(kMaxText);
-  return text;
+// Longer texts are cut (guard_proposal cuts them again, with the secrets redacted first): they are shown and logged,
+// never acted on; copying no more than this keeps a megabyte answer from being copied around first.
+std::string bounded(const std::string& text, std::size_t max_bytes = kMaxReplyBytes + 1024) {
+  return sdk::bounded_utf8(text, max_bytes);
 }
 
 }  // namespace
@@ -84,14 +87,16 @@ sdk::Proposal read_model_answer(std::string_view content) {
       p.error = "the model's reply is not a string";
       return p;
     }
-    p.raw_text = bounded(reply->get<std::string>());
+    p.raw_text = bounded(reply->get_ref<const std::string&>());
   }
   if (const auto reasoning = answer.find("reasoning"); reasoning != answer.end() && reasoning->is_string())
-    p.reasoning = bounded(reasoning->get<std::string>());
+    p.reasoning = bounded(reasoning->get_ref<const std::string&>());
   if (const auto confidence = answer.find("confidence"); confidence != answer.end() && !confidence->is_null()) {
     const double value = confidence->is_number() ? confidence->get<double>() : NAN;
     if (!std::isfinite(value) || value < 0 || value > 1) {
-      p.error = "the model's confidence " + confidence->dump() + " is not a number in [0, 1]";
+      // Quoted bounded: a hostile model's confidence may be a 200 KB string (kept whole, it went into the answer,
+      // the thought and the log line).
+      p.error = "the model's confidence (" + sdk::describe_value(*confidence, 40) + ") is not a number in [0, 1]";
       return p;
     }
     p.confidence = value;  // absent stays absent: a gate counts it a miss
@@ -111,7 +116,8 @@ sdk::Proposal read_model_answer(std::string_view content) {
   }
   if (const auto suggestions = answer.find("suggestions"); suggestions != answer.end() && suggestions->is_array())
     for (const auto& s : *suggestions)
-      if (s.is_string() && p.suggestions.size() < 3) p.suggestions.push_back(bounded(s.get<std::string>()));
+      if (s.is_string() && p.suggestions.size() < kMaxSuggestions)
+        p.suggestions.push_back(bounded(s.get<std::string>(), kMaxSuggestionBytes + 1024));
   return p;
 }
 

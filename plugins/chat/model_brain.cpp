@@ -1,5 +1,7 @@
 #include "model_brain.hpp"
 
+#include <rcand/sdk/request_body.hpp>
+
 #include <boost/beast/http/verb.hpp>
 
 #include <cerrno>
@@ -9,6 +11,7 @@
 #include <sstream>
 
 #include "model_answer.hpp"
+#include "proposal_guard.hpp"
 
 namespace rcand::plugins::chat {
 namespace {
@@ -52,7 +55,7 @@ std::string excerpt(const std::string& body) {
     else if (error.is_object() && error.contains("message") && error["message"].is_string())
       text = error["message"].get<std::string>();
   }
-  if (text.size() > 200) text = text.substr(0, 200) + "...";
+  text = sdk::bounded_utf8(text, 200);
   for (char& c : text)
     if (static_cast<unsigned char>(c) < 0x20) c = ' ';
   return text.empty() ? "" : ": " + text;
@@ -154,12 +157,7 @@ ModelBrain::ModelBrain(ModelBrainSettings settings) : settings_(std::move(settin
   }
 }
 
-std::string ModelBrain::redact(std::string text) const {
-  const std::string& key = settings_.api_key;
-  if (key.empty()) return text;
-  for (auto at = text.find(key); at != std::string::npos; at = text.find(key, at)) text.replace(at, key.size(), "[api key]");
-  return text;
-}
+std::string ModelBrain::redact(std::string text) const { return redact_secrets(std::move(text), {settings_.api_key}); }
 
 std::map<std::string, std::string> ModelBrain::headers() const {
   if (settings_.api_key.empty()) return {};
@@ -262,15 +260,11 @@ sdk::Proposal ModelBrain::propose(const sdk::BrainRequest& request, const sdk::B
     p = {};
     p.error = e.what();
   }
-  if (!p.error.empty()) {
-    p.action = nullptr;
-    p.error = redact(p.error);
-  }
-  p.raw_text = redact(p.raw_text);
-  p.reasoning = redact(p.reasoning);
   p.brain = settings_.provider;
   p.model = settings_.model;
-  return p;
+  // Everything the model returned, its key redacted (a server may echo it into any field) and bounded; chat guards
+  // every brain's proposal again with all the keys it knows.
+  return guard_proposal(std::move(p), {settings_.api_key});
 }
 
 Json ModelBrain::probe(milliseconds timeout, const sdk::CancelToken& cancel) const noexcept {

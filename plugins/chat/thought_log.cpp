@@ -36,7 +36,7 @@ std::size_t ThoughtLog::size() const {
 }
 
 sdk::Json bounded_json(const sdk::Json& value, std::size_t max_chars) {
-  const std::string text = value.dump();
+  const std::string text = value.dump(-1, ' ', false, sdk::Json::error_handler_t::replace);  // never throws on bad UTF-8
   if (text.size() <= max_chars) return value;
   return {{"truncated", true}, {"chars", text.size()}};
 }

@@ -4,10 +4,15 @@
 // calls; chat's deadline against runtime.handler_timeout_ms; a swarm broadcast of "stop all motors".
 #include <doctest/doctest.h>
 
+#include <signal.h>
+
+#include <algorithm>
 #include <chrono>
 #include <thread>
 
 #include "../../plugins/chat/scripted_model_server.hpp"
+#include "eventually.hpp"
+#include "libs/rcan/jwt.hpp"
 #include "rcand_process.hpp"
 #include "swarm_lab.hpp"
 
@@ -203,6 +208,71 @@ TEST_CASE("chat: a HiTL-gated action waits for an OWNER's POST /api/hitl/authori
   CHECK(approved["dispatched"] == true);
   CHECK(drive_status(rcand)["moving"] == true);
   CHECK(rcand.json("GET", "/api/thoughts/" + id, "user-token")["state"] == "dispatched");
+}
+
+TEST_CASE("chat: a HiTL approval after the caller's token was revoked runs nothing - rcand authorizes the caller again") {
+  auto config = chat_config();
+  config["agent"]["hitl_gates"] = json::array({{{"capabilities", {"teleop"}}, {"timeout_ms", 60000}}});
+  RcandProcess rcand(config);
+  int status = 0;
+  const auto held = command(rcand, "go forward for 2 seconds", &status);
+  REQUIRE_MESSAGE(status == 202, held.dump());
+  const std::string id = held["thought_id"];
+
+  // The USER's token leaves the config (SIGHUP) while the action waits for a human.
+  auto revoked = config;
+  auto& tokens = revoked["runtime"]["auth"]["tokens"];
+  tokens.erase(std::remove_if(tokens.begin(), tokens.end(), [](const json& t) { return t["principal"] == "user-principal"; }),
+               tokens.end());
+  rcand.dir().write("robot.rcan.yaml", revoked.dump(2));
+  const auto reloads = count_of(rcand.stderr_text(), "config reload from");
+  REQUIRE(::kill(rcand.pid(), SIGHUP) == 0);
+  REQUIRE(eventually([&] { return count_of(rcand.stderr_text(), "config reload from") > reloads; }));
+  REQUIRE(eventually([&] {
+    rcand.json("GET", "/api/status", "user-token", "", &status);
+    return status == 401;
+  }));
+
+  const auto approved =
+      rcand.json("POST", "/api/hitl/authorize", "owner-token", json{{"thought_id", id}, {"decision", "approve"}}.dump(), &status);
+  INFO(approved.dump());
+  CHECK(status == 409);  // before issue 28: 200, and the revoked USER's move ran on the OWNER's approval
+  CHECK(approved["code"] == "CALLER_UNAUTHORIZED");
+  CHECK(approved["caller_status"] == 401);
+  CHECK(approved["dispatched"] == false);
+  CHECK(drive_status(rcand)["moving"] == false);
+  const auto thought = rcand.json("GET", "/api/thoughts/" + id, "owner-token");
+  CHECK(thought["state"] == "refused");
+  CHECK(thought["status"] == 401);
+}
+
+TEST_CASE("chat: an OWNER JWT narrowed to status+control does not read a thought's reasoning (scopes, not the role)") {
+  ScriptedModelServer server(ScriptedModelServer::Wire::OpenAI);
+  server.always(ScriptedModelServer::answer(model_move()));
+  RcandProcess rcand(model_config(server));
+  int status = 0;
+  const auto answer = command(rcand, "drive a bit", &status);
+  REQUIRE_MESSAGE(status == 200, answer.dump());
+  const std::string id = answer["thought_id"];
+  rcand::JwtClaims claims;
+  claims.sub = "narrowed-owner";
+  claims.iss = "integration-test";
+  claims.role = "owner";
+  claims.aud = {"rcan://*"};
+  claims.scope = {"status", "control"};
+  claims.iat = std::chrono::duration_cast<std::chrono::seconds>(std::chrono::system_clock::now().time_since_epoch()).count();
+  claims.exp = claims.iat + 3600;
+  const std::string narrowed = rcand::issue_jwt_hs256(claims, kJwtSecret);
+  const auto thought = rcand.json("GET", "/api/thoughts/" + id, narrowed, "", &status);
+  REQUIRE(status == 200);
+  CHECK(thought["brain"] == "local");
+  CHECK_FALSE(thought.contains("reasoning"));  // before issue 28: shown, by the OWNER role
+  CHECK(rcand.json("GET", "/api/thoughts/" + id, jwt_for("owner"))["reasoning"] == "the operator asked to drive");
+  // The same rule in the kernel's own GET /api/plugins: file paths only for a credential with config.
+  const auto plugins = rcand.json("GET", "/api/plugins", narrowed, "", &status);
+  REQUIRE(status == 200);
+  CHECK(plugins.dump().find("\"manifest\"") == std::string::npos);
+  CHECK(rcand.json("GET", "/api/plugins", jwt_for("owner")).dump().find("\"manifest\"") != std::string::npos);
 }
 
 TEST_CASE("chat: a swarm broadcast of \"stop all motors\" through chat latches every node") {

@@ -125,14 +125,17 @@ TEST_CASE("rcanctl plugins and audit") {
 }
 
 TEST_CASE("rcanctl status exits 1 for a robot that answers but reports a fault") {
+  {
+    RcandProcess healthy(operator_config());
+    CHECK(Ctl{std::to_string(healthy.port())}({"status"}, "guest-token").exit_code == 0);
+  }
+  // A capability whose start() throws is failed (a request handler that throws no longer fails its capability).
   auto config = operator_config();
-  config["rcan_protocol"]["capabilities"].push_back("org.rcand.test.throws_in_handler");
-  RcandProcess rcand(config, {plugin_dir(), test_plugin_dir()});
+  const std::string faulty = "org.rcand.test.faulty";
+  config["rcan_protocol"]["capabilities"].push_back(faulty);
+  config["runtime"]["capabilities"][faulty] = {{"hook", "start"}, {"fault", "throw"}};
+  RcandProcess rcand(config, {plugin_dir(), test_plugin_dir() / "faults"});
   const Ctl ctl{std::to_string(rcand.port())};
-  CHECK(ctl({"status"}, "guest-token").exit_code == 0);
-  int status = 0;
-  rcand.json("GET", "/api/cap/org.rcand.test.throws_in_handler/boom", "user-token", "", &status);
-  REQUIRE(status == 500);
   const auto faulted = ctl({"status"}, "guest-token");
   CHECK(faulted.exit_code == 1);
   CHECK(faulted.out.find("state error") != std::string::npos);

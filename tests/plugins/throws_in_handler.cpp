@@ -1,5 +1,5 @@
 // Loads fine; GET /api/cap/org.rcand.test.throws_in_handler/boom throws from its handler (the caller must get
-// 500 INTERNAL and the capability is marked failed, while the other plugins keep serving).
+// 500 INTERNAL each time, the capability stays in service with the throws counted, and the others keep serving).
 #include <stdexcept>
 
 #include "fixture.hpp"

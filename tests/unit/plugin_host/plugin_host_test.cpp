@@ -233,8 +233,8 @@ TEST_CASE("a plugin built for the previous ABI minor (1.0, before publish_status
   CHECK(capability->status() == json::object());  // it never publishes: the status board asks status() instead
 }
 
-TEST_CASE("a plugin built for the previous ABI minor (1.1: publish_status, before services) loads and serves") {
-  static_assert(RCAND_ABI_MINOR == 2, "the fixture's minor 1 must be the one before the kernel's");
+TEST_CASE("a plugin built for an earlier ABI minor (1.1: publish_status, before services) loads and serves") {
+  static_assert(RCAND_ABI_MINOR > 1, "the fixture's minor 1 must be older than the kernel's");
   PluginHost host;
   host.scan({kFixtures / "minor_one"});
   host.load_needed({"org.rcand.test.minor_one"}, {});

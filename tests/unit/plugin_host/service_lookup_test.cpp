@@ -78,7 +78,7 @@ json get(Api& api, const std::string& path) {
 }  // namespace
 
 TEST_CASE("a real kernel: one plugin finds the service another offers; ABI 1.0 and 1.1 plugins load beside them") {
-  static_assert(RCAND_ABI_MINOR == 2, "minor_one and older_minor stand for the two minors before this one");
+  static_assert(RCAND_ABI_MINOR > 1, "minor_one and older_minor stand for minors before this one");
   Kernel kernel(services_robot(), embedded_kernel_options());
   for (const auto& record : kernel.plugins().records()) {
     CAPTURE(record->id);

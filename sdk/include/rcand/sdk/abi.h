@@ -11,7 +11,7 @@
 #include <stdint.h>
 
 #define RCAND_ABI_MAJOR 1
-#define RCAND_ABI_MINOR 2                  /* what each minor added: rcand/sdk/context.hpp */
+#define RCAND_ABI_MINOR 3                  /* what each minor added: rcand/sdk/context.hpp */
 #define RCAND_DESCRIPTOR_MAGIC 0x52434e44u /* "RCND" */
 
 #define RCAND_STRINGIFY_(x) #x

@@ -24,7 +24,9 @@ struct Route {
   std::string action_type;
   // Runs on the capability's own worker thread ("cap.<name>"), one request at a time. May block, up to
   // runtime.handler_timeout_ms, after which the caller gets 503 and the capability is marked failed.
-  // Exceptions are caught by the kernel: the caller gets 500 INTERNAL and the capability is marked failed.
+  // Check the body before reading it (rcand/sdk/request_body.hpp: a 400 naming the field). An exception is caught by
+  // the kernel: that request gets 500 INTERNAL and is counted (handler_errors); the capability stays in service
+  // (docs/protocol.md §7.16).
   std::function<Response(const Request&)> handler;
 };
 

@@ -9,6 +9,9 @@
 //   1.2  service() and offer_service(): typed services between plugins (rcand/sdk/services.hpp); obstacles() became
 //        find<ObstacleSource>(), and it and r2r() are kept as deprecated shims until ABI 2; also
 //        Capability::stream_routes() (rcand/sdk/stream.hpp): binary and streaming answers, called only for 1.2 plugins
+//   1.3  Request::scopes and Request::credential (rcand/sdk/http.hpp), appended: what the caller's credential grants,
+//        and the credential itself for RequestDispatcher (rcand.request_dispatcher/3), which authorizes the caller
+//        again at dispatch. A 1.3 plugin reads them, so a 1.2 kernel (whose requests lack them) refuses it
 #pragma once
 
 #include <string_view>

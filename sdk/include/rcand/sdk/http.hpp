@@ -3,15 +3,28 @@
 
 #include <nlohmann/json.hpp>
 
+#include <algorithm>
 #include <map>
+#include <memory>
 #include <string>
 #include <utility>
+#include <vector>
 
+#include "rcand/sdk/export.hpp"
 #include "rcand/sdk/scope.hpp"
 
 namespace rcand::sdk {
 
 using Json = nlohmann::json;
+
+// The credential a caller authenticated with, as the host keeps it (ABI 1.3). Opaque to plugins: copy the pointer
+// along and hand it back with a RequestDispatcher::dispatch; rcand then authorizes the caller again at that moment
+// with what the credential is worth then (a token removed by a config reload, a JWT past its exp, a role lowered: the
+// dispatched request is refused as that caller's own HTTP request would be). Never holds anything a plugin may read.
+class RCAND_INTERFACE Credential {
+ public:
+  virtual ~Credential() = default;
+};
 
 struct Request {
   std::string method;                        // "GET", "POST", ...
@@ -22,7 +35,27 @@ struct Request {
   std::string principal;                     // who is asking (token principal or JWT "sub")
   Role role = Role::Guest;                   // the caller's role
   std::string message_id;                    // the id this request carries in the audit log
+  // ABI 1.3, appended (a plugin built for 1.2 never reads them): what the caller's credential grants - its role's
+  // default scopes, narrowed by a JWT's `scope` claim. Decide what to show or do beyond the route's own scope by
+  // these (has_scope), never by `role`: an OWNER JWT narrowed to status and control has no `config`.
+  std::vector<Scope> scopes;
+  // ABI 1.3: the caller's credential (see Credential), for acting on the caller's behalf later; null when the
+  // request came from something rcand authenticated otherwise (an R2R peer).
+  std::shared_ptr<const Credential> credential;
+
+  bool has_scope(Scope scope) const noexcept {
+    return scope == Scope::None || std::find(scopes.begin(), scopes.end(), scope) != scopes.end();
+  }
 };
+
+// Every scope `role` grants by default (docs/protocol.md §2), in table order: what Request::scopes holds for a
+// credential that does not narrow its role (a pre-shared token).
+inline std::vector<Scope> default_scopes_of(Role role) {
+  std::vector<Scope> scopes;
+  for (Scope s : {Scope::Status, Scope::Control, Scope::Config, Scope::Training, Scope::Admin})
+    if (role_grants(role, s)) scopes.push_back(s);
+  return scopes;
+}
 
 struct Response {
   int status = 200;

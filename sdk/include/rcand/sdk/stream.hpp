@@ -81,7 +81,7 @@ struct StreamRoute {
   Scope scope = Scope::Status;  // raised like Route::scope (control for custom capabilities and non-GET methods)
   // Runs on the capability's worker ("cap.<name>") like a Route's handler, under the same timeout: register the
   // client and return; write to `writer` later from any thread. It must answer (start or respond) within
-  // runtime.handler_timeout_ms, else the client gets 503. Exceptions are caught: 500, and the capability fails.
+  // runtime.handler_timeout_ms, else the client gets 503. Exceptions are caught: that request gets 500 (as a Route's).
   std::function<void(const Request&, std::shared_ptr<StreamWriter> writer)> handler;
 };
 

@@ -10,6 +10,7 @@
 
 #include "kernel/api/api.hpp"
 #include "kernel/api/request_dispatch.hpp"
+#include "kernel/auth/caller_credential.hpp"
 #include "kernel/kernel.hpp"
 #include "libs/rcan/crypto.hpp"
 #include "libs/rcan/role_scopes.hpp"
@@ -26,6 +27,8 @@ using rcand::sdk::Role;
 namespace {
 
 const std::string kOwnerToken = "r2r-kernel-test-owner-token";
+const std::string kUserToken = "r2r-kernel-test-user-token";
+const std::string kGuestToken = "r2r-kernel-test-guest-token";
 
 RobotConfig sim_rover() {
   const std::string yaml = R"(rcan_version: "1.3"
@@ -41,7 +44,9 @@ runtime:
   auth:
     tokens:
       - {principal: owner, role: owner, sha256: )" +
-                           sha256_hex(kOwnerToken) + "}\n";
+                           sha256_hex(kOwnerToken) +
+                           "}\n      - {principal: chat-user, role: user, sha256: " + sha256_hex(kUserToken) +
+                           "}\n      - {principal: chat-guest, role: guest, sha256: " + sha256_hex(kGuestToken) + "}\n";
   return parse_robot_config(yaml, "bob.rcan.yaml", "/").config;
 }
 
@@ -212,39 +217,55 @@ rcand::sdk::Response dispatched(const KernelRequestDispatcher& dispatcher, rcand
 
 }  // namespace
 
+namespace {
+
+// A request as a plugin dispatches it for the caller whose `token` it carries (the CallerCredential rcand attached to
+// the caller's own request). `named` is who the plugin claims it is for: never trusted.
+rcand::sdk::Request for_caller(std::string method, std::string path, json body, const std::string& token, std::string id,
+                               std::string named = "chat-user") {
+  rcand::sdk::Request r;
+  r.method = std::move(method);
+  r.path = std::move(path);
+  r.body = std::move(body);
+  r.principal = std::move(named);
+  r.role = Role::Creator;  // what a plugin claims does not count: the credential's role does
+  r.message_id = std::move(id);
+  if (!token.empty()) r.credential = std::make_shared<const CallerCredential>(std::string_view(token));
+  return r;
+}
+
+}  // namespace
+
 // The dispatcher plugins find as sdk::RequestDispatcher (the chat capability's way to act): the caller's request runs
-// the kernel's own path, so the caller's role is checked, the e-stop pre-check applies and the audit names the caller
-// under the message id the plugin chose.
+// the kernel's own path with the caller's credential authorized again, so the caller's scopes are checked, the e-stop
+// pre-check applies and the audit names the caller under the message id the plugin chose.
 TEST_CASE("KernelRequestDispatcher: a plugin's request on a caller's behalf runs as that caller's HTTP request") {
   Kernel kernel(sim_rover(), embedded_kernel_options());
   Api& api = kernel.api();
   const KernelRequestDispatcher dispatcher(api);
   auto dispatch = [&](rcand::sdk::Request request) { return dispatched(dispatcher, std::move(request)); };
-  auto request = [](std::string method, std::string path, json body, Role role, std::string id) {
-    rcand::sdk::Request r;
-    r.method = std::move(method);
-    r.path = std::move(path);
-    r.body = std::move(body);
-    r.principal = "chat-user";
-    r.role = role;
-    r.message_id = std::move(id);
-    return r;
-  };
 
   const int before = drive_commands(api);
-  CHECK(dispatch(request("POST", "/api/action", kMove, Role::User, "thought-1")).status == 200);
+  CHECK(dispatch(for_caller("POST", "/api/action", kMove, kUserToken, "thought-1")).status == 200);
   CHECK(drive_commands(api) > before);
-  const auto refused = dispatch(request("POST", "/api/action", kMove, Role::Guest, "thought-2"));
-  CHECK(refused.status == 403);
+  const auto refused = dispatch(for_caller("POST", "/api/action", kMove, kGuestToken, "thought-2", "chat-user"));
+  CHECK(refused.status == 403);  // the guest's credential, whatever the plugin named
   CHECK(refused.body["required_scope"] == "control");
-  CHECK(dispatch(request("GET", "/api/nowhere", nullptr, Role::User, "")).status == 404);
-  const auto status = dispatch(request("GET", "/api/status", nullptr, Role::Guest, ""));
+  CHECK(dispatch(for_caller("GET", "/api/nowhere", nullptr, kUserToken, "")).status == 404);
+  const auto status = dispatch(for_caller("GET", "/api/status", nullptr, kGuestToken, ""));
   CHECK(status.status == 200);
   CHECK(status.body.contains("capabilities"));
 
-  CHECK(dispatch(request("POST", "/api/stop", json::object(), Role::Guest, "thought-3")).status == 200);
+  // A credential rcand no longer accepts (a token removed by a config reload), or none at all: nothing runs.
+  for (const std::string& token : {std::string("a-token-no-longer-configured"), std::string()}) {
+    const auto unauthorized = dispatch(for_caller("POST", "/api/action", kMove, token, "thought-revoked"));
+    CHECK(unauthorized.status == 401);
+    CHECK(unauthorized.body["code"] == "UNAUTHORIZED");
+  }
+
+  CHECK(dispatch(for_caller("POST", "/api/stop", json::object(), kGuestToken, "thought-3")).status == 200);
   const int stopped_at = drive_commands(api);
-  const auto blocked = dispatch(request("POST", "/api/action", kMove, Role::User, "thought-4"));
+  const auto blocked = dispatch(for_caller("POST", "/api/action", kMove, kUserToken, "thought-4"));
   CHECK(blocked.status == 423);
   CHECK(drive_commands(api) == stopped_at);
 
@@ -263,14 +284,7 @@ TEST_CASE("KernelRequestDispatcher: a plugin's audit note joins the entry; a not
   Api& api = kernel.api();
   const KernelRequestDispatcher dispatcher(api);
   auto dispatch = [&](std::string id, json note) {
-    rcand::sdk::Request r;
-    r.method = "POST";
-    r.path = "/api/action";
-    r.body = kMove;
-    r.principal = "chat-user";
-    r.role = Role::User;
-    r.message_id = std::move(id);
-    return dispatched(dispatcher, std::move(r), std::move(note));
+    return dispatched(dispatcher, for_caller("POST", "/api/action", kMove, kUserToken, std::move(id)), std::move(note));
   };
   const json ai{{"provider", "grammar"}, {"model", "grammar-en-1"}, {"confidence", 0.9}, {"thought_id", "th-1"}};
   CHECK(dispatch("noted-1", json{{"ai", ai}}).status == 200);

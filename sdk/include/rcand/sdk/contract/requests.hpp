@@ -114,9 +114,9 @@ inline Response out_of_service(const std::string& capability, const std::string&
   return Response::error(503, "UNAVAILABLE", "capability '" + capability + "' is out of service: " + why,
                          Json{{"capability", capability}});
 }
+// A request handler threw (docs/protocol.md §7.16): this request fails; the capability stays in service.
 inline Response handler_threw(const std::string& capability) {
-  return Response::error(500, "INTERNAL",
-                         "capability '" + capability + "' failed while handling the request; it is now out of service");
+  return Response::error(500, "INTERNAL", "capability '" + capability + "' failed while handling this request (logged)");
 }
 
 // A handler's answer as it reaches the client: the error shape (docs/protocol.md §4) guaranteed on every non-2xx

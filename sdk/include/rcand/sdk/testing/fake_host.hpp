@@ -203,11 +203,21 @@ class FakeHost {
   // Routes like the kernel: POST /api/action by body "type"; custom capabilities under /api/cap/<name>/...;
   // other standard routes by exact method and path. Scope check (403), then e-stop check for motion routes
   // (423, handler not called), then the handler; afterwards run_pending().
-  Response call(std::string method, std::string path, nlohmann::json body = {}, Role role = Role::Owner) {
-    Response response = dispatch(std::move(method), std::move(path), std::move(body), role);
+  // The request carries `scopes` as what the caller's credential grants (default: every scope of `role`, as a
+  // pre-shared token; narrower: a JWT's scope claim) and a TestCredential, as rcand attaches its own.
+  Response call(std::string method, std::string path, nlohmann::json body = {}, Role role = Role::Owner,
+                std::optional<std::vector<Scope>> scopes = std::nullopt) {
+    Response response = dispatch(std::move(method), std::move(path), std::move(body), role, std::move(scopes));
     run_pending();
     return response;
   }
+
+  // The credential the fake host attaches to every request (Request::credential): opaque to the plugin, as rcand's.
+  // A RequestDispatcher double in a plugin's test can check that the plugin handed the caller's one back.
+  struct TestCredential final : Credential {
+    std::string principal;
+    Role role = Role::Guest;
+  };
 
   // ---- e-stop ----------------------------------------------------------------------------------------------
 
@@ -357,6 +367,12 @@ class FakeHost {
       if (slot->name == name) return slot->failed;
     throw HostError("no capability '" + std::string(name) + "'");
   }
+  // How many of the capability's request handlers threw (each answered 500 INTERNAL; it stays in service).
+  std::uint64_t handler_errors(std::string_view name) const {
+    for (const auto& slot : capabilities_)
+      if (slot->name == name) return slot->handler_errors;
+    throw HostError("no capability '" + std::string(name) + "'");
+  }
 
  private:
   class Context;
@@ -383,6 +399,7 @@ class FakeHost {
     std::string name;
     bool custom = false;
     bool failed = false;
+    std::uint64_t handler_errors = 0;  // request handlers that threw (each answered 500; the instance stays)
     std::unique_ptr<Context> context;
     std::unique_ptr<Capability> instance;
     std::vector<Route> routes;
@@ -725,7 +742,8 @@ class FakeHost {
     return {nullptr, nullptr};
   }
 
-  Response dispatch(std::string method, std::string target, nlohmann::json body, Role role) {
+  Response dispatch(std::string method, std::string target, nlohmann::json body, Role role,
+                    std::optional<std::vector<Scope>> scopes) {
     Request request;
     request.method = method;
     const auto q = target.find('?');
@@ -744,6 +762,11 @@ class FakeHost {
     request.principal = "test";
     request.role = role;
     request.message_id = "fake-" + std::to_string(++message_counter_);
+    request.scopes = scopes ? std::move(*scopes) : default_scopes_of(role);
+    auto credential = std::make_shared<TestCredential>();
+    credential->principal = request.principal;
+    credential->role = role;
+    request.credential = std::move(credential);
 
     // The kernel's rules, from the same contract (rcand/sdk/contract/requests.hpp).
     namespace contract = rcand::sdk::contract;
@@ -796,17 +819,17 @@ class FakeHost {
       return contract::no_endpoint(slot->name, request.path);
     }
     const Scope scope = contract::route_scope(route->scope, method, custom);
-    if (!role_grants(role, scope)) return contract::insufficient_scope("role " + std::string(role_name(role)), scope);
+    if (!request.has_scope(scope)) return contract::insufficient_scope("role " + std::string(role_name(role)), scope);
     if (route->motion && estop_.latched()) return contract::estop_active();
-    if (slot->failed) return contract::out_of_service(slot->name, "a handler threw");
+    // As the kernel (docs/protocol.md §7.16): a throw fails this request only, counted in handler_errors().
     try {
       return contract::normalized(route->handler(request));
     } catch (const std::exception& e) {
-      slot->failed = true;
-      kernel_log_.error("capability '", slot->name, "' handler threw and is marked failed: ", e.what());
+      ++slot->handler_errors;
+      kernel_log_.error("capability '", slot->name, "' request handler threw: ", e.what());
     } catch (...) {
-      slot->failed = true;
-      kernel_log_.error("capability '", slot->name, "' handler threw and is marked failed");
+      ++slot->handler_errors;
+      kernel_log_.error("capability '", slot->name, "' request handler threw");
     }
     return contract::handler_threw(slot->name);
   }
