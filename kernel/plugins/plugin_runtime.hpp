@@ -19,7 +19,7 @@
 #include "kernel/plugins/reload_gate.hpp"
 #include "kernel/plugins/status_reader.hpp"
 #include "kernel/safety/actuator_table.hpp"
-#include "kernel/safety/deadline_crew.hpp"
+#include "libs/base/deadline_crew.hpp"
 #include "libs/config/robot_config.hpp"
 
 namespace rcand::kernel {

@@ -16,7 +16,7 @@
 
 #include <nlohmann/json.hpp>
 
-#include "kernel/safety/deadline_crew.hpp"
+#include "libs/base/deadline_crew.hpp"
 #include "kernel/safety/instance_health.hpp"
 
 namespace rcand::kernel {

@@ -13,7 +13,7 @@
 #include <vector>
 
 #include "kernel/safety/actuator_table.hpp"
-#include "kernel/safety/deadline_crew.hpp"
+#include "libs/base/deadline_crew.hpp"
 #include "libs/base/stop_origin.hpp"
 #include "rcand/sdk/estop_view.hpp"
 

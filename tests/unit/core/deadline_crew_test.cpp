@@ -8,7 +8,7 @@
 #include <stdexcept>
 #include <thread>
 
-#include "kernel/safety/deadline_crew.hpp"
+#include "libs/base/deadline_crew.hpp"
 #include "kernel/safety/estop.hpp"
 #include "kernel/steady_clock.hpp"
 

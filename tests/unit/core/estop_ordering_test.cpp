@@ -9,7 +9,7 @@
 #include <thread>
 #include <vector>
 
-#include "kernel/safety/deadline_crew.hpp"
+#include "libs/base/deadline_crew.hpp"
 #include "kernel/safety/estop.hpp"
 #include "kernel/safety/kernel_motion_gate.hpp"
 #include "kernel/steady_clock.hpp"

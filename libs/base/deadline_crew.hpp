@@ -12,7 +12,7 @@
 #include <string>
 #include <vector>
 
-namespace rcand::kernel {
+namespace rcand {
 
 class DeadlineCrew {
  public:
@@ -55,4 +55,4 @@ class DeadlineCrew {
 
 std::string_view to_string(DeadlineCrew::State state) noexcept;
 
-}  // namespace rcand::kernel
+}  // namespace rcand

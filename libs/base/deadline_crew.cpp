@@ -1,4 +1,4 @@
-#include "kernel/safety/deadline_crew.hpp"
+#include "libs/base/deadline_crew.hpp"
 
 #include <linux/futex.h>
 #include <pthread.h>
@@ -15,7 +15,7 @@
 
 #include "libs/base/terminate_trap.hpp"
 
-namespace rcand::kernel {
+namespace rcand {
 namespace {
 
 using Clock = std::chrono::steady_clock;
@@ -213,4 +213,4 @@ std::string_view to_string(DeadlineCrew::State state) noexcept {
   return "pending";
 }
 
-}  // namespace rcand::kernel
+}  // namespace rcand
