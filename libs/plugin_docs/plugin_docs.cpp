@@ -96,8 +96,43 @@ std::vector<std::string> required_names(const ojson& node, const ojson& defs) {
 }
 
 struct Row {
-  std::string name, type, fallback, range, required, description;
+  std::string name, type, fallback, range, required, description, example;
 };
+
+// The first value `name` ("channels.left.in1", "servos[].id", "brains.<name>.url") takes in `value`, an example.
+const ojson* value_at(const ojson& value, std::string_view name) {
+  if (name.empty()) return &value;
+  const auto end = name.find('.');
+  std::string_view segment = name.substr(0, end);
+  const std::string_view rest = end == std::string_view::npos ? std::string_view() : name.substr(end + 1);
+  const bool each = segment.ends_with("[]");
+  if (each) segment.remove_suffix(2);
+  std::vector<const ojson*> candidates;
+  if (!value.is_object()) return nullptr;
+  if (segment == "<name>") {
+    for (const auto& [key, child] : value.items()) candidates.push_back(&child);
+  } else if (const auto it = value.find(std::string(segment)); it != value.end()) {
+    candidates.push_back(&*it);
+  }
+  for (const ojson* candidate : candidates) {
+    if (!each) {
+      if (const ojson* found = value_at(*candidate, rest)) return found;
+    } else if (candidate->is_array()) {
+      for (const auto& element : *candidate)
+        if (const ojson* found = value_at(element, rest)) return found;
+    }
+  }
+  return nullptr;
+}
+
+// The first value a key named `key` takes anywhere in `value` (for a definition's table, used at several places).
+const ojson* value_of_key(const ojson& value, const std::string& key) {
+  if (value.is_object() && value.contains(key)) return &value[key];
+  if (value.is_object() || value.is_array())
+    for (const auto& child : value)
+      if (const ojson* found = value_of_key(child, key)) return found;
+  return nullptr;
+}
 
 struct Table {
   std::string title, description;
@@ -226,9 +261,22 @@ class SchemaDoc {
     const std::string claim = claim_of(n).empty() ? claim_of(node) : claim_of(n);
     if (!claim.empty()) description += (description.empty() ? "" : ". ") + claim;
     const ojson fallback = node.contains("default") ? node["default"] : n.value("default", ojson());
-    rows.push_back(
-        {name, type_of(n), fallback.is_null() ? "" : text_of(fallback), range_of(n), required ? "yes" : "", description});
+    rows.push_back({name, type_of(n), fallback.is_null() ? "" : text_of(fallback), range_of(n), required ? "yes" : "",
+                    description, example_of(node, n, name, where)});
     collect_rules(n, name.empty() ? where : name);
+  }
+
+  // The setting's own example, else the value it takes in the first of the schema's examples that sets it (in a
+  // shared definition's table, `where`: the value its key takes in any example).
+  std::string example_of(const ojson& node, const ojson& n, const std::string& name, const std::string& where) const {
+    for (const ojson* own : {&node, &n})
+      if (own->contains("examples") && (*own)["examples"].is_array() && !(*own)["examples"].empty())
+        return (*own)["examples"][0].dump();
+    for (const auto& example : root_.value("examples", ojson::array())) {
+      const ojson* found = where.empty() ? value_at(example, name) : value_of_key(example, name.substr(name.rfind('.') + 1));
+      if (found != nullptr) return found->dump();
+    }
+    return {};
   }
 
   void collect_rules(const ojson& n, const std::string& at) {
@@ -252,8 +300,9 @@ class SchemaDoc {
     const std::string def = def_name(node);
     const ojson& n = !def.empty() && defs_.contains(def) ? defs_[def] : node;
     if (shared(def)) {
-      Row row{name, def + " (below)", "", "", required ? "yes" : "", node.value("description", n.value("description", ""))};
+      Row row{name, def + " (below)", "", "", required ? "yes" : "", node.value("description", n.value("description", "")), ""};
       if (node.contains("default")) row.fallback = text_of(node["default"]);
+      row.example = example_of(node, n, name, where);
       rows.push_back(std::move(row));
       return;
     }
@@ -278,7 +327,7 @@ class SchemaDoc {
         const ojson& branch = n[keyword][i];
         if (!branch.contains("properties")) continue;
         const std::string form = (name.empty() ? where : name) + " as " + form_label(branch, i);
-        rows.push_back({form, "map", "", "", "", "form " + branch.value("title", form_label(branch, i))});
+        rows.push_back({form, "map", "", "", "", "form " + branch.value("title", form_label(branch, i)), ""});
         collect_rules(branch, form);
         children(branch, name, rows, where);
       }
@@ -368,19 +417,20 @@ std::string text_table(const Table& table) {
   if (!table.title.empty()) out += "\n  " + table.title + "\n";
   if (!table.description.empty()) out += wrapped(table.description, 2);
   if (table.rows.empty()) return out + "  (no settings)\n";
-  std::array<std::size_t, 5> width{7, 4, 7, 5, 8};
+  std::array<std::size_t, 6> width{7, 4, 7, 7, 5, 8};
   for (const auto& r : table.rows) {
-    const std::array<std::size_t, 5> cells{r.name.size(), r.type.size(), r.fallback.size(), r.range.size(), r.required.size()};
-    for (std::size_t i = 0; i < 5; ++i) width[i] = std::max(width[i], std::min<std::size_t>(cells[i], 36));
+    const std::array<std::size_t, 6> cells{r.name.size(),    r.type.size(),  r.fallback.size(),
+                                           r.example.size(), r.range.size(), r.required.size()};
+    for (std::size_t i = 0; i < 6; ++i) width[i] = std::max(width[i], std::min<std::size_t>(cells[i], 36));
   }
   auto cell = [](const std::string& text, std::size_t w) {
     return text.size() >= w ? text + " " : text + std::string(w - text.size() + 1, ' ');
   };
-  out += "  " + cell("SETTING", width[0]) + cell("TYPE", width[1]) + cell("DEFAULT", width[2]) + cell("RANGE", width[3]) +
-         "REQUIRED\n";
+  out += "  " + cell("SETTING", width[0]) + cell("TYPE", width[1]) + cell("DEFAULT", width[2]) + cell("EXAMPLE", width[3]) +
+         cell("RANGE", width[4]) + "REQUIRED\n";
   for (const auto& r : table.rows) {
     std::string line = "  " + cell(r.name, width[0]) + cell(r.type, width[1]) + cell(r.fallback, width[2]) +
-                       cell(r.range, width[3]) + r.required;
+                       cell(r.example, width[3]) + cell(r.range, width[4]) + r.required;
     while (!line.empty() && line.back() == ' ') line.pop_back();
     out += line + "\n";
     if (!r.description.empty()) out += wrapped(r.description, 6);
@@ -435,11 +485,11 @@ std::string md_table(const Table& table) {
   if (!table.title.empty()) out += "\n**" + md_cell(table.title) + "**\n";
   if (!table.description.empty()) out += "\n" + table.description + "\n";
   if (table.rows.empty()) return out + "\nNo settings.\n";
-  out += "\n| Setting | Type | Default | Range | Required | Description |\n|---|---|---|---|---|---|\n";
+  out += "\n| Setting | Type | Default | Example | Range | Required | Description |\n|---|---|---|---|---|---|---|\n";
+  const auto code = [](const std::string& text) { return text.empty() ? std::string() : "`" + md_cell(text) + "`"; };
   for (const auto& r : table.rows)
-    out += "| `" + md_cell(r.name) + "` | " + md_cell(r.type) + " | " +
-           (r.fallback.empty() ? "" : "`" + md_cell(r.fallback) + "`") + " | " + md_cell(r.range) + " | " + r.required + " | " +
-           md_cell(r.description) + " |\n";
+    out += "| `" + md_cell(r.name) + "` | " + md_cell(r.type) + " | " + code(r.fallback) + " | " + code(r.example) + " | " +
+           md_cell(r.range) + " | " + r.required + " | " + md_cell(r.description) + " |\n";
   return out;
 }
 
