@@ -314,6 +314,8 @@ Kernel::Kernel(RobotConfig config, KernelOptions options) : state_(std::make_uni
                                      static_cast<const sdk::RequestDispatcher*>(s.dispatcher.get()), nullptr, "rcand", nullptr);
   s.load_swarm();
   s.create_services(options);  // before the plugins: R2R offers them links
+  if (auto problems = s.runtime->plan_problems(cfg, s.registry->names()); !problems.empty())
+    throw ConfigError(std::move(problems));
   s.start_plugins();
   s.timers = std::make_unique<WorkerThread>("kernel.timers", nullptr);
   if (cfg.doc.is_object() && cfg.doc.value(nlohmann::json::json_pointer("/runtime/plugins/allow_reload"), false))

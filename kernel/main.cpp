@@ -21,6 +21,7 @@
 #include "libs/base/user_access.hpp"
 #include "libs/config/driver_protocols.hpp"
 #include "libs/config/robot_config.hpp"
+#include "libs/plugin_docs/plugin_docs.hpp"
 #include "rcand/sdk/abi.h"
 
 namespace {
@@ -31,6 +32,7 @@ using namespace rcand::kernel;
 constexpr const char* kUsage = R"(usage: rcand [--config FILE] [--plugin-path DIR]... [--port N] [--strict]
        rcand --check-config FILE [--as-user NAME] [--strict]
        rcand --check-plugins [--config FILE] [--plugin-path DIR]...
+       rcand --describe [ID] [--markdown] [--config FILE] [--plugin-path DIR]...
        rcand --version
 
   --config FILE        robot config (.rcan.yaml); default /etc/rcand/robot.rcan.yaml
@@ -41,6 +43,9 @@ constexpr const char* kUsage = R"(usage: rcand [--config FILE] [--plugin-path DI
   --as-user NAME       with --check-config: also check that user NAME (the service's rcand) can read and write
                        every file, directory and device the config names
   --check-plugins      open every installed plugin, print the table, exit 1 if any failed
+  --describe ID        print the settings of a driver protocol, capability or plugin id from the installed manifests
+                       (types, defaults, ranges, what they claim, examples that pass --check-config); loads nothing.
+                       With --markdown and no ID: the whole reference (docs/drivers.md)
   --strict             refuse a config that loads only with warnings (keys rcand ignores, values it supplies,
                        nav without its physics, another RCAN version), at start, --check-config and reload
 
@@ -55,7 +60,9 @@ struct Options {
   std::vector<std::filesystem::path> plugin_paths;
   std::optional<std::uint16_t> port;
   bool check_config = false, check_plugins = false, strict = false;
-  std::string as_user;  // --check-config --as-user NAME
+  std::string as_user;                  // --check-config --as-user NAME
+  std::optional<std::string> describe;  // --describe [ID]: "" for everything (with --markdown)
+  bool markdown = false;
 };
 
 int usage_error(const std::string& message) {
@@ -75,7 +82,7 @@ KernelOptions kernel_options(const Options& options) {
   return result;
 }
 
-int check_plugins(const Options& options) {
+std::vector<std::filesystem::path> plugin_paths_of(const Options& options) {
   std::vector<std::filesystem::path> paths = options.plugin_paths;
   if (paths.empty()) {
     try {
@@ -85,8 +92,12 @@ int check_plugins(const Options& options) {
       paths = default_plugin_paths();
     }
   }
+  return paths;
+}
+
+int check_plugins(const Options& options) {
   PluginHost host;
-  host.scan(paths);
+  host.scan(plugin_paths_of(options));
   std::set<std::string> capabilities, protocols;
   for (const auto& record : host.records()) {
     if (!record->manifest) continue;
@@ -95,6 +106,23 @@ int check_plugins(const Options& options) {
   host.load_needed(capabilities, protocols);
   std::cout << host.format_table();
   return host.any_failed() ? 1 : 0;
+}
+
+// --describe: from the manifests only (scanned, never opened).
+int describe(const Options& options) {
+  PluginHost host;
+  host.scan(plugin_paths_of(options));
+  std::vector<plugin_docs::ManifestText> manifests;
+  for (const auto& record : host.records())
+    if (record->manifest)
+      manifests.push_back({record->manifest->file.string(), nlohmann::ordered_json::parse(record->manifest->text)});
+  const auto text = options.markdown ? plugin_docs::describe_markdown(manifests, *options.describe)
+                                     : plugin_docs::describe_text(manifests, *options.describe);
+  if (text) std::cout << *text;
+  if (text) return 0;
+  std::string known;
+  for (const auto& name : plugin_docs::describable(manifests)) known += (known.empty() ? "" : ", ") + name;
+  return usage_error("--describe: no installed plugin provides '" + *options.describe + "' (known: " + known + ")");
 }
 
 // Every connection is a file descriptor: serve up to the hard limit, not the usual soft 1,024, so a thousand idle
@@ -145,6 +173,10 @@ std::optional<int> parse_arguments(const std::vector<std::string>& args, Options
       }
     } else if (arg == "--check-plugins") {
       options.check_plugins = true;
+    } else if (arg == "--describe") {
+      options.describe = i + 1 < args.size() && !args[i + 1].starts_with("--") ? args[++i] : std::string();
+    } else if (arg == "--markdown") {
+      options.markdown = true;
     } else if (arg == "--strict") {
       options.strict = true;
     } else {
@@ -227,6 +259,7 @@ int main(int argc, char** argv) {
   configure_logging("info");
   set_default_load_options(LoadOptions{options.strict});
   if (options.check_plugins) return check_plugins(options);
+  if (options.describe) return describe(options);
 
   // Signals are taken synchronously by the main thread; every thread started later inherits the mask.
   sigset_t signals;

@@ -7,6 +7,7 @@
 #include <utility>
 
 #include "kernel/plugins/settings_schema.hpp"
+#include "rcand/sdk/contract/plan.hpp"
 
 namespace rcand::kernel {
 namespace {
@@ -80,6 +81,12 @@ ProvidedItem parse_provided(const Fields& f, const json& entry, const std::strin
     f.fail(field + ".interface", "required for an actuating driver (for example \"differential_drive\")");
   }
   if (const auto it = entry.find("fail_safe"); it != entry.end()) item.fail_safe = f.string(*it, field + ".fail_safe");
+  try {
+    sdk::contract::check_provided_item(entry, field);
+  } catch (const ConfigSchemaError& e) {
+    f.fail(e.key(), e.problem());
+  }
+  item.entry = entry;
   return item;
 }
 
@@ -150,6 +157,12 @@ PluginManifest parse_manifest(const json& doc, const std::filesystem::path& file
   return m;
 }
 
+json settings_schema_of(const PluginManifest& m, std::string_view kind, std::string_view name) {
+  for (const auto& item : m.provides)
+    if (item.kind == kind && item.name == name && item.entry.contains("config")) return item.entry["config"];
+  return m.config_schema;
+}
+
 PluginManifest load_manifest(const std::filesystem::path& file) {
   std::ifstream in(file, std::ios::binary);
   if (!in) throw ManifestError(file.string() + ": (file): cannot be read");
@@ -165,7 +178,9 @@ PluginManifest load_manifest(const std::filesystem::path& file) {
       what = what.substr(pos + 2);
     throw ManifestError(file.string() + ": (document): invalid JSON: " + what);
   }
-  return parse_manifest(doc, file);
+  PluginManifest manifest = parse_manifest(doc, file);
+  manifest.text = text.str();
+  return manifest;
 }
 
 }  // namespace rcand::kernel

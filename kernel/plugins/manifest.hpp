@@ -6,6 +6,7 @@
 #include <filesystem>
 #include <stdexcept>
 #include <string>
+#include <string_view>
 #include <vector>
 
 namespace rcand::kernel {
@@ -17,6 +18,7 @@ struct ProvidedItem {
   bool actuates = false;
   std::string interface;  // actuating drivers only: the ActuatorDriver interface they implement
   std::string fail_safe;  // drivers: what the hardware does by itself when rcand stops or dies ("fail_safe")
+  nlohmann::json entry;   // the "provides" entry as written: its own settings schema, the blocks it reads, needs, offers
   // What a plugin registers must equal its manifest; the fail-safe statement is the manifest's alone.
   bool operator==(const ProvidedItem& o) const {
     return kind == o.kind && name == o.name && actuates == o.actuates && interface == o.interface;
@@ -39,7 +41,12 @@ struct PluginManifest {
   std::vector<DeclaredWhen> declared_when;                  // from "provides" entries
   std::vector<std::string> requires_;                       // actuator interfaces some enabled driver must provide
   nlohmann::json config_schema = nlohmann::json::object();  // validated: see apply_config_schema()
+  std::string text;                                         // the file as read (rcand --describe keeps its key order)
 };
+
+// The settings schema of what `m` provides as `kind` "driver" or "capability" named `name`: the item's own "config",
+// else the manifest's (rcand/sdk/contract/settings.hpp).
+nlohmann::json settings_schema_of(const PluginManifest& m, std::string_view kind, std::string_view name);
 
 // The message names the file and the field at fault: "<file>: abi.major: expected integer, found string".
 class ManifestError : public std::runtime_error {

@@ -10,15 +10,26 @@
 #include "libs/base/bounded_text.hpp"
 #include "libs/base/closest_match.hpp"
 #include "libs/base/keep_forever.hpp"
+#include "rcand/sdk/contract/plan.hpp"
 
 namespace rcand::kernel {
 namespace {
 
-// The instance's settings against its manifest's schema; a fault is a config error at the key's file:line:column.
-nlohmann::json validated_settings(const RobotConfig& config, const PluginRecord& plugin, const nlohmann::json& settings,
-                                  bool allow_unknown, const std::string& path) {
-  const nlohmann::json schema = plugin.manifest ? plugin.manifest->config_schema : nlohmann::json::object();
-  return plugin_settings(config, plugin.id, schema, settings, allow_unknown, path);
+// The instance's settings against its manifest's schema for that item (`kind` "driver" or "capability", `name` its
+// protocol or name); a fault is a config error at the key's file:line:column.
+nlohmann::json validated_settings(const RobotConfig& config, const PluginRecord& plugin, std::string_view kind,
+                                  const std::string& name, const nlohmann::json& settings, const std::string& path,
+                                  std::vector<sdk::contract::Claim>* claims = nullptr) {
+  const nlohmann::json schema = plugin.manifest ? settings_schema_of(*plugin.manifest, kind, name) : nlohmann::json::object();
+  return plugin_settings(config, plugin.id, schema, settings, kind == "driver", path, claims);
+}
+
+// What `plugin`'s manifest provides as `kind` `name`, for the plan rule.
+sdk::contract::PlannedItem planned_item(const PluginRecord& plugin, const std::string& kind, const std::string& name) {
+  if (plugin.manifest)
+    for (const auto& item : plugin.manifest->provides)
+      if (item.kind == kind && item.name == name) return {kind, name, plugin.id, item.entry};
+  return {kind, name, plugin.id, nlohmann::json::object()};
 }
 
 const std::string& key_of(const RegisteredDriver& item) { return item.info.protocol; }
@@ -161,7 +172,8 @@ void PluginRuntime::start_driver(DriverInstance& instance, std::size_t index, co
   instance.plugin_id = plugin->id;
   instance.actuates = registered->info.actuates;
   if (instance.actuates) instance.interface = registered->info.interface;
-  auto settings = validated_settings(config, *plugin, entry.settings, true, "drivers[" + std::to_string(index) + "]");
+  auto settings =
+      validated_settings(config, *plugin, "driver", entry.protocol, entry.settings, "drivers[" + std::to_string(index) + "]");
   instance.context = std::make_unique<InstanceContext>(plugin->id, entry.id, services_, std::move(settings), instance.health);
 
   instance.who = "plugin " + plugin->id + " driver " + entry.id;
@@ -227,7 +239,7 @@ void PluginRuntime::start_capability(CapabilityInstance& instance, const RobotCo
     }
     const nlohmann::json raw =
         config.runtime.capabilities.contains(name) ? config.runtime.capabilities.at(name) : nlohmann::json::object();
-    auto settings = validated_settings(config, *plugin, raw, false, "runtime.capabilities." + name);
+    auto settings = validated_settings(config, *plugin, "capability", name, raw, "runtime.capabilities." + name);
     instance.context = std::make_unique<InstanceContext>(plugin->id, name, services_, std::move(settings), instance.health);
     instance.handler_worker = std::make_unique<WorkerThread>(
         "cap." + name, [&health = instance.health](const std::string& why) { health.mark_failed(why); });
@@ -309,9 +321,10 @@ std::vector<ConfigDiagnostic> PluginRuntime::check(const RobotConfig& config, co
   const auto problem = [&](const std::string& path, std::string message) {
     problems.push_back({ConfigDiagnostic::Severity::Error, config.mark_of(path), path, std::move(message)});
   };
-  const auto settings = [&](const PluginRecord& plugin, const nlohmann::json& value, bool driver, const std::string& path) {
+  const auto settings = [&](const PluginRecord& plugin, const char* kind, const std::string& name, const nlohmann::json& value,
+                            const std::string& path) {
     try {
-      validated_settings(config, plugin, value, driver, path);
+      validated_settings(config, plugin, kind, name, value, path);
     } catch (const ConfigError& e) {
       problems.insert(problems.end(), e.diagnostics().begin(), e.diagnostics().end());
     }
@@ -326,8 +339,7 @@ std::vector<ConfigDiagnostic> PluginRuntime::check(const RobotConfig& config, co
       problem(path + ".protocol", unserved(host_, "driver protocol", entry.protocol, plugin));
       continue;
     }
-    if (registered->info.actuates) interfaces.insert(registered->info.interface);
-    settings(*plugin, entry.settings, true, path);
+    if (registered->info.actuates) interfaces.insert(registered->info.interface);  // its settings: plan_problems()
   }
   for (const auto& name : capabilities) {
     if (name == kStatusCapability) continue;  // the kernel's own
@@ -342,8 +354,53 @@ std::vector<ConfigDiagnostic> PluginRuntime::check(const RobotConfig& config, co
                 "capability " + name + " requires a " + needed + " actuator, and no configured driver provides one");
     const nlohmann::json raw =
         config.runtime.capabilities.contains(name) ? config.runtime.capabilities.at(name) : nlohmann::json::object();
-    settings(*plugin, raw, false, "runtime.capabilities." + name);
+    settings(*plugin, "capability", name, raw, "runtime.capabilities." + name);
   }
+  auto plan = plan_problems(config, capabilities);
+  problems.insert(problems.end(), plan.begin(), plan.end());
+  return problems;
+}
+
+std::vector<ConfigDiagnostic> PluginRuntime::plan_problems(const RobotConfig& config,
+                                                           const std::vector<std::string>& capabilities) {
+  std::vector<ConfigDiagnostic> problems;
+  const auto add = [&](const std::string& path, std::string message) {
+    problems.push_back({ConfigDiagnostic::Severity::Error, config.mark_of(path), path, std::move(message)});
+  };
+  std::vector<sdk::contract::InstanceClaims> claims;
+  std::vector<sdk::contract::PlannedItem> planned, installed;
+  for (std::size_t i = 0; i < config.drivers.size(); ++i) {
+    const auto& entry = config.drivers[i];
+    auto [registered, plugin] =
+        find_loaded(host_, host_.providers_of_driver(entry.protocol), &PluginRecord::drivers, entry.protocol);
+    if (registered == nullptr) continue;  // check() and the start name it
+    planned.push_back(planned_item(*plugin, "driver", entry.protocol));
+    auto& instance =
+        claims.emplace_back(sdk::contract::InstanceClaims{"drivers[" + std::to_string(i) + "]", "driver " + entry.id, {}});
+    try {
+      validated_settings(config, *plugin, "driver", entry.protocol, entry.settings, instance.where, &instance.claims);
+    } catch (const ConfigError& e) {
+      problems.insert(problems.end(), e.diagnostics().begin(), e.diagnostics().end());
+    }
+  }
+  for (const auto& name : capabilities) {
+    auto [registered, plugin] = find_loaded(host_, host_.providers_of_capability(name), &PluginRecord::capabilities, name);
+    if (registered == nullptr) continue;
+    planned.push_back(planned_item(*plugin, "capability", name));
+    const auto reads = planned.back().item.value("reads", nlohmann::json::object());
+    for (const auto& [block, schema] : reads.items())
+      if (config.doc.contains(block)) try {
+          plugin_settings(config, plugin->id, schema, config.doc[block], false, block);
+        } catch (const ConfigError& e) {
+          problems.insert(problems.end(), e.diagnostics().begin(), e.diagnostics().end());
+        }
+  }
+  for (const auto& conflict : sdk::contract::claim_conflicts(claims))
+    add(claims[conflict.instance].where + "." + conflict.key, conflict.problem);
+  for (const auto& record : host_.records())
+    if (record->manifest)
+      for (const auto& item : record->manifest->provides) installed.push_back({item.kind, item.name, record->id, item.entry});
+  for (const auto& [key, problem] : sdk::contract::unmet_needs(planned, installed, config.doc)) add(key, problem);
   return problems;
 }
 

@@ -72,8 +72,13 @@ class PluginRuntime {
   // rcand --check-config: what the two above would refuse or fail, found without creating any instance (no plugin
   // factory runs, no device is opened): a driver protocol or capability no loaded plugin serves (with a did-you-mean
   // over the installed ones), settings that fail the manifest's schema, an actuator interface a capability requires
-  // and no configured driver provides. Every problem at its config position.
+  // and no configured driver provides, and plan_problems(). Every problem at its config position.
   std::vector<ConfigDiagnostic> check(const RobotConfig& config, const std::vector<std::string>& capabilities);
+  // What the robot as a whole would refuse, from the manifests (rcand/sdk/contract/plan.hpp): every driver's settings
+  // that fail its schema, a pin, channel, address or servo id two settings claim, a config block a capability reads
+  // (camera) that fails its schema, a need under a config condition nothing started offers (camera.depth without
+  // vision). --check-config reports these, and a start refuses with them before any instance exists.
+  std::vector<ConfigDiagnostic> plan_problems(const RobotConfig& config, const std::vector<std::string>& capabilities);
 
   CapabilityInstance* capability(std::string_view name) noexcept;
   const std::deque<DriverInstance>& drivers() const noexcept { return drivers_; }

@@ -89,7 +89,8 @@ SourceSettings read_source(const ConfigView& camera, const ConfigView& own) {
 DepthSettings read_depth(const ConfigView& camera, const ConfigView& own) {
   DepthSettings d;
   const auto& raw = camera.raw();
-  if (raw.contains("depth") && !(raw["depth"].is_boolean() && !raw["depth"].get<bool>())) {
+  // Absent, null or false: no depth (as the obstacle guard of nav and teleop reads it).
+  if (raw.contains("depth") && !raw["depth"].is_null() && !(raw["depth"].is_boolean() && !raw["depth"].get<bool>())) {
     // Only the synthetic scene so far: `true` would have to pick a source, and a camera's depth is never silently
     // replaced by a made-up one.
     if (!(raw["depth"].is_string() && raw["depth"].get<std::string>() == "synthetic"))

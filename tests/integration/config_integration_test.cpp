@@ -147,7 +147,8 @@ TEST_CASE("YAML syntax errors and missing files are reported, and rcand does not
 }
 
 TEST_CASE("plugin settings are validated against the manifest schema with the config position") {
-  auto result = check(replace(kValid, "    protocol: sim_diff_drive\n", "    protocol: sim_diff_drive\n    halt_delay_ms: soon\n"));
+  auto result =
+      check(replace(kValid, "    protocol: sim_diff_drive\n", "    protocol: sim_diff_drive\n    halt_delay_ms: soon\n"));
   CHECK(result.exit_code == 1);
   CHECK(result.err.find("drivers[0]") != std::string::npos);
   CHECK(result.err.find("halt_delay_ms") != std::string::npos);
@@ -163,7 +164,8 @@ TEST_CASE("--check-config fails on a driver or capability the installed plugins 
   CHECK(missing.exit_code == 1);
   CHECK(missing.err.find("no installed plugin provides driver protocol 'roboclaw'") != std::string::npos);
   // A hardware driver passes without its hardware (nothing is opened) and says what its board does on its own.
-  auto hardware = check(replace(kValid, "protocol: sim_diff_drive", "protocol: pca9685_i2c"));
+  auto hardware = check(replace(kValid, "protocol: sim_diff_drive",
+                                "protocol: pca9685_i2c\n    channels:\n      left: {esc: 0}\n      right: {esc: 1}"));
   INFO(hardware.out, hardware.err);
   CHECK(hardware.exit_code == 0);
   CHECK(hardware.out.find("fail-safe of drive0 (pca9685_i2c): ") != std::string::npos);
@@ -270,7 +272,8 @@ CorpusEntry read_corpus_entry(const std::filesystem::path& file) {
 
 std::vector<CorpusEntry> corpus() {
   std::vector<CorpusEntry> entries;
-  for (const auto& item : std::filesystem::directory_iterator(std::filesystem::path(RCAND_SOURCE_DIR) / "tests" / "configs"))
+  for (const auto& item :
+       std::filesystem::recursive_directory_iterator(std::filesystem::path(RCAND_SOURCE_DIR) / "tests" / "configs"))
     if (item.path().string().ends_with(".rcan.yaml")) entries.push_back(read_corpus_entry(item.path()));
   std::sort(entries.begin(), entries.end(), [](const auto& a, const auto& b) { return a.file < b.file; });
   return entries;

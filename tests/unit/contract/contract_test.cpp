@@ -199,9 +199,9 @@ void write_plugin_folder(const rcand::test::TempDir& dir, const std::function<vo
 }
 
 // Teleop's dead-man timeout defaults to 250 ms in this manifest: the move's answer shows it was filled in.
-void default_watchdog(json& manifest) { manifest["config"]["watchdog_ms"]["default"] = 250; }
+void default_watchdog(json& manifest) { manifest["config"]["properties"]["watchdog_ms"]["default"] = 250; }
 // "minumum": a typo in the schema, which the manifest check refuses.
-void misspelt_schema(json& manifest) { manifest["config"]["watchdog_ms"]["minumum"] = 1; }
+void misspelt_schema(json& manifest) { manifest["config"]["properties"]["watchdog_ms"]["minumum"] = 1; }
 
 const json kMove{{"type", "move"}, {"linear", 0.1}, {"angular", 0.0}};
 
@@ -280,9 +280,9 @@ TEST_CASE("contract: a default from the manifest is filled in on both hosts") {
 TEST_CASE("contract: a malformed config schema is refused at load on both hosts") {
   json manifest = teleop_manifest();
   misspelt_schema(manifest);
-  const std::string expected = "config.watchdog_ms.minumum: unknown key";
+  const std::string expected = "config.properties.watchdog_ms.minumum: unknown key";
   CHECK_THROWS_WITH_AS(rcand::sdk::testing::FakeHost().load(RCAND_ENTRY_FUNCTION, manifest),
-                       doctest::Contains("invalid-manifest: config.watchdog_ms.minumum: unknown key"),
+                       doctest::Contains("invalid-manifest: config.properties.watchdog_ms.minumum: unknown key"),
                        rcand::sdk::testing::LoadError);
 
   rcand::test::TempDir plugins{"rcand-contract-plugins"};

@@ -2,10 +2,10 @@
 
 #include <doctest/doctest.h>
 
+#include <unistd.h>
 #include <filesystem>
 #include <fstream>
 #include <string>
-#include <unistd.h>
 #include "temp_dir.hpp"
 
 using nlohmann::json;
@@ -40,7 +40,6 @@ std::string manifest_error_of(const json& doc) {
   return "";
 }
 
-
 }  // namespace
 
 TEST_CASE("parse_manifest reads every field of a valid manifest") {
@@ -54,8 +53,8 @@ TEST_CASE("parse_manifest reads every field of a valid manifest") {
   CHECK(m.abi_major == 1);
   CHECK(m.abi_minor == 0);
   REQUIRE(m.provides.size() == 2);
-  CHECK(m.provides[0] == ProvidedItem{"capability", "teleop", true, "", ""});
-  CHECK(m.provides[1] == ProvidedItem{"driver", "sim_diff_drive", true, "differential_drive", ""});
+  CHECK(m.provides[0] == ProvidedItem{"capability", "teleop", true, "", "", {}});
+  CHECK(m.provides[1] == ProvidedItem{"driver", "sim_diff_drive", true, "differential_drive", "", {}});
   CHECK(m.provides[1].fail_safe == "wheels stop");  // the manifest's own: a registration never carries it
   CHECK(m.requires_ == std::vector<std::string>{"differential_drive"});
   CHECK(m.config_schema["watchdog_ms"]["default"] == 500);
@@ -81,7 +80,7 @@ TEST_CASE("parse_manifest: a capability declared by a config key (\"declared_whe
   const auto m = parse_manifest(doc, "fleet.json");
   REQUIRE(m.declared_when.size() == 1);
   CHECK(m.declared_when[0] == rcand::kernel::DeclaredWhen{"org.rcand.fleet", "runtime.r2r.enabled"});
-  CHECK(m.provides[0] == ProvidedItem{"capability", "org.rcand.fleet", false, "", ""});  // registration compares as before
+  CHECK(m.provides[0] == ProvidedItem{"capability", "org.rcand.fleet", false, "", "", {}});  // registration compares as before
   CHECK(parse_manifest(teleop_manifest(), "teleop.json").declared_when.empty());
 
   doc["provides"][0]["declared_when"] = "runtime..r2r";
@@ -94,7 +93,9 @@ TEST_CASE("parse_manifest: a capability declared by a config key (\"declared_whe
 
 TEST_CASE("parse_manifest errors name the file and the field") {
   json doc = teleop_manifest();
-  SUBCASE("not an object") { CHECK(manifest_error_of(json::array()).find("expected a JSON object, found array") != std::string::npos); }
+  SUBCASE("not an object") {
+    CHECK(manifest_error_of(json::array()).find("expected a JSON object, found array") != std::string::npos);
+  }
   SUBCASE("missing id") {
     doc.erase("id");
     CHECK(manifest_error_of(doc) == "/plugins/teleop.json: id: required field is missing");
@@ -141,7 +142,8 @@ TEST_CASE("parse_manifest errors name the file and the field") {
   }
   SUBCASE("provides kind unknown") {
     doc["provides"][1]["kind"] = "sensor";
-    CHECK(manifest_error_of(doc) == "/plugins/teleop.json: provides[1].kind: expected \"capability\" or \"driver\", found \"sensor\"");
+    CHECK(manifest_error_of(doc) ==
+          "/plugins/teleop.json: provides[1].kind: expected \"capability\" or \"driver\", found \"sensor\"");
   }
   SUBCASE("provides name missing") {
     doc["provides"][0].erase("name");

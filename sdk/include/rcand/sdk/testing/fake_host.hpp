@@ -37,6 +37,7 @@
 #include "rcand/sdk/bounded_text.hpp"
 #include "rcand/sdk/capability.hpp"
 #include "rcand/sdk/context.hpp"
+#include "rcand/sdk/contract/plan.hpp"
 #include "rcand/sdk/contract/requests.hpp"
 #include "rcand/sdk/contract/settings.hpp"
 #include "rcand/sdk/driver.hpp"
@@ -121,7 +122,7 @@ class FakeHost {
     if (!settings.is_object()) throw HostError("drivers[" + id + "]: settings must be an object");
     settings["id"] = id;
     settings["protocol"] = protocol;
-    settings = apply_schema(reg->second.plugin_id, std::move(settings), "drivers[" + id + "]", contract::kDriverEntryKeys);
+    settings = apply_schema(reg->second.plugin_id, "driver", protocol, std::move(settings), "drivers[" + id + "]");
 
     auto slot = std::make_unique<DriverSlot>();
     slot->id = id;
@@ -135,8 +136,7 @@ class FakeHost {
     if (!slot->instance) throw HostError("driver '" + id + "': factory returned null");
     if (reg->second.info.actuates) {
       slot->actuator = dynamic_cast<ActuatorDriver*>(slot->instance.get());
-      if (!slot->actuator)
-        throw HostError("driver '" + id + "': registered as actuating but the factory made no ActuatorDriver");
+      if (!slot->actuator) throw HostError("driver '" + id + "': registered as actuating but the factory made no ActuatorDriver");
       if (slot->actuator->interface_name() != reg->second.info.interface)
         throw HostError("driver '" + id + "': registered interface '" + reg->second.info.interface +
                         "' but the instance implements '" + std::string(slot->actuator->interface_name()) + "'");
@@ -178,7 +178,7 @@ class FakeHost {
       settings = configured.is_object() ? configured : nlohmann::json::object();
     }
     if (!settings.is_object()) throw HostError("runtime.capabilities." + name + ": settings must be an object");
-    settings = apply_schema(reg->second.plugin_id, std::move(settings), "runtime.capabilities." + name, {});
+    settings = apply_schema(reg->second.plugin_id, "capability", name, std::move(settings), "runtime.capabilities." + name);
 
     auto slot = std::make_unique<CapabilitySlot>();
     slot->name = name;
@@ -460,8 +460,7 @@ class FakeHost {
       }
       return GateStatus::Ok;
     }
-    GateStatus inspect(std::string_view actuator_id,
-                       const std::function<void(const ActuatorDriver&)>& reader) const override {
+    GateStatus inspect(std::string_view actuator_id, const std::function<void(const ActuatorDriver&)>& reader) const override {
       const DriverSlot* slot = host_.find_driver(actuator_id);
       if (!slot || !slot->actuator) return GateStatus::UnknownActuator;
       if (slot->failed) return GateStatus::ActuatorFailed;
@@ -619,18 +618,20 @@ class FakeHost {
       throw LoadError("incompatible-abi: built for ABI " + std::to_string(d->abi_major) + ", host speaks " +
                       std::to_string(RCAND_ABI_MAJOR));
     if (d->abi_minor > RCAND_ABI_MINOR)
-      throw LoadError("incompatible-abi: built for ABI " + std::to_string(d->abi_major) + "." +
-                      std::to_string(d->abi_minor) + ", newer than the host's " + std::to_string(RCAND_ABI_MAJOR) + "." +
-                      std::to_string(RCAND_ABI_MINOR));
+      throw LoadError("incompatible-abi: built for ABI " + std::to_string(d->abi_major) + "." + std::to_string(d->abi_minor) +
+                      ", newer than the host's " + std::to_string(RCAND_ABI_MAJOR) + "." + std::to_string(RCAND_ABI_MINOR));
     if (!d->plugin_id || !*d->plugin_id) throw LoadError("incompatible-abi: the descriptor has no plugin id");
     if (!d->version || !*d->version) throw LoadError("incompatible-abi: the descriptor has no version");
     if (!d->register_plugin) throw LoadError("incompatible-abi: the descriptor has no register function");
     const std::string id = d->plugin_id;
     if (loaded_.count(id)) throw LoadError("duplicate plugin id '" + id + "'");
     if (manifest) check_manifest_identity(*manifest, id, d->version);
-    if (manifest && manifest->contains("config")) {  // the kernel's manifest check, from the same contract
+    if (manifest) {  // the kernel's manifest check, from the same contract
       try {
-        contract::check_settings_schema(manifest->at("config"), "config.");
+        if (manifest->contains("config")) contract::check_settings_schema(manifest->at("config"), "config.");
+        const auto provides = manifest->value("provides", nlohmann::json::array());
+        for (std::size_t i = 0; i < provides.size(); ++i)
+          if (provides[i].is_object()) contract::check_provided_item(provides[i], "provides[" + std::to_string(i) + "]");
       } catch (const contract::SettingsError& e) {
         throw LoadError(std::string("invalid-manifest: ") + e.what());
       }
@@ -648,7 +649,7 @@ class FakeHost {
     if (manifest) check_provides(*manifest, id, recorder);
 
     loaded_.insert(id);
-    if (manifest) schemas_[id] = manifest->value("config", nlohmann::json::object());  // none: takes no settings
+    if (manifest) manifests_[id] = *manifest;  // its settings schemas: none means the plugin takes no settings
     for (auto& [name, reg] : recorder.capabilities) capability_registrations_.emplace(name, std::move(reg));
     for (auto& [protocol, reg] : recorder.drivers) driver_registrations_.emplace(protocol, std::move(reg));
   }
@@ -675,8 +676,7 @@ class FakeHost {
                        p.value("interface", std::string()));
     }
     for (const auto& [name, reg] : r.capabilities) registered.emplace("capability", name, reg.info.actuates, "");
-    for (const auto& [protocol, reg] : r.drivers)
-      registered.emplace("driver", protocol, reg.info.actuates, reg.info.interface);
+    for (const auto& [protocol, reg] : r.drivers) registered.emplace("driver", protocol, reg.info.actuates, reg.info.interface);
     if (declared != registered) {
       auto describe = [](const std::set<Item>& items) {
         std::string out;
@@ -691,21 +691,34 @@ class FakeHost {
   }
 
   // The kernel's settings rule (rcand/sdk/contract/settings.hpp): types, bounds, enums and required keys checked,
-  // defaults filled in, near-miss unknown keys refused with a did-you-mean, other unknown keys left out and recorded
-  // (ignored_settings(); rcand logs a warning). `where` names the instance in the error.
-  nlohmann::json apply_schema(const std::string& plugin_id, nlohmann::json settings, const std::string& where,
-                              std::span<const std::string_view> also_allowed) const {
-    const auto it = schemas_.find(plugin_id);
-    if (it == schemas_.end()) return settings;  // loaded without a manifest: nothing to check against
-    try {
-      std::vector<std::string> ignored;
-      auto result = contract::apply_settings(it->second, settings, also_allowed, &ignored);
-      for (const auto& key : ignored) ignored_settings_.push_back(where + "." + key);
-      return result;
-    } catch (const contract::SettingsError& e) {
-      const std::string key_path = e.key().empty() ? where : where + "." + e.key();
-      throw HostError(key_path + ": " + e.problem() + " (settings of plugin " + plugin_id + ")");
+  // defaults filled in; in a driver entry every unknown key is refused, elsewhere near-miss unknown keys are refused
+  // with a did-you-mean and other unknown keys left out and recorded (ignored_settings(); rcand logs a warning). A
+  // driver's claims (the pins, channels, ids its settings name) must not repeat within it or another driver's.
+  // `where` names the instance in the error.
+  nlohmann::json apply_schema(const std::string& plugin_id, std::string_view kind, const std::string& name,
+                              nlohmann::json settings, const std::string& where) {
+    const auto it = manifests_.find(plugin_id);
+    if (it == manifests_.end()) return settings;  // loaded without a manifest: nothing to check against
+    const bool driver = kind == "driver";
+    auto result = contract::validate_settings(
+        contract::item_settings_schema(it->second, kind, name), settings,
+        contract::SettingsRules{
+            driver ? std::span<const std::string_view>(contract::kDriverEntryKeys) : std::span<const std::string_view>(),
+            driver ? contract::UnknownKeys::Refuse : contract::UnknownKeys::WarnUnlessNearMiss});
+    if (!result.problems.empty()) {
+      const auto& [key, problem] = result.problems.front();
+      throw HostError((key.empty() ? where : where + (key.front() == '[' ? "" : ".") + key) + ": " + problem +
+                      " (settings of plugin " + plugin_id + ")");
     }
+    for (const auto& key : result.ignored) ignored_settings_.push_back(where + "." + key);
+    if (driver) {
+      auto claims = driver_claims_;
+      claims.push_back({where, "driver " + name, result.claims});
+      for (const auto& conflict : contract::claim_conflicts(claims))
+        if (conflict.instance + 1 == claims.size()) throw HostError(where + "." + conflict.key + ": " + conflict.problem);
+      driver_claims_ = std::move(claims);
+    }
+    return std::move(result.settings);
   }
 
   template <class Map> static std::string known(const Map& map) {
@@ -737,8 +750,7 @@ class FakeHost {
     for (const auto& slot : capabilities_)
       if (!slot->custom)
         for (const auto& route : slot->routes)
-          if (route.path == "/api/action" && route.method == "POST" && route.action_type == type)
-            return {slot.get(), &route};
+          if (route.path == "/api/action" && route.method == "POST" && route.action_type == type) return {slot.get(), &route};
     return {nullptr, nullptr};
   }
 
@@ -882,8 +894,7 @@ class FakeHost {
     const bool valid = !name.empty() && name.size() <= 64 && std::all_of(name.begin(), name.end(), [](char c) {
       return (c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') || (c >= '0' && c <= '9') || c == '_' || c == '-' || c == '.';
     });
-    if (!valid)
-      throw std::invalid_argument("invalid worker name '" + std::string(name) + "' (use 1-64 of [A-Za-z0-9_.-])");
+    if (!valid) throw std::invalid_argument("invalid worker name '" + std::string(name) + "' (use 1-64 of [A-Za-z0-9_.-])");
     const std::string full = instance + "." + std::string(name);
     auto& worker = workers_[full];
     if (!worker) worker = std::make_unique<FakeWorker>(scheduler_, clock_, full);
@@ -927,8 +938,9 @@ class FakeHost {
   std::vector<std::string> task_failures_;
   std::uint64_t message_counter_ = 0;
   std::set<std::string> loaded_;
-  std::map<std::string, nlohmann::json> schemas_;
-  mutable std::vector<std::string> ignored_settings_;  // apply_schema() is const: it records what it left out
+  std::map<std::string, nlohmann::json> manifests_;
+  std::vector<std::string> ignored_settings_;
+  std::vector<contract::InstanceClaims> driver_claims_;  // every driver's claims, for the next one's check
   std::map<std::string, CapabilityRegistration, std::less<>> capability_registrations_;
   std::map<std::string, DriverRegistration, std::less<>> driver_registrations_;
   std::map<std::string, std::unique_ptr<FakeWorker>> workers_;
