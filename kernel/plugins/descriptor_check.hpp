@@ -7,7 +7,7 @@
 #include <optional>
 #include <string>
 
-#include "kernel/plugins/manifest.hpp"
+#include "libs/manifest/manifest.hpp"
 #include "kernel/plugins/plugin_state.hpp"
 
 namespace rcand::kernel {

@@ -9,7 +9,7 @@
 #include <string>
 #include <vector>
 
-#include "kernel/plugins/manifest.hpp"
+#include "libs/manifest/manifest.hpp"
 #include "kernel/plugins/plugin_state.hpp"
 
 namespace rcand::kernel {

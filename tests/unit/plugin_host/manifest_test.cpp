@@ -1,4 +1,4 @@
-#include "kernel/plugins/manifest.hpp"
+#include "libs/manifest/manifest.hpp"
 
 #include <doctest/doctest.h>
 
@@ -9,10 +9,10 @@
 #include "temp_dir.hpp"
 
 using nlohmann::json;
-using rcand::kernel::load_manifest;
-using rcand::kernel::ManifestError;
-using rcand::kernel::parse_manifest;
-using rcand::kernel::ProvidedItem;
+using rcand::load_manifest;
+using rcand::ManifestError;
+using rcand::parse_manifest;
+using rcand::ProvidedItem;
 
 namespace {
 
@@ -79,7 +79,7 @@ TEST_CASE("parse_manifest: a capability declared by a config key (\"declared_whe
   doc["provides"] = json::parse(R"([{"kind": "capability", "name": "org.rcand.fleet", "declared_when": "runtime.r2r.enabled"}])");
   const auto m = parse_manifest(doc, "fleet.json");
   REQUIRE(m.declared_when.size() == 1);
-  CHECK(m.declared_when[0] == rcand::kernel::DeclaredWhen{"org.rcand.fleet", "runtime.r2r.enabled"});
+  CHECK(m.declared_when[0] == rcand::DeclaredWhen{"org.rcand.fleet", "runtime.r2r.enabled"});
   CHECK(m.provides[0] == ProvidedItem{"capability", "org.rcand.fleet", false, "", "", {}});  // registration compares as before
   CHECK(parse_manifest(teleop_manifest(), "teleop.json").declared_when.empty());
 

@@ -1,4 +1,4 @@
-#include "kernel/plugins/manifest.hpp"
+#include "libs/manifest/manifest.hpp"
 
 #include <fstream>
 #include <optional>
@@ -6,10 +6,10 @@
 #include <sstream>
 #include <utility>
 
-#include "kernel/plugins/settings_schema.hpp"
+#include "rcand/sdk/contract/settings.hpp"
 #include "rcand/sdk/contract/plan.hpp"
 
-namespace rcand::kernel {
+namespace rcand {
 namespace {
 
 using nlohmann::json;
@@ -83,7 +83,7 @@ ProvidedItem parse_provided(const Fields& f, const json& entry, const std::strin
   if (const auto it = entry.find("fail_safe"); it != entry.end()) item.fail_safe = f.string(*it, field + ".fail_safe");
   try {
     sdk::contract::check_provided_item(entry, field);
-  } catch (const ConfigSchemaError& e) {
+  } catch (const sdk::contract::SettingsError& e) {
     f.fail(e.key(), e.problem());
   }
   item.entry = entry;
@@ -148,8 +148,8 @@ PluginManifest parse_manifest(const json& doc, const std::filesystem::path& file
 
   if (const auto it = doc.find("config"); it != doc.end()) {
     try {
-      check_config_schema(*it, "config.");
-    } catch (const ConfigSchemaError& e) {
+      sdk::contract::check_settings_schema(*it, "config.");
+    } catch (const sdk::contract::SettingsError& e) {
       throw ManifestError(file.string() + ": " + e.what());
     }
     m.config_schema = *it;
@@ -183,4 +183,4 @@ PluginManifest load_manifest(const std::filesystem::path& file) {
   return manifest;
 }
 
-}  // namespace rcand::kernel
+}  // namespace rcand

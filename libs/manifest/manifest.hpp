@@ -9,7 +9,7 @@
 #include <string_view>
 #include <vector>
 
-namespace rcand::kernel {
+namespace rcand {
 
 // One entry of the manifest's "provides": a capability name or a driver protocol.
 struct ProvidedItem {
@@ -61,4 +61,4 @@ PluginManifest parse_manifest(const nlohmann::json& doc, const std::filesystem::
 // Reads and parses `file`. Throws ManifestError (unreadable file, bad JSON, invalid content).
 PluginManifest load_manifest(const std::filesystem::path& file);
 
-}  // namespace rcand::kernel
+}  // namespace rcand
