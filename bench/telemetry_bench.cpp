@@ -93,8 +93,9 @@ int main(int argc, char** argv) {
   for (int i = 0; i < clients_n; ++i) {
     auto client = std::make_unique<Client>(io);
     beast::get_lowest_layer(client->ws).connect(net::ip::tcp::endpoint(net::ip::make_address("127.0.0.1"), robot.port()));
+    // As the OWNER: a principal below holds 8 sockets at most, 16 from one address (runtime.telemetry.*).
     client->ws.set_option(websocket::stream_base::decorator(
-        [](websocket::request_type& request) { request.set(beast::http::field::authorization, "Bearer guest-token"); }));
+        [](websocket::request_type& request) { request.set(beast::http::field::authorization, "Bearer owner-token"); }));
     client->ws.handshake("127.0.0.1", "/ws/telemetry");
     client->read();
     clients.push_back(std::move(client));

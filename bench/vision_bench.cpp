@@ -136,7 +136,8 @@ int main(int argc, char** argv) try {
     auto& viewer = *viewers.emplace_back(std::make_unique<Viewer>());
     threads.emplace_back([&, port = rcand.port()] {
       rcand::test::MjpegClient client(port);
-      if (client.open("/api/stream/mjpeg?token=guest-token") != 200) {
+      // As the OWNER: a principal below holds 4 viewers at most (runtime.max_streams_per_principal).
+      if (client.open("/api/stream/mjpeg?token=owner-token") != 200) {
         viewer.failed = true;
         return;
       }

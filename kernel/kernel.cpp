@@ -81,6 +81,16 @@ AuthSettings auth_settings(const RobotConfig& config, const std::string& ruri, c
   return settings;
 }
 
+// docs/protocol.md §3.9: the robot's own pages and runtime.listen.allowed_origins; its names are the machine's and
+// metadata.robot_name.local.
+http::OriginPolicy origin_policy(const RobotConfig& config) {
+  try {
+    return http::OriginPolicy({config.runtime.allowed_origins, http::OriginPolicy::own_host_names(config.robot_name)});
+  } catch (const std::invalid_argument& e) {  // the schema refuses such an origin first
+    throw StartupError(e.what());
+  }
+}
+
 // runtime.listen.tls as the HTTP server takes it; its files are read (and every problem named) by make_server_tls_context.
 std::optional<http::TlsSettings> tls_settings(const RobotConfig& config) {
   const auto& tls = config.runtime.listen_tls;
@@ -123,6 +133,7 @@ struct Kernel::State {
   std::atomic<bool> reloads_closed{false};  // set by shutdown(): a queued reload answers 503
   std::unique_ptr<KernelRouteDeps> kernel_routes;
   std::unique_ptr<CapabilityRouteDeps> capability_routes;
+  std::unique_ptr<SlotTable> stream_slots;                 // streamed answers held at once (runtime.max_streams_per_*)
   std::unique_ptr<StatusBoard> status_board;               // GET /api/status, discovery, mDNS TXT and R2R status read it
   std::unique_ptr<http::Server> server;                    // bound by claim_robot(), serving from start()
   std::vector<http::UpgradeHandler> upgrades;              // the services' WebSocket upgrades: set by start() before it serves
@@ -256,8 +267,11 @@ void Kernel::State::add_routes() {
       [this] { return registry->advertise(status_board->robot_state(), bound_port.load()).discover; },
       [this](const std::string& id, const std::string& principal, auto done) { reload_plugin(id, principal, std::move(done)); }});
   add_kernel_routes(api->router(), *kernel_routes);
+  stream_slots = std::make_unique<SlotTable>(
+      SlotLimits{SlotLimits::kUnlimited, 0, config.runtime.max_streams_per_principal, config.runtime.max_streams_per_address});
   capability_routes.reset(new CapabilityRouteDeps{*registry, *runtime, audit, estop, *timers,
-                                                  std::chrono::milliseconds(config.runtime.handler_timeout_ms)});
+                                                  std::chrono::milliseconds(config.runtime.handler_timeout_ms), *stream_slots,
+                                                  *auth});
   add_capability_routes(api->router(), *capability_routes);
   for (auto& service : optional_services) service->add_routes(api->router());
 }
@@ -308,7 +322,7 @@ Kernel::Kernel(RobotConfig config, KernelOptions options) : state_(std::make_uni
   }
   s.load_plugins(options);
   s.runtime = std::make_unique<PluginRuntime>(s.host, s.services, s.actuators);
-  s.api = std::make_unique<Api>(cfg.runtime, *s.auth, s.audit, s.estop, s.clock);
+  s.api = std::make_unique<Api>(cfg.runtime, *s.auth, s.audit, s.estop, s.clock, origin_policy(cfg));
   s.dispatcher = std::make_unique<KernelRequestDispatcher>(*s.api);
   s.services.directory.offer_service(sdk::RequestDispatcher::kServiceId,
                                      static_cast<const sdk::RequestDispatcher*>(s.dispatcher.get()), nullptr, "rcand", nullptr);
@@ -424,6 +438,8 @@ http::ServerOptions Kernel::State::server_options() {
   options.priority = [](const http::Request& request) {
     return (request.method == "POST" && request.path == "/api/stop") || (request.method == "GET" && request.path == "/api/estop");
   };
+  // Every request and upgrade is screened first (Origin, Host: docs/protocol.md §3.9); the Api exists once it serves.
+  options.screen = [this](const http::Request& request) { return api->screen(request); };
   options.upgrade = [this](const http::Request& request) {  // WS /ws/r2r, /ws/telemetry on the robot's own port
     for (const auto& upgrade : upgrades)                    // each hook answers only for its own path: the first that does wins
       if (auto verdict = upgrade(request); verdict.take || verdict.refuse) return verdict;

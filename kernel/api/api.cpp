@@ -18,12 +18,6 @@ bool valid_message_id(std::string_view id) {
   return true;
 }
 
-// "127.0.0.1:54321" -> "127.0.0.1", "[::1]:54321" -> "::1": the rate-limit key of a client address.
-std::string client_address(const std::string& remote) {
-  if (!remote.empty() && remote.front() == '[') return remote.substr(1, remote.find(']') - 1);
-  return remote.substr(0, remote.rfind(':'));
-}
-
 http::Response too_many_requests(const std::string& who, double per_s, std::chrono::milliseconds wait) {
   const auto retry_after_s = std::max<std::int64_t>(1, (wait.count() + 999) / 1000);
   json limit = per_s;
@@ -45,22 +39,34 @@ std::optional<std::string_view> request_credential(const http::Request& request)
   return std::nullopt;
 }
 
-Api::Api(const RuntimeConfig& config, const Authenticator& auth, AuditLog& audit, const Estop& estop, const sdk::Clock& clock)
+}  // namespace
+
+Api::Api(const RuntimeConfig& config, const Authenticator& auth, AuditLog& audit, const Estop& estop, const sdk::Clock& clock,
+         http::OriginPolicy origins)
     : auth_(auth),
       audit_(audit),
       estop_(estop),
       clock_(clock),
+      origins_(std::move(origins)),
       principal_limiter_({config.rate_limit_principal_per_s, config.rate_limit_burst_s}),
       address_limiter_({config.rate_limit_address_per_s, config.rate_limit_burst_s}) {}
 
 void Api::log_refusal(const char* logger_name, const http::Request& request, const std::string& what) {
-  const std::string address = client_address(request.remote);
+  const std::string address = http::client_address(request.remote);
   const auto verdict = refusal_log_.admit(address);
   if (!verdict.log) return;
   auto log = logger(logger_name);
   if (verdict.suppressed > 0)
     log->warn("{} more refusals for {} not logged (more than {} a second)", verdict.suppressed, address, kRefusalLogLines);
   log->warn("{} {} from {}: {}", bounded_text(request.method), bounded_text(request.path), request.remote, what);
+}
+
+std::optional<http::Response> Api::screen(const http::Request& request) {
+  auto refusal = origins_.check(request, auth_.open_mode());  // open: a rebinding page's GETs need no credential
+  if (!refusal) return std::nullopt;
+  log_refusal("kernel.api", request, "403 (" + refusal->message + ")");
+  return error_response(403, "ORIGIN_NOT_ALLOWED", refusal->message,
+                        {{"origin", refusal->origin.empty() ? json() : json(refusal->origin)}});
 }
 
 void Api::handle(http::Request&& request, http::Respond respond) { serve(std::move(request), nullptr, std::move(respond)); }
@@ -87,7 +93,7 @@ void Api::execute_for_caller(http::Request request, http::Respond respond, json 
 }
 
 bool Api::admit_address(const http::Request& request, const Reply& reply) {
-  const std::string address = client_address(request.remote);
+  const std::string address = http::client_address(request.remote);
   const auto wait = address_limiter_.admit(address, clock_.now_us());
   if (!wait) return true;
   log_refusal("kernel.api", request, "address " + address + " over its rate limit (429)");

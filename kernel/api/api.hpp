@@ -1,8 +1,9 @@
 // The HTTP API's front door (docs/protocol.md §7): the route table and the middleware every request goes through
-// once, in this order: message id → rate limit per address → route match (404/405) → authentication for the row's
-// scope → rate limit per principal → a service's decorator, if any → the audit entry (audited rows) → the e-stop pre-check
-// (motion rows) → the row's handler. Runs on the server's I/O threads and never blocks there: the stop handler runs inline;
-// capability handlers run on their own workers.
+// once. Before anything else, screen() (the server calls it for every request, WebSocket upgrades included) refuses a
+// browser page of another origin (docs/protocol.md §3.9). Then, in this order: message id → rate limit per address → route match
+// (404/405) → authentication for the row's scope → rate limit per principal → a service's decorator, if any → the audit entry
+// (audited rows) → the e-stop pre-check (motion rows) → the row's handler. Runs on the server's I/O threads and never blocks
+// there: the stop handler runs inline; capability handlers run on their own workers.
 #pragma once
 
 #include <atomic>
@@ -19,6 +20,7 @@
 #include "libs/base/rate_limiter.hpp"
 #include "libs/config/robot_config.hpp"
 #include "libs/http/handler.hpp"
+#include "libs/http/origin_policy.hpp"
 
 namespace rcand::kernel {
 
@@ -28,13 +30,18 @@ std::optional<std::string_view> request_credential(const http::Request& request)
 
 class Api {
  public:
-  Api(const RuntimeConfig& config, const Authenticator& auth, AuditLog& audit, const Estop& estop, const sdk::Clock& clock);
+  Api(const RuntimeConfig& config, const Authenticator& auth, AuditLog& audit, const Estop& estop, const sdk::Clock& clock,
+      http::OriginPolicy origins = http::OriginPolicy());
 
   // Startup only: routes are added before the server starts and never change afterwards.
   Router& router() noexcept { return router_; }
 
   // I/O thread; never blocks.
   void handle(http::Request&& request, http::Respond respond);
+  // The server's screen (http::ServerOptions::screen), for every request and WebSocket upgrade on every port rcand
+  // serves: 403 ORIGIN_NOT_ALLOWED for a browser page of another origin, or naming a host the robot does not know
+  // (logged like other refusals); nullopt lets the request go on. Any I/O thread, the accept thread included.
+  std::optional<http::Response> screen(const http::Request& request);
 
   // An R2R `command` (docs/protocol.md §11): runs `body` exactly as POST /api/action from `principal`, whom the R2R
   // node already authenticated: the same scope checks, 423 e-stop pre-check, audit entry and capability dispatch.
@@ -69,6 +76,7 @@ class Api {
   AuditLog& audit_;
   const Estop& estop_;
   const sdk::Clock& clock_;
+  const http::OriginPolicy origins_;
   Router router_;
   std::atomic<std::uint64_t> message_counter_{0};
   RateLimiter principal_limiter_, address_limiter_;

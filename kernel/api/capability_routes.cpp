@@ -7,9 +7,11 @@
 #include "kernel/api/answers.hpp"
 #include "kernel/api/api.hpp"
 #include "kernel/auth/caller_credential.hpp"
+#include "kernel/auth/slots.hpp"
 #include "kernel/plugins/guarded.hpp"
 #include "libs/base/bounded_text.hpp"
 #include "libs/base/json_body.hpp"
+#include "libs/http/response_stream.hpp"
 #include "libs/http/stream_writer.hpp"
 
 namespace rcand::kernel {
@@ -29,6 +31,13 @@ bool is_read(std::string_view method) { return method == "GET" || method == "HEA
 // caller with the route's scope take the capability - its stop and cancel routes too - out of service until a restart.
 // Hangs (the worker is stuck) and lifecycle hooks still fail the instance.
 void count_handler_throw(CapabilityInstance& instance) { instance.health.count_handler_error(); }
+
+constexpr SlotWords kStreamSlots{"streamed answers (MJPEG viewers and the like)",
+                                 "",
+                                 "runtime.max_streams_per_principal",
+                                 "runtime.max_streams_per_address",
+                                 "",
+                                 "TOO_MANY_STREAMS"};
 
 // The contract's answers (the fake host gives the same ones) as HTTP responses.
 http::Response answer(const sdk::Response& response) { return json_response(response.status, response.body); }
@@ -121,19 +130,31 @@ class CapabilityRoutes {
     auto request = make_request(call, std::move(body.value));
     auto pending = std::make_shared<Pending>();
     Finish finish = arm(*instance, call, reply, pending);
-    auto writer = http::make_stream_writer([finish, timers = &d_.timers, pending](http::Response response) {
-      const int status = response.status;
-      std::string detail;  // as for JSON routes: the error body's code, else the status
-      if (status >= 300) {
-        const json error = response.content_type == "application/json" ? json::parse(response.body, nullptr, false) : json();
-        detail = error.is_object() && error.contains("code") && error["code"].is_string() ? error["code"].get<std::string>()
-                                                                                          : std::to_string(status);
-      }
-      const char* outcome = status < 300 ? "ok" : status == 423 ? "blocked" : "error";
-      if (!finish(std::move(response), outcome, detail)) return false;
-      timers->cancel(pending->timer);
-      return true;
-    });
+    auto holder = slot_holder(call.principal, call.role, d_.auth.open_mode(), http::client_address(call.request.remote));
+    auto writer = http::make_stream_writer(
+        [finish, timers = &d_.timers, pending, streams = &d_.streams, holder, role = call.role](http::Response response) {
+          if (response.stream) {  // a multipart stream holds a slot while it runs; over a cap it is refused instead
+            auto claim = streams->claim(holder);
+            if (!claim.slot) {
+              response.stream->close();
+              if (finish(slot_refusal(claim, kStreamSlots, holder, role), "blocked", "TOO_MANY_STREAMS"))
+                timers->cancel(pending->timer);
+              return false;
+            }
+            response.stream->hold(std::move(claim.slot));
+          }
+          const int status = response.status;
+          std::string detail;  // as for JSON routes: the error body's code, else the status
+          if (status >= 300) {
+            const json error = response.content_type == "application/json" ? json::parse(response.body, nullptr, false) : json();
+            detail = error.is_object() && error.contains("code") && error["code"].is_string() ? error["code"].get<std::string>()
+                                                                                              : std::to_string(status);
+          }
+          const char* outcome = status < 300 ? "ok" : status == 423 ? "blocked" : "error";
+          if (!finish(std::move(response), outcome, detail)) return false;
+          timers->cancel(pending->timer);
+          return true;
+        });
     instance->handler_worker->post(
         [finish, target = instance, handler = route->handler, request, pending, writer, pass = std::move(pass)]() mutable {
           if (pending->answered.load()) return;  // timed out while queued

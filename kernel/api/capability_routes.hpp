@@ -9,9 +9,11 @@
 
 #include "kernel/api/router.hpp"
 #include "kernel/audit/audit_log.hpp"
+#include "kernel/auth/authenticator.hpp"
 #include "kernel/plugins/plugin_runtime.hpp"
 #include "kernel/registry/capability_registry.hpp"
 #include "kernel/safety/estop.hpp"
+#include "libs/base/slot_table.hpp"
 #include "libs/base/worker_thread.hpp"
 
 namespace rcand::kernel {
@@ -23,6 +25,10 @@ struct CapabilityRouteDeps {
   const Estop& estop;
   WorkerThread& timers;  // handler timeouts
   std::chrono::milliseconds handler_timeout;
+  // Streamed answers held at once (runtime.max_streams_per_principal, max_streams_per_address; kernel/auth/slots.hpp):
+  // a stream route's multipart answer takes a slot when it starts, or is refused 429 TOO_MANY_STREAMS instead.
+  SlotTable& streams;
+  const Authenticator& auth;  // whether auth mode is open
 };
 
 // Startup, after the capabilities started. The dependencies outlive the router's use of them.

@@ -1,5 +1,6 @@
 #include "libs/config/config_schema.hpp"
 #include "libs/rcan/loopback.hpp"
+#include "libs/rcan/web_origin.hpp"
 
 #include "libs/yaml/yaml_document.hpp"
 
@@ -44,6 +45,17 @@ std::string check_sha256(const json& value) {
 std::string check_rcan_version(const json& value) {
   if (rcan_major_version(value.get_ref<const std::string&>())) return "";
   return "expected an RCAN version such as \"1.3\", found " + value.dump();
+}
+
+// runtime.listen.allowed_origins[]: an origin as a browser sends it; never "null" nor a wildcard.
+std::string check_web_origin(const json& value) {
+  const auto& text = value.get_ref<const std::string&>();
+  if (text == "null") return "the opaque origin null (sandboxed frames, file:// pages: any page can be one) cannot be allowed";
+  if (text.find('*') != std::string::npos) return "a wildcard would let any page drive the robot; list each origin";
+  if (parse_web_origin(text)) return "";
+  return "expected an origin such as \"https://fleet.example.com\" or \"http://192.168.1.20:8080\" (http or https, a host, "
+         "an optional port, no path), found " +
+         value.dump();
 }
 
 constexpr double kIntMax = INT_MAX;
@@ -166,6 +178,11 @@ const std::vector<KeySpec>& build_schema() {  // NOLINT(readability-function-siz
       {.path = "runtime.listen.plain_loopback_port", .type = Integer, .min = 0, .max = 65535,
        .description = "with runtime.listen.tls: plain HTTP for local tools on 127.0.0.1 at this port; default the listen "
                       "port + 1 (0: any free port)"},
+      {.path = "runtime.listen.allowed_origins", .type = Sequence,
+       .description = "browser pages of other origins that may use the robot (docs/protocol.md §3.9); its own pages "
+                      "always may. A name the robot is reached by (http://rover-3.lan:8000) belongs here too"},
+      {.path = "runtime.listen.allowed_origins[]", .type = String, .non_empty = true, .check = check_web_origin,
+       .description = "an origin: http(s)://host[:port], no path; never null or a wildcard"},
       {.path = "runtime.plugin_paths", .type = Sequence,
        .description = "folders searched for plugins (relative to this file)"},
       {.path = "runtime.plugin_paths[]", .type = String, .non_empty = true, .description = "a plugin folder"},
@@ -199,6 +216,12 @@ const std::vector<KeySpec>& build_schema() {  // NOLINT(readability-function-siz
                       "the e-stop answered, 503 SERVER_BUSY for anything else"},
       {.path = "runtime.max_connections_per_address", .type = Integer, .default_value = 256, .min = 1, .max = 1000000,
        .description = "open HTTP connections one client address may hold (so one host cannot fill max_connections)"},
+      {.path = "runtime.max_streams_per_principal", .type = Integer, .default_value = 4, .min = 1, .max = 1000000,
+       .description = "streamed answers (MJPEG viewers) one principal below OWNER may hold at once; beyond it 429 "
+                      "TOO_MANY_STREAMS"},
+      {.path = "runtime.max_streams_per_address", .type = Integer, .default_value = 8, .min = 1, .max = 1000000,
+       .description = "streamed answers the principals below OWNER may hold at once from one client address (everyone "
+                      "in auth mode open); beyond it 429 TOO_MANY_STREAMS"},
       {.path = "runtime.handler_timeout_ms", .type = Integer, .default_value = 10000, .min = 0, .max = kIntMax,
        .min_exclusive = true, .description = "longest a capability handler may run"},
       {.path = "runtime.plugin_start_timeout_ms", .type = Integer, .default_value = 10000, .min = 0, .max = kIntMax,

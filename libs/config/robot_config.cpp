@@ -86,6 +86,8 @@ RuntimeConfig extract_runtime(const json& doc, const fs::path& base_dir) {
   }
   if (const auto plain_port = optional_value<std::int64_t>(doc, "runtime.listen.plain_loopback_port"))
     r.plain_loopback_port = static_cast<std::uint16_t>(*plain_port);
+  if (const json* origins = find(doc, "runtime.listen.allowed_origins"); origins != nullptr && origins->is_array())
+    for (const auto& origin : *origins) r.allowed_origins.push_back(origin.get<std::string>());
   if (const json* paths = find(doc, "runtime.plugin_paths"); paths != nullptr && paths->is_array())
     for (const auto& path : *paths) r.plugin_paths.push_back(resolve(base_dir, path.get<std::string>()));
   r.auth.mode = value_or_default<std::string>(doc, "runtime.auth.mode");
@@ -105,6 +107,9 @@ RuntimeConfig extract_runtime(const json& doc, const fs::path& base_dir) {
   r.max_connections = static_cast<std::size_t>(value_or_default<std::int64_t>(doc, "runtime.max_connections"));
   r.max_connections_per_address =
       static_cast<std::size_t>(value_or_default<std::int64_t>(doc, "runtime.max_connections_per_address"));
+  r.max_streams_per_principal =
+      static_cast<std::size_t>(value_or_default<std::int64_t>(doc, "runtime.max_streams_per_principal"));
+  r.max_streams_per_address = static_cast<std::size_t>(value_or_default<std::int64_t>(doc, "runtime.max_streams_per_address"));
   r.plugin_start_timeout_ms = static_cast<int>(value_or_default<std::int64_t>(doc, "runtime.plugin_start_timeout_ms"));
   if (const json* audit_file = find(doc, "runtime.audit_file"); audit_file != nullptr && audit_file->is_string())
     r.audit_file = resolve(base_dir, audit_file->get<std::string>());

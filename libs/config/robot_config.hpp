@@ -45,6 +45,7 @@ struct RuntimeConfig {
   };
   std::optional<ListenTls> listen_tls;
   std::optional<std::uint16_t> plain_loopback_port;
+  std::vector<std::string> allowed_origins;  // runtime.listen.allowed_origins: other browser origins that may use the robot
   std::vector<std::filesystem::path> plugin_paths;  // absolute after loading
   AuthConfig auth;
   std::string log_level = "info";
@@ -53,6 +54,10 @@ struct RuntimeConfig {
   // HTTP connection limits: beyond them only the e-stop is served (503 SERVER_BUSY for the rest).
   std::size_t max_connections = 10000;
   std::size_t max_connections_per_address = 256;
+  // Streamed answers (MJPEG viewers) held at once by one principal below OWNER, and by such principals from one
+  // client address (everyone in auth mode open): docs/protocol.md §7.
+  std::size_t max_streams_per_principal = 4;
+  std::size_t max_streams_per_address = 8;
   int stop_path_priority = 10;          // SCHED_FIFO priority of the threads a stop runs on; 0 = leave them as they are
   int plugin_start_timeout_ms = 10000;  // a plugin's factory/start()/routes() that takes longer fails its instance
   std::optional<std::filesystem::path> audit_file;  // absolute after loading; every audit entry appended as a JSON line

@@ -8,4 +8,9 @@ std::optional<std::string_view> Request::header(std::string_view lower_name) con
   return std::string_view{it->second};
 }
 
+std::string client_address(std::string_view remote) {
+  if (!remote.empty() && remote.front() == '[') return std::string(remote.substr(1, remote.find(']') - 1));
+  return std::string(remote.substr(0, remote.rfind(':')));
+}
+
 }  // namespace rcand::http

@@ -67,12 +67,21 @@ void ResponseStream::written(std::size_t bytes) {
   counters_.bytes += bytes;
 }
 
-void ResponseStream::close() noexcept {
+void ResponseStream::hold(std::shared_ptr<void> held) {
   std::lock_guard lock(mutex_);
-  closed_ = true;
-  pending_.reset();
-  armed_ = false;
-  wake_ = nullptr;  // drops what the wake holds (a weak reference to the Session)
+  if (!closed_) held_ = std::move(held);
 }
+
+void ResponseStream::close() noexcept {
+  std::shared_ptr<void> held;
+  {
+    std::lock_guard lock(mutex_);
+    closed_ = true;
+    pending_.reset();
+    armed_ = false;
+    wake_ = nullptr;  // drops what the wake holds (a weak reference to the Session)
+    held = std::move(held_);
+  }
+}  // `held` goes outside the lock
 
 }  // namespace rcand::http

@@ -33,9 +33,11 @@ class ResponseStream {
   bool push(Part part);
   // No more parts: the Session writes the pending one, if any, then closes the connection.
   void end();
-  // The client left, a write failed or stalled, or the server stopped.
+  // The client left, a write failed or stalled, no part came for a while, or the server stopped.
   bool closed() const;
   Counters counters() const;
+  // Keeps `held` (the stream's slot, kernel/auth/slots.hpp) until the stream is closed or destroyed.
+  void hold(std::shared_ptr<void> held);
 
   // ---- the Session, on its loop ----
   // `wake` is called (from push() or end(), on the producer's thread) when the Session waits for a part; it must
@@ -51,6 +53,7 @@ class ResponseStream {
   mutable std::mutex mutex_;
   std::optional<Part> pending_;
   std::function<void()> wake_;
+  std::shared_ptr<void> held_;
   bool armed_ = false, ended_ = false, closed_ = false;
   Counters counters_;
 };

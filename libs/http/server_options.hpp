@@ -26,6 +26,11 @@ struct UpgradeVerdict {
 };
 using UpgradeHandler = std::function<UpgradeVerdict(const Request&)>;
 
+// Runs first for every request the server reads, WebSocket upgrades included, on the I/O thread (the accept thread for
+// a stop): an answer refuses the request with it (then the connection closes); nullopt lets it go on to the upgrade
+// hook or the Handler. Must be quick and must not block.
+using ScreenHandler = std::function<std::optional<Response>(const Request&)>;
+
 struct ServerOptions {
   std::string address = "127.0.0.1";                 // an IP address or a resolvable host name
   std::uint16_t port = 0;                            // 0 = any free port
@@ -38,6 +43,7 @@ struct ServerOptions {
   std::size_t max_connections = 10'000;              // beyond it a new connection is busy (see priority), logged once
   std::size_t max_connections_per_address = 256;     // one client address holds at most this many; beyond: busy
   UpgradeHandler upgrade;                            // empty: upgrade requests go to the Handler
+  ScreenHandler screen;                              // empty: every request goes on
   // The requests nothing may delay or lock out (rcand: the e-stop). When set, the accept thread (an event loop of
   // its own, on which no other work ever waits) reads each new connection's requests and handles them there while
   // this says so; the first other request moves the connection to a worker loop for good. A connection beyond the limits is not
@@ -49,7 +55,8 @@ struct ServerOptions {
   // Run first on each I/O thread: `accept_loop` true on the accept thread (rcand makes it real-time there).
   std::function<void(bool accept_loop)> on_thread_start;
   // A streamed answer (Response::stream) whose client takes longer than this to accept one part is closed: a viewer
-  // that stopped reading holds one part and its socket buffers, and only for this long.
+  // that stopped reading holds one part and its socket buffers, and only for this long. One offered no part for this
+  // long ends too (cleanly): a viewer that asks for (almost) no frames holds its connection no longer.
   std::chrono::milliseconds stream_stall_timeout{10'000};
   // Set: `address` serves HTTPS (and wss) only, TLS 1.2 or later (start() reads the files; errors are named, see
   // libs/http/tls_context.hpp), and plain HTTP is served on 127.0.0.1 at plain_loopback_port (unset: port + 1, or

@@ -139,6 +139,7 @@ void Session::close() noexcept {
   closed_ = true;
   // The producer of a streamed answer sees closed() and stops pushing.
   if (body_stream_) body_stream_->close();
+  if (offer_timer_) offer_timer_->cancel();
   stream_.close();  // also cancels the stream's timers, so every pending operation completes
 }
 
@@ -301,6 +302,7 @@ void Session::dispatch_request() {
     core_.log->debug("{}: {}", remote_, problem);
     return send_error_and_close(400, "BAD_REQUEST", problem);
   }
+  request.secure = stream_.is_tls();
   const bool priority = core_.is_priority(request);
   if (placement_ == Placement::BusyLane) answering_ = priority ? PendingInput::Priority : PendingInput::Ordinary;
   if (placement_ != Placement::Worker && !priority) {
@@ -314,6 +316,7 @@ void Session::dispatch_request() {
 void Session::handle(Request request) {
   // Never the target or query: a ?token= may ride there.
   core_.log->trace("{}: {} {}", remote_, request.method, request.path);
+  if (refused_by_screen(request)) return;
   if (core_.options.upgrade && beast::websocket::is_upgrade(message_) && try_upgrade(request)) return;
 
   awaiting_response_ = true;
@@ -379,6 +382,21 @@ void Session::move_to_worker(Request request) {
   } catch (const std::exception& e) {
     core_.log->error("{}: cannot hand the connection to a worker: {}", remote_, e.what());
   }
+}
+
+bool Session::refused_by_screen(const Request& request) {
+  if (!core_.options.screen) return false;
+  std::optional<Response> refusal;
+  try {
+    refusal = core_.options.screen(request);
+  } catch (const std::exception& e) {
+    core_.log->error("{}: screen for {} threw: {}", remote_, request.path, e.what());
+    refusal = error_response(500, "INTERNAL", "internal error");
+  }
+  if (!refusal) return false;
+  keep_alive_ = false;  // an upgrade too: the refusal is plain HTTP, then the connection closes
+  write(std::move(*refusal), true);
+  return true;
 }
 
 bool Session::try_upgrade(Request& request) {
@@ -520,6 +538,7 @@ namespace rcand::http::detail {
 
 void Session::start_streaming() {
   streaming_ = true;
+  offer_timer_.emplace(slot_.ioc);
   body_stream_->attach([weak = weak_from_this(), executor = executor()] {
     net::post(executor, [weak] {
       if (auto self = weak.lock()) self->pump();
@@ -533,10 +552,12 @@ void Session::start_streaming() {
 void Session::pump() {
   if (closed_ || writing_part_ || ending_) return;
   switch (body_stream_->next(part_)) {
-    case ResponseStream::Next::Wait: return;  // push() wakes us
+    case ResponseStream::Next::Wait: return await_part();  // push() wakes us
     case ResponseStream::Next::End: return end_stream();
     case ResponseStream::Next::Part: break;
   }
+  ++offer_waits_;  // a part came: the wait for one is over
+  offer_timer_->cancel();
   writing_part_ = true;
   const std::array<net::const_buffer, 3> buffers{
       net::buffer(part_.head), part_.data ? net::buffer(*part_.data) : net::const_buffer(), net::buffer(part_.tail)};
@@ -550,6 +571,19 @@ void Session::pump() {
     self->body_stream_->written(self->part_.data ? self->part_.data->size() : 0);
     self->part_ = {};  // the frame is shared: let it go as soon as it is written
     self->pump();
+  });
+}
+
+void Session::await_part() {
+  // A stream offered no part for stream_stall_timeout ends like one whose client does not read: a viewer that asks for
+  // (almost) no frames, or a producer that stalled, holds its connection and its slot for that long at most.
+  offer_timer_->expires_after(core_.options.stream_stall_timeout);
+  offer_timer_->async_wait([self = shared_from_this(), armed = ++offer_waits_](beast::error_code ec) {
+    if (ec || self->closed_ || self->ending_ || armed != self->offer_waits_) return;
+    self->core_.log->debug("{}: stream offered no part for {} ms; ended", self->remote_,
+                           self->core_.options.stream_stall_timeout.count());
+    self->body_stream_->close();  // its producer lets go at once (and whatever the stream held: a slot)
+    self->end_stream();           // then a clean end: FIN after the last whole part
   });
 }
 

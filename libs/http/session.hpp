@@ -7,7 +7,11 @@
 //
 // Streamed answers (Response::stream): the header goes out with "Connection: close" and no Content-Length, then each
 // part the producer pushes, one write at a time; meanwhile a read watches for the client leaving. The connection
-// closes when the stream ends, the client leaves, or one part takes longer than stream_stall_timeout to write.
+// closes when the stream ends, the client leaves, one part takes longer than stream_stall_timeout to write, or no part
+// is offered for stream_stall_timeout.
+//
+// Screen: every request, upgrades included, is first offered to ServerOptions::screen (rcand: the browser-origin
+// rule); an answer from it refuses the request before the upgrade hook and the Handler see it.
 //
 // WebSocket seam: an upgrade request is offered to ServerOptions::upgrade in dispatch_request(); when the hook takes
 // it, the stream, the raw request and the buffered bytes move out (http/upgrade.hpp) and this object simply ends.
@@ -17,11 +21,13 @@
 #pragma once
 
 #include <boost/asio/ip/tcp.hpp>
+#include <boost/asio/steady_timer.hpp>
 #include <boost/beast/core/flat_buffer.hpp>
 #include <boost/beast/http/parser.hpp>
 #include <boost/beast/http/string_body.hpp>
 
 #include <cstddef>
+#include <cstdint>
 #include <memory>
 #include <optional>
 #include <string>
@@ -75,6 +81,8 @@ class Session : public std::enable_shared_from_this<Session> {
   // From the accept loop to a worker loop, for good: there it handles `request`.
   void move_to_worker(Request request);
   void answer_busy();
+  // ServerOptions::screen refused the request: its answer is on its way and the connection closes after it.
+  bool refused_by_screen(const Request& request);
   // A WebSocket upgrade offered to ServerOptions::upgrade; false when the hook leaves it to the Handler.
   bool try_upgrade(Request& request);
   void send_error_and_close(int status, std::string_view code, std::string_view message);
@@ -85,6 +93,7 @@ class Session : public std::enable_shared_from_this<Session> {
   // A streamed answer, once its header is written: parts as they come, until the end or the client leaves.
   void start_streaming();
   void pump();
+  void await_part();
   void watch_client();
   void end_stream();
 
@@ -111,6 +120,8 @@ class Session : public std::enable_shared_from_this<Session> {
   std::shared_ptr<ResponseStream> body_stream_;  // a streamed answer's parts; closed with the session
   ResponseStream::Part part_;                    // the part being written
   bool streaming_ = false, writing_part_ = false, ending_ = false;
+  std::optional<boost::asio::steady_timer> offer_timer_;  // a streamed answer waiting for its next part
+  std::uint64_t offer_waits_ = 0;                         // which wait the timer's handler belongs to
 };
 
 }  // namespace rcand::http::detail

@@ -148,12 +148,13 @@ void FrameHub::set_signal(bool live, std::string reason) {
 }
 
 FrameHub::Admission FrameHub::add_viewer(const std::shared_ptr<sdk::StreamWriter>& writer, std::optional<double> max_fps,
-                                         std::string who) {
+                                         std::string who, bool operator_role) {
   {
     std::lock_guard lock(mutex_);
     if (stopping_) return Admission::Gone;
     std::erase_if(viewers_, [](const auto& v) { return v->writer->closed(); });
     if (viewers_.size() >= options_.max_viewers) return Admission::Full;
+    if (!operator_role && viewers_.size() >= options_.max_viewers - reserved_places()) return Admission::Reserved;
     // Started under the lock, so the delivery thread never sees a viewer whose answer has not begun.
     if (!writer->start(200, "multipart/x-mixed-replace", {{"X-Accel-Buffering", "no"}})) return Admission::Gone;
     auto viewer = std::make_shared<Viewer>();

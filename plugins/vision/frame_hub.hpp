@@ -13,6 +13,7 @@
 
 #include <opencv2/core.hpp>
 
+#include <algorithm>
 #include <chrono>
 #include <condition_variable>
 #include <cstdint>
@@ -32,6 +33,9 @@ Encoder jpeg_encoder(int quality);
 
 struct HubOptions {
   std::size_t max_viewers = 32;
+  // Of max_viewers, the last ones only for viewers add_viewer is told are operators; at most max_viewers - 1, so
+  // anyone may always watch when nobody else does.
+  std::size_t reserved_viewers = 4;
   std::chrono::milliseconds signal_timeout{250};  // no frame for this long (or 2 frame periods, if longer): NO SIGNAL
   double no_signal_fps = 5.0;
   int width = 640, height = 480;  // of NO SIGNAL frames until the camera delivered one
@@ -58,13 +62,18 @@ class FrameHub {
   bool wanted() const;  // someone watches or waits for a snapshot
 
   // ---- request handlers ----
-  enum class Admission { Admitted, Full, Gone };
-  // Starts `writer`'s multipart answer and adds the viewer; Full: max_viewers already watch (nothing was answered).
-  Admission add_viewer(const std::shared_ptr<sdk::StreamWriter>& writer, std::optional<double> max_fps, std::string who);
+  enum class Admission { Admitted, Full, Reserved, Gone };
+  // Starts `writer`'s multipart answer and adds the viewer; Full: max_viewers already watch; Reserved: only the
+  // reserved places are left and `operator_role` is false (nothing was answered either way).
+  Admission add_viewer(const std::shared_ptr<sdk::StreamWriter>& writer, std::optional<double> max_fps, std::string who,
+                       bool operator_role = true);
   // The next frame (a NO SIGNAL one while the camera is down) is sent to `writer` as one image/jpeg.
   void add_snapshot(std::shared_ptr<sdk::StreamWriter> writer);
   sdk::Json status() const;
   std::size_t max_viewers() const noexcept { return options_.max_viewers; }
+  std::size_t reserved_places() const noexcept {
+    return std::min(options_.reserved_viewers, options_.max_viewers > 0 ? options_.max_viewers - 1 : 0);
+  }
 
   // ---- observation (tests, bench) ----
   struct Counts {

@@ -118,6 +118,7 @@ VisionSettings read_settings(const ConfigView& camera, const ConfigView& own) {
   v.source = read_source(camera, own);
   v.jpeg_quality = own.get_or<int>("jpeg_quality", 80);
   v.hub.max_viewers = static_cast<std::size_t>(own.get_or<int>("max_viewers", 32));
+  v.hub.reserved_viewers = static_cast<std::size_t>(own.get_or<int>("reserved_viewers", 4));
   v.hub.signal_timeout = std::chrono::milliseconds(own.get_or<int>("signal_timeout_ms", 250));
   v.hub.width = v.source.width;
   v.hub.height = v.source.height;
@@ -130,9 +131,10 @@ VisionSettings read_settings(const ConfigView& camera, const ConfigView& own) {
 std::optional<double> parse_fps(std::string_view text, std::string& error) {
   double value = 0;
   const auto [end, ec] = std::from_chars(text.data(), text.data() + text.size(), value);
-  if (ec == std::errc() && end == text.data() + text.size() && std::isfinite(value) && value > 0 && value <= Vision::kMaxFps)
+  if (ec == std::errc() && end == text.data() + text.size() && std::isfinite(value) && value >= Vision::kMinFps &&
+      value <= Vision::kMaxFps)
     return value;
-  error = "fps must be a number in (0, 120]";
+  error = "fps must be a number in [0.2, 120]: a stream offered no frame for 10 s is closed";
   return std::nullopt;
 }
 
@@ -184,10 +186,20 @@ void Vision::mjpeg(const sdk::Request& request, const std::shared_ptr<sdk::Strea
       return;
     }
   }
-  switch (hub_->add_viewer(writer, max_fps, request.principal)) {
+  // The last reserved_viewers places are the operators' (OWNER, CREATOR; everyone in auth mode open), so guests
+  // cannot lock the owner's dashboard out of the camera. rcand itself caps viewers per principal and per address.
+  const bool operator_role = sdk::role_grants(request.role, sdk::Scope::Config);
+  switch (hub_->add_viewer(writer, max_fps, request.principal, operator_role)) {
     case FrameHub::Admission::Admitted: return;
     case FrameHub::Admission::Gone:
       writer->respond(sdk::Response::error(503, "UNAVAILABLE", "the camera is shutting down"));
+      return;
+    case FrameHub::Admission::Reserved:
+      writer->respond(sdk::Response::error(503, "SLOTS_RESERVED",
+                                           "the remaining viewer places are reserved for OWNER and CREATOR principals "
+                                           "(runtime.capabilities.vision.reserved_viewers)",
+                                           {{"field", "reserved_viewers"}}),
+                      {{"Retry-After", "5"}});
       return;
     case FrameHub::Admission::Full: break;
   }

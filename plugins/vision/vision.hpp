@@ -44,6 +44,9 @@ std::optional<double> parse_fps(std::string_view text, std::string& error);
 class Vision final : public sdk::Capability {
  public:
   static constexpr double kMaxFps = 120.0;
+  // At least a frame every 5 s: a viewer offered no frame for 10 s is cut (rcand/sdk/stream.hpp), so anything slower
+  // would only hold a viewer's place for a while; it is refused (400) instead.
+  static constexpr double kMinFps = 0.2;
 
   // `encoder` and `sources` replace the JPEG encoder and the source made from the config (tests).
   explicit Vision(sdk::PluginContext& ctx, Encoder encoder = {}, SourceFactory sources = {});

@@ -159,13 +159,15 @@ struct Rig {
 
   // A request through the stream route at `path`, answered into a new RecordingStream.
   std::shared_ptr<RecordingStream> get(const std::string& path, std::map<std::string, std::string> query = {},
-                                       RecordingStream::Client client = RecordingStream::Client::Reads) {
+                                       RecordingStream::Client client = RecordingStream::Client::Reads,
+                                       rcand::sdk::Role role = rcand::sdk::Role::Owner) {
     auto writer = std::make_shared<RecordingStream>(client);
     Request request;
     request.method = "GET";
     request.path = path;
     request.query = std::move(query);
     request.principal = "tester";
+    request.role = role;
     for (auto& route : vision->stream_routes())
       if (route.path == path) route.handler(request, writer);
     return writer;
@@ -292,7 +294,7 @@ TEST_CASE("vision: ?fps= gives a viewer fewer frames; a bad one is 400 naming th
   CHECK(got <= 13);
   CHECK(full->parts().size() > 2 * got);
 
-  for (const std::string bad : {"abc", "0", "-1", "121", "nan", "inf", "15fps", "", "1e400"}) {
+  for (const std::string bad : {"abc", "0", "-1", "121", "nan", "inf", "15fps", "", "1e400", "0.001", "0.19"}) {
     CAPTURE(bad);
     auto refused = rig.get("/api/stream/mjpeg", {{"fps", bad}});
     CHECK(refused->status() == 400);
@@ -316,6 +318,34 @@ TEST_CASE("vision: the viewer limit answers 503 naming it, and frees a place whe
   CHECK(c->headers() == rcand::sdk::Headers{{"Retry-After", "5"}});
   a->close_client();
   CHECK(rig.get("/api/stream/mjpeg")->status() == 200);
+}
+
+TEST_CASE("vision: the last reserved_viewers places are the operators'; a guest always has one when nobody watches") {
+  using rcand::sdk::Role;
+  const auto reads = RecordingStream::Client::Reads;
+  SUBCASE("the last places are the OWNER's and CREATOR's") {
+    Rig rig({{"type", "synthetic"}, {"resolution", {160, 120}}}, {{"max_viewers", 4}, {"reserved_viewers", 2}});
+    auto guest = rig.get("/api/stream/mjpeg", {}, reads, Role::Guest);
+    auto user = rig.get("/api/stream/mjpeg", {}, reads, Role::User);
+    auto late = rig.get("/api/stream/mjpeg", {}, reads, Role::Leasee);
+    CHECK(guest->status() == 200);
+    CHECK(user->status() == 200);
+    REQUIRE(late->status() == 503);  // was 200: and the owner's dashboard then met the viewer limit
+    CHECK(late->json()["code"] == "SLOTS_RESERVED");
+    CHECK(late->json()["field"] == "reserved_viewers");
+    CHECK(late->headers() == rcand::sdk::Headers{{"Retry-After", "5"}});
+    auto owner = rig.get("/api/stream/mjpeg", {}, reads, Role::Owner);
+    auto creator = rig.get("/api/stream/mjpeg", {}, reads, Role::Creator);
+    CHECK(owner->status() == 200);
+    CHECK(creator->status() == 200);
+    CHECK(rig.get("/api/stream/mjpeg", {}, reads, Role::Owner)->json()["code"] == "UNAVAILABLE");
+  }
+  SUBCASE("more reserved than places: a guest still has one") {
+    Rig tiny({{"type", "synthetic"}, {"resolution", {160, 120}}}, {{"max_viewers", 2}, {"reserved_viewers", 8}});
+    auto first = tiny.get("/api/stream/mjpeg", {}, reads, Role::Guest);
+    CHECK(first->status() == 200);
+    CHECK(tiny.get("/api/stream/mjpeg", {}, reads, Role::Guest)->status() == 503);
+  }
 }
 
 TEST_CASE("vision: a camera that fails turns into NO SIGNAL within 1 s and comes back by itself") {
@@ -544,7 +574,9 @@ TEST_CASE("vision: ?fps= parsing") {
   CHECK(rcand::plugins::vision::parse_fps("120", error) == 120.0);
   CHECK_FALSE(rcand::plugins::vision::parse_fps(" 15", error));
   CHECK_FALSE(rcand::plugins::vision::parse_fps("0x10", error));
-  CHECK(error == "fps must be a number in (0, 120]");
+  CHECK(rcand::plugins::vision::parse_fps("0.2", error) == 0.2);
+  CHECK_FALSE(rcand::plugins::vision::parse_fps("0.001", error));  // a frame every 1000 s: would only hold a place
+  CHECK(error == "fps must be a number in [0.2, 120]: a stream offered no frame for 10 s is closed");
 }
 
 // ---- depth ------------------------------------------------------------------------------------------------------

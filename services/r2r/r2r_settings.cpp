@@ -72,6 +72,9 @@ const ConfigFragment kR2rKeys({
      .description = "inbound WS /ws/r2r connections; beyond it the upgrade answers 503 UNAVAILABLE"},
     {.path = "runtime.r2r.ws_max_connections_per_principal", .type = Integer, .default_value = 8, .min = 1, .max = 1000000,
      .description = "inbound /ws/r2r connections one principal below OWNER may hold; beyond it 429 TOO_MANY_CONNECTIONS"},
+    {.path = "runtime.r2r.ws_max_connections_per_address", .type = Integer, .default_value = 16, .min = 1, .max = 1000000,
+     .description = "inbound /ws/r2r connections the principals below OWNER may hold from one client address (everyone "
+                    "in auth mode open); beyond it 429 TOO_MANY_CONNECTIONS"},
     {.path = "runtime.r2r.ws_reserved_connections", .type = Integer, .default_value = 32, .min = 0, .max = 1000000,
      .description = "of ws_max_connections, the last ones only OWNER and CREATOR get (503 R2R_SLOTS_RESERVED to others)"},
     {.path = "runtime.r2r.ws_max_queued_bytes", .type = Integer, .default_value = 1048576, .min = 1024, .max = 1073741824,

@@ -4,6 +4,7 @@
 
 #include <vector>
 
+#include "kernel/auth/slots.hpp"
 #include "libs/base/logging.hpp"
 #include "services/telemetry/telemetry_connection.hpp"
 
@@ -13,19 +14,18 @@ namespace {
 
 constexpr std::string_view kTelemetryPath = "/ws/telemetry";
 
-// An admitted upgrade's place in max_clients, given back when whoever holds it last (the take hook, then the
-// connection) is destroyed: an upgrade the server drops after the hook does not leak it.
-struct ClientSlot {
-  std::weak_ptr<TelemetryHub> hub;
-  ~ClientSlot() {
-    if (auto owner = hub.lock()) owner->release_slot();
-  }
-};
+constexpr kernel::SlotWords kTelemetrySlots{"telemetry WebSocket connections", "runtime.telemetry.max_clients",
+                                            "runtime.telemetry.max_clients_per_principal",
+                                            "runtime.telemetry.max_clients_per_address", "runtime.telemetry.reserved_clients"};
+
+SlotLimits slot_limits(const HubOptions& options) {
+  return {options.max_clients, options.reserved_clients, options.max_clients_per_principal, options.max_clients_per_address};
+}
 
 }  // namespace
 
 TelemetryHub::TelemetryHub(HubOptions options, const kernel::Authenticator& auth, kernel::Api& api, BuildFrame build)
-    : options_(options), auth_(auth), api_(api), build_(std::move(build)) {}
+    : options_(options), auth_(auth), api_(api), build_(std::move(build)), slots_(slot_limits(options)) {}
 
 TelemetryHub::~TelemetryHub() { stop(); }
 
@@ -57,18 +57,19 @@ http::UpgradeHandler TelemetryHub::upgrade_handler() {
       std::lock_guard lock(hub->clients_mutex_);
       stopped = hub->stopped_;
     }
-    if (stopped || hub->slots_.fetch_add(1) >= hub->options_.max_clients) {
-      if (!stopped) hub->slots_.fetch_sub(1);
+    // The slot is the upgrade's from here, the connection's once taken: given back when both are gone, so an upgrade
+    // the server drops after this hook does not leak it.
+    const SlotHolder holder =
+        kernel::slot_holder(principal.name, principal.role, principal.via == "open", http::client_address(request.remote));
+    auto claim = stopped ? SlotTable::Claim{} : hub->slots_.claim(holder);
+    if (!claim.slot) {
       hub->stats_.refused.fetch_add(1);
-      verdict.refuse =
-          stopped ? http::error_response(503, "UNAVAILABLE", "telemetry is not running")
-                  : http::error_response(503, "UNAVAILABLE",
-                                         "too many telemetry clients (" + std::to_string(hub->options_.max_clients) + ")");
-      verdict.refuse->headers.emplace_back("Retry-After", "5");
+      verdict.refuse = stopped ? http::error_response(503, "UNAVAILABLE", "telemetry is not running")
+                               : kernel::slot_refusal(claim, kTelemetrySlots, holder, principal.role);
+      if (stopped) verdict.refuse->headers.emplace_back("Retry-After", "5");
       return verdict;
     }
-    auto slot = std::make_shared<ClientSlot>();  // made in place: a temporary's destructor would give the slot back
-    slot->hub = weak;
+    auto slot = std::move(claim.slot);
     Credential credential{std::string(bearer.value_or("")), principal.name, principal.expires_s, generation};
     verdict.take = [weak, credential, slot](http::Upgraded&& upgraded) {
       auto taker = weak.lock();

@@ -19,6 +19,7 @@
 
 #include "kernel/api/api.hpp"
 #include "kernel/auth/authenticator.hpp"
+#include "libs/base/slot_table.hpp"
 #include "libs/http/server_options.hpp"
 
 namespace rcand::services::telemetry {
@@ -28,6 +29,12 @@ class Connection;
 struct HubOptions {
   std::chrono::milliseconds period{200};  // docs/protocol.md §7.10
   std::size_t max_clients = 256;          // beyond: the upgrade answers 503
+  // The slots (kernel/auth/slot_holder.hpp): of max_clients the last reserved_clients are OWNER's and CREATOR's (503
+  // SLOTS_RESERVED to others); a principal below OWNER holds at most max_clients_per_principal, and such principals at
+  // most max_clients_per_address from one address (429 TOO_MANY_CONNECTIONS).
+  std::size_t reserved_clients = 32;
+  std::size_t max_clients_per_principal = 8;
+  std::size_t max_clients_per_address = 16;
   // A client is dropped once the bytes its socket has not delivered exceed both of these: about two seconds of
   // frames, and never less than min_backlog_bytes (so a brief network stall is not a drop).
   std::size_t backlog_frames = 10;
@@ -67,7 +74,6 @@ class TelemetryHub : public std::enable_shared_from_this<TelemetryHub> {
   const kernel::Authenticator& auth() const noexcept { return auth_; }
   kernel::Api& api() noexcept { return api_; }
   void closed(const std::shared_ptr<Connection>& connection) noexcept;
-  void release_slot() noexcept { slots_.fetch_sub(1); }
   struct Atomics {
     std::atomic<std::uint64_t> accepted{0}, refused{0}, frames_built{0}, frames_sent{0}, frames_replaced{0};
     std::atomic<std::uint64_t> dropped_slow{0}, closed_credential{0}, stops{0}, bad_messages{0};
@@ -83,7 +89,7 @@ class TelemetryHub : public std::enable_shared_from_this<TelemetryHub> {
   kernel::Api& api_;
   const BuildFrame build_;
   Atomics stats_;
-  std::atomic<std::size_t> slots_{0};  // upgrades admitted and connections open
+  SlotTable slots_;  // upgrades admitted and connections open
 
   mutable std::mutex clients_mutex_;
   std::set<std::shared_ptr<Connection>> clients_;  // the only strong references while open

@@ -30,6 +30,13 @@ const kernel::ConfigFragment kTelemetryKeys({
                     "Prometheus or node agent scrapes it; the robot's own port keeps asking for scope status)"},
     {.path = "runtime.telemetry.max_clients", .type = kernel::ValueType::Integer, .default_value = 256, .min = 1,
      .max = 100000, .description = "WS /ws/telemetry clients at once; beyond it the upgrade answers 503"},
+    {.path = "runtime.telemetry.reserved_clients", .type = kernel::ValueType::Integer, .default_value = 32, .min = 0,
+     .max = 100000, .description = "of max_clients, the last ones only OWNER and CREATOR get (503 SLOTS_RESERVED to others)"},
+    {.path = "runtime.telemetry.max_clients_per_principal", .type = kernel::ValueType::Integer, .default_value = 8, .min = 1,
+     .max = 100000, .description = "WS /ws/telemetry clients one principal below OWNER may hold; beyond it 429 TOO_MANY_CONNECTIONS"},
+    {.path = "runtime.telemetry.max_clients_per_address", .type = kernel::ValueType::Integer, .default_value = 16, .min = 1,
+     .max = 100000, .description = "WS /ws/telemetry clients the principals below OWNER may hold from one client address "
+                                   "(everyone in auth mode open); beyond it 429 TOO_MANY_CONNECTIONS"},
 });
 // clang-format on
 
@@ -53,7 +60,13 @@ class TelemetryService final : public kernel::Service {
  public:
   explicit TelemetryService(kernel::ServiceHost& host) : host_(host) {
     HubOptions options;
-    options.max_clients = static_cast<std::size_t>(telemetry_setting(host.config.doc, "max_clients").value_or(256));
+    auto size_setting = [&host](const char* key, std::size_t fallback) {
+      return static_cast<std::size_t>(telemetry_setting(host.config.doc, key).value_or(static_cast<std::int64_t>(fallback)));
+    };
+    options.max_clients = size_setting("max_clients", options.max_clients);
+    options.reserved_clients = size_setting("reserved_clients", options.reserved_clients);
+    options.max_clients_per_principal = size_setting("max_clients_per_principal", options.max_clients_per_principal);
+    options.max_clients_per_address = size_setting("max_clients_per_address", options.max_clients_per_address);
     metrics_port_ = telemetry_setting(host.config.doc, "metrics_port");
     hub_ = std::make_shared<TelemetryHub>(options, host.auth, host.api,
                                           [this](std::uint64_t seq, std::string_view event) { return build_frame(seq, event); });
@@ -99,6 +112,7 @@ class TelemetryService final : public kernel::Service {
     options.address = "127.0.0.1";
     options.port = static_cast<std::uint16_t>(*metrics_port_);
     options.io_threads = 1;
+    options.screen = [api = &host_.api](const http::Request& request) { return api->screen(request); };
     metrics_server_ = std::make_unique<http::Server>(options, [this](http::Request&& request, http::Respond respond) {
       if (request.path != "/metrics") return respond(http::error_response(404, "NOT_FOUND", "only GET /metrics is served here"));
       if (request.method != "GET") return respond(http::error_response(405, "METHOD_NOT_ALLOWED", "GET /metrics only"));
@@ -166,7 +180,7 @@ class TelemetryService final : public kernel::Service {
     out.family("rcand_telemetry_clients", "gauge", "WS /ws/telemetry clients connected");
     out.sample(static_cast<double>(c.clients));
     counter("rcand_telemetry_connections_total", "WS /ws/telemetry upgrades accepted", c.accepted);
-    counter("rcand_telemetry_refused_total", "WS /ws/telemetry upgrades refused (401, 403, 503)", c.refused);
+    counter("rcand_telemetry_refused_total", "WS /ws/telemetry upgrades refused (401, 403, 429, 503)", c.refused);
     counter("rcand_telemetry_frames_built_total", "telemetry frames built (one per tick or push, shared by every client)",
             c.frames_built);
     counter("rcand_telemetry_frames_sent_total", "telemetry frames written to clients", c.frames_sent);

@@ -153,6 +153,11 @@ http::Response call(http::Request request) {
   auto answered = std::make_shared<std::atomic<bool>>(false);
   auto future = answer->get_future();
   http::Response response;
+  // What the server does first for every request (Session::handle): the browser-origin rule.
+  if (auto refused = api().screen(request)) {
+    check_answer(*refused);
+    return *refused;
+  }
   try {
     api().handle(std::move(request), [answer, answered](http::Response r) {
       if (!answered->exchange(true)) answer->set_value(std::move(r));

@@ -1,7 +1,8 @@
 // Issue 13 #8, #12, #15 against a real rcand: an R2R WebSocket never outlives its credential (a JWT's exp, a token
 // removed by a SIGHUP reload: closed 1008 with the reason, nothing it sends after moves the robot); below OWNER a
 // principal holds a few sockets at most and the last slots are the owners' (a guest cannot lock an owner out); an
-// error reply echoes a bounded ref, and a client that does not read cannot pin more than its send queue.
+// error reply echoes a bounded ref, and a client that does not read cannot pin more than its send queue. Many
+// principals on one host share one cap (issue 28 #8).
 #include <doctest/doctest.h>
 #include <signal.h>
 
@@ -87,7 +88,7 @@ TEST_CASE("r2r credentials: a socket opened with a JWT is closed (1008) when the
   CHECK(end.code == 1008);
   CHECK(end.reason.find("expired") != std::string::npos);
   CHECK(std::chrono::steady_clock::now() - opened >= 1s);  // at expiry, not at once
-  CHECK(end.frames > 0);                                     // it did get the robot's status broadcasts until then
+  CHECK(end.frames > 0);                                   // it did get the robot's status broadcasts until then
   const auto peers = robot.json("GET", "/api/r2r/peers", "owner-token");
   INFO(peers.dump());
   CHECK(peers["transports"]["ws"]["connections"].empty());
@@ -101,8 +102,7 @@ TEST_CASE("r2r credentials: a token removed from the config closes its socket at
   REQUIRE(peer.connect(robot.port(), "user-token") == 101);
 
   auto& tokens = config["runtime"]["auth"]["tokens"];
-  for (auto it = tokens.begin(); it != tokens.end();)
-    it = (*it)["principal"] == "user-principal" ? tokens.erase(it) : it + 1;
+  for (auto it = tokens.begin(); it != tokens.end();) it = (*it)["principal"] == "user-principal" ? tokens.erase(it) : it + 1;
   config["runtime"]["state_dir"] = (robot.dir().path() / "state").string();  // as RcandProcess wrote it
   robot.dir().write("robot.rcan.yaml", config.dump(2));
   const auto reloads = count_of(robot.stderr_text(), "config reload from");
@@ -145,7 +145,7 @@ TEST_CASE("r2r slots: a GUEST fills its own cap (429), the reserved slots stay t
 
   int guest_sockets = 0;
   for (int i = 0; i < 6; ++i) guest_sockets += open("guest-token") == 101 ? 1 : 0;  // tries to take every slot
-  CHECK(guest_sockets == 3);  // was 6: and then even an owner got 503
+  CHECK(guest_sockets == 3);                                                        // was 6: and then even an owner got 503
   auto refused = raw_upgrade(robot, "guest-token");
   CHECK(refused.status == 429);
   auto body = json::parse(refused.body, nullptr, false);
@@ -174,6 +174,30 @@ TEST_CASE("r2r slots: a GUEST fills its own cap (429), the reserved slots stay t
     return std::nullopt;
   }));
   CHECK(open("guest-token") == 101);
+}
+
+TEST_CASE("r2r slots: many principals on one address share its cap (429); OWNER is not counted against it") {
+  // Issue 28 #8: distinct principals (tokens, JWT subjects) from one host used to fill every unreserved slot.
+  TempDir dir;
+  auto config = r2r_robot_config("alpha", dir.write("r2r.token", "owner-token\n"));
+  config["runtime"]["r2r"]["ws_max_connections_per_principal"] = 3;
+  config["runtime"]["r2r"]["ws_max_connections_per_address"] = 4;
+  RcandProcess robot(config);
+  std::vector<std::unique_ptr<WsClient>> held;
+  auto open = [&](const std::string& token) {
+    held.push_back(std::make_unique<WsClient>());
+    return held.back()->connect(robot.port(), token);
+  };
+  for (int i = 0; i < 3; ++i) REQUIRE(open("guest-token") == 101);
+  CHECK(open("user-token") == 101);
+  const auto refused = raw_upgrade(robot, "user-token");  // the user's own cap has room; the address's not
+  INFO(refused.body);
+  CHECK(refused.status == 429);  // was 101: a fifth, sixth, ... principal on the same host got in
+  const auto body = json::parse(refused.body, nullptr, false);
+  CHECK(body.value("code", "") == "TOO_MANY_CONNECTIONS");
+  CHECK(body.value("error", "").find("runtime.r2r.ws_max_connections_per_address") != std::string::npos);
+  CHECK(open(jwt_for("guest")) == 429);
+  for (int i = 0; i < 5; ++i) CHECK(open("owner-token") == 101);
 }
 
 TEST_CASE("r2r memory: a client that sends bad messages with 60 KiB headers and never reads pins a bounded queue") {
@@ -211,8 +235,8 @@ TEST_CASE("r2r memory: a client that sends bad messages with 60 KiB headers and 
   sample_queues();  // every message sent was read and answered (or its socket dropped)
   const long rss_after = resident_kb(robot.pid());
   MESSAGE("sent " << sent << " bad messages of " << frame.size() << " bytes on " << kSockets
-                  << " non-reading sockets; most queued for one: " << queued_most << " bytes; RSS " << rss_before
-                  << " kB -> " << rss_after << " kB (+" << rss_after - rss_before << " kB)");
+                  << " non-reading sockets; most queued for one: " << queued_most << " bytes; RSS " << rss_before << " kB -> "
+                  << rss_after << " kB (+" << rss_after - rss_before << " kB)");
   CHECK(sent > kSockets * kMessagesEach / 2);
   CHECK(queued_most <= 1024 * 1024);  // runtime.r2r.ws_max_queued_bytes
   REQUIRE(rss_before > 0);

@@ -9,6 +9,7 @@
 
 #include <chrono>
 #include <cstdint>
+#include <map>
 #include <memory>
 #include <optional>
 #include <stdexcept>
@@ -18,20 +19,21 @@ namespace rcand::test {
 
 class WsClient {
  public:
-  // Connects to 127.0.0.1:port and upgrades `target` with "Authorization: Bearer <token>" (none when empty).
-  // Returns the HTTP status of the upgrade answer: 101 on success.
+  // Connects to 127.0.0.1:port and upgrades `target` with "Authorization: Bearer <token>" (none when empty) and
+  // `headers` (an Origin, say). Returns the HTTP status of the upgrade answer: 101 on success.
   int connect(std::uint16_t port, const std::string& token, const std::string& target = "/ws/r2r",
-              const std::string& host = "127.0.0.1") {
+              const std::string& host = "127.0.0.1", const std::map<std::string, std::string>& headers = {}) {
     namespace net = boost::asio;
     boost::beast::error_code result = net::error::would_block;
     boost::beast::get_lowest_layer(ws).async_connect(net::ip::tcp::endpoint(net::ip::make_address(host), port),
                                                      [&](boost::beast::error_code ec) { result = ec; });
     run(std::chrono::seconds(5));
     if (result) throw std::runtime_error("ws connect: " + result.message());
-    if (!token.empty())
-      ws.set_option(boost::beast::websocket::stream_base::decorator([token](boost::beast::websocket::request_type& request) {
-        request.set(boost::beast::http::field::authorization, "Bearer " + token);
-      }));
+    ws.set_option(
+        boost::beast::websocket::stream_base::decorator([token, headers](boost::beast::websocket::request_type& request) {
+          if (!token.empty()) request.set(boost::beast::http::field::authorization, "Bearer " + token);
+          for (const auto& [name, value] : headers) request.set(name, value);
+        }));
     auto response = std::make_shared<boost::beast::websocket::response_type>();
     result = net::error::would_block;
     ws.async_handshake(*response, host + ":" + std::to_string(port), target, [&](boost::beast::error_code ec) { result = ec; });

@@ -16,6 +16,7 @@
 #include <set>
 #include <shared_mutex>
 
+#include "kernel/auth/slots.hpp"
 #include "libs/base/bounded_text.hpp"
 #include "libs/base/worker_thread.hpp"
 #include "libs/http/tls_context.hpp"
@@ -34,6 +35,15 @@ using Clock = std::chrono::steady_clock;
 namespace {
 
 class Connection;
+
+// R2R_SLOTS_RESERVED: the code R2R clients have seen since issue 13.
+constexpr SlotWords kR2rSlots{"R2R WebSocket connections",
+                              "runtime.r2r.ws_max_connections",
+                              "runtime.r2r.ws_max_connections_per_principal",
+                              "runtime.r2r.ws_max_connections_per_address",
+                              "runtime.r2r.ws_reserved_connections",
+                              "TOO_MANY_CONNECTIONS",
+                              "R2R_SLOTS_RESERVED"};
 
 std::string endpoint_text(const tcp::endpoint& endpoint) {
   const auto address = endpoint.address();
@@ -63,8 +73,9 @@ struct WebSocketTransport::Hub : std::enable_shared_from_this<Hub> {
   std::set<std::shared_ptr<Connection>> connections;  // the only strong references while open
   std::map<std::string, std::weak_ptr<Connection>> by_name;
   std::map<std::string, Clock::time_point> dial_failed_at;
-  std::size_t inbound = 0;
-  std::map<std::string, std::size_t> inbound_by_principal;  // capped principals only (below OWNER)
+  // Inbound slots (issue 13 #12, issue 28 #8): kernel/auth/slots.hpp says who counts against which cap.
+  SlotTable slots{{options.max_connections, options.reserved_connections, options.max_connections_per_principal,
+                   options.max_connections_per_address}};
   WebSocketCounters counters;
 
   // Dialed connections run here, never on the HTTP server's I/O threads: the thread "r2r.ws.dial", started with
@@ -77,13 +88,6 @@ struct WebSocketTransport::Hub : std::enable_shared_from_this<Hub> {
     deliver(std::move(message));
   }
   void bind_name(const std::string& name, const std::shared_ptr<Connection>& connection);
-  // Gives back an inbound slot (and the principal's count, when it is capped). Under `mutex`.
-  void release_slot_locked(const std::string& counted_as) {
-    if (inbound > 0) --inbound;
-    if (counted_as.empty()) return;
-    if (auto it = inbound_by_principal.find(counted_as); it != inbound_by_principal.end() && --it->second == 0)
-      inbound_by_principal.erase(it);
-  }
   void closed(const std::shared_ptr<Connection>& connection, bool dial_failed, bool oversize);
   std::shared_ptr<Connection> dial_locked(const swarm::SwarmNode& node);
   const swarm::SwarmRegistry* dial_registry() const { return options.dial_peers ? options.dial_peers() : nullptr; }
@@ -101,25 +105,6 @@ namespace {
 
 using Hub = WebSocketTransport::Hub;
 using Stream = http::UpgradeStream;
-
-// An inbound slot, counted when the upgrade is checked (so concurrent upgrades cannot all slip under a limit) and
-// given back here unless a connection took it over (the server may still drop the upgrade after the hook).
-struct WsSlotClaim {
-  std::weak_ptr<Hub> hub;
-  std::string counted_as;  // the capped principal, or empty
-  bool taken = false;
-  WsSlotClaim(std::weak_ptr<Hub> hub_in, std::string counted_as_in)
-      : hub(std::move(hub_in)), counted_as(std::move(counted_as_in)) {}
-  WsSlotClaim(const WsSlotClaim&) = delete;
-  WsSlotClaim& operator=(const WsSlotClaim&) = delete;
-  ~WsSlotClaim() {
-    if (taken) return;
-    if (auto owner = hub.lock()) {
-      std::lock_guard lock(owner->mutex);
-      if (!owner->stopped) owner->release_slot_locked(counted_as);  // stop() has zeroed the counts already
-    }
-  }
-};
 
 // One WebSocket connection, inbound (upgraded by the HTTP server) or dialed. Every member below the public ones runs
 // on the stream's executor (one thread), so the queue needs no lock.
@@ -192,8 +177,8 @@ class Connection : public std::enable_shared_from_this<Connection> {
   bool trusted_with_secrets() const noexcept { return trusted_.load(std::memory_order_acquire); }
   const std::string& peer() const noexcept { return peer_; }
   std::size_t queued_bytes() const noexcept { return queued_bytes_.load(std::memory_order_relaxed); }
-  std::string name_;        // the robot this connection reaches (guarded by Hub::mutex)
-  std::string counted_as_;  // inbound, capped: the principal it counts against (guarded by Hub::mutex)
+  std::string name_;            // the robot this connection reaches (guarded by Hub::mutex)
+  std::shared_ptr<void> slot_;  // inbound: its place in Hub::slots, given back when closed (guarded by Hub::mutex)
 
  private:
   void on_resolved(beast::error_code ec, tcp::resolver::results_type results) {
@@ -459,7 +444,7 @@ void Hub::bind_name(const std::string& name, const std::shared_ptr<Connection>& 
 void Hub::closed(const std::shared_ptr<Connection>& connection, bool dial_failed, bool oversize) {
   std::lock_guard lock(mutex);
   if (connections.erase(connection) == 0) return;
-  if (connection->direction() == Connection::Direction::Inbound) release_slot_locked(connection->counted_as_);
+  connection->slot_.reset();
   for (auto it = by_name.begin(); it != by_name.end();) {
     if (auto holder = it->second.lock(); !holder || holder == connection) it = by_name.erase(it);
     else ++it;
@@ -523,7 +508,7 @@ http::UpgradeHandler WebSocketTransport::upgrade_handler() {
         verdict.refuse = http::error_response(503, "UNAVAILABLE", "R2R is not running");
         return verdict;
       }
-      if (hub->inbound >= hub->options.max_connections) {
+      if (hub->slots.in_use() >= hub->options.max_connections) {  // before the credential is checked: full is full
         ++hub->counters.inbound_refused;
         verdict.refuse = http::error_response(503, "UNAVAILABLE", "too many R2R connections");
         return verdict;
@@ -545,43 +530,24 @@ http::UpgradeHandler WebSocketTransport::upgrade_handler() {
       return verdict;
     }
     const Principal& principal = std::get<Principal>(outcome);
-    // Slots (issue 13 #12): below OWNER a principal holds at most max_connections_per_principal sockets (429), and
-    // the last reserved_connections slots are the OWNER's and CREATOR's (503), so no guest can lock an operator out.
-    // The slot is counted here, under the lock, so concurrent upgrades cannot all slip under a limit.
-    const bool capped = !sdk::role_grants(principal.role, sdk::Scope::Config);
-    std::shared_ptr<WsSlotClaim> slot;
+    // Slots (issue 13 #12, issue 28 #8): below OWNER a principal holds at most max_connections_per_principal sockets
+    // and one address at most max_connections_per_address (429), and the last reserved_connections slots are the
+    // OWNER's and CREATOR's (503), so no guest, nor many guests on one host, can lock an operator out. The slot is the
+    // upgrade's from here and the connection's once taken: an upgrade the server drops after this hook gives it back.
+    const SlotHolder holder =
+        slot_holder(principal.name, principal.role, principal.via == "open", http::client_address(request.remote));
+    SlotTable::Claim claim;
     {
       std::lock_guard lock(hub->mutex);
-      const WebSocketOptions& o = hub->options;
-      const std::size_t open_to_all = o.max_connections - std::min(o.reserved_connections, o.max_connections);
-      const auto held = capped ? hub->inbound_by_principal.find(principal.name) : hub->inbound_by_principal.end();
-      const std::size_t holds = held == hub->inbound_by_principal.end() ? 0 : held->second;
-      std::optional<http::Response> refusal;
-      if (hub->stopped || !hub->started) {
-        refusal = http::error_response(503, "UNAVAILABLE", "R2R is not running");
-      } else if (hub->inbound >= o.max_connections) {
-        refusal = http::error_response(503, "UNAVAILABLE", "too many R2R connections");
-      } else if (capped && holds >= o.max_connections_per_principal) {
-        refusal =
-            http::error_response(429, "TOO_MANY_CONNECTIONS",
-                                 "principal '" + bounded_text(principal.name, 64) + "' already holds " + std::to_string(holds) +
-                                     " R2R WebSocket connections, the most a " + std::string(sdk::role_name(principal.role)) +
-                                     " may (runtime.r2r.ws_max_connections_per_principal); close one first");
-      } else if (capped && hub->inbound >= open_to_all) {
-        refusal = http::error_response(503, "R2R_SLOTS_RESERVED",
-                                       "the remaining R2R WebSocket connections are reserved for OWNER and CREATOR "
-                                       "principals (runtime.r2r.ws_reserved_connections)");
-      }
-      if (refusal) {
+      if (!hub->stopped && hub->started) claim = hub->slots.claim(holder);
+      if (!claim.slot) {
         ++hub->counters.inbound_refused;
-        refusal->headers.emplace_back("Retry-After", "5");
-        verdict.refuse = std::move(refusal);
+        if (hub->stopped || !hub->started) verdict.refuse = http::error_response(503, "UNAVAILABLE", "R2R is not running");
+        else verdict.refuse = slot_refusal(claim, kR2rSlots, holder, principal.role);
         return verdict;
       }
-      ++hub->inbound;
-      if (capped) ++hub->inbound_by_principal[principal.name];
-      slot = std::make_shared<WsSlotClaim>(weak, capped ? principal.name : std::string());
     }
+    auto slot = std::move(claim.slot);
     verdict.take = [weak, principal = std::get<Principal>(std::move(outcome)), credential = std::string(bearer.value_or("")),
                     generation, slot](http::Upgraded&& upgraded) {
       auto taker = weak.lock();
@@ -593,8 +559,7 @@ http::UpgradeHandler WebSocketTransport::upgrade_handler() {
         std::lock_guard lock(taker->mutex);
         if (taker->stopped) return;  // the connection closes as it goes out of scope
         taker->connections.insert(connection);
-        connection->counted_as_ = slot->counted_as;  // the slot is the connection's now: Hub::closed gives it back
-        slot->taken = true;
+        connection->slot_ = slot;  // the connection's now: Hub::closed gives it back
         ++taker->counters.inbound_accepted;
       }
       taker->log->debug("r2r ws: {} connected as {}", upgraded.request.remote, bounded_text(principal.name, 64));
@@ -670,8 +635,6 @@ void WebSocketTransport::stop() noexcept {
     hub.stopped = true;
     open.swap(hub.connections);
     hub.by_name.clear();
-    hub.inbound = 0;
-    hub.inbound_by_principal.clear();
   }
   for (const auto& connection : open) {
     try {
@@ -707,6 +670,7 @@ void apply_websocket_config(const nlohmann::json& r2r_block, WebSocketOptions& o
   };
   size_key("ws_max_connections", options.max_connections);
   size_key("ws_max_connections_per_principal", options.max_connections_per_principal);
+  size_key("ws_max_connections_per_address", options.max_connections_per_address);
   size_key("ws_reserved_connections", options.reserved_connections);
   size_key("ws_max_queued_bytes", options.max_queued_bytes);
 }

@@ -27,7 +27,7 @@ namespace rcand::kernel::r2r {
 inline constexpr std::string_view kWebSocketPath = "/ws/r2r";
 
 struct WebSocketOptions {
-  std::string self_name;                     // never dialed, even when swarm.yaml lists it
+  std::string self_name;  // never dialed, even when swarm.yaml lists it
   // The swarm.yaml robots this one dials when a message must reach them, as the registry is now (a SIGHUP reload swaps
   // it; a registry stays alive while rcand serves). Unset: this robot never dials (MQTT carries what WS cannot).
   std::function<const swarm::SwarmRegistry*()> dial_peers;
@@ -37,13 +37,15 @@ struct WebSocketOptions {
   std::chrono::milliseconds redial_backoff{2'000};     // after a failed dial, messages to that peer are refused
   std::size_t max_connections = 256;                   // inbound; beyond it the upgrade answers 503 UNAVAILABLE
   std::size_t max_connections_per_principal = 8;       // inbound sockets one principal below OWNER may hold (429)
+  std::size_t max_connections_per_address = 16;        // inbound sockets principals below OWNER may hold from one address (429)
   std::size_t reserved_connections = 32;               // of max_connections, only for OWNER and CREATOR (503)
   std::size_t max_queued_bytes = 1024 * 1024;          // per connection; beyond it (a peer that does not read) dropped
   std::shared_ptr<spdlog::logger> log;                 // null: spdlog's default logger
 };
 
 // The runtime.r2r keys of the WebSocket transport (validated by the config schema): ws_max_connections,
-// ws_max_connections_per_principal, ws_reserved_connections, ws_max_queued_bytes. Absent keys keep `options`' values.
+// ws_max_connections_per_principal, ws_max_connections_per_address, ws_reserved_connections, ws_max_queued_bytes. Absent keys
+// keep `options`' values.
 void apply_websocket_config(const nlohmann::json& r2r_block, WebSocketOptions& options);
 
 struct WebSocketCounters {

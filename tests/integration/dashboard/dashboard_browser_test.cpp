@@ -6,47 +6,18 @@
 #include <doctest/doctest.h>
 
 #include <filesystem>
-#include <fstream>
-#include <sstream>
 
+#include "node_dir.hpp"
 #include "rcand_process.hpp"
 #include "swarm_lab.hpp"
 
 namespace fs = std::filesystem;
 using rcand::test::run_tool;
 
-namespace {
-
-std::string slurp(const fs::path& file) {
-  std::ifstream in(file);
-  std::stringstream text;
-  text << in.rdbuf();
-  return text.str();
-}
-
-// <build>/tests/dashboard-node: the script beside its node_modules (Node resolves imports from the script's folder).
-fs::path prepared_node_dir() {
-  const fs::path source = fs::path(RCAND_SOURCE_DIR) / "tests/dashboard";
-  const fs::path dir = fs::path(RCAND_BINARY_DIR) / "tests/dashboard-node";
-  fs::create_directories(dir);
-  for (const char* name : {"package.json", "drive.mjs", "state.mjs"})
-    fs::copy_file(source / name, dir / name, fs::copy_options::overwrite_existing);
-  const std::string lock = slurp(source / "package-lock.json");
-  if (!fs::exists(dir / "node_modules/playwright-core") || slurp(dir / "package-lock.json") != lock) {
-    fs::copy_file(source / "package-lock.json", dir / "package-lock.json", fs::copy_options::overwrite_existing);
-    const auto npm = run_tool("/bin/sh", {"-c", "cd \"$0\" && npm ci --no-audit --no-fund --ignore-scripts", dir.string()});
-    INFO(npm.out, npm.err);
-    REQUIRE_MESSAGE(npm.exit_code == 0, "npm ci of playwright-core failed (packaging/install-deps.sh installs npm)");
-  }
-  return dir;
-}
-
-}  // namespace
-
 TEST_CASE("the dashboard in a real browser: log in, drive, stop, clear, stop one swarm node, a lost link stops the motors") {
   for (const char* tool : {"/usr/bin/chromium", "/usr/bin/node"})
     REQUIRE_MESSAGE(fs::exists(tool), tool << " is missing: run packaging/install-deps.sh");
-  const fs::path node_dir = prepared_node_dir();
+  const fs::path node_dir = rcand::test::prepared_node_dir();
 
   // A second robot, the only node of the first one's swarm file.
   rcand::test::RcandProcess bravo(rcand::test::swarm_robot_config("bravo"));
@@ -77,7 +48,7 @@ TEST_CASE("the dashboard in a real browser: log in, drive, stop, clear, stop one
 TEST_CASE("the dashboard makes the robot's state impossible to miss: colours, reasons, the latch banner, clear") {
   for (const char* tool : {"/usr/bin/chromium", "/usr/bin/node"})
     REQUIRE_MESSAGE(fs::exists(tool), tool << " is missing: run packaging/install-deps.sh");
-  const fs::path node_dir = prepared_node_dir();
+  const fs::path node_dir = rcand::test::prepared_node_dir();
   const std::string missing_port = "/dev/rcand-test-no-such-u2d2";
   auto config = rcand::test::swarm_robot_config("alpha");
   config["physics"]["kinematics"] = nlohmann::json::array(

@@ -1,7 +1,8 @@
 // vision against a real rcand (docs/protocol.md §7 GET /api/stream/mjpeg): the stream read as a client reads it, every
 // JPEG decoded with cv::imdecode; the stream routes behind the same middleware as every other route (bearer or
-// ?token=, scopes, 405, 404 for an undeclared vision, rate limits); ?fps= and the viewer limit; a stalled viewer
-// beside a reading one; a missing camera as a named fault in GET /api/status with a live NO SIGNAL stream.
+// ?token=, scopes, 405, 404 for an undeclared vision, rate limits); ?fps= and the viewer limit; viewers capped per
+// principal and per address, with places reserved for the operators (issue 28 #8); a stalled viewer beside a reading one; a
+// missing camera as a named fault in GET /api/status with a live NO SIGNAL stream.
 #include <doctest/doctest.h>
 
 #include <opencv2/imgcodecs.hpp>
@@ -136,9 +137,9 @@ TEST_CASE("vision: the viewer limit is 503 naming it, and a place frees when a v
   RcandProcess rcand(vision_config(json{{"type", "synthetic"}, {"resolution", {160, 120}}}, {{"max_viewers", 2}}));
   auto a = std::make_unique<MjpegClient>(rcand.port());
   MjpegClient b(rcand.port()), c(rcand.port());
-  REQUIRE(a->open("/api/stream/mjpeg", "guest-token") == 200);
-  REQUIRE(b.open("/api/stream/mjpeg", "guest-token") == 200);
-  REQUIRE(c.open("/api/stream/mjpeg", "guest-token") == 503);
+  REQUIRE(a->open("/api/stream/mjpeg", "owner-token") == 200);  // the owner: the reserved place is one of the two
+  REQUIRE(b.open("/api/stream/mjpeg", "owner-token") == 200);
+  REQUIRE(c.open("/api/stream/mjpeg", "owner-token") == 503);
   CHECK(c.header("retry-after") == "5");
   const auto refusal = json::parse(c.body());
   CHECK(refusal["limit"] == 2);
@@ -148,7 +149,7 @@ TEST_CASE("vision: the viewer limit is 503 naming it, and a place frees when a v
   int status = 0;
   while (status != 200 && std::chrono::steady_clock::now() < deadline) {
     MjpegClient d(rcand.port());
-    status = d.open("/api/stream/mjpeg", "guest-token");
+    status = d.open("/api/stream/mjpeg", "owner-token");
     if (status == 200) REQUIRE(d.next_part());
     else std::this_thread::sleep_for(20ms);
   }
@@ -159,9 +160,9 @@ TEST_CASE("vision: 200 viewers at once: the first max_viewers stream live, the r
   RcandProcess rcand(vision_config(json{{"type", "synthetic"}, {"resolution", {160, 120}}, {"fps", 30}}));
   std::vector<std::unique_ptr<MjpegClient>> viewers;
   int streaming = 0, refused = 0;
-  for (int i = 0; i < 200; ++i) {
+  for (int i = 0; i < 200; ++i) {  // as the OWNER: a principal below holds a few viewers at most (next test)
     viewers.push_back(std::make_unique<MjpegClient>(rcand.port()));
-    const int status = viewers.back()->open("/api/stream/mjpeg", "guest-token");
+    const int status = viewers.back()->open("/api/stream/mjpeg", "owner-token");
     if (status == 200) ++streaming;
     else if (status == 503) ++refused;
   }
@@ -171,6 +172,69 @@ TEST_CASE("vision: 200 viewers at once: the first max_viewers stream live, the r
     if (viewer->status() == 200) CHECK(viewer->next_part());
   int status = 0;
   rcand.json("POST", "/api/stop", "guest-token", "{}", &status);
+  CHECK(status == 200);
+}
+
+TEST_CASE("vision: a GUEST's viewers at ?fps=0.001 cannot lock the owner's dashboard out of the camera") {
+  // Issue 28 #8: 32 guest viewers at ?fps=0.001 used to hold every place, and the owner got 503.
+  auto config =
+      vision_config(json{{"type", "synthetic"}, {"resolution", {160, 120}}}, {{"max_viewers", 6}, {"reserved_viewers", 2}});
+  config["runtime"]["max_streams_per_principal"] = 3;
+  config["runtime"]["max_streams_per_address"] = 100;
+  RcandProcess rcand(config);
+  int status = 0;
+  auto answer = rcand.json("GET", "/api/stream/mjpeg?fps=0.001", "guest-token", {}, &status);
+  CHECK(status == 400);  // would be offered no frame for 10 s, and cut: refused at once instead
+  CHECK(answer["field"] == "fps");
+
+  std::vector<std::unique_ptr<MjpegClient>> viewers;
+  auto open = [&](const std::string& token, const std::string& fps = "1") {
+    viewers.push_back(std::make_unique<MjpegClient>(rcand.port()));
+    return viewers.back()->open("/api/stream/mjpeg?fps=" + fps, token);
+  };
+  int guests = 0;
+  for (int i = 0; i < 6; ++i) guests += open("guest-token", "0.2") == 200 ? 1 : 0;
+  CHECK(guests == 3);  // was 6: and then the owner's dashboard got 503
+  CHECK(open("guest-token") == 429);
+  const std::string refused = viewers.back()->body();
+  INFO(refused);
+  CHECK(json::parse(refused, nullptr, false).value("code", "") == "TOO_MANY_STREAMS");
+  CHECK_FALSE(viewers.back()->header("retry-after").empty());
+
+  CHECK(open("user-token") == 200);  // 4 of 6: the last 2 are the operators'
+  CHECK(open("user-token") == 503);
+  CHECK(json::parse(viewers.back()->body(), nullptr, false).value("code", "") == "SLOTS_RESERVED");
+  CHECK(open("owner-token") == 200);
+  REQUIRE(viewers.back()->next_part());  // the owner's dashboard shows the camera
+  CHECK(open("owner-token") == 200);
+  CHECK(open("owner-token") == 503);  // max_viewers holds for everyone
+}
+
+TEST_CASE("vision: viewers of many principals on one address share its cap; OWNER is not counted against it") {
+  auto config = vision_config(json{{"type", "synthetic"}, {"resolution", {160, 120}}});
+  config["runtime"]["max_streams_per_principal"] = 3;
+  config["runtime"]["max_streams_per_address"] = 4;
+  RcandProcess rcand(config);
+  std::vector<std::unique_ptr<MjpegClient>> viewers;
+  auto open = [&](const std::string& token) {
+    viewers.push_back(std::make_unique<MjpegClient>(rcand.port()));
+    return viewers.back()->open("/api/stream/mjpeg", token);
+  };
+  for (int i = 0; i < 3; ++i) CHECK(open("guest-token") == 200);
+  CHECK(open("user-token") == 200);
+  CHECK(open("user-token") == 429);  // the user's own cap has room; the address's not
+  const std::string refused = viewers.back()->body();
+  INFO(refused);
+  CHECK(json::parse(refused, nullptr, false).value("error", "").find("address 127.0.0.1") != std::string::npos);
+  CHECK(open("owner-token") == 200);
+  // A viewer that leaves gives its place back.
+  viewers.front().reset();
+  const auto deadline = std::chrono::steady_clock::now() + 5s;
+  int status = 0;
+  while (status != 200 && std::chrono::steady_clock::now() < deadline) {
+    status = open("guest-token");
+    if (status != 200) std::this_thread::sleep_for(20ms);  // until rcand has seen the close: no event to wait on
+  }
   CHECK(status == 200);
 }
 

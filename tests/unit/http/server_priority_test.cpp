@@ -1,9 +1,11 @@
-// ServerOptions::priority (the e-stop lane), the connection limits and the busy lane, and the header checks.
+// ServerOptions::priority (the e-stop lane), the connection limits and the busy lane, the header checks, and the
+// screen every request meets first.
 #include <doctest/doctest.h>
 #include <nlohmann/json.hpp>
 
 #include <pthread.h>
 
+#include <atomic>
 #include <condition_variable>
 #include <memory>
 #include <mutex>
@@ -81,13 +83,15 @@ TEST_CASE("a priority request is answered while every worker loop is held by oth
 
 TEST_CASE("a connection stays on the accept thread while it sends priority requests, then moves to a worker") {
   // The handler answers with the name of the thread it ran on.
-  StartedServer s([](http::Request&& request, http::Respond respond) {
-    char name[16] = {};
-    pthread_getname_np(pthread_self(), name, sizeof name);
-    auto response = echo_response(request);
-    response.body = json{{"path", request.path}, {"thread", name}, {"body", request.body}}.dump();
-    respond(std::move(response));
-  }, priority_options());
+  StartedServer s(
+      [](http::Request&& request, http::Respond respond) {
+        char name[16] = {};
+        pthread_getname_np(pthread_self(), name, sizeof name);
+        auto response = echo_response(request);
+        response.body = json{{"path", request.path}, {"thread", name}, {"body", request.body}}.dump();
+        respond(std::move(response));
+      },
+      priority_options());
   RawSocket raw(s.port);
   for (int i = 0; i < 2; ++i) {
     raw.send(kStop);
@@ -154,7 +158,7 @@ TEST_CASE("one client address cannot take more than max_connections_per_address"
   stop.send(kStop);
   CHECK(stop.read_response().status == 200);
 
-  held.pop_back();  // one ends: its address may connect again
+  held.pop_back();                     // one ends: its address may connect again
   for (int attempt = 0;; ++attempt) {  // the close reaches the server asynchronously: retry a 503 until it has
     RawSocket again(s.port);
     again.send(kGet);
@@ -202,10 +206,12 @@ TEST_CASE("without priority, connections beyond the per-address cap are closed a
 
 TEST_CASE("refused before the handler: lower-case methods, HTTP/1.1 without Host, a transfer coding besides chunked") {
   int calls = 0;
-  StartedServer s([&calls](http::Request&& request, http::Respond respond) {
-    ++calls;
-    respond(echo_response(request));
-  }, priority_options());
+  StartedServer s(
+      [&calls](http::Request&& request, http::Respond respond) {
+        ++calls;
+        respond(echo_response(request));
+      },
+      priority_options());
   auto refused = [&](const std::string& request, int status, const std::string& code, const std::string& says) {
     RawSocket raw(s.port);
     raw.send(request);
@@ -243,14 +249,53 @@ TEST_CASE("a WebSocket version other than 13 gets 426 as JSON naming the version
   };
   StartedServer s(echo_handler(), options);
   RawSocket raw(s.port);
-  raw.send("GET /ws HTTP/1.1\r\nHost: h\r\nUpgrade: websocket\r\nConnection: Upgrade\r\n"
-           "Sec-WebSocket-Key: dGhlIHNhbXBsZSBub25jZQ==\r\nSec-WebSocket-Version: 8\r\n\r\n");
+  raw.send(
+      "GET /ws HTTP/1.1\r\nHost: h\r\nUpgrade: websocket\r\nConnection: Upgrade\r\n"
+      "Sec-WebSocket-Key: dGhlIHNhbXBsZSBub25jZQ==\r\nSec-WebSocket-Version: 8\r\n\r\n");
   const auto answer = raw.read_response();
   CHECK(answer.status == 426);
   CHECK(answer.headers.at("sec-websocket-version") == "13");
   CHECK(answer.headers.at("content-type") == "application/json");
   CHECK(json::parse(answer.body)["code"] == "UPGRADE_REQUIRED");
   CHECK_FALSE(taken);
+}
+
+TEST_CASE("the screen sees every request first: a refused one (a stop, an upgrade) reaches neither handler nor hook") {
+  auto options = priority_options();
+  std::atomic<int> screened = 0, taken = 0, handled = 0;
+  options.screen = [&screened](const http::Request& request) -> std::optional<http::Response> {
+    ++screened;
+    if (!request.header("origin")) return std::nullopt;
+    return http::error_response(403, "ORIGIN_NOT_ALLOWED", "not from here");
+  };
+  options.upgrade = [&taken](const http::Request&) {
+    http::UpgradeVerdict verdict;
+    verdict.take = [&taken](http::Upgraded&&) { ++taken; };
+    return verdict;
+  };
+  StartedServer s(
+      [&handled](http::Request&& request, http::Respond respond) {
+        ++handled;
+        respond(echo_response(request));
+      },
+      options);
+  RawSocket stop(s.port);  // a priority request, on the accept loop
+  stop.send("POST /stop HTTP/1.1\r\nHost: h\r\nOrigin: http://elsewhere\r\nContent-Length: 0\r\n\r\n");
+  auto answer = stop.read_response();
+  CHECK(answer.status == 403);
+  CHECK(json::parse(answer.body)["code"] == "ORIGIN_NOT_ALLOWED");
+  CHECK(stop.wait_closed());
+  RawSocket ws(s.port);
+  ws.send(
+      "GET /ws HTTP/1.1\r\nHost: h\r\nUpgrade: websocket\r\nConnection: Upgrade\r\nOrigin: http://elsewhere\r\n"
+      "Sec-WebSocket-Key: dGhlIHNhbXBsZSBub25jZQ==\r\nSec-WebSocket-Version: 13\r\n\r\n");
+  CHECK(ws.read_response().status == 403);
+  RawSocket plain(s.port);  // a worker's request without Origin goes on
+  plain.send(kGet);
+  CHECK(plain.read_response().status == 200);
+  CHECK(screened == 3);
+  CHECK(taken == 0);
+  CHECK(handled == 1);
 }
 
 TEST_CASE("the busy lane evicts connections that sent nothing before one whose request is on its way") {
@@ -265,7 +310,7 @@ TEST_CASE("the busy lane evicts connections that sent nothing before one whose r
   stop.send("POST /stop HTTP/1.1\r\nHost: h\r\n");
   std::vector<std::unique_ptr<RawSocket>> silent;
   for (int i = 0; i < 6; ++i) silent.push_back(std::make_unique<RawSocket>(s.port));  // newer, but silent
-  for (int i = 0; i < 4; ++i) CHECK(silent[i]->wait_closed());  // they went, oldest first
+  for (int i = 0; i < 4; ++i) CHECK(silent[i]->wait_closed());                        // they went, oldest first
   stop.send("Content-Length: 0\r\n\r\n");
   CHECK(stop.read_response().status == 200);
 }

@@ -222,3 +222,47 @@ TEST_CASE("stream: ResponseStream keeps one pending part and wakes its session o
   stream.close();
   CHECK(stream.closed());
 }
+
+TEST_CASE("stream: a stream offered no part for stream_stall_timeout ends cleanly, and its producer sees it closed") {
+  // Issue 28 #8: a viewer at ?fps=0.001 is offered one frame and then nothing; it must not hold its place for ever.
+  Writers writers;
+  http::ServerOptions options;
+  CHECK(options.stream_stall_timeout == 10s);  // what rcand serves with (the issue's 10 s); shortened here for the test
+  options.stream_stall_timeout = 300ms;
+  StartedServer s(writers.handler(), options);
+  RawSocket idle(s.port), fed(s.port);
+  idle.send("GET /stream HTTP/1.1\r\nHost: x\r\n\r\n");
+  auto starved = writers.next();
+  fed.send("GET /stream HTTP/1.1\r\nHost: x\r\n\r\n");
+  auto busy = writers.next();
+  REQUIRE(starved);
+  REQUIRE(busy);
+  REQUIRE(starved->start(200, "multipart/x-mixed-replace", {}));
+  REQUIRE(busy->start(200, "multipart/x-mixed-replace", {}));
+  REQUIRE(starved->push({bytes("only-frame"), "image/jpeg", {}}));
+  const auto started = std::chrono::steady_clock::now();
+  // The fed stream gets a part every 100 ms (well within the timeout) for a second: it is never cut.
+  while (std::chrono::steady_clock::now() - started < 1s) {
+    REQUIRE(busy->push({bytes("frame"), "image/jpeg", {}}));
+    std::this_thread::sleep_for(100ms);  // a 10 fps camera
+  }
+  CHECK(eventually_closed(*starved, 3000ms));  // was never: a stream with nothing to send stayed open
+  std::string received;
+  REQUIRE(idle.wait_closed(3000ms, &received));  // the connection ends (FIN), after the whole part it had
+  CHECK(received.find("\r\n\r\nonly-frame\r\n") != std::string::npos);
+  CHECK_FALSE(busy->closed());
+  busy->end();
+  REQUIRE(fed.wait_closed(3000ms, &received));
+  CHECK(received.find("frame") != std::string::npos);
+}
+
+TEST_CASE("stream: what a stream holds (its slot) is let go when the stream closes") {
+  http::ResponseStream stream;
+  auto slot = std::make_shared<int>(1);
+  std::weak_ptr<int> watch = slot;
+  stream.hold(std::move(slot));
+  CHECK_FALSE(watch.expired());
+  stream.close();
+  CHECK(watch.expired());
+  stream.hold(std::make_shared<int>(2));  // after the close: not kept
+}

@@ -10,7 +10,10 @@
 // Multipart streams hold AT MOST ONE pending part per client. push() never waits for the client: a part pushed while
 // the previous one is still unsent replaces it, and the replaced part counts as dropped. A slow client therefore skips
 // frames, holds one frame in memory, and never slows the producer or another client. A client that stops reading
-// altogether is disconnected after a while (10 s without progress in rcand); closed() then turns true.
+// altogether is disconnected after a while (10 s without progress in rcand), and so is a stream offered no part for
+// that long (its connection ends cleanly after the last whole part); closed() then turns true. rcand also caps the
+// multipart streams one principal below OWNER, and one client address, may hold at once: a start() beyond them
+// returns false and the client gets 429 TOO_MANY_STREAMS.
 #pragma once
 
 #include <cstdint>
