@@ -39,8 +39,6 @@ std::optional<std::string_view> request_credential(const http::Request& request)
   return std::nullopt;
 }
 
-}  // namespace
-
 Api::Api(const RuntimeConfig& config, const Authenticator& auth, AuditLog& audit, const Estop& estop, const sdk::Clock& clock,
          http::OriginPolicy origins)
     : auth_(auth),
