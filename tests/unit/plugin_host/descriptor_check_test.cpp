@@ -5,7 +5,7 @@
 #include <cstddef>
 
 using rcand::kernel::check_descriptor;
-using rcand::kernel::PluginManifest;
+using rcand::PluginManifest;
 using rcand::kernel::PluginState;
 
 namespace {
