@@ -73,7 +73,8 @@ TEST_CASE("dynamixel: what the driver's parser refuses, the manifest refuses, at
       {dxl_with({{"reboot_on_error", "no"}}), "reboot_on_error"},
   };
   for (const auto& [settings, key] : cases) {
-    INFO(settings.dump());
+    const std::string settings_text = settings.dump();  // clang 14: a lambda (INFO) cannot capture a structured binding
+    INFO(settings_text);
     CHECK(dxl_parser_refusal(settings).find(key) != std::string::npos);
     const auto verdict = rcand::test::manifest_verdict(manifest, "dynamixel", settings);
     REQUIRE(!verdict.refusals.empty());
@@ -87,7 +88,8 @@ TEST_CASE("dynamixel: the manifest also refuses what the parser would take and i
            {dxl_with({{"baudrate", 1000000}}), "baudrate: unknown key; expected one of: baud_rate,"},
            {dxl_with({}, {{{"id", 1}, {"joint", "a"}, {"max_dge", 90}}}), "servos[0].max_dge: unknown key"},
        }) {
-    INFO(settings.dump());
+    const std::string settings_text = settings.dump();  // clang 14: a lambda (INFO) cannot capture a structured binding
+    INFO(settings_text);
     CHECK(dxl_parser_refusal(settings) == "");
     const auto verdict = rcand::test::manifest_verdict(manifest, "dynamixel", settings);
     REQUIRE(!verdict.refusals.empty());

@@ -82,7 +82,8 @@ TEST_CASE("gpio: the manifest also refuses what the parser would silently ignore
            {gpio_motors(kGpioLeft, {{"in1", 23}, {"in2", 24}, {"enable", {{"line", 25}, {"activelow", true}}}}),
             "channels.right.enable.activelow: unknown key"},
        }) {
-    INFO(settings.dump());
+    const std::string settings_text = settings.dump();  // clang 14: a lambda (INFO) cannot capture a structured binding
+    INFO(settings_text);
     CHECK(gpio_parser_refusal(settings) == "");  // the parser alone would start with it
     const auto verdict = rcand::test::manifest_verdict(manifest, "gpio", settings);
     REQUIRE(!verdict.refusals.empty());

@@ -67,7 +67,8 @@ TEST_CASE("pca9685: what the driver's parser refuses, the manifest refuses, at t
       {{{"channels", {{"left", {{"esc", 0}}}, {"right", {{"esc", 1}}}, {"middle", {{"esc", 2}}}}}}, "channels.middle"},
   };
   for (const auto& [settings, key] : cases) {
-    INFO(settings.dump());
+    const std::string settings_text = settings.dump();  // clang 14: a lambda (INFO) cannot capture a structured binding
+    INFO(settings_text);
     CHECK(pca_parser_refusal(settings).find(key) != std::string::npos);
     const auto verdict = rcand::test::manifest_verdict(manifest, "pca9685", settings);
     REQUIRE(!verdict.refusals.empty());
@@ -81,7 +82,8 @@ TEST_CASE("pca9685: the manifest also refuses what the parser would take and ign
            {pca_with({{"frequency", 50}}), "frequency: unknown key"},
            {pca_with({}, {{"in1", 0}, {"in2", 1}, {"min_us", 1000}}, {{"esc", 3}}), "channels.left.min_us: unknown key"},
        }) {
-    INFO(settings.dump());
+    const std::string settings_text = settings.dump();  // clang 14: a lambda (INFO) cannot capture a structured binding
+    INFO(settings_text);
     CHECK(pca_parser_refusal(settings) == "");
     const auto verdict = rcand::test::manifest_verdict(manifest, "pca9685", settings);
     REQUIRE(!verdict.refusals.empty());
