@@ -391,8 +391,10 @@ TEST_CASE("vision: a source whose read() hangs is NO SIGNAL within 1 s of its la
 }
 
 TEST_CASE("vision: a stall is two frame periods without a frame, at least 250 ms; the status's top-level fault says so") {
-  for (const auto& [fps, threshold] :
+  for (const auto& fps_threshold_case :
        std::vector<std::pair<double, std::string>>{{30, "250 ms"}, {4, "500 ms"}, {1e-300, "60000 ms"}}) {
+    const auto& fps = fps_threshold_case.first;  // clang 14: CAPTURE's lambda cannot capture a structured binding
+    const auto& threshold = fps_threshold_case.second;
     CAPTURE(fps);
     auto script = std::make_shared<Script>();
     script->fps = fps;

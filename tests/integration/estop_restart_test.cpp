@@ -164,7 +164,10 @@ TEST_CASE("state dir: a stop while the disk is full is named at the restart, aft
   auto config = sim_config();
   config["runtime"]["state_dir"] = (disk.path() / "state").string();
   const auto stop_on_full_disk = [&disk](const RcandProcess& rcand, const std::string& reason) {
-    const auto failed_writes = [&rcand] { return rcand.stderr_text().find("No space left on device") != std::string::npos; };
+    // The latch writer's own line (the slot is written before it): other writers (the audit files) fail first.
+    const auto failed_writes = [&rcand] {
+      return rcand.stderr_text().find("cannot record the e-stop latch: ") != std::string::npos;
+    };
     REQUIRE_FALSE(failed_writes());
     REQUIRE(disk.fill());
     int status = 0;
@@ -204,7 +207,8 @@ TEST_CASE("state dir: unusable or already in use is a startup error naming runti
     const auto file = scratch.write("not-a-dir", "x");
     config["runtime"]["state_dir"] = file.string();
     const auto config_file = scratch.write("robot.rcan.yaml", config.dump());
-    const auto result = run_tool(rcand_binary(), {"--config", config_file.string(), "--port", "0", "--plugin-path", plugin_dir().string()});
+    const auto result =
+        run_tool(rcand_binary(), {"--config", config_file.string(), "--port", "0", "--plugin-path", plugin_dir().string()});
     CHECK(result.exit_code == 1);
     CHECK(result.err.find("runtime.state_dir") != std::string::npos);
     CHECK(result.err.find(file.string()) != std::string::npos);
@@ -213,7 +217,8 @@ TEST_CASE("state dir: unusable or already in use is a startup error naming runti
     config["runtime"]["state_dir"] = (scratch.path() / "state").string();
     RcandProcess running(config);
     const auto config_file = scratch.write("robot.rcan.yaml", config.dump());
-    const auto result = run_tool(rcand_binary(), {"--config", config_file.string(), "--port", "0", "--plugin-path", plugin_dir().string()});
+    const auto result =
+        run_tool(rcand_binary(), {"--config", config_file.string(), "--port", "0", "--plugin-path", plugin_dir().string()});
     CHECK(result.exit_code == 1);
     CHECK(result.err.find("runtime.state_dir") != std::string::npos);
     CHECK(result.err.find("in use by another rcand") != std::string::npos);

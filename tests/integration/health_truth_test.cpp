@@ -121,7 +121,7 @@ TEST_CASE("health: a robot whose drivers all run is ok everywhere") {
   RcandProcess robot(rcand::test::sim_config());
   const json status = robot.json("GET", "/api/status", "guest-token");
   CHECK(status["state"] == "idle");
-  for (const auto& [name, capability] : status["capabilities"].items()) CHECK_MESSAGE(capability["state"] == "ok", name);
+  for (const auto& entry : status["capabilities"].items()) CHECK_MESSAGE(entry.value()["state"] == "ok", entry.key());
   for (const auto& plugin : robot.json("GET", "/api/plugins", "guest-token")["plugins"])
     CHECK_MESSAGE((plugin["health"] == "ok" || plugin["health"] == "unused"), plugin.dump());
 }

@@ -146,7 +146,9 @@ class RouteFuzzer {
   std::vector<Route> routes() {
     const json status = rcand_.json("GET", "/api/status", "owner-token");
     std::vector<Route> list;
-    for (const auto& [name, item] : status.at("capabilities").items()) {
+    for (const auto& name_item_case : status.at("capabilities").items()) {
+      const std::string& name = name_item_case.key();  // clang 14: a lambda cannot capture a structured binding
+      const auto& item = name_item_case.value();
       CHECK_MESSAGE(item.value("state", "") == "ok", name << ": " << item.dump());
       for (const auto& row : item.value("routes", json::array()))
         list.push_back({name, row.at("method").get<std::string>(), row.at("path").get<std::string>(), row.value("type", ""),

@@ -46,7 +46,9 @@ TEST_CASE("bounded text: control and formatting characters become '?', one per c
       {"\xe2\x80\x8e\xe2\x80\x8f\xd8\x9c", "???"},                   // LRM, RLM, ALM
       {"line\xe2\x80\xa8para\xe2\x80\xa9", "line?para?"},            // U+2028, U+2029
   };
-  for (const auto& [in, out] : vectors) {
+  for (const auto& in_out_case : vectors) {
+    const auto& in = in_out_case.first;  // clang 14: CAPTURE's lambda cannot capture a structured binding
+    const auto& out = in_out_case.second;
     CAPTURE(in);
     CHECK(bounded_text(in) == out);
   }
@@ -74,7 +76,9 @@ TEST_CASE("bounded text: invalid UTF-8 becomes '?' byte by byte") {
       {"\xe2\x82x", "??x"},          // ... or in the middle
       {"\x80", "?"},                 // a lone continuation byte
   };
-  for (const auto& [in, out] : vectors) {
+  for (const auto& in_out_case : vectors) {
+    const auto& in = in_out_case.first;  // clang 14: CAPTURE's lambda cannot capture a structured binding
+    const auto& out = in_out_case.second;
     CAPTURE(in);
     CHECK(bounded_text(in) == out);
   }
