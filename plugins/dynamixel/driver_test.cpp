@@ -29,8 +29,9 @@ json arm_config(const std::string& port, int joints = 6) {
   json servos = json::array();
   for (int i = 1; i <= joints; ++i)
     servos.push_back({{"id", i}, {"joint", "j" + std::to_string(i)}, {"min_deg", -150}, {"max_deg", 150}});
-  return {{"port", port},   {"baud_rate", 1000000},  {"servos", servos},
-          {"poll_hz", 100}, {"reply_timeout_ms", 5}, {"watchdog_ms", 100}};
+  // 50 ms for an answer: the emulator is a thread of this test, and a loaded machine (CI's sanitizer build) delays it.
+  return {{"port", port},   {"baud_rate", 1000000},   {"servos", servos},
+          {"poll_hz", 100}, {"reply_timeout_ms", 50}, {"watchdog_ms", 100}};
 }
 
 struct Rig {
@@ -239,7 +240,7 @@ TEST_CASE("wheels: velocity mode, the differential_drive interface, a mirrored w
   Rig rig({11, 12});
   rig.make({{"port", rig.pty.slave_path()},
             {"baud_rate", 1000000},
-            {"reply_timeout_ms", 5},
+            {"reply_timeout_ms", 50},
             {"servos", {{{"id", 11}, {"wheel", "left"}}, {{"id", 12}, {"wheel", "right"}, {"reverse", true}}}}});
   rig.driver->start();
   CHECK(rig.driver->interface_name() == "differential_drive");
