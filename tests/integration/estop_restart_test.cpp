@@ -164,9 +164,14 @@ TEST_CASE("state dir: a stop while the disk is full is named at the restart, aft
   auto config = sim_config();
   config["runtime"]["state_dir"] = (disk.path() / "state").string();
   const auto stop_on_full_disk = [&disk](const RcandProcess& rcand, const std::string& reason) {
-    // The latch writer's own line (the slot is written before it): other writers (the audit files) fail first.
-    const auto failed_writes = [&rcand] {
-      return rcand.stderr_text().find("cannot record the e-stop latch: ") != std::string::npos;
+    const auto failed_writes = [&rcand] { return rcand.stderr_text().find("No space left on device") != std::string::npos; };
+    // What the restart reads: the reserved slot holds this stop (the writer may first have written another record,
+    // the startup one, and failed on estop.json with it).
+    const auto slot_holds_reason = [&disk, &reason] {
+      std::ifstream in(disk.path() / "state" / "estop.slot");
+      std::stringstream text;
+      text << in.rdbuf();
+      return text.str().find(reason) != std::string::npos;
     };
     REQUIRE_FALSE(failed_writes());
     REQUIRE(disk.fill());
@@ -174,6 +179,7 @@ TEST_CASE("state dir: a stop while the disk is full is named at the restart, aft
     rcand.json("POST", "/api/stop", "guest-token", json{{"reason", reason}}.dump(), &status);
     REQUIRE(status == 200);
     REQUIRE(eventually(failed_writes));  // estop.json could not be replaced: the disk is full
+    REQUIRE(eventually(slot_holds_reason));
   };
   {
     RcandProcess first(config);
