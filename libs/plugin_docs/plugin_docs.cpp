@@ -150,16 +150,17 @@ class SchemaDoc {
     children(root_, "", main.rows);
     tables_.push_back(std::move(main));
     for (std::size_t i = 0; i < shared_.size(); ++i) {  // a table may name further shared definitions
-      const ojson& def = defs_[shared_[i]];
+      const std::string shared = shared_[i];            // a copy: walking the definition may grow shared_ (and move its strings)
+      const ojson& def = defs_[shared];
       Table table{
-          shared_[i] + (def.contains("title") ? ": " + def["title"].get<std::string>() : ""), def.value("description", ""), {}};
+          shared + (def.contains("title") ? ": " + def["title"].get<std::string>() : ""), def.value("description", ""), {}};
       const bool record = def.contains("properties") || def.contains("oneOf");
       if (record && type_of(def) == "map") {
-        collect_rules(def, shared_[i]);
-        children(def, "", table.rows, shared_[i]);
+        collect_rules(def, shared);
+        children(def, "", table.rows, shared);
       } else {  // a value of its own (a line: 17, "GPIO17"), maybe also an object form ({line, active_low})
-        add_row(def, def, shared_[i], false, table.rows, shared_[i]);
-        if (record) children(def, shared_[i], table.rows, shared_[i]);
+        add_row(def, def, shared, false, table.rows, shared);
+        if (record) children(def, shared, table.rows, shared);
       }
       tables_.push_back(std::move(table));
     }
