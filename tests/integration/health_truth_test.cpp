@@ -122,7 +122,8 @@ TEST_CASE("health: a robot whose drivers all run is ok everywhere") {
   const json status = robot.json("GET", "/api/status", "guest-token");
   CHECK(status["state"] == "idle");
   for (const auto& entry : status["capabilities"].items()) CHECK_MESSAGE(entry.value()["state"] == "ok", entry.key());
-  for (const auto& plugin : robot.json("GET", "/api/plugins", "guest-token")["plugins"])
+  const json plugins = robot.json("GET", "/api/plugins", "guest-token");  // held: a loop over a temporary's member dangles
+  for (const auto& plugin : plugins["plugins"])
     CHECK_MESSAGE((plugin["health"] == "ok" || plugin["health"] == "unused"), plugin.dump());
 }
 
