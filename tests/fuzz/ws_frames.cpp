@@ -210,7 +210,12 @@ void r2r_message(const std::string& message, bool binary, std::size_t fragment) 
       check_r2r_frame(*text);
       const json doc = json::parse(*text);
       const json ref = doc["payload"].value("ref", json::object());
-      if (doc["type"] == "error" && ref.is_object() && ref.value("version", json()) == marker) return;
+      if (doc["type"] == "error" && ref.is_object() && ref.value("version", json()) == marker) {
+        // A connection's error answers are rate-limited (10, then 1 a second: docs/protocol.md, R2R refusals), so
+        // the next input gets a connection of its own, whose probe is answered.
+        r2r().drop();
+        return;
+      }
     }
     if (may_close(message, binary, kR2rMaxMessage)) return;
   }
