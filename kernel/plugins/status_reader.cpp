@@ -26,6 +26,10 @@ std::vector<std::shared_ptr<StatusReader::Slot>> make_slots(std::size_t count) {
   return slots;
 }
 
+std::int64_t steady_ns() {
+  return std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::steady_clock::now().time_since_epoch()).count();
+}
+
 }  // namespace
 
 StatusReader::StatusReader(std::vector<Source> sources)
@@ -39,11 +43,16 @@ std::vector<std::optional<nlohmann::json>> StatusReader::read(std::span<const st
     const std::size_t index = indices[i];
     if (index >= slots_.size() || slots_[index]->hung.load()) continue;
     auto& slot = *slots_[index];
-    if (slot.in_flight.exchange(true)) {  // another reader waits for this call: its last value, at once
+    if (slot.in_flight.exchange(true)) {  // the call asked earlier has not returned: its last value, at once
+      if (steady_ns() - slot.asked_ns.load() > std::chrono::nanoseconds(kHungAfter).count()) {
+        mark_hung(index, "status() did not return within " + std::to_string(kHungAfter.count()) + " ms (it must not block)");
+        continue;
+      }
       std::lock_guard lock(slot.mutex);
       values[i] = slot.latest;
       continue;
     }
+    slot.asked_ns.store(steady_ns());
     asked.push_back(i);
     asked_sources.push_back(index);
   }
@@ -52,22 +61,22 @@ std::vector<std::optional<nlohmann::json>> StatusReader::read(std::span<const st
   for (std::size_t a = 0; a < asked.size(); ++a) {
     const std::size_t index = asked_sources[a];
     const auto state = a < outcomes.size() ? outcomes[a].state : DeadlineCrew::State::Pending;
-    auto& slot = *slots_[index];
-    if (state == DeadlineCrew::State::Done) {
-      std::lock_guard lock(slot.mutex);
-      values[asked[a]] = slot.latest;
+    if (state == DeadlineCrew::State::Failed) {
+      mark_hung(index, "status() ended the thread: " + outcomes[a].error);
       continue;
     }
-    if (slot.hung.exchange(true)) continue;  // another reader already reported it
-    const auto& source = sources_[index];
-    const std::string why =
-        state == DeadlineCrew::State::Failed
-            ? "status() ended the thread: " + outcomes[a].error
-            : "status() did not return within " + std::to_string(kStatusDeadline.count()) + " ms (it must not block)";
-    logger("kernel.plugins")->error("{}: {}", source.who, why);
-    if (source.health != nullptr) source.health->mark_failed(why);
+    auto& slot = *slots_[index];  // Done, or late: the last value it returned (a late call finishes on its own)
+    std::lock_guard lock(slot.mutex);
+    values[asked[a]] = slot.latest;
   }
   return values;
+}
+
+void StatusReader::mark_hung(std::size_t index, const std::string& why) {
+  if (slots_[index]->hung.exchange(true)) return;  // another reader already reported it
+  const auto& source = sources_[index];
+  logger("kernel.plugins")->error("{}: {}", source.who, why);
+  if (source.health != nullptr) source.health->mark_failed(why);
 }
 
 std::optional<nlohmann::json> StatusReader::read(std::size_t index) {

@@ -81,7 +81,9 @@ TEST_CASE("origins, auth mode open: another origin's page neither clears, nor dr
   CHECK(rebinding["ws"] == "refused");
   CHECK(robot.json("GET", "/api/estop")["estopped"] == true);
   CHECK(motion_events(robot) == 0);
-  CHECK(count_of(robot.stderr_text(), "'evil.test' is not a name of this robot") >= 4);
+  // Refusal lines are rate-limited per address (5 a second, Api::kRefusalLogLines) and the hostile probe's three may
+  // share a window with these: at least two of the rebinding page's are logged.
+  CHECK(count_of(robot.stderr_text(), "'evil.test' is not a name of this robot") >= 2);
 
   // The robot's own page (the dashboard's origin) is unaffected: it clears, drives and watches.
   const json mine = probe(own + "/health", robot, own);
