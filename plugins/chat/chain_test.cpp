@@ -41,7 +41,7 @@ TEST_CASE("fallback chain: a 500 from agent.provider switches to the fallback in
   const json a = w->json();
   CHECK(a["brain"] == "backup");
   CHECK(a["model"] == "backup-model");
-  CHECK(a["action"] == waypoint(1, 0));
+  CHECK(a["request"] == waypoint(1, 0));
   REQUIRE(a["attempts"].size() == 2);
   CHECK(a["attempts"][0]["brain"] == "primary");
   CHECK(a["attempts"][0]["error"].get<std::string>().find("HTTP 500") != std::string::npos);

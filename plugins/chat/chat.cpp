@@ -9,6 +9,7 @@
 #include <variant>
 
 #include "action_check.hpp"
+#include "action_object.hpp"
 #include "brain_metrics.hpp"
 #include "injection_scan.hpp"
 #include "proposal_guard.hpp"
@@ -326,13 +327,18 @@ void Chat::think(const std::shared_ptr<Thought>& thought, const sdk::CancelToken
     Json attempts = Json::array();
     const sdk::Proposal p = ask_brains(*thought, context(), cancel, attempts);
     if (cancel.cancelled() || epoch_.load() != thought->epoch) return cancelled();
-    Json answer_body{{"raw_text", p.raw_text}, {"action", p.action},        {"brain", p.brain},
-                     {"model", p.model},       {"thought_id", thought->id}, {"dispatched", false}};
+    // `action` in the ecosystem's shape ({"type": ...}), `request` the request it dispatches (docs/protocol.md §7.5).
+    Json answer_body{{"raw_text", p.raw_text}, {"action", action_object(p.action)}, {"request", p.action}, {"brain", p.brain},
+                     {"model", p.model},       {"thought_id", thought->id},         {"dispatched", false}};
     if (p.confidence) answer_body["confidence"] = *p.confidence;  // absent stays absent: never a made-up 1.0
     if (attempts.size() > 1) answer_body["attempts"] = attempts;
-    Json record{{"brain", p.brain},       {"model", p.model},
-                {"raw_text", p.raw_text}, {"action", bounded_json(p.action)},
-                {"attempts", attempts},   {"inference_latency_ms", attempts.back()["latency_ms"]}};
+    Json record{{"brain", p.brain},
+                {"model", p.model},
+                {"raw_text", p.raw_text},
+                {"action", bounded_json(answer_body["action"])},
+                {"request", bounded_json(p.action)},
+                {"attempts", attempts},
+                {"inference_latency_ms", attempts.back()["latency_ms"]}};
     if (p.confidence) record["confidence"] = *p.confidence;
     thoughts_.update(thought->id, record, p.reasoning);
     thought->ai = {{"provider", p.brain},
@@ -404,6 +410,7 @@ void Chat::hold(const std::shared_ptr<Thought>& thought, const Json& answer_body
                {"principal", thought->request.principal},
                {"instruction", thought->input.instruction},
                {"action", answer_body["action"]},
+               {"request", answer_body["request"]},
                {"brain", answer_body["brain"]},
                {"reason", reason},
                {"expires_at_ms", expires},

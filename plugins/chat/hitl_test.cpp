@@ -33,7 +33,7 @@ TEST_CASE("hitl: a gated action waits; an OWNER approves; it runs as the instruc
   REQUIRE(pending.body["pending"].size() == 1);
   CHECK(pending.body["pending"][0]["thought_id"] == id);
   CHECK(pending.body["pending"][0]["principal"] == "alice");
-  CHECK(pending.body["pending"][0]["action"] == waypoint(1, 0));
+  CHECK(pending.body["pending"][0]["request"] == waypoint(1, 0));
   CHECK(pending.body["pending"][0]["reason"] == "hitl_gate");
   CHECK(f.get("/api/thoughts/" + id).body["state"] == "pending_approval");
 
@@ -152,7 +152,7 @@ TEST_CASE("thought log: GET /api/thoughts/<id>; the reasoning only for scope con
   CHECK(user.body["instruction"] == "go");
   CHECK(user.body["brain"] == "spy");
   CHECK(user.body["confidence"] == 0.9);
-  CHECK(user.body["action"] == waypoint(1, 0));
+  CHECK(user.body["request"] == waypoint(1, 0));
   CHECK(user.body["state"] == "dispatched");
   CHECK(user.body["status"] == 200);
   CHECK(user.body["inference_latency_ms"].is_number());

@@ -69,7 +69,7 @@ TEST_CASE("chat: an instruction drives through nav as the caller; a stop latches
 
   auto answer = command(rcand, "go forward 10 cm", &status);
   REQUIRE_MESSAGE(status == 200, answer.dump());
-  CHECK(answer["action"]["path"] == "/api/nav/waypoint");
+  CHECK(answer["request"]["path"] == "/api/nav/waypoint");
   CHECK(answer["brain"] == "grammar");
   CHECK(answer["result"]["job_id"].get<std::string>().rfind("nav-", 0) == 0);
   const std::string thought = answer["thought_id"];
