@@ -7,7 +7,9 @@
 #include <rcand/sdk/testing/fake_host.hpp>
 #include <rcand/sdk/testing/recording_logger.hpp>
 
+#include <condition_variable>
 #include <fstream>
+#include <mutex>
 
 #include "dynamixel/posix_serial.hpp"
 #include "dynamixel/testing/pty_pair.hpp"
@@ -218,6 +220,70 @@ TEST_CASE("feetech halt does not wait behind a poll stuck on a silent servo") {
   CHECK(took < 100ms);  // its deadline is 5 ms; a generous bound for a loaded CI machine
   CHECK(rig.driver->status()["halts_unconfirmed"] == 0);
   REQUIRE(rig.wait_for_command());
+}
+
+// A USB adapter that stops taking bytes: write() blocks until released (a hung bus).
+class StallingLink final : public rcand::plugins::dynamixel::SerialLink {
+ public:
+  explicit StallingLink(std::shared_ptr<SerialLink> real) : real_(std::move(real)) {}
+  void write(std::span<const std::uint8_t> bytes, Clock::time_point until) override {
+    {
+      std::unique_lock lock(mutex_);
+      if (stalled_) {
+        blocked_ = true;
+        changed_.notify_all();
+        changed_.wait(lock, [&] { return !stalled_; });
+      }
+    }
+    real_->write(bytes, until);
+  }
+  std::size_t read_some(std::span<std::uint8_t> out, Clock::time_point until) override { return real_->read_some(out, until); }
+  void discard_input() override { real_->discard_input(); }
+  void interrupt() noexcept override { real_->interrupt(); }
+  void clear_interrupt() noexcept override { real_->clear_interrupt(); }
+  std::string path() const override { return real_->path(); }
+  int baud_rate() const override { return real_->baud_rate(); }
+
+  void stall() {
+    std::lock_guard lock(mutex_);
+    stalled_ = true;
+  }
+  bool wait_blocked() {
+    std::unique_lock lock(mutex_);
+    return changed_.wait_for(lock, 2s, [&] { return blocked_; });
+  }
+  void release() {
+    std::lock_guard lock(mutex_);
+    stalled_ = false;
+    changed_.notify_all();
+  }
+
+ private:
+  std::shared_ptr<SerialLink> real_;
+  std::mutex mutex_;
+  std::condition_variable changed_;
+  bool stalled_ = false, blocked_ = false;
+};
+
+TEST_CASE("feetech halt meets its deadline on a hung bus, and says it was not confirmed") {
+  PtyPair pty;
+  StsEmulator emulator(pty.master(), {1, 2});
+  json config{{"port", pty.slave_path()},
+              {"servos", {{{"id", 1}, {"joint", "a"}}, {{"id", 2}, {"joint", "b"}}}},
+              {"reply_timeout_ms", 50}};
+  auto link = std::make_shared<StallingLink>(std::make_shared<PosixSerial>(pty.slave_path(), 1000000));
+  FeetechDriver driver(FeetechSettings::from(rcand::sdk::ConfigView(config)), link);
+  driver.start();
+  link->stall();
+  REQUIRE(link->wait_blocked());  // the next poll's write hangs in the adapter
+  const auto t0 = std::chrono::steady_clock::now();
+  driver.halt();
+  const auto took = std::chrono::steady_clock::now() - t0;
+  CHECK(took < 100ms);  // its deadline is 5 ms; a generous bound for a loaded CI machine
+  const auto status = driver.status();
+  CHECK(status["halts_unconfirmed"] == 1);
+  CHECK(status["last_error"].get<std::string>().find("halt not written within 5 ms (adapter stalled?)") == 0);
+  link->release();
 }
 
 TEST_CASE("feetech wheels: wheel mode, speeds with invert, halt stops them in one sync write") {
