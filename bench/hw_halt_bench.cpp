@@ -1,7 +1,8 @@
 // Issue 17 benchmarks on the fake buses CI has: halt() latency of the PCA9685 driver (fake register-map bus), the
 // Dynamixel driver (6 emulated servos on a pseudo-terminal, replies timed as on a 1 Mbps wire, status polls running)
 // and the GPIO H-bridge driver (fake chip); then a 100 Hz sync write + sync read loop for the 6 servos with its
-// jitter. Target: halt() <= 2 ms on each.
+// jitter; the same for the Feetech driver (6 emulated STS3215 servos, 1 Mbps wire timing). Target: halt() <= 2 ms
+// on each.
 //   bench_hw_halt [samples] [loop_cycles]
 #include <algorithm>
 #include <chrono>
@@ -15,6 +16,8 @@
 #include "dynamixel/posix_serial.hpp"
 #include "dynamixel/testing/pty_pair.hpp"
 #include "dynamixel/testing/servo_emulator.hpp"
+#include "feetech/feetech_driver.hpp"
+#include "feetech/testing/sts_emulator.hpp"
 #include "gpio_motor/gpio_motor_drive.hpp"
 #include "gpio_motor/testing/fake_gpio.hpp"
 #include "pca9685/fake_pca9685_bus.hpp"
@@ -23,6 +26,7 @@
 using namespace std::chrono;
 using nlohmann::json;
 namespace dxl = rcand::plugins::dynamixel;
+namespace fts = rcand::plugins::feetech;
 namespace gpio = rcand::plugins::gpio_motor;
 namespace pca = rcand::plugins::pca9685;
 
@@ -144,6 +148,66 @@ void bench_dynamixel_loop(int cycles) {
   std::printf("100 Hz loop: %d cycles, %d servo replies missing\n", cycles, missing);
 }
 
+void bench_feetech_halt(int samples) {
+  dxl::testing::PtyPair pty;
+  fts::testing::StsEmulator emulator(pty.master(), {1, 2, 3, 4, 5, 6});
+  emulator.set_wire_baud(1000000);
+  fts::FeetechDriver driver(fts::FeetechSettings::from(rcand::sdk::ConfigView(arm(pty.slave_path()))),
+                            std::make_shared<dxl::PosixSerial>(pty.slave_path(), 1000000));
+  driver.start();
+  std::vector<double> returned, applied;
+  // The halt is the only sync write of all six servos (a command here names one joint).
+  const auto is_halt = [](const fts::testing::StsEmulator::Received& r) {
+    return r.packet.code == fts::inst::kSyncWrite && r.packet.params.size() == 2 + 6 * (1 + fts::sts::kCommandBlockLength);
+  };
+  for (int i = 0; i < samples; ++i) {
+    driver.set_joint_targets({{"j1", (i % 2 ? 30.0 : -30.0), 60.0}});
+    std::this_thread::sleep_for(microseconds(2000 + (i * 977) % 9000));  // anywhere in the 10 ms poll cycle
+    emulator.clear_received();
+    const auto t0 = Clock::now();
+    driver.halt();
+    returned.push_back(duration<double, std::micro>(Clock::now() - t0).count());
+    emulator.wait_for_packets([&](const auto& received) { return std::any_of(received.begin(), received.end(), is_halt); },
+                              milliseconds(100));
+    for (const auto& r : emulator.received())
+      if (is_halt(r)) applied.push_back(duration<double, std::micro>(r.at - t0).count());
+  }
+  report("feetech halt() (pty, 6 STS servos, 100 Hz polls)", returned);
+  report("feetech halt() -> sync write at the servos", applied);
+}
+
+void bench_feetech_loop(int cycles) {
+  dxl::testing::PtyPair pty;
+  fts::testing::StsEmulator emulator(pty.master(), {1, 2, 3, 4, 5, 6});
+  emulator.set_wire_baud(1000000);
+  fts::FeetechBus bus(std::make_shared<dxl::PosixSerial>(pty.slave_path(), 1000000), milliseconds(3));
+  const std::vector<std::uint8_t> ids{1, 2, 3, 4, 5, 6};
+  for (const auto id : ids) bus.write(id, fts::sts::kTorqueEnable, std::vector<std::uint8_t>{1});
+  std::vector<double> jitter, busy;
+  int missing = 0;
+  const auto period = milliseconds(10);
+  auto next = Clock::now() + period;
+  for (int c = 0; c < cycles; ++c) {
+    std::this_thread::sleep_until(next);
+    const auto start = Clock::now();
+    jitter.push_back(duration<double, std::micro>(start - next).count());
+    fts::SyncItems items;
+    for (const auto id : ids) {
+      std::vector<std::uint8_t> goal;
+      fts::put_u16(goal, static_cast<std::uint16_t>(2048 + ((c * 7 + id * 100) % 400)));
+      items.emplace_back(id, std::move(goal));
+    }
+    bus.sync_write(fts::sts::kGoalPosition, 2, items);
+    const auto read = bus.sync_read(fts::sts::kStatusBlock, fts::sts::kStatusBlockLength, ids);
+    for (const auto& d : read.data) missing += !d;
+    busy.push_back(duration<double, std::micro>(Clock::now() - start).count());
+    next += period;
+  }
+  report("feetech 100 Hz loop: cycle start jitter", jitter);
+  report("feetech 100 Hz loop: sync write + read of 6", busy);
+  std::printf("feetech 100 Hz loop: %d cycles, %d servo replies missing\n", cycles, missing);
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -153,4 +217,6 @@ int main(int argc, char** argv) {
   bench_gpio(samples);
   bench_dynamixel_halt(samples);
   bench_dynamixel_loop(cycles);
+  bench_feetech_halt(samples);
+  bench_feetech_loop(cycles);
 }

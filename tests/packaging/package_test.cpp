@@ -246,7 +246,7 @@ TEST_CASE("the unpacked rcand loads every packaged plugin and the vendor plugin"
   CHECK(r.exit_code == 0);
   for (const char* id :
        {"org.rcand.teleop", "org.rcand.nav", "org.rcand.fleet", "org.rcand.sim_drive", "org.rcand.arm", "org.rcand.chat",
-        "org.rcand.pca9685", "org.rcand.dynamixel", "org.rcand.gpio_motor", "com.acme.gripper"})
+        "org.rcand.pca9685", "org.rcand.dynamixel", "org.rcand.feetech", "org.rcand.gpio_motor", "com.acme.gripper"})
     CHECK_MESSAGE(r.out.find(id) != std::string::npos, id);
 }
 

@@ -20,6 +20,7 @@
 #include "rcand_process.hpp"
 #include "testing/pty_pair.hpp"
 #include "testing/servo_emulator.hpp"
+#include "testing/sts_emulator.hpp"
 
 using nlohmann::json;
 using namespace rcand::test;
@@ -45,6 +46,7 @@ struct Bench {
   TempDir dir{"rcand-config-start"};
   std::vector<std::unique_ptr<dxl::PtyPair>> ptys;
   std::vector<std::unique_ptr<dxl::ServoEmulator>> emulators;
+  std::vector<std::unique_ptr<rcand::plugins::feetech::testing::StsEmulator>> sts_emulators;
 
   std::string absent(const std::string& name) const { return (dir.path() / ("absent-" + name)).string(); }
 
@@ -59,6 +61,13 @@ struct Bench {
           if (servo.contains("id") && servo["id"].is_number_integer()) ids.push_back(servo["id"].get<std::uint8_t>());
         auto& pty = ptys.emplace_back(std::make_unique<dxl::PtyPair>());
         emulators.push_back(std::make_unique<dxl::ServoEmulator>(pty->master(), ids));
+        driver["port"] = pty->slave_path();
+      } else if (protocol == "feetech") {
+        std::vector<std::uint8_t> ids;
+        for (const auto& servo : driver.value("servos", json::array()))
+          if (servo.contains("id") && servo["id"].is_number_integer()) ids.push_back(servo["id"].get<std::uint8_t>());
+        auto& pty = ptys.emplace_back(std::make_unique<dxl::PtyPair>());
+        sts_emulators.push_back(std::make_unique<rcand::plugins::feetech::testing::StsEmulator>(pty->master(), ids));
         driver["port"] = pty->slave_path();
       } else if (protocol.starts_with("pca9685")) {
         driver["port"] = absent("i2c");
