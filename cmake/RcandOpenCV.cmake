@@ -1,30 +1,46 @@
-# OpenCV for the vision plugin, and only the four modules it uses: core, imgproc, imgcodecs, videoio (Debian:
-# libopencv-{core,imgproc,imgcodecs,videoio}-dev, from packaging/install-deps.sh). Debian ships OpenCVConfig.cmake in
-# libopencv-dev alone, which pulls in every OpenCV module; so the config package is used when it is there and the
-# four libraries are found directly otherwise. Defines rcand::opencv; RCAND_OPENCV_FOUND says whether it exists.
+# OpenCV for the vision plugin, and only the modules it uses (Debian: libopencv-{core,imgproc,videoio}-dev, and
+# imgcodecs for the tests' decoding; packaging/install-deps.sh). Debian ships OpenCVConfig.cmake in libopencv-dev
+# alone, which pulls in every OpenCV module; so the config package is used when it is there and the libraries are
+# found directly otherwise. Defines, each when found:
+#   rcand::opencv          core and imgproc: the vision plugin itself (JPEG through libjpeg-turbo, not imgcodecs)
+#   rcand::opencv_videoio  core and videoio: the video backend module only (file, V4L2 and URL sources), which the
+#                          plugin loads when a camera needs it - videoio maps FFmpeg and GStreamer (issue 32)
+#   rcand::opencv_imgcodecs core and imgcodecs: tests and benchmarks that decode what rcand sends
+# RCAND_OPENCV_FOUND says whether all of them exist.
 find_package(OpenCV 4 QUIET COMPONENTS core imgproc imgcodecs videoio)
 set(RCAND_OPENCV_FOUND OFF)
+set(_rcand_opencv_modules core imgproc imgcodecs videoio)
 if(OpenCV_FOUND)
-  add_library(rcand_opencv INTERFACE)
-  target_link_libraries(rcand_opencv INTERFACE opencv_core opencv_imgproc opencv_imgcodecs opencv_videoio)
+  foreach(module ${_rcand_opencv_modules})
+    set(_rcand_opencv_${module} opencv_${module})
+  endforeach()
   set(RCAND_OPENCV_FOUND ON)
 else()
   find_path(RCAND_OPENCV_INCLUDE_DIR opencv2/core.hpp PATH_SUFFIXES opencv4)
-  set(_rcand_opencv_libs)
-  foreach(module core imgproc imgcodecs videoio)
+  set(RCAND_OPENCV_FOUND ON)
+  foreach(module ${_rcand_opencv_modules})
     find_library(RCAND_OPENCV_${module} opencv_${module})
-    if(RCAND_OPENCV_${module})
-      list(APPEND _rcand_opencv_libs ${RCAND_OPENCV_${module}})
+    set(_rcand_opencv_${module} ${RCAND_OPENCV_${module}})
+    if(NOT RCAND_OPENCV_${module})
+      set(RCAND_OPENCV_FOUND OFF)
     endif()
   endforeach()
-  list(LENGTH _rcand_opencv_libs _rcand_opencv_count)
-  if(RCAND_OPENCV_INCLUDE_DIR AND _rcand_opencv_count EQUAL 4)
-    add_library(rcand_opencv INTERFACE)
-    target_include_directories(rcand_opencv SYSTEM INTERFACE ${RCAND_OPENCV_INCLUDE_DIR})
-    target_link_libraries(rcand_opencv INTERFACE ${_rcand_opencv_libs})
-    set(RCAND_OPENCV_FOUND ON)
+  if(NOT RCAND_OPENCV_INCLUDE_DIR)
+    set(RCAND_OPENCV_FOUND OFF)
   endif()
 endif()
 if(RCAND_OPENCV_FOUND)
-  add_library(rcand::opencv ALIAS rcand_opencv)
+  foreach(part "opencv;core;imgproc" "opencv_videoio;core;videoio" "opencv_imgcodecs;core;imgcodecs")
+    list(POP_FRONT part name)
+    set(_libs)
+    foreach(module ${part})
+      list(APPEND _libs ${_rcand_opencv_${module}})
+    endforeach()
+    add_library(rcand_${name} INTERFACE)
+    if(RCAND_OPENCV_INCLUDE_DIR)
+      target_include_directories(rcand_${name} SYSTEM INTERFACE ${RCAND_OPENCV_INCLUDE_DIR})
+    endif()
+    target_link_libraries(rcand_${name} INTERFACE ${_libs})
+    add_library(rcand::${name} ALIAS rcand_${name})
+  endforeach()
 endif()

@@ -35,7 +35,7 @@ if [ ! -e "$root/.rcand-build-root" ]; then
     crossbuild-essential-arm64 cmake ninja-build pkg-config dpkg-dev file nlohmann-json3-dev \
     libboost-dev:arm64 libyaml-cpp-dev:arm64 libspdlog-dev:arm64 libssl-dev:arm64 libavahi-client-dev:arm64 \
     libmosquitto-dev:arm64 libgpiod-dev:arm64 libopencv-core-dev:arm64 libopencv-imgproc-dev:arm64 \
-    libopencv-imgcodecs-dev:arm64 libopencv-videoio-dev:arm64 > "$build/apt.log" 2>&1 || {
+    libopencv-imgcodecs-dev:arm64 libopencv-videoio-dev:arm64 libjpeg62-turbo-dev:arm64 > "$build/apt.log" 2>&1 || {
     tail -n 20 "$build/apt.log"
     exit 1
   }

@@ -11,7 +11,8 @@ packages=(
   nlohmann-json3-dev libyaml-cpp-dev libspdlog-dev libssl-dev
   libavahi-client-dev                       # mDNS publish/resolve/browse (Avahi client over the system D-Bus)
   libmosquitto-dev                          # R2R over MQTT
-  libopencv-core-dev libopencv-imgproc-dev libopencv-imgcodecs-dev libopencv-videoio-dev  # the vision plugin
+  libopencv-core-dev libopencv-imgproc-dev libopencv-videoio-dev  # the vision plugin (videoio: its video module)
+  libjpeg62-turbo-dev libopencv-imgcodecs-dev  # its JPEG encoder; imgcodecs: its tests decode with it
   libgpiod-dev                              # the gpio H-bridge plugin (libgpiod 1.6 C API)
   curl                                      # README examples
 )

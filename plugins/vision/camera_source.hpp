@@ -1,6 +1,7 @@
 // Camera sources behind one interface: a synthetic test pattern, a video file played in a loop, a V4L2 device and a
 // network URL (HTTP MJPEG or RTSP through OpenCV's FFmpeg backend). Only the capture thread calls them: open() and
-// read() may block (a URL for its open/read timeouts, a device for a frame), so no request thread ever does.
+// read() may block (a URL for its open/read timeouts, a device for a frame), so no request thread ever does. The
+// synthetic source is here; the file, device and URL sources are in the video backend module (video_backend.hpp).
 #pragma once
 
 #include <opencv2/core.hpp>
@@ -52,6 +53,7 @@ class FrameSource {
   virtual std::string describe() const = 0;
 };
 
+// A file, device or URL source loads the video backend module first: throws SourceError if it is missing.
 std::unique_ptr<FrameSource> make_source(const SourceSettings& settings);
 
 // The synthetic source's picture for frame `number` at wall time `wall_ms`: colour bars, a box moving across them,

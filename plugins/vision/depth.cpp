@@ -1,6 +1,7 @@
 #include "depth.hpp"
 
-#include <opencv2/imgcodecs.hpp>
+#include "jpeg_encoder.hpp"
+
 #include <opencv2/imgproc.hpp>
 
 #include <pthread.h>
@@ -71,9 +72,8 @@ sdk::SharedBytes depth_jpeg(const cv::Mat& depth, const ZoneOptions& o, int qual
   depth.convertTo(scaled, CV_8U, -255.0 / span, 255.0 * o.max_range_mm / span);  // near 255, far 0 (saturated)
   cv::applyColorMap(scaled, colour, cv::COLORMAP_JET);
   colour.setTo(cv::Scalar(0, 0, 0), depth == 0);
-  std::vector<uchar> buffer;
-  if (!cv::imencode(".jpg", colour, buffer, {cv::IMWRITE_JPEG_QUALITY, quality})) return nullptr;
-  return std::make_shared<const std::string>(buffer.begin(), buffer.end());
+  JpegEncoder jpeg;  // a depth snapshot is rare: no encoder kept between them
+  return std::make_shared<const std::string>(jpeg.encode(colour, quality));
 }
 
 DepthFeed::DepthFeed(DepthSettings settings) : settings_(settings) { zones_.reason = "no depth frame yet"; }

@@ -44,7 +44,7 @@ struct Zones {
 // The zones of one depth frame (CV_16UC1, millimetres).
 Zones compute_zones(const cv::Mat& depth_mm, const ZoneOptions& options, std::int64_t timestamp_ms);
 
-// A depth frame as a colour-mapped JPEG (near red, far blue, no reading black).
+// A depth frame as a colour-mapped JPEG (near red, far blue, no reading black). Throws JpegError.
 sdk::SharedBytes depth_jpeg(const cv::Mat& depth_mm, const ZoneOptions& options, int quality);
 
 struct DepthSettings {

@@ -1,13 +1,12 @@
 #include "frame_hub.hpp"
 
-#include <opencv2/imgcodecs.hpp>
-
 #include <pthread.h>
 
 #include <algorithm>
 #include <cmath>
 
 #include "camera_source.hpp"
+#include "jpeg_encoder.hpp"
 
 namespace rcand::plugins::vision {
 namespace {
@@ -51,11 +50,16 @@ struct FrameHub::Delivery {
   std::vector<std::shared_ptr<sdk::StreamWriter>> snapshots;
 };
 
+// One compressor and output buffer for the hub's frames, kept from frame to frame; the lock only matters if a copy
+// of the Encoder runs on another thread.
 Encoder jpeg_encoder(int quality) {
-  return [quality](const cv::Mat& image) -> sdk::SharedBytes {
-    std::vector<uchar> buffer;
-    if (!cv::imencode(".jpg", image, buffer, {cv::IMWRITE_JPEG_QUALITY, quality})) return nullptr;
-    return std::make_shared<const std::string>(buffer.begin(), buffer.end());
+  struct Shared {
+    std::mutex mutex;
+    JpegEncoder jpeg;
+  };
+  return [quality, shared = std::make_shared<Shared>()](const cv::Mat& image) -> sdk::SharedBytes {
+    std::lock_guard lock(shared->mutex);
+    return std::make_shared<const std::string>(shared->jpeg.encode(image, quality));
   };
 }
 

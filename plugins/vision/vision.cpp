@@ -1,5 +1,6 @@
 #include "vision.hpp"
 
+#include "jpeg_encoder.hpp"
 #include "stream_metrics.hpp"
 
 #include <opencv2/core/utils/logger.hpp>
@@ -278,7 +279,14 @@ sdk::Response Vision::sim_obstacle(const sdk::Request& request) {
 // The latest depth frame, colour-mapped, encoded here on the capability's worker (no request thread, no capture).
 void Vision::depth_frame(const sdk::Request&, const std::shared_ptr<sdk::StreamWriter>& writer) const {
   const auto frame = depth_ ? depth_->latest() : nullptr;
-  const auto jpeg = frame ? depth_jpeg(*frame, settings_.depth.zones, settings_.jpeg_quality) : nullptr;
+  sdk::SharedBytes jpeg;
+  try {
+    if (frame) jpeg = depth_jpeg(*frame, settings_.depth.zones, settings_.jpeg_quality);
+  } catch (const JpegError& e) {
+    ctx_.log().error("depth frame: ", e.what());
+    writer->respond(sdk::Response::error(500, "INTERNAL", "the depth frame could not be encoded"));
+    return;
+  }
   if (!jpeg) {
     writer->respond(
         sdk::Response::error(503, "UNAVAILABLE", depth_ ? "no depth frame yet" : "no depth source configured (camera.depth)"));
