@@ -32,7 +32,7 @@ if [ ! -e "$root/.rcand-build-root" ]; then
   chroot "$root" apt-get -qq update
   # The libraries of packaging/install-deps.sh, for arm64 (nlohmann-json is header-only and architecture-free).
   chroot "$root" env DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends \
-    crossbuild-essential-arm64 cmake ninja-build pkg-config dpkg-dev file nlohmann-json3-dev \
+    crossbuild-essential-arm64 cmake ninja-build pkg-config dpkg-dev file nlohmann-json3-dev libcli11-dev \
     libboost-dev:arm64 libyaml-cpp-dev:arm64 libspdlog-dev:arm64 libssl-dev:arm64 libavahi-client-dev:arm64 \
     libmosquitto-dev:arm64 libgpiod-dev:arm64 libopencv-core-dev:arm64 libopencv-imgproc-dev:arm64 \
     libopencv-imgcodecs-dev:arm64 libopencv-videoio-dev:arm64 libjpeg62-turbo-dev:arm64 > "$build/apt.log" 2>&1 || {
@@ -41,6 +41,9 @@ if [ ! -e "$root/.rcand-build-root" ]; then
   }
   touch "$root/.rcand-build-root"
 fi
+# A root made before rcanctl used CLI11 lacks it (architecture-free, header-only).
+[ -f "$root/usr/include/CLI/CLI.hpp" ] ||
+  chroot "$root" env DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends libcli11-dev > /dev/null
 
 stage "the sources"
 rm -rf "$root/src" && mkdir -p "$root/src"

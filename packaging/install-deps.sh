@@ -9,6 +9,7 @@ packages=(
   cmake ninja-build g++ pkg-config         # build
   libboost-dev                              # Boost.Asio, Beast, DLL (header-only)
   nlohmann-json3-dev libyaml-cpp-dev libspdlog-dev libssl-dev
+  libcli11-dev                              # rcanctl's command lines (CLI11, header-only)
   libavahi-client-dev                       # mDNS publish/resolve/browse (Avahi client over the system D-Bus)
   libmosquitto-dev                          # R2R over MQTT
   libopencv-core-dev libopencv-imgproc-dev libopencv-videoio-dev  # the vision plugin (videoio: its video module)

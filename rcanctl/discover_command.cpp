@@ -14,14 +14,6 @@ namespace {
 
 using nlohmann::json;
 
-constexpr std::string_view kDiscoverUsage =
-    "usage: rcanctl discover [--timeout S] [--json]\n"
-    "  Browses _rcan._tcp on the LAN (through avahi-daemon), resolves every robot and checks its DISCOVER document\n"
-    "  (GET /api/discovery) against its mDNS TXT record. --timeout: seconds to browse (default 3).\n"
-    "  Output: a table, or one JSON object per robot per line with --json.\n"
-    "  Exit: 0 robots found and all consistent, 1 none found or a robot disagrees / does not answer,\n"
-    "  2 usage error or avahi-daemon unreachable.\n";
-
 constexpr std::chrono::milliseconds kFetchTimeout{2000};
 
 std::string joined(const json& list) {
@@ -69,11 +61,13 @@ std::vector<std::string> discovery_disagreements(const std::map<std::string, std
   const auto caps = txt.find("caps");
   if (caps == txt.end()) problems.push_back("TXT has no caps");
   else if (split_caps(caps->second) != discover.value("capabilities", std::vector<std::string>{}))
-    problems.push_back("TXT caps=" + caps->second + " but capabilities[] is [" + joined(discover.value("capabilities", json::array())) + "]");
+    problems.push_back("TXT caps=" + caps->second + " but capabilities[] is [" +
+                       joined(discover.value("capabilities", json::array())) + "]");
   for (const char* key : {"ruri", "name", "status", "model", "version"}) {
     const auto found = txt.find(key);
     if (found != txt.end() && discover.contains(key) && discover[key] != found->second)
-      problems.push_back(std::string("TXT ") + key + "=" + found->second + " but DISCOVER " + key + " is " + discover[key].dump());
+      problems.push_back(std::string("TXT ") + key + "=" + found->second + " but DISCOVER " + key + " is " +
+                         discover[key].dump());
   }
   if (discover.value("port", 0) != port)
     problems.push_back("mDNS port " + std::to_string(port) + " but DISCOVER port is " + discover.value("port", json()).dump());
@@ -83,27 +77,16 @@ std::vector<std::string> discovery_disagreements(const std::map<std::string, std
 int run_discover(std::span<const std::string> args, std::ostream& out, std::ostream& err) {
   bool as_json = false;
   double timeout_s = 3.0;
-  for (std::size_t i = 0; i < args.size(); ++i) {
-    if (args[i] == "--help" || args[i] == "-h") {
-      out << kDiscoverUsage;
-      return kExitOk;
-    }
-    if (args[i] == "--json") {
-      as_json = true;
-    } else if (args[i] == "--timeout" && i + 1 < args.size()) {
-      try {
-        std::size_t used = 0;
-        timeout_s = std::stod(args[++i], &used);
-        if (used != args[i].size() || !(timeout_s > 0) || timeout_s > 3600) throw std::invalid_argument("range");
-      } catch (const std::exception&) {
-        err << "rcanctl discover: --timeout needs a number of seconds in (0, 3600], got '" << args[i] << "'\n" << kDiscoverUsage;
-        return kExitUsage;
-      }
-    } else {
-      err << "rcanctl discover: unknown or incomplete option '" << args[i] << "'\n" << kDiscoverUsage;
-      return kExitUsage;
-    }
-  }
+  const auto app = make_command_app(
+      "rcanctl discover",
+      "Browses _rcan._tcp on the LAN (through avahi-daemon), resolves every robot and checks its DISCOVER document\n"
+      "(GET /api/discovery) against its mDNS TXT record.",
+      "Output: a table, or one JSON object per robot per line with --json.\n"
+      "Exit: 0 robots found and all consistent, 1 none found or a robot disagrees / does not answer,\n"
+      "2 usage error or avahi-daemon unreachable.");
+  app->add_option("--timeout", timeout_s, "seconds to browse (default 3)")->check(CLI::Range(0.001, 3600.0));
+  app->add_flag("--json", as_json, "one JSON object per robot per line");
+  if (auto done = parse_command_line(*app, args, out, err)) return *done;
 
   const auto browsed = mdns::browse_services("_rcan._tcp", std::chrono::milliseconds(static_cast<long>(timeout_s * 1000)));
   if (!browsed.error.empty()) {
@@ -137,9 +120,10 @@ int run_discover(std::span<const std::string> args, std::ostream& out, std::ostr
       const auto found = service.txt.find(key);
       return found == service.txt.end() ? std::string("-") : found->second;
     };
-    json row{{"name", service.name}, {"ruri", txt_value("ruri")}, {"host", service.host}, {"address", service.address},
-             {"port", service.port}, {"caps", split_caps(txt_value("caps"))}, {"status", txt_value("status")},
-             {"txt", service.txt}, {"consistent", false}, {"mismatches", json::array()}, {"error", nullptr}};
+    json row{{"name", service.name},          {"ruri", txt_value("ruri")}, {"host", service.host},
+             {"address", service.address},    {"port", service.port},      {"caps", split_caps(txt_value("caps"))},
+             {"status", txt_value("status")}, {"txt", service.txt},        {"consistent", false},
+             {"mismatches", json::array()},   {"error", nullptr}};
     if (!result.reachable) {
       row["error"] = result.error;
     } else if (result.status != 200) {

@@ -10,6 +10,7 @@
 #include <cerrno>
 #include <cstring>
 #include <filesystem>
+#include <fstream>
 #include <iostream>
 #include <optional>
 #include <sstream>
@@ -17,8 +18,12 @@
 #include <utility>
 #include <vector>
 
+#include "command_line.hpp"
 #include "exit_codes.hpp"
+#include "instance_problems.hpp"
+#include "libs/config/config_fragments.hpp"
 #include "libs/mdns/service_browser.hpp"
+#include "libs/yaml/yaml_document.hpp"
 #include "robot_connection.hpp"
 #include "text_table.hpp"
 
@@ -31,7 +36,8 @@ struct Finding {
   std::string check;
   bool ok = true;
   std::string detail;
-  std::string fix;  // the command or step that fixes it, when not ok
+  std::string fix;       // the command or step that fixes it, when not ok
+  bool skipped = false;  // the config does not use what it checks
 };
 
 struct CheckArgs {
@@ -111,6 +117,8 @@ Finding config_finding(const CheckArgs& a) {
   return f;
 }
 
+Finding plugins_finding(const json& answer);
+
 std::vector<Finding> robot_findings(const RobotOptions& options) {
   const std::string where = options.host + ":" + std::to_string(options.port);
   const auto status = call_robot(options, "GET", "/api/status");
@@ -129,21 +137,57 @@ std::vector<Finding> robot_findings(const RobotOptions& options) {
                    "rcanctl estop clear (owner token), once it is safe"});
   else if (estop.ok()) out.push_back({"e-stop", true, "not latched", ""});
   const auto plugins = call_robot(options, "GET", "/api/plugins");
-  if (plugins.ok()) {
-    std::size_t failed = 0;
-    std::string which;
-    for (const auto& plugin : plugins.body.value("plugins", json::array()))
-      if (const auto state = plugin.value("state", std::string()); state != "loaded" && state != "installed-not-enabled") {
-        ++failed;
-        which += (which.empty() ? "" : ", ") + plugin.value("id", std::string("?")) + " (" +
-                 plugin.value("state", std::string()) + ")";
-      }
-    out.push_back({"plugins", failed == 0, failed == 0 ? "all loaded" : which, "rcanctl plugins; sudo rcand --check-plugins"});
-  }
+  if (plugins.ok()) out.push_back(plugins_finding(plugins.body));
   return out;
 }
 
-Finding mdns_finding() {
+// A library that did not load, or one whose driver or capability instance failed or is in error ("health", §7.2):
+// a loaded plugin whose driver failed is not ok. The detail names each instance and why; the fix is the robot's hint.
+Finding plugins_finding(const json& answer) {
+  std::string which, hints;
+  for (const auto& plugin : answer.value("plugins", json::array())) {
+    const std::string id = plugin.value("id", std::string("?"));
+    const std::string state = plugin.value("state", std::string());
+    if (state != "loaded" && state != "installed-not-enabled") {
+      which += (which.empty() ? "" : "; ") + id + " (" + state + ")";
+      continue;
+    }
+    const std::string health = plugin.value("health", std::string("ok"));
+    if (health != "error" && health != "degraded") continue;
+    for (const auto& problem : plugin_problems(plugin)) {
+      which += (which.empty() ? "" : "; ") + id + ": " + problem.summary();
+      if (!problem.hint.empty() && hints.find(problem.hint) == std::string::npos)
+        hints += (hints.empty() ? "" : "; ") + problem.hint;
+    }
+  }
+  if (which.empty()) return {"plugins", true, "all loaded, every instance ok", ""};
+  return {"plugins", false, which,
+          (hints.empty() ? "" : hints + "; then ") + "sudo systemctl restart rcand (rcanctl plugins lists every instance)"};
+}
+
+// Whether the robot's config (with its conf.d fragments, as rcand merges them) turns mDNS on; nullopt when it
+// cannot be read (the config check says why).
+std::optional<bool> config_enables_mdns(const std::string& config_file) {
+  std::vector<yaml::ConfigDiagnostic> diagnostics;
+  const auto read = [&](const std::filesystem::path& file) {
+    std::ifstream in(file);
+    std::stringstream text;
+    text << in.rdbuf();
+    return in ? yaml::yaml_to_json(text.str(), file.string(), diagnostics) : yaml::YamlDocument{};
+  };
+  yaml::YamlDocument config = read(config_file);
+  if (!config.ok) return std::nullopt;
+  for (const auto& fragment_file : kernel::config_fragment_files(config_file))
+    if (const auto fragment = read(fragment_file); fragment.ok)
+      kernel::merge_config_fragment(config, fragment, fragment_file.string(), diagnostics);
+  const json enabled = config.doc.value("/rcan_protocol/enable_mdns"_json_pointer, json(false));
+  return enabled == true;
+}
+
+Finding mdns_finding(const std::string& config_file) {
+  // A check of something the config does not use is skipped, not failed (the bundled robot has mDNS off).
+  if (config_enables_mdns(config_file) == false)
+    return {"mDNS", true, "skipped: rcan_protocol.enable_mdns is off in " + config_file, "", true};
   const auto browse = mdns::browse_services("_rcan._tcp", std::chrono::milliseconds(1500));
   if (!browse.error.empty())
     return {"mDNS", false, browse.error, "sudo apt install avahi-daemon && sudo systemctl enable --now avahi-daemon"};
@@ -161,44 +205,36 @@ Finding clock_finding() {
 }  // namespace
 
 int run_doctor(std::span<const std::string> args) {
-  constexpr std::string_view usage =
-      "usage: rcanctl doctor [--config FILE] [--rcand PATH] [--as-user NAME] [--plugin-path DIR] [connection options]\n"
-      "  checks the config (rcand --check-config, as NAME, default rcand when that user exists), the robot (answers,\n"
-      "  state, e-stop, plugins), avahi-daemon and the clock; prints what is wrong and the command that fixes it.\n"
-      "  --config default /etc/rcand/robot.rcan.yaml; --rcand default /usr/sbin/rcand. Exit 0 all well, 1 a problem.\n"
-      "  connection: [--host HOST] [--port PORT] (--token T | --token-file FILE | $RCAND_TOKEN) [--json]\n";
   CheckArgs check{"/usr/sbin/rcand", "/etc/rcand/robot.rcan.yaml", "", ""};
   RobotOptions options;
-  const ExtraOption extra = [&](const std::string& option, const std::function<bool(std::string&)>& next) {
-    if (option == "--config") return next(check.config);
-    if (option == "--rcand") return next(check.rcand);
-    if (option == "--as-user") return next(check.user);
-    if (option == "--plugin-path") return next(check.plugin_path);
-    return false;
-  };
-  if (!parse_robot_options(args, "rcanctl doctor", extra, options, std::cerr)) {
-    std::cerr << usage;
-    return kExitUsage;
-  }
-  if (options.help) {
-    std::cout << usage;
-    return kExitOk;
-  }
+  const auto app = make_command_app(
+      "rcanctl doctor",
+      "Checks the config (rcand --check-config), the robot (answers, state, e-stop, plugins and their instances),\n"
+      "avahi-daemon (when the config turns mDNS on) and the clock; prints what is wrong and the command that fixes it.",
+      "Exit: 0 all well, 1 a problem, 2 usage.");
+  app->add_option("--config", check.config, "the robot's config (default /etc/rcand/robot.rcan.yaml)");
+  app->add_option("--rcand", check.rcand, "the rcand binary that checks it (default /usr/sbin/rcand)");
+  app->add_option("--as-user", check.user, "check the config as this user (default rcand when run as root and it exists)");
+  app->add_option("--plugin-path", check.plugin_path, "where rcand finds its plugins (default its own)");
+  add_robot_options(*app, options);
+  if (auto done = parse_robot_command(*app, args, options)) return *done;
   if (check.user.empty() && ::getuid() == 0 && ::getpwnam("rcand") != nullptr) check.user = "rcand";  // the service's
 
   std::vector<Finding> findings{config_finding(check)};
   for (auto& finding : robot_findings(options)) findings.push_back(std::move(finding));
-  findings.push_back(mdns_finding());
+  findings.push_back(mdns_finding(check.config));
   findings.push_back(clock_finding());
 
   bool all_well = true;
   std::vector<std::vector<std::string>> rows{{"CHECK", "RESULT", "DETAIL", "FIX"}};
   for (const auto& f : findings) {
     all_well = all_well && f.ok;
-    if (options.json)
-      std::cout << json{{"check", f.check}, {"ok", f.ok}, {"detail", f.detail}, {"fix", f.ok ? json() : json(f.fix)}}.dump()
-                << "\n";
-    rows.push_back({f.check, f.ok ? "ok" : "PROBLEM", f.detail, f.ok ? "-" : f.fix});
+    if (options.json) {
+      json line{{"check", f.check}, {"ok", f.ok}, {"detail", f.detail}, {"fix", f.ok ? json() : json(f.fix)}};
+      if (f.skipped) line["skipped"] = true;
+      std::cout << line.dump() << "\n";
+    }
+    rows.push_back({f.check, f.skipped ? "skipped" : f.ok ? "ok" : "PROBLEM", f.detail, f.ok ? "-" : f.fix});
   }
   if (!options.json) print_text_table(rows, std::cout);
   return all_well ? kExitOk : kExitFailure;

@@ -12,6 +12,8 @@
 #include <sstream>
 #include <variant>
 
+#include "human_format.hpp"
+#include "instance_problems.hpp"
 #include "libs/mdns/host_resolver.hpp"
 #include "libs/swarm/broadcast_report.hpp"
 #include "libs/swarm/fan_out.hpp"
@@ -26,10 +28,6 @@ namespace {
 namespace swarm = rcand::swarm;
 using nlohmann::json;
 
-std::string_view operation_name(Operation op) {
-  return op == Operation::Status ? "status" : op == Operation::Stop ? "stop" : "command";
-}
-
 // One node's row: the table's columns and the JSON object of --json.
 struct Row {
   json object;
@@ -42,9 +40,10 @@ std::string text_of(const json& value, const char* key, const std::string& fallb
 }
 
 Row status_row(const swarm::PeerResult& result) {
-  json object{{"name", result.name},   {"address", result.address}, {"reachable", result.reachable}, {"ok", false},
-              {"http_status", nullptr}, {"state", nullptr},          {"estopped", nullptr},           {"caps", json::array()},
-              {"latency_ms", std::round(result.latency_ms * 1000.0) / 1000.0}, {"error", nullptr}};
+  json object{{"name", result.name}, {"address", result.address}, {"reachable", result.reachable},
+              {"ok", false},         {"http_status", nullptr},    {"state", nullptr},
+              {"estopped", nullptr}, {"caps", json::array()},     {"latency_ms", std::round(result.latency_ms * 1000.0) / 1000.0},
+              {"error", nullptr}};
   if (!result.reachable) {
     object["error"] = result.error;
     return {object, false};
@@ -58,9 +57,18 @@ Row status_row(const swarm::PeerResult& result) {
   }
   for (const char* key : {"ruri", "version", "state", "estopped", "caps"})
     if (body.contains(key)) object[key] = body[key];
+  // Each instance that is not ok, with its reason and the fix the robot suggests (a degraded one too).
+  const auto problems = status_problems(body);
+  if (!problems.empty()) {
+    object["problems"] = json::array();
+    for (const auto& problem : problems) object["problems"].push_back(problem.to_json());
+  }
   // A robot that answers but reports a fault (a failed plugin or driver) is not "ok": scripts see exit 1.
   if (object["state"] == "error") {
-    object["error"] = "the robot reports state error (rcanctl plugins names what failed)";
+    std::string error = "the robot reports state error";
+    if (!problems.empty())
+      error += ": " + problems.front().summary() + (problems.front().hint.empty() ? "" : "; fix: " + problems.front().hint);
+    object["error"] = error + " (rcanctl plugins lists every instance)";
     return {object, false};
   }
   object["ok"] = true;
@@ -75,13 +83,45 @@ Row action_row(Operation op, const swarm::PeerResult& result) {
 }
 
 std::string result_text(Operation op, const json& row) {
-  if (op == Operation::Status) return row.value("ok", false) ? "ok" : text_of(row, "error");
+  if (op == Operation::Status) {
+    if (row.value("state", json()) == "error") return "state error (below)";
+    return row.value("ok", false) ? "ok" : text_of(row, "error");
+  }
   if (!row.value("ok", false)) {
     const std::string code = text_of(row, "code", "");
     return "FAILED: " + (code.empty() ? "" : code + ": ") + text_of(row, "error");
   }
   if (!row.value("executed", true)) return "acknowledged, not executed (" + text_of(row, "reason", "no reason") + ")";
-  return op == Operation::Stop ? "motors stopped" : "executed";
+  if (op == Operation::Stop) return "motors stopped";
+  const json answer = row.value("response", json::object());
+  if (!answer.is_object()) return "executed";
+  if (answer.contains("hitl") && answer["hitl"].is_object()) return "waiting for a person's approval";
+  if (!answer.contains("action") || answer["action"].is_null()) return "understood, nothing to do";
+  return answer.value("dispatched", true) ? "done" : "not dispatched";
+}
+
+// What the robot made of an instruction, under the table: its words and the action it ran (the chat capability's
+// answer, docs/protocol.md §7.5).
+void print_understood(const json& row, std::ostream& out) {
+  const json answer = row.value("response", json::object());
+  if (!answer.is_object() || !row.value("ok", false)) return;
+  const std::string name = text_of(row, "name");
+  if (answer.contains("raw_text")) out << name << ": understood: " << text_of(answer, "raw_text") << "\n";
+  const json action = answer.value("action", json());
+  if (action.is_object()) {
+    std::string did = text_of(action, "method", "") + " " + text_of(action, "path", "");
+    if (action.contains("body") && !action["body"].is_null()) {
+      std::string fields;
+      if (action["body"].is_object())
+        for (const auto& [key, value] : action["body"].items())
+          fields += (fields.empty() ? "" : ", ") + key + " " + human_text(value);
+      did += " (" + (fields.empty() ? action["body"].dump() : fields) + ")";
+    }
+    out << "  action: " << did << "\n";
+  }
+  if (answer.contains("result") && answer["result"].is_object())
+    out << "  result: " << answer["result"].dump(-1, ' ', false, json::error_handler_t::replace) << "\n";
+  if (answer.contains("thought_id")) out << "  thought: " << text_of(answer, "thought_id") << "\n";
 }
 
 void print_table(Operation op, const std::vector<Row>& rows, std::ostream& out) {
@@ -101,7 +141,8 @@ void print_table(Operation op, const std::vector<Row>& rows, std::ostream& out) 
     std::string caps = "-";
     if (o.contains("caps") && o["caps"].is_array() && !o["caps"].empty()) {
       caps.clear();
-      for (const auto& cap : o["caps"]) caps += (caps.empty() ? "" : ",") + (cap.is_string() ? cap.get<std::string>() : cap.dump());
+      for (const auto& cap : o["caps"])
+        caps += (caps.empty() ? "" : ",") + (cap.is_string() ? cap.get<std::string>() : cap.dump());
     }
     std::ostringstream latency;
     latency << std::fixed << std::setprecision(1) << o.value("latency_ms", 0.0) << " ms";
@@ -109,104 +150,64 @@ void print_table(Operation op, const std::vector<Row>& rows, std::ostream& out) 
                      o.value("reachable", false) ? "yes" : "no", state, estop, caps, latency.str(), result_text(op, o)});
   }
   print_text_table(cells, out);
+  if (op == Operation::Command)
+    for (const auto& row : rows) print_understood(row.object, out);
+  for (const auto& row : rows)  // what is wrong and how to fix it, under the table: too long for a cell
+    if (row.object.contains("problems"))
+      for (const auto& problem : row.object["problems"]) {
+        const char* kind = problem.contains("driver") ? "driver" : "capability";
+        out << text_of(row.object, "name") << ": " << kind << " " << text_of(problem, kind) << " " << text_of(problem, "state")
+            << ": " << text_of(problem, "reason") << "\n";
+        if (problem.contains("hint")) out << "  fix: " << text_of(problem, "hint") << "\n";
+      }
 }
 
 }  // namespace
 
-bool parse_fleet_options(std::span<const std::string> args, Operation op, bool swarm_mode, FleetOptions& options, std::ostream& err) {
-  const std::string prefix = std::string(swarm_mode ? "rcanctl swarm " : "rcanctl ") + std::string(operation_name(op)) + ": ";
-  bool host_given = false, port_given = false;
-  std::string token_file;
-  for (std::size_t i = 0; i < args.size(); ++i) {
-    const std::string& arg = args[i];
-    auto value = [&](std::string& into) {
-      if (i + 1 >= args.size()) {
-        err << prefix << arg << " needs a value\n";
-        return false;
-      }
-      into = args[++i];
-      return true;
-    };
-    std::string text;
-    if (arg == "--help" || arg == "-h") {
-      options.help = true;
-    } else if (arg == "--json") {
-      options.json = true;
-    } else if (arg == "--node") {
-      if (!value(text)) return false;
-      options.nodes.push_back(text);
-    } else if (arg == "--tag" && swarm_mode) {
-      if (!value(text)) return false;
-      options.tags.push_back(text);
-    } else if (arg == "--swarm") {
-      if (!value(options.swarm_file)) return false;
-    } else if (arg == "--timeout") {
-      if (!value(text)) return false;
-      const auto ms = parse_int(text, 1, 600000);
-      if (!ms) {
-        err << prefix << "--timeout must be milliseconds from 1 to 600000, got '" << text << "'\n";
-        return false;
-      }
-      options.timeout_ms = *ms;
-    } else if (arg == "--instruction" && op == Operation::Command) {
-      if (!value(options.instruction)) return false;
-    } else if (arg == "--host" && !swarm_mode) {
-      if (!value(options.host)) return false;
-      host_given = true;
-    } else if (arg == "--port" && !swarm_mode) {
-      if (!value(text)) return false;
-      const auto port = parse_int(text, 1, 65535);
-      if (!port) {
-        err << prefix << "--port must be from 1 to 65535, got '" << text << "'\n";
-        return false;
-      }
-      options.port = static_cast<std::uint16_t>(*port);
-      port_given = true;
-    } else if (arg == "--token" && !swarm_mode) {
-      if (!value(options.token)) return false;
-    } else if (arg == "--token-file" && !swarm_mode) {
-      if (!value(token_file)) return false;
-    } else if (bool ok = true; !swarm_mode && parse_tls_option(arg, value, options.tls, ok)) {
-      if (!ok) return false;
-      host_given = true;
-    } else {
-      err << prefix << "unknown option '" << arg << "' (see --help)\n";
-      return false;
-    }
+void add_fleet_options(CLI::App& app, Operation op, bool swarm_mode, FleetOptions& options) {
+  if (op == Operation::Command)
+    app.add_option("--instruction", options.instruction, "what the robot is to do, in words")->required();
+  if (swarm_mode) {
+    app.add_option("--node", options.nodes, "a node of the swarm file (repeat for more; default every node)")
+        ->type_size(1)
+        ->allow_extra_args(false);
+    app.add_option("--tag", options.tags, "nodes carrying this tag (repeat: every tag)")->type_size(1)->allow_extra_args(false);
+  } else {
+    app.add_option("--node", options.nodes, "a node of the swarm file instead of --host/--port/--token")
+        ->type_size(1)
+        ->allow_extra_args(false);
   }
-  if (options.help) return true;
-  if (op == Operation::Command && options.instruction.empty()) {
-    err << prefix << "--instruction \"...\" is required\n";
-    return false;
+  app.add_option("--swarm", options.swarm_file, "the swarm file (default " + options.swarm_file + ")");
+  app.add_flag("--json", options.json, "one JSON object per node per line");
+  app.add_option("--timeout", options.timeout_ms, "milliseconds to wait (default: stop 400, status 2000, command 15000)")
+      ->check(CLI::Range(1, 600000));
+  if (swarm_mode) return;
+  app.add_option("--host", options.host,
+                 "the robot: HOST, HOST:PORT or https://HOST[:PORT] (default 127.0.0.1; TLS with https://)");
+  app.add_option("--port", options.port, "its port (default 8000)")->check(CLI::Range(1, 65535));
+  app.add_option("--token", options.token, "the bearer token (or --token-file, or $RCAND_TOKEN)");
+  app.add_option("--token-file", options.token_file, "a file holding the token");
+  add_tls_options(app, options.tls);
+}
+
+std::string finish_fleet_options(const CLI::App& app, bool swarm_mode, FleetOptions& options) {
+  if (swarm_mode) return {};
+  if (options.nodes.size() > 1) return "one --node at most (use rcanctl swarm for several)";
+  bool addressed = false;
+  for (const char* name : {"--host", "--port", "--token", "--token-file", "--cacert", "--cert", "--key"})
+    addressed = addressed || app.count(name) > 0;
+  if (!options.nodes.empty() && addressed)
+    return "--node takes address, token and TLS from the swarm file; drop --host/--port/--token/--cacert";
+  if (auto problem = finish_tls_options(options.tls, options.host, options.port); !problem.empty()) return problem;
+  if (!options.token_file.empty()) {
+    options.token = read_token_file(options.token_file);
+    if (options.token.empty()) return "cannot read a token from --token-file " + options.token_file;
   }
-  if (!swarm_mode) {
-    if (options.nodes.size() > 1) {
-      err << prefix << "one --node at most (use rcanctl swarm for several)\n";
-      return false;
-    }
-    if (!options.nodes.empty() && (host_given || port_given || !options.token.empty() || !token_file.empty())) {
-      err << prefix << "--node takes address, token and TLS from the swarm file; drop --host/--port/--token/--cacert\n";
-      return false;
-    }
-    if (const auto problem = finish_tls_options(options.tls, options.host, options.port); !problem.empty()) {
-      err << prefix << problem << "\n";
-      return false;
-    }
-    if (!token_file.empty()) {
-      options.token = read_token_file(token_file);
-      if (options.token.empty()) {
-        err << prefix << "cannot read a token from --token-file " << token_file << "\n";
-        return false;
-      }
-    }
-    if (options.token.empty() && options.nodes.empty())
-      if (const char* env = std::getenv("RCAND_TOKEN")) options.token = env;
-    if (options.token.empty() && options.nodes.empty()) {
-      err << prefix << "a token is required: --token TOKEN, --token-file FILE or $RCAND_TOKEN\n";
-      return false;
-    }
-  }
-  return true;
+  if (options.token.empty() && options.nodes.empty())
+    if (const char* env = std::getenv("RCAND_TOKEN")) options.token = env;
+  if (options.token.empty() && options.nodes.empty())
+    return "a token is required: --token TOKEN, --token-file FILE or $RCAND_TOKEN";
+  return {};
 }
 
 bool swarm_targets(const FleetOptions& options, std::vector<swarm::SwarmNode>& targets, std::ostream& err) {
@@ -235,25 +236,11 @@ Operation operation_named(std::string_view verb) {
   return verb == "status" ? Operation::Status : verb == "stop" ? Operation::Stop : Operation::Command;
 }
 
-std::optional<int> parse_fleet_command(std::span<const std::string> args, Operation op, bool swarm, std::string_view usage,
-                                       FleetOptions& options, std::ostream& out, std::ostream& err) {
-  if (!parse_fleet_options(args, op, swarm, options, err)) {
-    err << usage;
-    return kExitUsage;
-  }
-  if (options.help) {
-    out << usage;
-    return kExitOk;
-  }
-  return std::nullopt;
-}
-
 int run_fleet_operation(Operation op, const std::vector<swarm::SwarmNode>& targets, const FleetOptions& options,
                         std::ostream& out, std::ostream& err) {
   std::vector<swarm::PeerRequest> requests;
   for (const auto& node : targets) {
-    if (op == Operation::Status)
-      requests.push_back(swarm::peer_request(node, "GET", "/api/status"));
+    if (op == Operation::Status) requests.push_back(swarm::peer_request(node, "GET", "/api/status"));
     else if (op == Operation::Stop) {
       requests.push_back(swarm::peer_request(node, "POST", "/api/stop", json{{"reason", "rcanctl stop"}}.dump()));
       requests.back().body_limit = swarm::kStopAnswerLimit;
@@ -265,7 +252,8 @@ int run_fleet_operation(Operation op, const std::vector<swarm::SwarmNode>& targe
   const bool any_local =
       std::any_of(targets.begin(), targets.end(), [](const auto& node) { return mdns::is_mdns_host(node.host); });
   swarm::FanOut fan_out(any_local ? local_name_resolver() : nullptr);
-  auto results = fan_out.run_and_wait(std::move(requests), std::chrono::milliseconds(options.timeout_ms ? options.timeout_ms : default_ms));
+  auto results =
+      fan_out.run_and_wait(std::move(requests), std::chrono::milliseconds(options.timeout_ms ? options.timeout_ms : default_ms));
   fan_out.stop();
 
   std::vector<Row> rows;
@@ -279,8 +267,7 @@ int run_fleet_operation(Operation op, const std::vector<swarm::SwarmNode>& targe
   } else {
     print_table(op, rows, out);
   }
-  if (failed > 0 && !options.json)
-    err << "rcanctl: " << failed << " of " << rows.size() << " node(s) failed\n";
+  if (failed > 0 && !options.json) err << "rcanctl: " << failed << " of " << rows.size() << " node(s) failed\n";
   return failed == 0 ? kExitOk : kExitPartial;
 }
 

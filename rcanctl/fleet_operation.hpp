@@ -11,6 +11,7 @@
 #include <string_view>
 #include <vector>
 
+#include "command_line.hpp"
 #include "exit_codes.hpp"
 #include "libs/swarm/swarm_registry.hpp"
 #include "tls_options.hpp"
@@ -25,23 +26,23 @@ struct FleetOptions {
   std::vector<std::string> nodes, tags;
   std::string swarm_file = swarm::kDefaultSwarmFile;
   bool json = false;
-  bool help = false;
   int timeout_ms = 0;  // 0: the operation's default (stop 400 ms, inside the 500 ms budget)
   std::string instruction;
   // One robot (rcanctl status|stop|command without --node): address and token.
   std::string host = "127.0.0.1";
   std::uint16_t port = swarm::kDefaultSwarmPort;
   std::string token;  // --token, --token-file or $RCAND_TOKEN
-  TlsOptions tls;     // one robot: --cacert/--cert/--key, https:// hosts (swarm nodes name their own `ca`)
+  std::string token_file;
+  TlsOptions tls;  // one robot: --cacert/--cert/--key, https:// hosts (swarm nodes name their own `ca`)
 };
 
-// Parses the words after the operation name; on a usage error writes it to `err` and returns false.
 // "status" | "stop" | anything else (command).
 Operation operation_named(std::string_view verb);
-// parse_fleet_options, then --help: an exit code when the command is already finished (usage error or help shown).
-std::optional<int> parse_fleet_command(std::span<const std::string> args, Operation op, bool swarm, std::string_view usage,
-                                       FleetOptions& options, std::ostream& out, std::ostream& err);
-bool parse_fleet_options(std::span<const std::string> args, Operation op, bool swarm, FleetOptions& options, std::ostream& err);
+
+// Declares the options of `op` (rcanctl status|stop|command, or under rcanctl swarm with `swarm_mode`) on `app`.
+void add_fleet_options(CLI::App& app, Operation op, bool swarm_mode, FleetOptions& options);
+// After the parse: the one-robot address, TLS and token, and what may not go together. An error message, or "".
+std::string finish_fleet_options(const CLI::App& app, bool swarm_mode, FleetOptions& options);
 
 // Runs `op` on every target in parallel and prints the result. `targets` is never empty.
 int run_fleet_operation(Operation op, const std::vector<swarm::SwarmNode>& targets, const FleetOptions& options,

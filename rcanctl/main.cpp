@@ -26,13 +26,15 @@ struct Subcommand {
 
 constexpr Subcommand kSubcommands[] = {
     {"token", "issue JWTs (token issue), hash or create pre-shared tokens (token hash, token new)", rcand::rcanctl::run_token},
-    {"status", "one robot's status (--host/--port/--token, or --node NAME of swarm.yaml)", rcand::rcanctl::run_status},
+    {"status", "one robot's status, and each failed driver or capability with why and the fix (or --node NAME)",
+     rcand::rcanctl::run_status},
     {"stop", "latch one robot's e-stop and confirm its motors stopped", rcand::rcanctl::run_stop},
-    {"command", "send one robot an instruction: command --instruction \"...\"", rcand::rcanctl::run_command},
+    {"command", "send one robot an instruction (--instruction \"...\"); prints what it understood and did",
+     rcand::rcanctl::run_command},
     {"estop", "show the e-stop (estop), or clear it (estop clear, owner token)", rcand::rcanctl::run_estop},
     {"move", "teleop: move --linear X --angular Y [--duration MS | --hold]", rcand::rcanctl::run_move},
     {"nav", "nav go --distance M [--heading DEG] [--speed S] | nav status | nav cancel", rcand::rcanctl::run_nav},
-    {"plugins", "the plugins found: version, state, what each provides, why one failed; plugins reload ID",
+    {"plugins", "every plugin and its driver/capability instances: state, health, why one failed; plugins reload ID",
      rcand::rcanctl::run_plugins},
     {"audit", "the audit log, oldest first (--limit N, --follow; owner token)", rcand::rcanctl::run_audit},
     {"doctor", "what is wrong with this robot's setup, and the command that fixes each", rcand::rcanctl::run_doctor},
@@ -50,7 +52,7 @@ void print_usage(std::ostream& out) {
     const std::size_t pad = sub.name.size() < 12 ? 12 - sub.name.size() : 1;
     out << "  " << sub.name << std::string(pad, ' ') << sub.summary << "\n";
   }
-  out << "\nrcanctl <subcommand> --help shows its options.\n";
+  out << "\nrcanctl <subcommand> --help lists all its options (man rcanctl: every subcommand).\n";
 }
 
 }  // namespace

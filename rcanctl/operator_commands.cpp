@@ -4,7 +4,6 @@
 #include <unistd.h>
 
 #include <atomic>
-#include <charconv>
 #include <chrono>
 #include <cmath>
 #include <csignal>
@@ -13,7 +12,10 @@
 #include <string_view>
 #include <thread>
 
+#include "command_line.hpp"
 #include "exit_codes.hpp"
+#include "human_format.hpp"
+#include "instance_problems.hpp"
 #include "plugins_command.hpp"
 #include "robot_connection.hpp"
 #include "text_table.hpp"
@@ -23,53 +25,7 @@ namespace {
 
 using nlohmann::json;
 
-constexpr std::string_view kConnectionUsage =
-    "  connection: [--host HOST] [--port PORT] (--token T | --token-file FILE | $RCAND_TOKEN) [--json] [--timeout MS]\n"
-    "  HOST default 127.0.0.1, PORT default 8000. Exit: 0 done, 1 the robot refused or did not answer, 2 usage.\n";
-
-std::optional<double> parse_double(const std::string& text) {
-  double value = 0;
-  const auto [end, ec] = std::from_chars(text.data(), text.data() + text.size(), value);
-  if (ec != std::errc{} || end != text.data() + text.size()) return std::nullopt;
-  return value;
-}
-
-// A numeric option's value into `into`; false after the usage error.
-bool number_option(const std::string& option, const std::function<bool(std::string&)>& next, std::optional<double>& into) {
-  std::string text;
-  if (!next(text)) return false;
-  into = parse_double(text);
-  if (!into) std::cerr << "rcanctl: " << option << " must be a number, got '" << text << "'\n";
-  return into.has_value();
-}
-
-// Parses the connection options plus `extra`; prints usage on error (exit 2) or for --help (exit 0).
-std::optional<int> parse(std::span<const std::string> args, std::string_view name, std::string_view usage,
-                         const ExtraOption& extra, RobotOptions& options) {
-  const std::string prefix = "rcanctl " + std::string(name);
-  if (!parse_robot_options(args, prefix, extra, options, std::cerr)) {
-    std::cerr << usage << kConnectionUsage;
-    return kExitUsage;
-  }
-  if (options.help) {
-    std::cout << usage << kConnectionUsage;
-    return kExitOk;
-  }
-  return std::nullopt;
-}
-
-std::string text(const json& value) {
-  if (value.is_null()) return "-";
-  return value.is_string() ? value.get<std::string>() : value.dump();
-}
-
-// The first word when it is a verb (not an option), else `fallback`.
-std::string verb_of(std::span<const std::string>& args, std::string fallback) {
-  if (args.empty() || args.front().starts_with("-")) return fallback;
-  std::string verb = args.front();
-  args = args.subspan(1);
-  return verb;
-}
+std::string text(const json& value) { return human_text(value); }
 
 std::atomic<bool> released{false};
 extern "C" void on_release_signal(int) { released.store(true); }
@@ -84,16 +40,15 @@ bool wait_released(std::chrono::milliseconds period) {
 }  // namespace
 
 int run_estop(std::span<const std::string> args) {
-  constexpr std::string_view usage =
-      "usage: rcanctl estop [show]   the e-stop: latched or not, since when, why, by whom\n"
-      "       rcanctl estop clear    clear it (needs the config scope: an owner token)\n";
-  const std::string verb = verb_of(args, "show");
   RobotOptions options;
-  if (auto done = parse(args, "estop", usage, {}, options)) return *done;
-  if (verb != "show" && verb != "clear") {
-    std::cerr << "rcanctl estop: unknown action '" << verb << "'\n" << usage;
-    return kExitUsage;
-  }
+  const auto app = make_command_app("rcanctl estop", "The e-stop: latched or not, since when, why, by whom; or clear it.",
+                                    "Exit: 0 done, 1 the robot refused or did not answer, 2 usage.");
+  CLI::App* show = app->add_subcommand("show", "the e-stop's state (the default)");
+  CLI::App* clear = app->add_subcommand("clear", "clear the latch (needs the config scope: an owner token)");
+  app->require_subcommand(0, 1);
+  for (CLI::App* each : {app.get(), show, clear}) add_robot_options(*each, options);
+  if (auto done = parse_robot_command(*app, args, options)) return *done;
+  const std::string verb = clear->parsed() ? "clear" : "show";
   const auto answer = verb == "clear" ? call_robot(options, "POST", "/api/estop/clear", json::object())
                                       : call_robot(options, "GET", "/api/estop");
   return report(
@@ -102,39 +57,33 @@ int run_estop(std::span<const std::string> args) {
         if (verb == "clear") std::cout << "e-stop cleared\n";
         else if (!answer.body.value("estopped", false)) std::cout << "not latched\n";
         else
-          std::cout << "LATCHED since " << text(answer.body["since_ms"]) << " ms: " << text(answer.body["reason"]) << " (by "
+          std::cout << "LATCHED since " << human_time(answer.body["since_ms"]) << ": " << text(answer.body["reason"]) << " (by "
                     << text(answer.body["source"]) << ")\n";
       },
       std::cout, std::cerr);
 }
 
 int run_move(std::span<const std::string> args) {
-  constexpr std::string_view usage =
-      "usage: rcanctl move [--linear X] [--angular Y] [--duration MS | --hold]\n"
-      "  a teleop move: linear in [-1, 1] of full speed (or safety.max_linear_speed), angular in [-1, 1]; the one left\n"
-      "  out is 0. --duration stops it after MS; --hold keeps moving until Enter, end of input or Ctrl-C, then stops\n"
-      "  (each move lasts 500 ms, so a lost rcanctl stops the robot within that).\n";
-  std::optional<double> linear, angular, duration;
+  double linear = 0, angular = 0;
+  int duration = 0;
   bool hold = false;
   RobotOptions options;
-  const ExtraOption extra = [&](const std::string& option, const std::function<bool(std::string&)>& next) {
-    if (option == "--linear") return number_option(option, next, linear);
-    if (option == "--angular") return number_option(option, next, angular);
-    if (option == "--duration") return number_option(option, next, duration);
-    if (option == "--hold") return hold = true;
-    return false;
-  };
-  if (auto done = parse(args, "move", usage, extra, options)) return *done;
-  if (!linear && !angular) {
-    std::cerr << "rcanctl move: --linear or --angular is required\n" << usage;
-    return kExitUsage;
-  }
-  if (duration && (*duration != std::floor(*duration) || std::abs(*duration) > 1e9)) {
-    std::cerr << "rcanctl move: --duration must be whole milliseconds\n" << usage;
-    return kExitUsage;
-  }
-  json move{{"type", "move"}, {"linear", linear.value_or(0.0)}, {"angular", angular.value_or(0.0)}};
-  if (duration) move["duration_ms"] = static_cast<long long>(*duration);  // the robot checks the range
+  const auto app = make_command_app(
+      "rcanctl move",
+      "A teleop move: --linear and --angular in [-1, 1] of full speed (or safety.max_linear_speed); the one left out\n"
+      "is 0. --duration stops it after MS; --hold keeps moving until Enter, end of input or Ctrl-C, then stops (each\n"
+      "move lasts 500 ms, so a lost rcanctl stops the robot within that).",
+      "Exit: 0 done, 1 the robot refused or did not answer, 2 usage.");
+  auto* linear_option = app->add_option("--linear", linear, "forward speed, -1 to 1")->check(finite_number());
+  auto* angular_option = app->add_option("--angular", angular, "turning speed, -1 to 1")->check(finite_number());
+  auto* duration_option = app->add_option("--duration", duration, "stop after MS milliseconds (whole)");
+  app->add_flag("--hold", hold, "keep moving until Enter, end of input or Ctrl-C")->excludes(duration_option);
+  add_robot_options(*app, options);
+  if (auto done = parse_robot_command(*app, args, options)) return *done;
+  if (linear_option->count() == 0 && angular_option->count() == 0)
+    return usage_error(*app, "--linear or --angular is required", std::cerr);
+  json move{{"type", "move"}, {"linear", linear}, {"angular", angular}};
+  if (duration_option->count() > 0) move["duration_ms"] = duration;  // the robot checks the range
   if (!hold) {
     const auto answer = call_robot(options, "POST", "/api/action", move);
     return report(
@@ -158,28 +107,23 @@ int run_move(std::span<const std::string> args) {
 }
 
 int run_nav(std::span<const std::string> args) {
-  constexpr std::string_view usage =
-      "usage: rcanctl nav go --distance M [--heading DEG] [--speed S]   start a waypoint job (turn, then drive)\n"
-      "       rcanctl nav status                                       the job and the pose\n"
-      "       rcanctl nav cancel                                       stop the job\n";
-  const std::string verb = verb_of(args, "");
-  std::optional<double> distance, heading, speed;
+  double distance = 0, heading = 0, speed = 0;
   RobotOptions options;
-  const ExtraOption extra = [&](const std::string& option, const std::function<bool(std::string&)>& next) {
-    if (verb != "go") return false;
-    if (option == "--distance") return number_option(option, next, distance);
-    if (option == "--heading") return number_option(option, next, heading);
-    if (option == "--speed") return number_option(option, next, speed);
-    return false;
-  };
-  if (auto done = parse(args, "nav", usage, extra, options)) return *done;
+  const auto app = make_command_app("rcanctl nav", "Waypoint jobs of the nav capability.",
+                                    "Exit: 0 done, 1 the robot refused or did not answer, 2 usage.");
+  CLI::App* go = app->add_subcommand("go", "start a waypoint job: turn to --heading, then drive --distance");
+  go->add_option("--distance", distance, "metres to drive")->required()->check(finite_number());
+  go->add_option("--heading", heading, "degrees to turn first (default 0)")->check(finite_number());
+  auto* speed_option = go->add_option("--speed", speed, "speed, 0 to 1 of full (default the robot's)")->check(finite_number());
+  CLI::App* status = app->add_subcommand("status", "the job and the pose");
+  CLI::App* cancel = app->add_subcommand("cancel", "stop the job");
+  app->require_subcommand(1);
+  for (CLI::App* each : {go, status, cancel}) add_robot_options(*each, options);
+  if (auto done = parse_robot_command(*app, args, options)) return *done;
+  const std::string verb = app->get_subcommands().front()->get_name();
   if (verb == "go") {
-    if (!distance) {
-      std::cerr << "rcanctl nav go: --distance is required\n" << usage;
-      return kExitUsage;
-    }
-    json waypoint{{"distance_m", *distance}, {"heading_deg", heading.value_or(0.0)}};
-    if (speed) waypoint["speed"] = *speed;
+    json waypoint{{"distance_m", distance}, {"heading_deg", heading}};
+    if (speed_option->count() > 0) waypoint["speed"] = speed;
     const auto answer = call_robot(options, "POST", "/api/nav/waypoint", waypoint);
     return report(
         options, answer, "nav go",
@@ -210,32 +154,56 @@ int run_nav(std::span<const std::string> args) {
         },
         std::cout, std::cerr);
   }
-  std::cerr << "rcanctl nav: " << (verb.empty() ? "an action is required" : "unknown action '" + verb + "'") << "\n" << usage;
-  return kExitUsage;
+  return usage_error(*app, "unknown action '" + verb + "'", std::cerr);
 }
 
 int run_plugins(std::span<const std::string> args) {
-  constexpr std::string_view usage =
-      "usage: rcanctl plugins   every plugin found: version, state, what it provides, why it failed\n"
-      "       rcanctl plugins reload ID   re-open one plugin from disk (development robots; plugins reload --help)\n";
-  if (!args.empty() && args.front() == "reload") return run_plugins_reload(args.subspan(1));
   RobotOptions options;
-  if (auto done = parse(args, "plugins", usage, {}, options)) return *done;
+  std::string reload_id;
+  const auto app = make_command_app(
+      "rcanctl plugins",
+      "Every plugin found and each of its driver and capability instances: version, library state, health, each\n"
+      "instance's state and why one failed, and the fix the robot suggests.",
+      "Exit: 0 listed, 1 the robot refused or did not answer, 2 usage.");
+  CLI::App* reload = add_plugins_reload(*app, reload_id);
+  app->require_subcommand(0, 1);
+  for (CLI::App* each : {app.get(), reload}) add_robot_options(*each, options);
+  if (auto done = parse_robot_command(*app, args, options)) return *done;
+  if (reload->parsed()) {
+    // A reload waits for in-flight calls and the plugin's shutdown and start.
+    if (reload->count("--timeout") == 0 && app->count("--timeout") == 0) options.timeout = std::chrono::milliseconds(30000);
+    return run_plugins_reload(reload_id, options);
+  }
   const auto answer = call_robot(options, "GET", "/api/plugins");
   return report(
       options, answer, "plugins",
       [&] {
-        std::vector<std::vector<std::string>> rows{{"ID", "VERSION", "STATE", "PROVIDES", "REASON"}};
+        // One row per instance (a loaded library whose driver failed is not ok), the library's own when it has none;
+        // the fixes the robot suggests under the table.
+        std::vector<std::vector<std::string>> rows{{"ID", "VERSION", "LIBRARY", "HEALTH", "INSTANCE", "STATE", "REASON"}};
+        std::vector<InstanceProblem> problems;
         for (const auto& plugin : answer.body.value("plugins", json::array())) {
-          std::string provides;
-          for (const auto& item : plugin.value("provides", json::array()))
-            provides +=
-                (provides.empty() ? "" : ",") + item.value("kind", std::string()) + ":" + item.value("name", std::string());
-          const std::string reason = plugin.value("reason", std::string());
-          rows.push_back({text(plugin.value("id", json())), text(plugin.value("version", json())),
-                          text(plugin.value("state", json())), provides.empty() ? "-" : provides, reason.empty() ? "-" : reason});
+          const std::vector<std::string> library{text(plugin.value("id", json())), text(plugin.value("version", json())),
+                                                 text(plugin.value("state", json())), text(plugin.value("health", json()))};
+          const std::string library_reason = plugin.value("reason", std::string());
+          const json instances = plugin.value("instances", json::array());
+          if (instances.empty()) {
+            rows.push_back(library);
+            rows.back().insert(rows.back().end(), {"-", "-", library_reason.empty() ? "-" : library_reason});
+          }
+          for (const auto& instance : instances) {
+            const char* kind = instance.contains("driver") ? "driver" : "capability";
+            const std::string reason = instance.value("reason", library_reason);
+            rows.push_back(library);
+            rows.back().insert(rows.back().end(), {std::string(kind) + ":" + text(instance.value(kind, json())),
+                                                   text(instance.value("state", json())), reason.empty() ? "-" : reason});
+          }
+          for (auto& problem : plugin_problems(plugin))
+            if (!problem.hint.empty()) problems.push_back(std::move(problem));
         }
         print_text_table(rows, std::cout);
+        if (!problems.empty()) std::cout << "\n";
+        print_problems(problems, "", std::cout);
       },
       std::cout, std::cerr);
 }
@@ -248,23 +216,16 @@ static std::string audit_event_text(const json& entry) {
 }
 
 int run_audit(std::span<const std::string> args) {
-  constexpr std::string_view usage =
-      "usage: rcanctl audit [--limit N] [--follow]   the newest N audit entries (default 20), oldest first;\n"
-      "  --follow keeps printing new ones (once a second) until Ctrl-C. Needs the config scope (an owner token).\n";
-  std::optional<double> limit;
+  int count = 20;
   bool follow = false;
   RobotOptions options;
-  const ExtraOption extra = [&](const std::string& option, const std::function<bool(std::string&)>& next) {
-    if (option == "--limit") return number_option(option, next, limit);
-    if (option == "--follow") return follow = true;
-    return false;
-  };
-  if (auto done = parse(args, "audit", usage, extra, options)) return *done;
-  const int count = limit ? static_cast<int>(*limit) : 20;
-  if (count < 1 || count > 10000) {
-    std::cerr << "rcanctl audit: --limit must be from 1 to 10000\n";
-    return kExitUsage;
-  }
+  const auto app =
+      make_command_app("rcanctl audit", "The newest audit entries, oldest first. Needs the config scope (an owner token).",
+                       "Exit: 0 done, 1 the robot refused or did not answer, 2 usage.");
+  app->add_option("--limit", count, "how many entries (default 20)")->check(CLI::Range(1, 10000));
+  app->add_flag("--follow", follow, "keep printing new ones (once a second) until Ctrl-C");
+  add_robot_options(*app, options);
+  if (auto done = parse_robot_command(*app, args, options)) return *done;
   std::signal(SIGINT, on_release_signal);
   std::uint64_t last_seq = 0;
   bool header = !options.json;
@@ -274,7 +235,7 @@ int run_audit(std::span<const std::string> args) {
       return report(
           options, answer, "audit", [] {}, std::cout, std::cerr);
     std::vector<std::vector<std::string>> rows;
-    if (header) rows.push_back({"SEQ", "TIME_MS", "PRINCIPAL", "EVENT", "OUTCOME", "DETAIL"});
+    if (header) rows.push_back({"SEQ", "TIME", "PRINCIPAL", "EVENT", "OUTCOME", "DETAIL"});
     header = false;
     const json entries = answer.body.value("entries", json::array());
     for (auto it = entries.rbegin(); it != entries.rend(); ++it) {  // the robot sends newest first
@@ -283,7 +244,7 @@ int run_audit(std::span<const std::string> args) {
       last_seq = seq;
       if (options.json) std::cout << it->dump(-1, ' ', false, json::error_handler_t::replace) << "\n";
       else
-        rows.push_back({text(it->value("seq", json())), text(it->value("timestamp_ms", json())),
+        rows.push_back({text(it->value("seq", json())), human_time(it->value("timestamp_ms", json())),
                         text(it->value("principal", json())), audit_event_text(*it), text(it->value("outcome", json())),
                         text(it->value("detail", json()))});
     }

@@ -9,19 +9,20 @@
 
 #include <spdlog/logger.h>
 
-#include <csignal>
-#include <functional>
+#include <unistd.h>
 #include <chrono>
+#include <csignal>
 #include <cstdlib>
 #include <fstream>
+#include <functional>
 #include <iomanip>
 #include <iostream>
 #include <mutex>
 #include <optional>
 #include <sstream>
-#include <unistd.h>
 #include <thread>
 
+#include "command_line.hpp"
 #include "exit_codes.hpp"
 #include "libs/http/client.hpp"
 #include "services/r2r/transports/mqtt_transport.hpp"
@@ -33,16 +34,6 @@ namespace net = boost::asio;
 namespace beast = boost::beast;
 namespace websocket = boost::beast::websocket;
 using nlohmann::json;
-
-constexpr std::string_view kR2rUsage =
-    "usage: rcanctl r2r send --type TYPE [--target NAME] [--payload JSON] [--as NAME] [--wait MS] [robot options]\n"
-    "       rcanctl r2r watch [--timeout S] [robot options] | rcanctl r2r watch --mqtt HOST[:PORT] [--timeout S]\n"
-    "       rcanctl r2r auction [--task-id ID] [--description TEXT] [--require CAP,...] [--at X,Y] [robot options]\n"
-    "  robot options: [--host HOST] [--port PORT] (--token T | --token-file FILE | $RCAND_TOKEN) [--json]\n"
-    "  send: connects to WS /ws/r2r as peer NAME (default rcanctl), sends one message, prints what comes back within\n"
-    "        --wait MS (default 2000). watch: prints R2R traffic until Ctrl-C or --timeout (WS: what the robot sends\n"
-    "        its peers; --mqtt: every message on r2r/#). auction: the robot runs an auction and the bids and the\n"
-    "        winner are printed. Exit: 0 success, 1 refused/failed/no winner, 2 usage error.\n";
 
 volatile std::sig_atomic_t interrupted = 0;
 
@@ -71,89 +62,77 @@ std::optional<long> number(const std::string& text) {
   }
 }
 
+// The robot options of one r2r action (its own copy of the flags: each action lists them in its --help).
+void add_r2r_robot_options(CLI::App& action, Options& o, std::string& token_file) {
+  action.add_option("--host", o.host, "the robot (default 127.0.0.1)");
+  action.add_option("--port", o.port, "its port (default 8000)")->check(CLI::Range(1, 65535));
+  action.add_option("--token", o.token, "the bearer token (or --token-file, or $RCAND_TOKEN)");
+  action.add_option("--token-file", token_file, "a file holding the token");
+  action.add_flag("--json", o.as_json, "JSON lines");
+}
+
 // Returns the exit code when parsing ends the command (usage error, --help).
 std::optional<int> parse(std::span<const std::string> args, Options& o, std::ostream& out, std::ostream& err) {
-  if (args.empty() || args[0] == "--help" || args[0] == "-h") {
-    (args.empty() ? err : out) << kR2rUsage;
-    return args.empty() ? kExitUsage : kExitOk;
-  }
-  o.sub = args[0];
-  if (o.sub != "send" && o.sub != "watch" && o.sub != "auction") {
-    err << "rcanctl r2r: unknown subcommand '" << o.sub << "'\n" << kR2rUsage;
-    return kExitUsage;
-  }
+  const auto app = make_command_app("rcanctl r2r", "Robot-to-robot (seed 004): one message, the traffic, an auction.",
+                                    "Exit: 0 success, 1 refused/failed/no winner, 2 usage error.");
   std::string token_file;
-  auto fail = [&](const std::string& message) {
-    err << "rcanctl r2r " << o.sub << ": " << message << "\n";
-    return kExitUsage;
-  };
-  for (std::size_t i = 1; i < args.size(); ++i) {
-    const std::string& arg = args[i];
-    if (arg == "--json") {
-      o.as_json = true;
-      continue;
-    }
-    if (arg == "--help") {
-      out << kR2rUsage;
-      return kExitOk;
-    }
-    if (i + 1 >= args.size()) return fail(arg + " needs a value");
-    const std::string& value = args[++i];
-    if (arg == "--host") o.host = value;
-    else if (arg == "--port") {
-      const auto port = number(value);
-      if (!port || *port < 1 || *port > 65535) return fail("--port must be 1..65535");
-      o.port = static_cast<std::uint16_t>(*port);
-    } else if (arg == "--token") o.token = value;
-    else if (arg == "--token-file") token_file = value;
-    else if (arg == "--type" && o.sub == "send") o.type = value;
-    else if (arg == "--target" && o.sub == "send") o.target = value;
-    else if (arg == "--as" && o.sub == "send") o.as = value;
-    else if (arg == "--payload" && o.sub == "send") {
-      o.payload = json::parse(value, nullptr, false);
-      if (!o.payload.is_object()) return fail("--payload must be a JSON object");
-    } else if (arg == "--wait" && o.sub == "send") {
-      const auto ms = number(value);
-      if (!ms || *ms < 0) return fail("--wait must be milliseconds >= 0");
-      o.wait = std::chrono::milliseconds(*ms);
-    } else if (arg == "--timeout" && o.sub == "watch") {
-      const auto s = number(value);
-      if (!s || *s < 1) return fail("--timeout must be whole seconds >= 1");
-      o.timeout = std::chrono::seconds(*s);
-    } else if (arg == "--mqtt" && o.sub == "watch") o.mqtt = value;
-    else if (arg == "--task-id" && o.sub == "auction") o.task["task_id"] = value;
-    else if (arg == "--description" && o.sub == "auction") o.task["description"] = value;
-    else if (arg == "--require" && o.sub == "auction") {
-      json caps = json::array();
-      std::size_t start = 0;
-      while (start <= value.size()) {
-        const auto comma = value.find(',', start);
-        const std::string cap = value.substr(start, comma == std::string::npos ? std::string::npos : comma - start);
-        if (!cap.empty()) caps.push_back(cap);
-        if (comma == std::string::npos) break;
-        start = comma + 1;
-      }
-      o.task["required_capabilities"] = caps;
-    } else if (arg == "--at" && o.sub == "auction") {
-      const auto comma = value.find(',');
-      try {
-        if (comma == std::string::npos) throw std::invalid_argument("x");
-        o.task["location"] = {{"x", std::stod(value.substr(0, comma))}, {"y", std::stod(value.substr(comma + 1))}};
-      } catch (...) {
-        return fail("--at must be X,Y (metres, fleet frame)");
-      }
-    } else {
-      return fail("unknown option " + arg);
-    }
-  }
-  if (o.sub == "send" && o.type.empty()) return fail("--type is required");
+  CLI::App* send =
+      app->add_subcommand("send", "connect to WS /ws/r2r as peer --as, send one message, print what comes back within --wait");
+  send->add_option("--type", o.type, "the message type")->required();
+  send->add_option("--target", o.target, "the peer it is for");
+  send->add_option_function<std::string>(
+          "--payload", [&o](const std::string& text) { o.payload = json::parse(text, nullptr, false); }, "a JSON object")
+      ->check(CLI::Validator(
+          [](std::string& text) {
+            return json::parse(text, nullptr, false).is_object() ? std::string() : std::string("must be a JSON object");
+          },
+          "JSON"));
+  send->add_option("--as", o.as, "the peer name to connect as (default rcanctl)");
+  send->add_option_function<int>(
+          "--wait", [&o](const int& ms) { o.wait = std::chrono::milliseconds(ms); }, "milliseconds to wait (default 2000)")
+      ->check(CLI::Range(0, 600000));
+  CLI::App* watch = app->add_subcommand(
+      "watch", "print R2R traffic until Ctrl-C or --timeout (WS: what the robot sends its peers; --mqtt: r2r/#)");
+  watch
+      ->add_option_function<int>(
+          "--timeout", [&o](const int& seconds) { o.timeout = std::chrono::seconds(seconds); }, "stop after S seconds")
+      ->check(CLI::Range(1, 86400));
+  watch->add_option_function<std::string>(
+      "--mqtt", [&o](const std::string& broker) { o.mqtt = broker; }, "HOST[:PORT]: every message on the broker's r2r/#");
+  CLI::App* auction = app->add_subcommand("auction", "the robot runs an auction; print the bids and the winner");
+  auction->add_option_function<std::string>(
+      "--task-id", [&o](const std::string& id) { o.task["task_id"] = id; }, "the task's id");
+  auction->add_option_function<std::string>(
+      "--description", [&o](const std::string& text) { o.task["description"] = text; }, "the task in words");
+  auction
+      ->add_option_function<std::vector<std::string>>(
+          "--require", [&o](const std::vector<std::string>& caps) { o.task["required_capabilities"] = caps; },
+          "capabilities a bidder needs, comma-separated")
+      ->delimiter(',')
+      ->allow_extra_args(false);
+  auction
+      ->add_option_function<std::vector<double>>(
+          "--at",
+          [&o](const std::vector<double>& at) {
+            o.task["location"] = {{"x", at[0]}, {"y", at[1]}};
+          },
+          "X,Y: where the task is (metres, fleet frame)")
+      ->delimiter(',')
+      ->expected(2)
+      ->allow_extra_args(false);
+  for (CLI::App* action : {send, watch, auction}) add_r2r_robot_options(*action, o, token_file);
+  app->require_subcommand(1);
+  if (auto done = parse_command_line(*app, args, out, err)) return done;
+  o.sub = app->get_subcommands().front()->get_name();
   if (!token_file.empty()) {
     std::ifstream in(token_file);
-    if (!in || !std::getline(in, o.token) || o.token.empty()) return fail("cannot read --token-file " + token_file);
+    if (!in || !std::getline(in, o.token) || o.token.empty())
+      return usage_error(*app, "cannot read --token-file " + token_file, err);
   }
   if (o.token.empty())
     if (const char* env = std::getenv("RCAND_TOKEN")) o.token = env;
-  if (o.token.empty() && !o.mqtt) return fail("a token is required: --token TOKEN, --token-file FILE or $RCAND_TOKEN");
+  if (o.token.empty() && !o.mqtt)
+    return usage_error(*app, "a token is required: --token TOKEN, --token-file FILE or $RCAND_TOKEN", err);
   return std::nullopt;
 }
 
@@ -179,7 +158,8 @@ class Link {
     if (result) {
       const json body = json::parse(response.body(), nullptr, false);
       const std::string why = body.is_object() && body.contains("error") ? body["error"].get<std::string>() : result.message();
-      throw std::runtime_error("the robot refused the R2R connection (HTTP " + std::to_string(response.result_int()) + "): " + why);
+      throw std::runtime_error("the robot refused the R2R connection (HTTP " + std::to_string(response.result_int()) +
+                               "): " + why);
     }
   }
   void send(const std::string& text) {
@@ -328,16 +308,18 @@ int run_auction(const Options& o, std::ostream& out, std::ostream& err) {
     out << result.dump() << std::endl;
     return assigned ? kExitOk : kExitFailure;
   }
-  out << "task " << result.value("task_id", "?") << ": " << result.value("state", "?") << " after "
-      << std::fixed << std::setprecision(0) << result.value("elapsed_ms", 0.0) << " ms, round " << result.value("round", 0) << "\n";
-  out << std::left << std::setw(20) << "BIDDER" << std::setw(12) << "COST (s)" << "CAPABILITIES\n";
+  out << "task " << result.value("task_id", "?") << ": " << result.value("state", "?") << " after " << std::fixed
+      << std::setprecision(0) << result.value("elapsed_ms", 0.0) << " ms, round " << result.value("round", 0) << "\n";
+  out << std::left << std::setw(20) << "BIDDER" << std::setw(12) << "COST (s)"
+      << "CAPABILITIES\n";
   for (const auto& bid : result.value("bids", json::array())) {
     std::ostringstream cost;
     cost << std::fixed << std::setprecision(2) << bid.value("cost", 0.0);
     out << std::setw(20) << bid.value("bidder", "?") << std::setw(12) << cost.str()
         << bid.value("capabilities", json::array()).dump() << "\n";
   }
-  if (assigned) out << "winner: " << result["winner"].get<std::string>() << " (estimated " << result.value("estimated_time", 0.0) << " s)\n";
+  if (assigned)
+    out << "winner: " << result["winner"].get<std::string>() << " (estimated " << result.value("estimated_time", 0.0) << " s)\n";
   else out << "no winner\n";
   return assigned ? kExitOk : kExitFailure;
 }

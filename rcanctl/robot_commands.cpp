@@ -2,28 +2,25 @@
 
 #include <iostream>
 
+#include "command_line.hpp"
 #include "fleet_operation.hpp"
 
 namespace rcand::rcanctl {
-namespace {
-
-constexpr std::string_view kRobotUsage =
-    "usage: rcanctl status  [--host HOST] [--port PORT] (--token T | --token-file FILE) [--json] [--timeout MS]\n"
-    "       rcanctl stop    [same options]\n"
-    "       rcanctl command --instruction \"...\" [same options]\n"
-    "       any of them with --node NAME [--swarm FILE] instead of --host/--port/--token: a node of swarm.yaml\n"
-    "  HOST default 127.0.0.1, PORT default 8000, the token may also come from $RCAND_TOKEN;\n"
-    "  --swarm default /etc/rcand/swarm.yaml. Output: a table, or one JSON object per node with --json.\n"
-    "  Exit: 0 success, 1 the robot failed, was unreachable or reports state error, 2 usage or config error.\n"
-    "  TLS: --host https://HOST[:PORT], or --cacert FILE (the CA that signed the robot's certificate; default the\n"
-    "  system's CAs), --cert FILE --key FILE for mutual TLS ($RCAND_CACERT, $RCAND_CERT, $RCAND_KEY supply them).\n";
-
-}  // namespace
-
 int run_robot(std::string_view operation, std::span<const std::string> args, std::ostream& out, std::ostream& err) {
   const Operation op = operation_named(operation);
+  constexpr std::string_view kWhat[] = {
+      "One robot's status: state, e-stop, capabilities; each driver or capability that is not ok, why, and the fix.",
+      "Latch one robot's e-stop and confirm its motors stopped.",
+      "Send one robot an instruction in words; prints what it understood and what it did."};
   FleetOptions options;
-  if (auto done = parse_fleet_command(args, op, false, kRobotUsage, options, out, err)) return *done;
+  const auto app = make_command_app(
+      "rcanctl " + std::string(operation), kWhat[static_cast<int>(op)],
+      "--node NAME [--swarm FILE] instead of --host/--port/--token: a node of swarm.yaml (address, token, TLS).\n"
+      "Output: a table, or one JSON object with --json.\n"
+      "Exit: 0 success, 1 the robot failed, was unreachable or reports state error, 2 usage or config error.");
+  add_fleet_options(*app, op, false, options);
+  if (auto done = parse_command_line(*app, args, out, err)) return *done;
+  if (const auto problem = finish_fleet_options(*app, false, options); !problem.empty()) return usage_error(*app, problem, err);
   std::vector<swarm::SwarmNode> targets;
   if (!options.nodes.empty()) {
     if (!swarm_targets(options, targets, err)) return kExitUsage;

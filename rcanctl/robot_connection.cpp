@@ -3,6 +3,7 @@
 #include <charconv>
 #include <cstdlib>
 #include <fstream>
+#include <iostream>
 #include <map>
 #include <ostream>
 #include <sstream>
@@ -35,70 +36,36 @@ std::string read_token_file(const std::string& path) {
   return token;
 }
 
-bool parse_robot_options(std::span<const std::string> args, std::string_view prefix, const ExtraOption& extra,
-                         RobotOptions& options, std::ostream& err) {
-  std::string token_file;
-  for (std::size_t i = 0; i < args.size(); ++i) {
-    const std::string& arg = args[i];
-    const auto next = [&](std::string& into) {
-      if (i + 1 >= args.size()) {
-        err << prefix << ": " << arg << " needs a value\n";
-        return false;
-      }
-      into = args[++i];
-      return true;
-    };
-    std::string text;
-    if (arg == "--help" || arg == "-h") {
-      options.help = true;
-    } else if (arg == "--json") {
-      options.json = true;
-    } else if (arg == "--host") {
-      if (!next(options.host)) return false;
-    } else if (arg == "--port") {
-      if (!next(text)) return false;
-      const auto port = parse_int(text, 1, 65535);
-      if (!port) {
-        err << prefix << ": --port must be from 1 to 65535, got '" << text << "'\n";
-        return false;
-      }
-      options.port = static_cast<std::uint16_t>(*port);
-    } else if (arg == "--timeout") {
-      if (!next(text)) return false;
-      const auto ms = parse_int(text, 1, 600000);
-      if (!ms) {
-        err << prefix << ": --timeout must be milliseconds from 1 to 600000, got '" << text << "'\n";
-        return false;
-      }
-      options.timeout = std::chrono::milliseconds(*ms);
-    } else if (arg == "--token") {
-      if (!next(options.token)) return false;
-    } else if (arg == "--token-file") {
-      if (!next(token_file)) return false;
-      options.token = read_token_file(token_file);
-      if (options.token.empty()) {
-        err << prefix << ": cannot read a token from --token-file " << token_file << "\n";
-        return false;
-      }
-    } else if (bool ok = true; parse_tls_option(arg, next, options.tls, ok)) {
-      if (!ok) return false;
-    } else if (!extra || !extra(arg, next)) {
-      err << prefix << ": unknown option '" << arg << "' (see --help)\n";
-      return false;
-    }
-  }
-  if (options.help) return true;
-  if (const auto problem = finish_tls_options(options.tls, options.host, options.port); !problem.empty()) {
-    err << prefix << ": " << problem << "\n";
-    return false;
+void add_robot_options(CLI::App& app, RobotOptions& options) {
+  app.add_option("--host", options.host,
+                 "the robot: HOST, HOST:PORT or https://HOST[:PORT] (default 127.0.0.1; TLS with https://)");
+  app.add_option("--port", options.port, "its port (default 8000)")->check(CLI::Range(1, 65535));
+  app.add_option("--token", options.token, "the bearer token (or --token-file, or $RCAND_TOKEN)");
+  app.add_option("--token-file", options.token_file, "a file holding the token");
+  app.add_flag("--json", options.json, "print the robot's answer as one JSON line");
+  app.add_option_function<int>(
+         "--timeout", [&options](const int& ms) { options.timeout = std::chrono::milliseconds(ms); },
+         "milliseconds to wait for the robot (default " + std::to_string(options.timeout.count()) + ")")
+      ->check(CLI::Range(1, 600000));
+  add_tls_options(app, options.tls);
+}
+
+std::string finish_robot_options(RobotOptions& options) {
+  if (auto problem = finish_tls_options(options.tls, options.host, options.port); !problem.empty()) return problem;
+  if (!options.token_file.empty()) {
+    options.token = read_token_file(options.token_file);
+    if (options.token.empty()) return "cannot read a token from --token-file " + options.token_file;
   }
   if (options.token.empty())
     if (const char* env = std::getenv("RCAND_TOKEN")) options.token = env;
-  if (options.token.empty()) {
-    err << prefix << ": a token is required: --token TOKEN, --token-file FILE or $RCAND_TOKEN\n";
-    return false;
-  }
-  return true;
+  if (options.token.empty()) return "a token is required: --token TOKEN, --token-file FILE or $RCAND_TOKEN";
+  return {};
+}
+
+std::optional<int> parse_robot_command(CLI::App& app, std::span<const std::string> args, RobotOptions& options) {
+  if (auto done = parse_command_line(app, args, std::cout, std::cerr)) return done;
+  if (const auto problem = finish_robot_options(options); !problem.empty()) return usage_error(app, problem, std::cerr);
+  return std::nullopt;
 }
 
 RobotAnswer call_robot(const RobotOptions& options, std::string_view method, std::string_view target, const json& body) {

@@ -14,6 +14,7 @@
 #include <string>
 #include <string_view>
 
+#include "command_line.hpp"
 #include "tls_options.hpp"
 
 namespace rcand::rcanctl {
@@ -22,15 +23,11 @@ struct RobotOptions {
   std::string host = "127.0.0.1";
   std::uint16_t port = 8000;
   std::string token;
+  std::string token_file;
   bool json = false;
-  bool help = false;
   std::chrono::milliseconds timeout{5000};
   TlsOptions tls;  // --cacert/--cert/--key, https:// hosts (tls_options.hpp)
 };
-
-// Called for an option the common parser does not know: `next` yields its value (false after writing the error).
-// Returns false when the option is unknown to the subcommand too.
-using ExtraOption = std::function<bool(const std::string& option, const std::function<bool(std::string&)>& next)>;
 
 // `text` as a whole integer in [low, high] (option values: ports, milliseconds); nullopt otherwise.
 std::optional<int> parse_int(std::string_view text, int low, int high);
@@ -38,10 +35,17 @@ std::optional<int> parse_int(std::string_view text, int low, int high);
 // The token in `path` without its line end; "" when the file cannot be read or is empty.
 std::string read_token_file(const std::string& path);
 
-// Parses `args`; on a usage error writes "<prefix>: what" to `err` and returns false. The token is required unless
-// --help was given.
-bool parse_robot_options(std::span<const std::string> args, std::string_view prefix, const ExtraOption& extra,
-                         RobotOptions& options, std::ostream& err);
+// Declares the connection options on `app`: --host, --port, --token, --token-file, --json, --timeout, --cacert,
+// --cert, --key (into `options`, which must outlive the parse).
+void add_robot_options(CLI::App& app, RobotOptions& options);
+
+// After the parse: HOST:PORT and https:// hosts, the TLS files, the token (--token-file, $RCAND_TOKEN; required).
+// An error message, or "".
+std::string finish_robot_options(RobotOptions& options);
+
+// add_robot_options' options parsed and finished: nullopt to go on, else the exit code (0 after --help, 2 after one
+// line naming the usage error).
+std::optional<int> parse_robot_command(CLI::App& app, std::span<const std::string> args, RobotOptions& options);
 
 struct RobotAnswer {
   int status = 0;       // 0: no answer (unreachable, timed out)

@@ -5,6 +5,8 @@
 // name the host given (a .local name is checked as the name, not as the address it resolved to).
 #pragma once
 
+#include <CLI/CLI.hpp>
+
 #include <cstdint>
 #include <functional>
 #include <optional>
@@ -20,17 +22,14 @@ struct TlsOptions {
   std::string ca_file, cert_file, key_file;
 };
 
-inline constexpr const char* kTlsOptionsUsage =
-    "  TLS: --host https://HOST[:PORT], or --cacert FILE (the CA that signed the robot's certificate; default the\n"
-    "  system's CAs), --cert FILE --key FILE for mutual TLS ($RCAND_CACERT, $RCAND_CERT, $RCAND_KEY supply them).\n";
+// Declares --cacert, --cert and --key on `app` (into `tls`).
+void add_tls_options(CLI::App& app, TlsOptions& tls);
 
-// --cacert, --cert or --key: takes its value through `next` and returns true (`ok` false when the value is missing);
-// false for any other option.
-bool parse_tls_option(const std::string& option, const std::function<bool(std::string&)>& next, TlsOptions& tls, bool& ok);
-
-// After the options: splits a scheme (and port) off `host` ("https://alex.local:8443"), fills the files from the
-// environment. An error message ("--host: ...") or "".
+// After the options: splits a scheme and a port off `host` ("https://alex.local:8443", "127.0.0.1:8000"), fills the
+// files from the environment. An error message ("--host: ...") or "".
 std::string finish_tls_options(TlsOptions& tls, std::string& host, std::uint16_t& port);
+// The files from the environment ($RCAND_CACERT, ...) and their consistency check; part of finish_tls_options.
+std::string finish_tls_files(TlsOptions& tls);
 
 // The client settings for `host`, or nullopt without TLS.
 std::optional<http::ClientTlsSettings> client_tls(const TlsOptions& tls, const std::string& host);

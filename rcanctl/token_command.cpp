@@ -8,6 +8,7 @@
 #include <string_view>
 #include <vector>
 
+#include "command_line.hpp"
 #include "exit_codes.hpp"
 #include "libs/rcan/crypto.hpp"
 #include "libs/rcan/jwt.hpp"
@@ -21,14 +22,24 @@ namespace {
 
 namespace sdk = rcand::sdk;
 
-constexpr std::string_view kTokenUsage =
-    "usage: rcanctl token issue --secret-file FILE --role ROLE [--ttl 1h] [--aud RURI] [--sub NAME]\n"
-    "                           [--scope a,b] [--fleet id,...]\n"
-    "         print an HS256 JWT signed with the secret in FILE (trailing newline ignored).\n"
-    "         ROLE: creator|owner|leasee|user|guest; --ttl: 30s, 15m, 1h, 7d (default 1h);\n"
-    "         --aud default rcan://* (every robot); --sub default rcanctl; --scope default: the role's scopes.\n"
-    "       rcanctl token hash    read a token on stdin, print its SHA-256 (for runtime.auth.tokens[].sha256)\n"
-    "       rcanctl token new     print a new random token; its sha256 line for the config goes to stderr\n";
+// What `rcanctl token issue` was given (unset: its default).
+struct IssueArgs {
+  std::optional<std::string> secret_file, role_text, ttl_text, aud, sub, scope_text, fleet_text;
+};
+
+void add_issue_options(CLI::App& issue, IssueArgs& a) {
+  const auto text = [&issue](const char* name, std::optional<std::string>& into, const char* what) {
+    issue.add_option_function<std::string>(
+        name, [&into](const std::string& value) { into = value; }, what);
+  };
+  text("--secret-file", a.secret_file, "the HS256 secret (trailing newline ignored); required");
+  text("--role", a.role_text, "creator, owner, leasee, user or guest; required");
+  text("--ttl", a.ttl_text, "lifetime: 30s, 15m, 1h, 7d (default 1h)");
+  text("--aud", a.aud, "the robot(s) it is for, an RURI (default rcan://*, every robot)");
+  text("--sub", a.sub, "whom it names (default rcanctl)");
+  text("--scope", a.scope_text, "scopes, comma-separated: status, control, config, training, admin (default the role's)");
+  text("--fleet", a.fleet_text, "device ids it is limited to, comma-separated");
+}
 
 std::vector<std::string> split_list(std::string_view text) {
   std::vector<std::string> items;
@@ -66,41 +77,10 @@ std::string strip_trailing_newlines(std::string text) {
   return text;
 }
 
-int issue(std::span<const std::string> args, std::ostream& out, std::ostream& err) {
-  std::optional<std::string> secret_file, role_text, ttl_text, aud, sub, scope_text, fleet_text;
-  const std::pair<std::string_view, std::optional<std::string>*> options[] = {
-      {"--secret-file", &secret_file}, {"--role", &role_text}, {"--ttl", &ttl_text},       {"--aud", &aud},
-      {"--sub", &sub},                 {"--scope", &scope_text}, {"--fleet", &fleet_text}};
-  for (std::size_t i = 0; i < args.size(); ++i) {
-    std::string_view word = args[i];
-    if (word == "--help" || word == "-h") {
-      out << kTokenUsage;
-      return kExitOk;
-    }
-    std::optional<std::string> inline_value;
-    if (const std::size_t eq = word.find('='); word.starts_with("--") && eq != std::string_view::npos) {
-      inline_value = std::string(word.substr(eq + 1));
-      word = word.substr(0, eq);
-    }
-    std::optional<std::string>* slot = nullptr;
-    for (const auto& [name, target] : options)
-      if (word == name) slot = target;
-    if (slot == nullptr) {
-      err << "rcanctl token issue: unknown option '" << word << "'\n" << kTokenUsage;
-      return kExitUsage;
-    }
-    if (!inline_value) {
-      if (i + 1 >= args.size()) {
-        err << "rcanctl token issue: option '" << word << "' needs a value\n";
-        return kExitUsage;
-      }
-      inline_value = args[++i];
-    }
-    *slot = std::move(inline_value);
-  }
-
+int issue(const IssueArgs& a, std::ostream& out, std::ostream& err) {
+  const auto& [secret_file, role_text, ttl_text, aud, sub, scope_text, fleet_text] = a;
   if (!secret_file) {
-    err << "rcanctl token issue: --secret-file FILE is required\n" << kTokenUsage;
+    err << "rcanctl token issue: --secret-file FILE is required\n";
     return kExitUsage;
   }
   if (!role_text) {
@@ -109,8 +89,7 @@ int issue(std::span<const std::string> args, std::ostream& out, std::ostream& er
   }
   const std::optional<sdk::Role> role = sdk::parse_role(*role_text);
   if (!role) {
-    err << "rcanctl token issue: --role '" << *role_text
-        << "' is not a role; use creator, owner, leasee, user or guest\n";
+    err << "rcanctl token issue: --role '" << *role_text << "' is not a role; use creator, owner, leasee, user or guest\n";
     return kExitUsage;
   }
   const std::optional<std::int64_t> ttl = parse_ttl(ttl_text.value_or("1h"));
@@ -137,13 +116,12 @@ int issue(std::span<const std::string> args, std::ostream& out, std::ostream& er
     for (const std::string& name : split_list(*scope_text)) {
       const std::optional<sdk::Scope> scope = sdk::parse_scope(name);
       if (!scope || *scope == sdk::Scope::None) {
-        err << "rcanctl token issue: --scope '" << name
-            << "' is not a scope; use status, control, config, training or admin\n";
+        err << "rcanctl token issue: --scope '" << name << "' is not a scope; use status, control, config, training or admin\n";
         return kExitUsage;
       }
       if (!sdk::role_grants(*role, *scope)) {  // the robot would refuse it anyway: say so now
-        err << "rcanctl token issue: --scope '" << name << "' needs role "
-            << sdk::role_name(sdk::minimum_role(*scope)) << " or higher, but --role is " << claims.role << "\n";
+        err << "rcanctl token issue: --scope '" << name << "' needs role " << sdk::role_name(sdk::minimum_role(*scope))
+            << " or higher, but --role is " << claims.role << "\n";
         return kExitUsage;
       }
       claims.scope.emplace_back(sdk::scope_name(*scope));
@@ -175,11 +153,7 @@ int issue(std::span<const std::string> args, std::ostream& out, std::ostream& er
   return kExitOk;
 }
 
-int hash(std::span<const std::string> args, std::istream& in, std::ostream& out, std::ostream& err) {
-  if (!args.empty()) {
-    err << "rcanctl token hash: takes no arguments (the token is read from stdin)\n";
-    return kExitUsage;
-  }
+int hash(std::istream& in, std::ostream& out, std::ostream& err) {
   const std::string token = strip_trailing_newlines({std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()});
   if (token.empty()) {
     err << "rcanctl token hash: no token on stdin (try: rcanctl token new, or echo -n TOKEN | rcanctl token hash)\n";
@@ -189,11 +163,7 @@ int hash(std::span<const std::string> args, std::istream& in, std::ostream& out,
   return kExitOk;
 }
 
-int make_new(std::span<const std::string> args, std::ostream& out, std::ostream& err) {
-  if (!args.empty()) {
-    err << "rcanctl token new: takes no arguments\n";
-    return kExitUsage;
-  }
+int make_new(std::ostream& out, std::ostream& err) {
   const std::string token = rcand::random_hex(32);
   out << token << "\n";
   err << "sha256: " << rcand::sha256_hex(token) << "\n";  // paste under runtime.auth.tokens[]
@@ -204,21 +174,18 @@ int make_new(std::span<const std::string> args, std::ostream& out, std::ostream&
 
 int run_token(std::span<const std::string> args, std::istream& in, std::ostream& out, std::ostream& err) {
   try {
-    if (args.empty()) {
-      err << kTokenUsage;
-      return kExitUsage;
-    }
-    const std::string_view action = args.front();
-    const std::span<const std::string> rest = args.subspan(1);
-    if (action == "--help" || action == "-h" || action == "help") {
-      out << kTokenUsage;
-      return kExitOk;
-    }
-    if (action == "issue") return issue(rest, out, err);
-    if (action == "hash") return hash(rest, in, out, err);
-    if (action == "new") return make_new(rest, out, err);
-    err << "rcanctl token: unknown action '" << action << "'\n" << kTokenUsage;
-    return kExitUsage;
+    const auto app = make_command_app("rcanctl token", "Tokens for rcand: JWTs, and pre-shared tokens with their hashes.",
+                                      "Exit: 0 done, 1 failed, 2 usage.");
+    IssueArgs issue_args;
+    add_issue_options(*app->add_subcommand("issue", "print an HS256 JWT signed with the secret in --secret-file"), issue_args);
+    app->add_subcommand("hash", "read a token on stdin, print its SHA-256 (for runtime.auth.tokens[].sha256)");
+    app->add_subcommand("new", "print a new random token; its sha256 line for the config goes to stderr");
+    app->require_subcommand(1);
+    if (auto done = parse_command_line(*app, args, out, err)) return *done;
+    const std::string action = app->get_subcommands().front()->get_name();
+    if (action == "issue") return issue(issue_args, out, err);
+    if (action == "hash") return hash(in, out, err);
+    return make_new(out, err);
   } catch (const std::exception& e) {
     err << "rcanctl token: " << e.what() << "\n";
     return kExitFailure;

@@ -13,7 +13,9 @@
 #include <iostream>
 #include <optional>
 
+#include "command_line.hpp"
 #include "exit_codes.hpp"
+#include "human_format.hpp"
 #include "libs/http/connection_stream.hpp"
 #include "libs/http/tls_context.hpp"
 #include "robot_connection.hpp"
@@ -27,30 +29,15 @@ namespace beast = boost::beast;
 namespace websocket = boost::beast::websocket;
 using nlohmann::json;
 
-constexpr std::string_view kWatchUsage =
-    "usage: rcanctl watch [--host HOST] [--port PORT] (--token T | --token-file FILE) [--json] [--frames N] [--timeout MS]\n"
-    "  Live telemetry from WS /ws/telemetry (a frame every 200 ms, and at once on an e-stop): a table redrawn in place,\n"
-    "  one line per frame when the output is not a terminal, or each frame as one JSON line with --json.\n"
-    "  --frames N stops after N frames; otherwise it runs until Ctrl-C. --timeout: connecting, and the longest gap\n"
-    "  between frames before the connection counts as lost (default 5000). HOST default 127.0.0.1, PORT 8000,\n"
-    "  the token may also come from $RCAND_TOKEN (any role: telemetry needs the status scope).\n"
-    "  Exit: 0 after --frames N or Ctrl-C, 1 refused (401/403), unreachable or connection lost, 2 usage.\n"
-    "  TLS (wss): --host https://HOST[:PORT], or --cacert FILE (default the system's CAs), --cert FILE --key FILE for\n"
-    "  mutual TLS ($RCAND_CACERT, $RCAND_CERT, $RCAND_KEY supply them).\n";
-
 std::atomic<bool> watch_interrupted{false};
 extern "C" void on_watch_interrupt(int) { watch_interrupted.store(true); }
 
-std::string cell(const json& value) {
-  if (value.is_null()) return "-";
-  if (value.is_boolean()) return value.get<bool>() ? "yes" : "no";
-  return value.is_string() ? value.get<std::string>() : value.dump();
-}
+std::string watch_cell(const json& value) { return human_text(value); }
 
 std::string states(const json& map) {
   std::string text;
   if (map.is_object())
-    for (const auto& [name, state] : map.items()) text += (text.empty() ? "" : " ") + name + "=" + cell(state);
+    for (const auto& [name, state] : map.items()) text += (text.empty() ? "" : " ") + name + "=" + watch_cell(state);
   return text.empty() ? "-" : text;
 }
 
@@ -67,24 +54,26 @@ void print_table(json frame, std::ostream& out) {
   out << "\x1b[H\x1b[2J";  // home and clear: the table is redrawn in place
   print_text_table({{"field", "value"},
                     {"estopped", frame["estopped"] == true ? "YES" : "no"},
-                    {"state", cell(frame["state"])},
-                    {"nav_running", cell(frame["nav_running"])},
+                    {"state", watch_cell(frame["state"])},
+                    {"nav_running", watch_cell(frame["nav_running"])},
                     {"pose", pose_text(frame["pose"])},
-                    {"obstacles", cell(frame["obstacles"])},
-                    {"battery_v", cell(frame["battery_v"])},
+                    {"obstacles", watch_cell(frame["obstacles"])},
+                    {"battery_v", watch_cell(frame["battery_v"])},
                     {"capabilities", states(frame["capabilities"])},
                     {"drivers", states(frame["drivers"])},
-                    {"uptime_s", cell(frame["uptime_s"])},
-                    {"seq / event", cell(frame["seq"]) + " / " + cell(frame["event"])}},
+                    {"uptime_s", watch_cell(frame["uptime_s"])},
+                    {"seq / event", watch_cell(frame["seq"]) + " / " + watch_cell(frame["event"])}},
                    out);
   if (frame["estop"].is_object())
-    out << "\ne-stop: " << cell(frame["estop"]["reason"]) << " (by " << cell(frame["estop"]["source"]) << ")\n";
+    out << "\ne-stop since " << human_time(frame["estop"]["since_ms"]) << ": " << watch_cell(frame["estop"]["reason"]) << " (by "
+        << watch_cell(frame["estop"]["source"]) << ")\n";
   out << "\nCtrl-C to quit" << std::flush;
 }
 
 void print_line(json frame, std::ostream& out) {
-  out << "seq " << cell(frame["seq"]) << "  " << cell(frame["event"]) << "  estopped " << cell(frame["estopped"]) << "  state "
-      << cell(frame["state"]) << "  nav " << cell(frame["nav_running"]) << "  pose " << pose_text(frame["pose"]) << std::endl;
+  out << "seq " << watch_cell(frame["seq"]) << "  " << watch_cell(frame["event"]) << "  estopped "
+      << watch_cell(frame["estopped"]) << "  state " << watch_cell(frame["state"]) << "  nav " << watch_cell(frame["nav_running"])
+      << "  pose " << pose_text(frame["pose"]) << std::endl;
 }
 
 // Runs the io_context until `done` or `limit`; false when the limit passed first (or Ctrl-C).
@@ -102,22 +91,18 @@ bool run_until(net::io_context& io, const bool& done, std::chrono::milliseconds 
 int run_watch(std::span<const std::string> args) {
   RobotOptions options;
   std::optional<int> frames_wanted;
-  const ExtraOption extra = [&](const std::string& option, const std::function<bool(std::string&)>& next) {
-    if (option != "--frames") return false;
-    std::string text;
-    if (!next(text)) return false;
-    frames_wanted = parse_int(text, 1, 1000000000);
-    if (!frames_wanted) std::cerr << "rcanctl watch: --frames must be a positive integer, got '" << text << "'\n";
-    return frames_wanted.has_value();
-  };
-  if (!parse_robot_options(args, "rcanctl watch", extra, options, std::cerr)) {
-    std::cerr << kWatchUsage;
-    return kExitUsage;
-  }
-  if (options.help) {
-    std::cout << kWatchUsage;
-    return kExitOk;
-  }
+  const auto app = make_command_app(
+      "rcanctl watch",
+      "Live telemetry from WS /ws/telemetry (a frame every 200 ms, and at once on an e-stop): a table redrawn in\n"
+      "place, one line per frame when the output is not a terminal, or each frame as one JSON line with --json.",
+      "--timeout: connecting, and the longest gap between frames before the connection counts as lost.\n"
+      "The token may be any role's: telemetry needs the status scope. TLS (wss) with https:// hosts or --cacert.\n"
+      "Exit: 0 after --frames N or Ctrl-C, 1 refused (401/403), unreachable or connection lost, 2 usage.");
+  app->add_option_function<int>(
+         "--frames", [&frames_wanted](const int& count) { frames_wanted = count; }, "stop after N frames (default: Ctrl-C)")
+      ->check(CLI::Range(1, 1000000000));
+  add_robot_options(*app, options);
+  if (auto done = parse_robot_command(*app, args, options)) return *done;
   const std::string where = options.host + ":" + std::to_string(options.port);
   net::io_context io;
   // wss when TLS is asked for: the robot's certificate verified before the upgrade (and its token) is sent.

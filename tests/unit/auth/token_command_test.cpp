@@ -28,7 +28,6 @@ namespace {
 
 using rcand::test::TempDir;
 
-
 struct Run {
   int code = -1;
   std::string out, err;
@@ -172,10 +171,10 @@ TEST_CASE("token issue: usage and input errors exit 2 with a clear message and n
            {{"issue", "--secret-file", s, "--role", "user", "--scope", "config"}, "needs role OWNER"},
            {{"issue", "--secret-file", s, "--role", "owner", "--scope", ","}, "no scope"},
            {{"issue", "--secret-file", s, "--role", "owner", "--fleet", ""}, "no device id"},
-           {{"issue", "--secret-file", s, "--role", "owner", "--bogus", "1"}, "unknown option"},
-           {{"issue", "--secret-file", s, "--role"}, "needs a value"},
+           {{"issue", "--secret-file", s, "--role", "owner", "--bogus", "1"}, "unknown option '--bogus'"},
+           {{"issue", "--secret-file", s, "--role"}, "--role: 1 required TEXT missing"},
            {{"frobnicate"}, "unknown action"},
-           {{}, "usage"},
+           {{}, "subcommand is required"},
        }) {
     const Run run = token(c.args);
     INFO("args: ", doctest::toString(c.args.size()), " says: ", c.says, " stderr: ", run.err);
@@ -186,7 +185,12 @@ TEST_CASE("token issue: usage and input errors exit 2 with a clear message and n
   }
   const Run help = token({"--help"});
   CHECK(help.code == 0);
-  CHECK(help.out.find("token issue") != std::string::npos);
+  CHECK(help.out.find("rcanctl token") != std::string::npos);
+  CHECK(help.out.find("issue") != std::string::npos);
+  const Run issue_help = token({"issue", "--help"});  // every option, from the table that parses them
+  CHECK(issue_help.code == 0);
+  for (const char* option : {"--secret-file", "--role", "--ttl", "--aud", "--sub", "--scope", "--fleet"})
+    CHECK_MESSAGE(issue_help.out.find(option) != std::string::npos, option);
 }
 
 TEST_CASE("token hash and token new") {
