@@ -107,18 +107,16 @@ void print_understood(const json& row, std::ostream& out) {
   if (!answer.is_object() || !row.value("ok", false)) return;
   const std::string name = text_of(row, "name");
   if (answer.contains("raw_text")) out << name << ": understood: " << text_of(answer, "raw_text") << "\n";
+  // `action` is the action object ({"type": ...}), `request` the request the robot dispatched for it.
   const json action = answer.value("action", json());
   if (action.is_object()) {
-    std::string did = text_of(action, "method", "") + " " + text_of(action, "path", "");
-    if (action.contains("body") && !action["body"].is_null()) {
-      std::string fields;
-      if (action["body"].is_object())
-        for (const auto& [key, value] : action["body"].items())
-          fields += (fields.empty() ? "" : ", ") + key + " " + human_text(value);
-      did += " (" + (fields.empty() ? action["body"].dump() : fields) + ")";
-    }
-    out << "  action: " << did << "\n";
+    std::string fields;
+    for (const auto& [key, value] : action.items())
+      if (key != "type") fields += (fields.empty() ? "" : ", ") + key + " " + human_text(value);
+    out << "  action: " << text_of(action, "type", "?") << (fields.empty() ? "" : " (" + fields + ")") << "\n";
   }
+  const json request = answer.value("request", json());
+  if (request.is_object()) out << "  request: " << text_of(request, "method", "") << " " << text_of(request, "path", "") << "\n";
   if (answer.contains("result") && answer["result"].is_object())
     out << "  result: " << answer["result"].dump(-1, ' ', false, json::error_handler_t::replace) << "\n";
   if (answer.contains("thought_id")) out << "  thought: " << text_of(answer, "thought_id") << "\n";

@@ -306,7 +306,8 @@ TEST_CASE("rcanctl for people: one clear line for a bad value, HOST:PORT, local 
   INFO(commanded.out, commanded.err);
   CHECK(commanded.exit_code == 0);
   CHECK(commanded.out.find("understood: ") != std::string::npos);
-  CHECK(commanded.out.find("  action: POST /api/nav/waypoint (") != std::string::npos);
+  CHECK(commanded.out.find("  action: nav_waypoint (") != std::string::npos);
+  CHECK(commanded.out.find("  request: POST /api/nav/waypoint") != std::string::npos);
   CHECK(commanded.out.find("distance_m 1") != std::string::npos);
   CHECK(commanded.out.find(" done") != std::string::npos);
 }
