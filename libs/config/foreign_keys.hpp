@@ -19,3 +19,11 @@ struct ForeignKey {
 const ForeignKey* find_foreign_key(std::string_view key_path) noexcept;
 
 }  // namespace rcand::kernel::config_detail
+
+namespace rcand::kernel {
+
+// A key of a drivers[] entry that other runtimes write and no plugin of rcand's reads unless its settings schema
+// names it ("link_id", "frequency"): the plugin settings check ignores it with a warning instead of refusing it.
+bool is_foreign_driver_key(std::string_view key) noexcept;
+
+}  // namespace rcand::kernel
