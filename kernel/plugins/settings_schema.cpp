@@ -13,32 +13,14 @@ nlohmann::json plugin_settings(const RobotConfig& config, const std::string& plu
   const sdk::contract::SettingsRules rules{
       driver_entry ? std::span<const std::string_view>(sdk::contract::kDriverEntryKeys) : std::span<const std::string_view>(),
       driver_entry || strict ? UnknownKeys::Refuse : UnknownKeys::WarnUnlessNearMiss};
-  // Another runtime's keys (a driver entry's link_id, frequency, ...; camera.depth_enabled) are ignored with a warning,
-  // unless the plugin names them.
+  // Another runtime's keys (a driver entry's link_id, frequency; camera.depth_enabled): ignored with a warning.
   nlohmann::json own = settings;
-  std::vector<std::string> foreign;
-  if (own.is_object()) {
-    const nlohmann::json root = sdk::contract::settings_root(schema);
-    const nlohmann::json properties = root.value("properties", nlohmann::json::object());
-    for (auto it = own.begin(); it != own.end();) {
-      const bool named = properties.is_object() && properties.contains(it.key());
-      const bool others =
-          driver_entry ? is_foreign_driver_key(it.key()) : config_detail::find_foreign_key(path + "." + it.key()) != nullptr;
-      if (named || !others) {
-        ++it;
-        continue;
-      }
-      foreign.push_back(it.key());
-      it = own.erase(it);
-    }
-  }
+  const auto foreign = take_foreign_settings(
+      own, sdk::contract::settings_root(schema).value("properties", nlohmann::json::object()), driver_entry, path);
   auto result = sdk::contract::validate_settings(schema, own, rules);
-  if (!strict) result.ignored.insert(result.ignored.begin(), foreign.begin(), foreign.end());
-  else
-    for (const auto& key : foreign)
-      result.problems.push_back({key, "'" + key +
-                                          "' is another runtime's key, not a setting of this plugin "
-                                          "(--strict refuses it)"});
+  for (const auto& key : foreign)
+    if (strict) result.problems.push_back({key, "another runtime's key, not a setting of this plugin (--strict)"});
+    else result.ignored.push_back(key);
   const auto key_path = [&path](const std::string& key) {
     return key.empty() ? path : path + (key.front() == '[' ? "" : ".") + key;
   };

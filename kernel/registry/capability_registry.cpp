@@ -92,21 +92,27 @@ void add_declared_when(const RobotConfig& config, const ProviderLookup& lookup, 
     if (!config_flag_set(config.doc, key) || std::find(plan.names.begin(), plan.names.end(), name) != plan.names.end() ||
         std::find(plan.unadvertised.begin(), plan.unadvertised.end(), name) != plan.unadvertised.end())
       continue;
-    if (plan.auto_detected) {
-      plan.names.push_back(name);
-      plan.notes.push_back("'" + name + "' declared: " + key + " is true and an installed plugin declares it then");
-    } else {
-      plan.unadvertised.push_back(name);
-      plan.notes.push_back("'" + name + "' runs (" + key +
-                           " is true and an installed plugin serves it then) but is not "
-                           "advertised: rcan_protocol.capabilities does not list it");
-    }
+    (plan.auto_detected ? plan.names : plan.unadvertised).push_back(name);
+    plan.notes.push_back("'" + name + "' " + (plan.auto_detected ? "declared" : "runs, not advertised (not listed)") + ": " +
+                         key + " is true and an installed plugin declares it then");
   }
 }
 
-bool written_for_other_rcan(const RobotConfig& config) {
+// A listed name that is neither §9's nor reverse-domain: a typo (refused), or, in a file of another RCAN major version
+// and no near miss of a §9 name, that version's capability (true: not served, with a note).
+bool other_version_capability(const RobotConfig& config, const std::string& name, const std::string& path,
+                              std::vector<std::string>& notes) {
+  const auto close = closest_match(name, standard_names());
   const auto major = config_detail::rcan_major_version(config.rcan_version);
-  return major && *major != 1;
+  if (!close && major && *major != 1) {
+    notes.push_back(path + ": '" + name + "' is no RCAN 1.3 capability (the file is written for RCAN " + config.rcan_version +
+                    "): not served, not advertised");
+    return true;
+  }
+  std::string message = "'" + name + "' is neither a standard capability (" + join(standard_names(), ", ") +
+                        ") nor a reverse-domain custom name like com.acme.gripper (§9.4)";
+  if (close) message += "; did you mean '" + *close + "'?";
+  fail(config, path, message);
 }
 
 }  // namespace
@@ -159,18 +165,8 @@ CapabilityPlan plan_capabilities(const RobotConfig& config, const ProviderLookup
     const std::string& name = listed[i];
     const std::string path = "rcan_protocol.capabilities[" + std::to_string(i) + "]";
     const auto* standard = find_standard_capability(name);
-    if (standard == nullptr && !is_reverse_domain_name(name)) {
-      const auto close = closest_match(name, standard_names());
-      if (!close && written_for_other_rcan(config)) {  // that version's capability, not a typo of 1.3's
-        plan.notes.push_back(path + ": '" + name + "' is no RCAN 1.3 capability (the file is written for RCAN " +
-                             config.rcan_version + "): not served, not advertised");
-        continue;
-      }
-      std::string message = "'" + name + "' is neither a standard capability (" + join(standard_names(), ", ") +
-                            ") nor a reverse-domain custom name like com.acme.gripper (§9.4)";
-      if (close) message += "; did you mean '" + *close + "'?";
-      fail(config, path, message);
-    }
+    if (standard == nullptr && !is_reverse_domain_name(name) && other_version_capability(config, name, path, plan.notes))
+      continue;
     if (name == kNavCapability && !has_nav_physics(config))
       fail(config, path,
            "'nav' needs physics.wheel_circumference_m and physics.turn_time_per_deg_s (§10.2); add them or remove nav");

@@ -164,4 +164,22 @@ bool is_foreign_driver_key(std::string_view key) noexcept {
   return false;
 }
 
+std::vector<std::string> take_foreign_settings(nlohmann::json& settings, const nlohmann::json& properties, bool driver_entry,
+                                               const std::string& path) {
+  std::vector<std::string> taken;
+  if (!settings.is_object()) return taken;
+  for (auto it = settings.begin(); it != settings.end();) {
+    const bool named = properties.is_object() && properties.contains(it.key());
+    const bool others =
+        driver_entry ? is_foreign_driver_key(it.key()) : config_detail::find_foreign_key(path + "." + it.key()) != nullptr;
+    if (named || !others) {
+      ++it;
+      continue;
+    }
+    taken.push_back(it.key());
+    it = settings.erase(it);
+  }
+  return taken;
+}
+
 }  // namespace rcand::kernel

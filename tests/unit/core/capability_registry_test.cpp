@@ -174,7 +174,7 @@ TEST_CASE("a capability a plugin declares by itself joins the plan when its conf
     CHECK(plan.names == std::vector<std::string>{"status", "teleop"});
     CHECK(plan.unadvertised == std::vector<std::string>{"org.rcand.fleet"});
     bool noted = false;
-    for (auto& note : plan.notes) noted = noted || note.find("'org.rcand.fleet' runs") != std::string::npos;
+    for (auto& note : plan.notes) noted = noted || note.find("'org.rcand.fleet' runs, not advertised") != std::string::npos;
     CHECK(noted);
     const CapabilityRegistry registry({"rcan://x", "bob", "m"}, plan);
     CHECK(registry.served() == std::vector<std::string>{"status", "teleop", "org.rcand.fleet"});
