@@ -52,6 +52,7 @@ class ShapeReader {
     read_cameras_block();
     read_drivers();
     read_camera_type();
+    read_links();
   }
 
  private:
@@ -140,6 +141,36 @@ class ShapeReader {
     doc_.erase("cameras");
     erase_marks(marks_, "cameras");
     doc_["camera"] = std::move(camera);
+  }
+
+  // physics.kinematics[] links as the reference runtime writes them ({id, limits_deg: [min, max]}) also say
+  // {joint, min_deg, max_deg}, what the arm and the servo drivers read.
+  void read_links() {
+    const auto physics = doc_.find("physics");
+    if (physics == doc_.end() || !physics->is_object() || !physics->contains("kinematics")) return;
+    json& links = (*physics)["kinematics"];
+    if (!links.is_array()) return;
+    std::string named;
+    for (std::size_t i = 0; i < links.size(); ++i) {
+      json& link = links[i];
+      if (!link.is_object() || link.contains("joint") || !link.contains("id") || !link["id"].is_string()) continue;
+      const auto limits = link.find("limits_deg");
+      if (limits == link.end() || !limits->is_array() || limits->size() != 2 || !(*limits)[0].is_number() ||
+          !(*limits)[1].is_number())
+        continue;
+      const std::string path = item("physics.kinematics", i);
+      link["joint"] = link["id"];
+      link["min_deg"] = (*limits)[0];
+      link["max_deg"] = (*limits)[1];
+      if (const auto mark = marks_.find(path + ".id"); mark != marks_.end()) marks_[path + ".joint"] = mark->second;
+      if (const auto mark = marks_.find(path + ".limits_deg"); mark != marks_.end())
+        marks_[path + ".min_deg"] = marks_[path + ".max_deg"] = mark->second;
+      named += (named.empty() ? "" : ", ") + link["id"].get<std::string>();
+    }
+    if (!named.empty())
+      note("physics.kinematics", "physics.kinematics links " + named +
+                                     " (another runtime's {id, limits_deg}) are read "
+                                     "as joints {joint, min_deg, max_deg}; write those to say so");
   }
 
   // The reference runtime's names of the Raspberry Pi camera (a V4L2 device through libcamera) as camera.type.
