@@ -195,6 +195,7 @@ void Kernel::State::load_plugins(const KernelOptions& options) {
   for (const auto& note : plan.notes) log->info("{}", note);
 
   std::set<std::string> capabilities(plan.names.begin(), plan.names.end());
+  capabilities.insert(plan.unadvertised.begin(), plan.unadvertised.end());
   capabilities.erase(std::string(kStatusCapability));
   std::set<std::string> protocols;
   for (const auto& driver : config.drivers) protocols.insert(driver.protocol);
@@ -246,7 +247,7 @@ void Kernel::State::start_plugins() {
   halt_crew = std::make_unique<DeadlineCrew>(
       "estop.halt", std::move(halts), [priority = config.runtime.stop_path_priority] { enter_stop_path_priority(priority); });
   estop.use_halt_crew(halt_crew.get());
-  runtime->start_capabilities(registry->names(), config);
+  runtime->start_capabilities(registry->served(), config);
   estop.on_latched([runtime = runtime.get()] { runtime->notify_estop(); });
   // The latch record in runtime.state_dir follows every latch and clear (written off the stop path).
   estop.on_latched([this] {
@@ -328,7 +329,7 @@ Kernel::Kernel(RobotConfig config, KernelOptions options) : state_(std::make_uni
                                      static_cast<const sdk::RequestDispatcher*>(s.dispatcher.get()), nullptr, "rcand", nullptr);
   s.load_swarm();
   s.create_services(options);  // before the plugins: R2R offers them links
-  if (auto problems = s.runtime->plan_problems(cfg, s.registry->names()); !problems.empty())
+  if (auto problems = s.runtime->plan_problems(cfg, s.registry->served()); !problems.empty())
     throw ConfigError(std::move(problems));
   s.start_plugins();
   s.timers = std::make_unique<WorkerThread>("kernel.timers", nullptr);
@@ -362,7 +363,7 @@ Kernel::CheckReport Kernel::check(RobotConfig config, const KernelOptions& optio
   }
   s.load_plugins(options);
   PluginRuntime runtime(s.host, s.services, s.actuators);
-  auto problems = runtime.check(s.config, s.registry->names());
+  auto problems = runtime.check(s.config, s.registry->served());
   if (!problems.empty()) throw ConfigError(std::move(problems));
   CheckReport report{s.registry->names(), {}};
   for (const auto& driver : s.config.drivers)

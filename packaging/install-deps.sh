@@ -31,6 +31,7 @@ if [ "$tests" = 1 ]; then
     qemu-user-static                          # the arm64 packages' smoke run (packaging/build-arm64.sh)
     openssl                                   # the TLS tests' throwaway CA and certificates (tests/support/tls_lab.hpp)
     python3-jsonschema                        # the manifests against JSON Schema (tests/check_manifests.py)
+    python3-yaml                              # rcan-py's validator on the bundled config (tests/rcan_py_validate.py)
   )
 fi
 if [ "${1:-}" = "--checks" ]; then

@@ -330,6 +330,7 @@ std::vector<ConfigDiagnostic> PluginRuntime::check(const RobotConfig& config, co
     }
   };
   std::set<std::string> interfaces;  // what the configured actuating drivers provide
+  bool driver_unserved = false;      // then a capability's missing actuator is that driver: said once, by its error
   for (std::size_t i = 0; i < config.drivers.size(); ++i) {
     const auto& entry = config.drivers[i];
     const std::string path = "drivers[" + std::to_string(i) + "]";
@@ -337,6 +338,7 @@ std::vector<ConfigDiagnostic> PluginRuntime::check(const RobotConfig& config, co
         find_loaded(host_, host_.providers_of_driver(entry.protocol), &PluginRecord::drivers, entry.protocol);
     if (registered == nullptr) {
       problem(path + ".protocol", unserved(host_, "driver protocol", entry.protocol, plugin));
+      driver_unserved = true;
       continue;
     }
     if (registered->info.actuates) interfaces.insert(registered->info.interface);  // its settings: plan_problems()
@@ -349,7 +351,7 @@ std::vector<ConfigDiagnostic> PluginRuntime::check(const RobotConfig& config, co
       continue;
     }
     for (const auto& needed : plugin->manifest->requires_)
-      if (!interfaces.contains(needed))
+      if (!interfaces.contains(needed) && !driver_unserved)
         problem("rcan_protocol.capabilities",
                 "capability " + name + " requires a " + needed + " actuator, and no configured driver provides one");
     const nlohmann::json raw =

@@ -1,6 +1,7 @@
 #include "kernel/plugins/settings_schema.hpp"
 
 #include "libs/base/logging.hpp"
+#include "libs/config/foreign_keys.hpp"
 
 namespace rcand::kernel {
 
@@ -12,7 +13,14 @@ nlohmann::json plugin_settings(const RobotConfig& config, const std::string& plu
   const sdk::contract::SettingsRules rules{
       driver_entry ? std::span<const std::string_view>(sdk::contract::kDriverEntryKeys) : std::span<const std::string_view>(),
       driver_entry || strict ? UnknownKeys::Refuse : UnknownKeys::WarnUnlessNearMiss};
-  auto result = sdk::contract::validate_settings(schema, settings, rules);
+  // Another runtime's keys (a driver entry's link_id, frequency; camera.depth_enabled): ignored with a warning.
+  nlohmann::json own = settings;
+  const auto foreign = take_foreign_settings(
+      own, sdk::contract::settings_root(schema).value("properties", nlohmann::json::object()), driver_entry, path);
+  auto result = sdk::contract::validate_settings(schema, own, rules);
+  for (const auto& key : foreign)
+    if (strict) result.problems.push_back({key, "another runtime's key, not a setting of this plugin (--strict)"});
+    else result.ignored.push_back(key);
   const auto key_path = [&path](const std::string& key) {
     return key.empty() ? path : path + (key.front() == '[' ? "" : ".") + key;
   };

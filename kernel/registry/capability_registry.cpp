@@ -1,5 +1,7 @@
 #include "kernel/registry/capability_registry.hpp"
 
+#include "libs/config/config_schema.hpp"
+
 #include <algorithm>
 #include <array>
 #include <set>
@@ -82,14 +84,35 @@ bool config_flag_set(const nlohmann::json& doc, std::string_view dotted) {
 }
 
 // Plugins that declare a capability by themselves (a manifest's "declared_when": the fleet plugin on robots with
-// runtime.r2r.enabled) join the plan whether the list was written or auto-detected.
+// runtime.r2r.enabled) join an auto-detected list. Beside a written list that does not name them they run without
+// being advertised: what a robot advertises is what its file declares (§9.5), and one that wants to offer it lists it.
 void add_declared_when(const RobotConfig& config, const ProviderLookup& lookup, CapabilityPlan& plan) {
   if (!lookup.declared_when) return;
   for (const auto& [name, key] : lookup.declared_when()) {
-    if (!config_flag_set(config.doc, key) || std::find(plan.names.begin(), plan.names.end(), name) != plan.names.end()) continue;
-    plan.names.push_back(name);
-    plan.notes.push_back("'" + name + "' declared: " + key + " is true and an installed plugin declares it then");
+    if (!config_flag_set(config.doc, key) || std::find(plan.names.begin(), plan.names.end(), name) != plan.names.end() ||
+        std::find(plan.unadvertised.begin(), plan.unadvertised.end(), name) != plan.unadvertised.end())
+      continue;
+    (plan.auto_detected ? plan.names : plan.unadvertised).push_back(name);
+    plan.notes.push_back("'" + name + "' " + (plan.auto_detected ? "declared" : "runs, not advertised (not listed)") + ": " +
+                         key + " is true and an installed plugin declares it then");
   }
+}
+
+// A listed name that is neither §9's nor reverse-domain: a typo (refused), or, in a file of another RCAN major version
+// and no near miss of a §9 name, that version's capability (true: not served, with a note).
+bool other_version_capability(const RobotConfig& config, const std::string& name, const std::string& path,
+                              std::vector<std::string>& notes) {
+  const auto close = closest_match(name, standard_names());
+  const auto major = config_detail::rcan_major_version(config.rcan_version);
+  if (!close && major && *major != 1) {
+    notes.push_back(path + ": '" + name + "' is no RCAN 1.3 capability (the file is written for RCAN " + config.rcan_version +
+                    "): not served, not advertised");
+    return true;
+  }
+  std::string message = "'" + name + "' is neither a standard capability (" + join(standard_names(), ", ") +
+                        ") nor a reverse-domain custom name like com.acme.gripper (§9.4)";
+  if (close) message += "; did you mean '" + *close + "'?";
+  fail(config, path, message);
 }
 
 }  // namespace
@@ -142,12 +165,8 @@ CapabilityPlan plan_capabilities(const RobotConfig& config, const ProviderLookup
     const std::string& name = listed[i];
     const std::string path = "rcan_protocol.capabilities[" + std::to_string(i) + "]";
     const auto* standard = find_standard_capability(name);
-    if (standard == nullptr && !is_reverse_domain_name(name)) {
-      std::string message = "'" + name + "' is neither a standard capability (" + join(standard_names(), ", ") +
-                            ") nor a reverse-domain custom name like com.acme.gripper (§9.4)";
-      if (auto close = closest_match(name, standard_names())) message += "; did you mean '" + *close + "'?";
-      fail(config, path, message);
-    }
+    if (standard == nullptr && !is_reverse_domain_name(name) && other_version_capability(config, name, path, plan.notes))
+      continue;
     if (name == kNavCapability && !has_nav_physics(config))
       fail(config, path,
            "'nav' needs physics.wheel_circumference_m and physics.turn_time_per_deg_s (§10.2); add them or remove nav");
@@ -174,6 +193,12 @@ CapabilityPlan plan_capabilities(const RobotConfig& config, const ProviderLookup
 
 CapabilityRegistry::CapabilityRegistry(RobotIdentity identity, CapabilityPlan plan)
     : identity_(std::move(identity)), plan_(std::move(plan)) {}
+
+std::vector<std::string> CapabilityRegistry::served() const {
+  std::vector<std::string> all = plan_.names;
+  all.insert(all.end(), plan_.unadvertised.begin(), plan_.unadvertised.end());
+  return all;
+}
 
 bool CapabilityRegistry::declared(std::string_view name) const noexcept {
   return std::find(plan_.names.begin(), plan_.names.end(), name) != plan_.names.end();

@@ -39,7 +39,11 @@ struct ProviderLookup {
 };
 
 struct CapabilityPlan {
-  std::vector<std::string> names;  // what this robot declares, "status" first
+  std::vector<std::string> names;  // what this robot declares and advertises, "status" first
+  // Capabilities an installed plugin declares by itself (its manifest's "declared_when") that a written
+  // rcan_protocol.capabilities does not name: their plugins run (the fleet plugin's auctions on an R2R robot), but
+  // the robot advertises exactly the list it was given (§9.5).
+  std::vector<std::string> unadvertised;
   bool auto_detected = false;
   std::vector<std::string> notes;  // what was decided and why (logged at startup)
 };
@@ -48,7 +52,8 @@ struct CapabilityPlan {
 // kernel's own), and nav needs the §10.2 physics fields; violations throw ConfigError with file:line:column.
 // Absent list: §9.3 auto-detection, extended so any driver implementing differential_drive implies teleop (and nav
 // with physics); auto-detected capabilities without an installed provider are dropped with a note.
-// Either way, a capability an installed plugin declares by itself is added when its config key is true.
+// A capability an installed plugin declares by itself when its config key is true joins an auto-detected list, and
+// runs unadvertised beside a written one that does not name it.
 CapabilityPlan plan_capabilities(const RobotConfig& config, const ProviderLookup& lookup);
 
 struct RobotIdentity {
@@ -68,6 +73,8 @@ class CapabilityRegistry {
 
   bool declared(std::string_view name) const noexcept;
   const std::vector<std::string>& names() const noexcept { return plan_.names; }
+  // What runs: the declared capabilities, then the unadvertised ones (CapabilityPlan::unadvertised).
+  std::vector<std::string> served() const;
   const RobotIdentity& identity() const noexcept { return identity_; }
   // The scope a capability's routes need at least: its §9.2 scope, or Control for custom ones (§9.4).
   static sdk::Scope minimum_scope(std::string_view name) noexcept;

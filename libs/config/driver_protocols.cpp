@@ -70,12 +70,6 @@ constexpr std::array kUnserved{
     Unserved{"gpio_hcsr04",
              "an HC-SR04 ultrasonic ranger, a sensor: rcand's obstacle source is the camera's depth "
              "(camera.depth, plugin org.rcand.vision); remove the entry or add a sensor plugin"},
-    Unserved{"v4l2",
-             "a camera: rcand reads cameras from the `camera` block (plugin org.rcand.vision), not from "
-             "drivers; move it there"},
-    Unserved{"usb_camera",
-             "a camera: rcand reads cameras from the `camera` block (plugin org.rcand.vision), not from "
-             "drivers; move it there"},
 };
 
 }  // namespace

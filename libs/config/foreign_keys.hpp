@@ -4,7 +4,11 @@
 // being refused as a typo.
 #pragma once
 
+#include <nlohmann/json.hpp>
+
+#include <string>
 #include <string_view>
+#include <vector>
 
 namespace rcand::kernel::config_detail {
 
@@ -19,3 +23,16 @@ struct ForeignKey {
 const ForeignKey* find_foreign_key(std::string_view key_path) noexcept;
 
 }  // namespace rcand::kernel::config_detail
+
+namespace rcand::kernel {
+
+// A key of a drivers[] entry that other runtimes write and no plugin of rcand's reads unless its settings schema
+// names it ("link_id", "frequency"): the plugin settings check ignores it with a warning instead of refusing it.
+bool is_foreign_driver_key(std::string_view key) noexcept;
+
+// Takes out of `settings` (a plugin instance's, configured at `path`: "drivers[2]", "camera") the keys other runtimes
+// write there that the plugin's settings schema `properties` do not name, and returns their names.
+std::vector<std::string> take_foreign_settings(nlohmann::json& settings, const nlohmann::json& properties, bool driver_entry,
+                                               const std::string& path);
+
+}  // namespace rcand::kernel

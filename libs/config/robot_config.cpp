@@ -4,6 +4,7 @@
 #include "libs/config/config_defaults.hpp"
 #include "libs/config/config_fragments.hpp"
 #include "libs/config/config_schema.hpp"
+#include "libs/config/foreign_shapes.hpp"
 #include "libs/rcan/machine_identity.hpp"
 #include "libs/yaml/yaml_document.hpp"
 
@@ -265,6 +266,7 @@ LoadedConfig parse_robot_config(std::string_view yaml, const std::string& displa
     diagnostics.insert(diagnostics.end(), found.begin(), found.end());
     if (document.ok && patch.ok) merge_config_fragment(document, patch, fragment.display_name, diagnostics);
   }
+  if (document.ok) read_foreign_shapes(document, display_name, diagnostics);
   if (document.ok) config_detail::validate_config(document.doc, document.marks, display_name, diagnostics);
   sort_by_position(diagnostics);
   const bool has_error = std::any_of(diagnostics.begin(), diagnostics.end(),

@@ -25,7 +25,7 @@ http::Response failure(int status, std::string code, std::string message, std::s
 http::Response fleet_missing() {
   return error_response(503, "UNAVAILABLE",
                         "R2R auctions need the fleet plugin " + std::string(kFleetPlugin) +
-                            ", which is not running on this robot (install rcand-plugins-core: it is declared by itself "
+                            ", which is not running on this robot (install rcand-plugins-core: it runs by itself "
                             "when runtime.r2r.enabled is true, or list it in rcan_protocol.capabilities)",
                         json{{"plugin", std::string(kFleetPlugin)}});
 }

@@ -274,7 +274,8 @@ std::vector<CorpusEntry> corpus() {
   std::vector<CorpusEntry> entries;
   for (const auto& item :
        std::filesystem::recursive_directory_iterator(std::filesystem::path(RCAND_SOURCE_DIR) / "tests" / "configs"))
-    if (item.path().string().ends_with(".rcan.yaml")) entries.push_back(read_corpus_entry(item.path()));
+    if (item.path().string().ends_with(".rcan.yaml") && item.path().string().find("/opencastor/") == std::string::npos)
+      entries.push_back(read_corpus_entry(item.path()));  // opencastor/: the reference runtime's presets, as they are
   std::sort(entries.begin(), entries.end(), [](const auto& a, const auto& b) { return a.file < b.file; });
   return entries;
 }
@@ -301,7 +302,8 @@ TEST_CASE("tests/configs: every config gives the outcome its header states, with
     const std::string output = plain.out + plain.err;
     INFO(output);
     CHECK(plain.exit_code == (entry.outcome == "refuses" ? 1 : 0));
-    CHECK((output.find(": warning: ") != std::string::npos) == (entry.outcome == "warns"));
+    if (entry.outcome != "refuses")  // a refused file may carry warnings as well
+      CHECK((output.find(": warning: ") != std::string::npos) == (entry.outcome == "warns"));
     if (entry.outcome != "refuses") CHECK(plain.out.find("/" + name + ": OK (capabilities: ") != std::string::npos);
     for (const auto& text : entry.expect) CHECK_MESSAGE(output.find(text) != std::string::npos, "expected: " << text);
 

@@ -1,6 +1,7 @@
-// The auctions as a plugin (org.rcand.fleet) in a real rcand: declared by itself on robots with runtime.r2r.enabled
-// and only there (listing it as well changes nothing), a robot without it answers the auction endpoints 503 naming
-// it and keeps speaking R2R, and a vendor plugin's R2rLink::set_cost_function (SDK 1.0) still prices the bids.
+// The auctions as a plugin (org.rcand.fleet) in a real rcand: running on robots with runtime.r2r.enabled and only
+// there, advertised when the file lists it or its capabilities are auto-detected (issue 30), a robot without it answers the
+// auction endpoints 503 naming it and keeps speaking R2R, and a vendor plugin's R2rLink::set_cost_function (SDK 1.0) still prices
+// the bids.
 #include <doctest/doctest.h>
 
 #include <algorithm>
@@ -35,19 +36,36 @@ std::filesystem::path plugins_without_fleet(const TempDir& dir) {
 
 }  // namespace
 
-TEST_CASE("fleet plugin: declared by itself when runtime.r2r.enabled is true, and only then") {
+TEST_CASE("fleet plugin: runs when runtime.r2r.enabled is true; advertised as the file declares (issue 30)") {
   TempDir dir;
   const auto token = dir.write("r2r.token", "owner-token\n");
-  RcandProcess r2r_robot(r2r_robot_config("alpha", token));
+  // A written list that does not name it: it runs, and the three advertisements are the list as written.
+  const auto written = r2r_robot_config("alpha", token);
+  RcandProcess r2r_robot(written);
+  const json declared = written["rcan_protocol"]["capabilities"];
+  CHECK_FALSE(lists(declared, kFleet));
+  json expected = json::array({"status"});
+  for (const auto& name : declared)
+    if (name != "status") expected.push_back(name);
   const json discovery = r2r_robot.json("GET", "/api/discovery");
-  CHECK(lists(discovery["capabilities"], kFleet));
+  CHECK(discovery["capabilities"] == expected);
+  CHECK(discovery["txt_record"]["caps"] == [&] {
+    std::string caps;
+    for (const auto& name : expected) caps += (caps.empty() ? "" : ",") + name.get<std::string>();
+    return caps;
+  }());
   CHECK(r2r_robot.json("GET", "/api/status", "guest-token")["capabilities"][kFleet]["state"] != "failed");
 
   auto listed = r2r_robot_config("bravo", token);
-  listed["rcan_protocol"]["capabilities"].push_back(kFleet);  // written out as well: declared once
+  listed["rcan_protocol"]["capabilities"].push_back(kFleet);  // listed: advertised, once
   RcandProcess explicit_robot(listed);
   const json caps = explicit_robot.json("GET", "/api/discovery")["capabilities"];
   CHECK(std::count(caps.begin(), caps.end(), kFleet) == 1);
+
+  auto detected = r2r_robot_config("charlie", token);
+  detected["rcan_protocol"].erase("capabilities");  // auto-detected (§9.3): it declares itself
+  RcandProcess detected_robot(detected);
+  CHECK(lists(detected_robot.json("GET", "/api/discovery")["capabilities"], kFleet));
 
   RcandProcess plain(sim_config());  // no R2R: no auctions, and nothing declared for them
   CHECK_FALSE(lists(plain.json("GET", "/api/discovery")["capabilities"], kFleet));

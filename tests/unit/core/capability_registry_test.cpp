@@ -167,12 +167,29 @@ TEST_CASE("a capability a plugin declares by itself joins the plan when its conf
     for (auto& note : plan.notes) noted = noted || note.find("runtime.r2r.enabled is true") != std::string::npos;
     CHECK(noted);
   }
-  SUBCASE("explicit list, and listed as well: declared once") {
+  SUBCASE("explicit list without it: it runs, unadvertised; the three advertisements equal the list (issue 30)") {
     config.doc = {{"runtime", {{"r2r", {{"enabled", true}}}}}};
     config.capabilities = std::vector<std::string>{"teleop"};
-    CHECK(plan_capabilities(config, lookup).names == std::vector<std::string>{"status", "teleop", "org.rcand.fleet"});
+    const auto plan = plan_capabilities(config, lookup);
+    CHECK(plan.names == std::vector<std::string>{"status", "teleop"});
+    CHECK(plan.unadvertised == std::vector<std::string>{"org.rcand.fleet"});
+    bool noted = false;
+    for (auto& note : plan.notes) noted = noted || note.find("'org.rcand.fleet' runs, not advertised") != std::string::npos;
+    CHECK(noted);
+    const CapabilityRegistry registry({"rcan://x", "bob", "m"}, plan);
+    CHECK(registry.served() == std::vector<std::string>{"status", "teleop", "org.rcand.fleet"});
+    CHECK_FALSE(registry.declared("org.rcand.fleet"));
+    const auto ad = registry.advertise("ok", 8000);
+    CHECK(ad.config_view["rcan_protocol"]["capabilities"] == nlohmann::json{"status", "teleop"});
+    CHECK(ad.txt.at("caps") == "status,teleop");
+    CHECK(ad.discover["capabilities"] == nlohmann::json{"status", "teleop"});
+  }
+  SUBCASE("explicit list naming it: advertised, once") {
+    config.doc = {{"runtime", {{"r2r", {{"enabled", true}}}}}};
     config.capabilities = std::vector<std::string>{"org.rcand.fleet", "teleop"};
-    CHECK(plan_capabilities(config, lookup).names == std::vector<std::string>{"status", "org.rcand.fleet", "teleop"});
+    const auto plan = plan_capabilities(config, lookup);
+    CHECK(plan.names == std::vector<std::string>{"status", "org.rcand.fleet", "teleop"});
+    CHECK(plan.unadvertised.empty());
   }
   SUBCASE("the key false, absent or not a boolean: not declared") {
     for (const auto& doc : {nlohmann::json{{"runtime", {{"r2r", {{"enabled", false}}}}}}, nlohmann::json::object(),
@@ -204,6 +221,18 @@ TEST_CASE("explicit lists are validated with the config position") {
     CHECK(d.mark.column == 7);
     CHECK(d.message.find("did you mean 'nav'") != std::string::npos);
   }
+  SUBCASE("a bare name in an RCAN 1.x file is refused; in a file of another RCAN version it is that version's: not served") {
+    auto d = error_of({"status", "move"});
+    CHECK(d.message.find("'move' is neither a standard capability") != std::string::npos);
+    config.rcan_version = "3.0";
+    CHECK(error_of({"status", "navv"}).message.find("did you mean 'nav'") != std::string::npos);  // a typo still is one
+    config.capabilities = std::vector<std::string>{"status", "move", "teleop"};
+    const auto plan = plan_capabilities(config, installed_everything());
+    CHECK(plan.names == std::vector<std::string>{"status", "teleop"});
+    bool noted = false;
+    for (auto& note : plan.notes) noted = noted || note.find("'move' is no RCAN 1.3 capability") != std::string::npos;
+    CHECK(noted);
+  }
   SUBCASE("nav without §10.2 physics") {
     auto d = error_of({"status", "nav"});
     CHECK(d.message.find("wheel_circumference_m") != std::string::npos);
@@ -233,7 +262,8 @@ TEST_CASE("explicit lists are validated with the config position") {
 
 TEST_CASE("config view, mDNS TXT and DISCOVER agree over many configs") {
   std::mt19937 random(20261121);
-  const std::vector<std::string> pool{"status", "teleop", "nav", "vision", "chat", "arm", "com.acme.gripper", "io.opencastor.lidar"};
+  const std::vector<std::string> pool{
+      "status", "teleop", "nav", "vision", "chat", "arm", "com.acme.gripper", "io.opencastor.lidar"};
   for (int round = 0; round < 500; ++round) {
     auto config = base_config();
     if (random() % 2) {
@@ -256,7 +286,8 @@ TEST_CASE("config view, mDNS TXT and DISCOVER agree over many configs") {
     const auto ad = registry.advertise(round % 2 ? "idle" : "estop", 8000);
     require_consistent(ad);
     REQUIRE(ad.capabilities.front() == "status");
-    if (!has_nav_physics(config)) REQUIRE(std::find(ad.capabilities.begin(), ad.capabilities.end(), "nav") == ad.capabilities.end());
+    if (!has_nav_physics(config))
+      REQUIRE(std::find(ad.capabilities.begin(), ad.capabilities.end(), "nav") == ad.capabilities.end());
     for (const auto& name : ad.capabilities) REQUIRE(registry.declared(name));
   }
 }
