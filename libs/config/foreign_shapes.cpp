@@ -233,6 +233,13 @@ class ShapeReader {
     return std::nullopt;
   }
 
+  // Per-servo keys the reference runtime writes that a bus plugin of rcand reads under the same name in each
+  // `servos[]` item (plugins/feetech/settings.cpp); every other per-servo key is named as ignored.
+  static bool servo_key_carried(std::string_view protocol, std::string_view key) {
+    static constexpr std::array<std::string_view, 3> kFeetech{"model", "max_velocity_dps", "torque_limit_pct"};
+    return same_text(protocol, "feetech") && std::find(kFeetech.begin(), kFeetech.end(), key) != kFeetech.end();
+  }
+
   // Per-servo entries of one protocol on one port: one bus entry at the first one's place.
   NewEntry merge_servos(const json& drivers, const std::vector<std::size_t>& members, int bus_index) {
     const json& first = drivers[members.front()];
@@ -271,10 +278,15 @@ class ShapeReader {
         servo["max_deg"] = limits->second;
         limits_from += (limits_from.empty() ? "" : ", ") + joint;
       }
-      for (const auto& [key, value] : entry.items())
-        if (key != "id" && key != "protocol" && key != "port" && key != "baud_rate" && key != "hardware_id" && key != "link_id" &&
-            dropped.find(key) == std::string::npos)
+      for (const auto& [key, value] : entry.items()) {
+        if (servo_key_carried(protocol, key)) {
+          servo[key] = value;
+          bus.marks.emplace_back(path + "." + key, servo_path + "." + key);
+        } else if (key != "id" && key != "protocol" && key != "port" && key != "baud_rate" && key != "hardware_id" &&
+                   key != "link_id" && dropped.find(key) == std::string::npos) {
           dropped += (dropped.empty() ? "" : ", ") + key;
+        }
+      }
       if (entry.contains("baud_rate") && entry["baud_rate"] != first.value("baud_rate", json()))
         bus.value["baud_rate"] = entry["baud_rate"];  // one bus, one speed: left for the plugin to refuse if unlike
       listed += (listed.empty() ? "" : ", ") + entry["hardware_id"].dump() + " " + joint;
