@@ -120,6 +120,7 @@ Chat::Chat(sdk::PluginContext& ctx)
                       "runtime.handler_timeout_ms (chat keeps ",
                       kHandlerMargin.count(), " ms of it)");
   }
+  for (const auto& line : settings_.ignored) ctx_.log().warn(line);
   if (settings_.timeout_capped)
     ctx_.log().warn("runtime.capabilities.chat.timeout_ms is cut to ", settings_.timeout.count(),
                     " ms: the kernel answers 503 after runtime.handler_timeout_ms; raise that for slow models");

@@ -95,7 +95,7 @@ ChatSettings read_chat_settings(const sdk::ConfigView& own, const sdk::ConfigVie
   s.model = robot.get<std::string>("agent.model").value_or("");
   s.model_brains = read_model_brains(own.raw().value("brains", Json()), providers);
   s.phrases = read_phrases(own.raw().value("phrases", Json::array()));
-  s.gates = read_confidence_gates(robot);
+  s.gates = read_confidence_gates(robot, &s.ignored);
   s.hitl_gates = read_hitl_gates(robot);
   s.thought_log_size = static_cast<std::size_t>(own.get_or<long long>("thought_log_size", 256));
   s.hitl_limit = static_cast<std::size_t>(own.get_or<long long>("hitl_limit", 32));

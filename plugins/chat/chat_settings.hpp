@@ -37,6 +37,7 @@ struct ChatSettings {
   // (after which the kernel answers 503 itself) by kHandlerMargin, so chat always gives its own answer.
   std::chrono::milliseconds timeout{5000};
   bool timeout_capped = false;                   // timeout_ms was cut to fit runtime.handler_timeout_ms
+  std::vector<std::string> ignored;              // settings read and left out, each logged once at start
   std::vector<std::string> providers;            // agent.provider, then agent.fallbacks, then "grammar" (always last)
   std::string model;                             // agent.model ("" when not given)
   std::vector<ModelBrainSettings> model_brains;  // the HTTP brains among the providers (runtime.capabilities.chat.brains)

@@ -5,7 +5,7 @@
 
 namespace rcand::plugins::chat {
 
-std::vector<ConfidenceGate> read_confidence_gates(const sdk::ConfigView& robot_config) {
+std::vector<ConfidenceGate> read_confidence_gates(const sdk::ConfigView& robot_config, std::vector<std::string>* ignored) {
   const auto& raw = robot_config.raw();
   const auto agent = raw.find("agent");
   if (agent == raw.end() || !agent->is_object() || !agent->contains("confidence_gates")) return {};
@@ -29,6 +29,13 @@ std::vector<ConfidenceGate> read_confidence_gates(const sdk::ConfigView& robot_c
       else if (text == "escalate") gate.on_fail = ConfidenceGate::OnFail::Escalate;
       else if (text == "allow") gate.on_fail = ConfidenceGate::OnFail::Allow;
       else throw sdk::ConfigError(where + ".on_fail: one of block, escalate, allow");
+    }
+    if (const auto scope = item.find("scope"); scope != item.end() && scope->is_string() && *scope == "safety") {
+      if (ignored != nullptr)
+        ignored->push_back(where +
+                           ": scope 'safety' (the reference runtime's) would gate stops, which chat never holds "
+                           "back; this gate is ignored");
+      continue;
     }
     if (const auto scope = item.find("scope"); scope != item.end()) {
       gate.scope = scope->is_string() ? sdk::parse_scope(scope->get<std::string>()) : std::nullopt;

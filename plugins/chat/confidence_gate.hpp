@@ -26,8 +26,11 @@ struct ConfidenceGate {
   std::vector<std::string> capabilities;  // empty: every capability
 };
 
-// agent.confidence_gates of the robot config (absent: none). Throws sdk::ConfigError naming the item at fault.
-std::vector<ConfidenceGate> read_confidence_gates(const sdk::ConfigView& robot_config);
+// agent.confidence_gates of the robot config (absent: none). Throws sdk::ConfigError naming the item at fault. A gate
+// of the reference runtime's `safety` scope is left out with a line in `ignored`: it would gate stops, which chat never
+// holds back.
+std::vector<ConfidenceGate> read_confidence_gates(const sdk::ConfigView& robot_config,
+                                                  std::vector<std::string>* ignored = nullptr);
 
 struct GateVerdict {
   bool passed = true;                                              // no gate failed

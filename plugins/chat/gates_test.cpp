@@ -162,3 +162,18 @@ TEST_CASE("confidence gates: thresholds, a missing confidence is a miss, the str
     CHECK_THROWS_AS(read_confidence_gates(rcand::sdk::ConfigView(json{{"agent", {{"confidence_gates", {bad}}}}})),
                     rcand::sdk::ConfigError);
 }
+
+// Regression (issue 30 presets): groq_rover and dynamixel_arm passed --check-config, then chat refused to start on a
+// gate of scope `safety`.
+TEST_CASE("a confidence gate of the reference runtime's `safety` scope is ignored with a note, not refused at start") {
+  const rcand::sdk::ConfigView config(json{{"agent",
+                                            {{"confidence_gates",
+                                              {{{"scope", "control"}, {"min_confidence", 0.75}, {"on_fail", "block"}},
+                                               {{"scope", "safety"}, {"min_confidence", 0.9}, {"on_fail", "block"}}}}}}});
+  std::vector<std::string> ignored;
+  const auto gates = read_confidence_gates(config, &ignored);
+  REQUIRE(gates.size() == 1);
+  CHECK(gates[0].min_confidence == 0.75);
+  REQUIRE(ignored.size() == 1);
+  CHECK(ignored[0].find("agent.confidence_gates[1]: scope 'safety'") == 0);
+}
