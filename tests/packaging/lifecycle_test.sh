@@ -159,7 +159,7 @@ apt_in_root install --no-install-recommends librcand-sdk-dev rcand rcand-plugins
   cat "$work/apt.log"
   exit 1
 }
-check "librcand-sdk-dev brought dpkg-shlibdeps and file" in_root sh -c 'command -v dpkg-shlibdeps && command -v file' > /dev/null
+check "librcand-sdk-dev brought dpkg-shlibdeps and file" in_root sh -c 'command -v dpkg-shlibdeps > /dev/null && command -v file > /dev/null'
 vendor_build() {
   in_root sh -c 'cd /root && rcand-plugin new com.acme.lidar --kind capability > /dev/null &&
     cmake -S acme_lidar -B acme_lidar/build -G Ninja -DCMAKE_INSTALL_PREFIX=/usr -DBUILD_TESTING=OFF &&
