@@ -28,6 +28,7 @@ if [ "$tests" = 1 ]; then
     prometheus                                # promtool: GET /metrics checked with `promtool check metrics`
     systemd                                   # systemd-analyze: the packaged unit's verify and security checks
     debootstrap dpkg-dev apt-utils gpg file   # the packages' lifecycle test in a clean root, from a signed repository
+    lintian                                   # the packages and a vendor plugin's .deb: no lintian errors
     qemu-user-static                          # the arm64 packages' smoke run (packaging/build-arm64.sh)
     openssl                                   # the TLS tests' throwaway CA and certificates (tests/support/tls_lab.hpp)
     python3-jsonschema                        # the manifests against JSON Schema (tests/check_manifests.py)

@@ -3,7 +3,9 @@
 #include <algorithm>
 #include <array>
 #include <cctype>
+#include <charconv>
 #include <map>
+#include <optional>
 #include <set>
 #include <sstream>
 #include <tuple>
@@ -107,6 +109,16 @@ const ojson* value_at(const ojson& value, std::string_view name) {
   const std::string_view rest = end == std::string_view::npos ? std::string_view() : name.substr(end + 1);
   const bool each = segment.ends_with("[]");
   if (each) segment.remove_suffix(2);
+  std::optional<std::size_t> position;  // "resolution[1]": the item at that place of a positional list
+  if (const auto open = segment.rfind('['); !each && open != std::string_view::npos && segment.ends_with("]")) {
+    std::size_t index = 0;
+    const auto digits = segment.substr(open + 1, segment.size() - open - 2);
+    const auto [end_of, error] = std::from_chars(digits.data(), digits.data() + digits.size(), index);
+    if (error == std::errc() && end_of == digits.data() + digits.size() && !digits.empty()) {
+      position = index;
+      segment = segment.substr(0, open);
+    }
+  }
   std::vector<const ojson*> candidates;
   if (!value.is_object()) return nullptr;
   if (segment == "<name>") {
@@ -115,7 +127,10 @@ const ojson* value_at(const ojson& value, std::string_view name) {
     candidates.push_back(&*it);
   }
   for (const ojson* candidate : candidates) {
-    if (!each) {
+    if (position) {
+      if (candidate->is_array() && *position < candidate->size())
+        if (const ojson* found = value_at((*candidate)[*position], rest)) return found;
+    } else if (!each) {
       if (const ojson* found = value_at(*candidate, rest)) return found;
     } else if (candidate->is_array()) {
       for (const auto& element : *candidate)
@@ -300,6 +315,10 @@ class SchemaDoc {
   void walk(const ojson& node, const std::string& name, bool required, std::vector<Row>& rows, const std::string& where) {
     const std::string def = def_name(node);
     const ojson& n = !def.empty() && defs_.contains(def) ? defs_[def] : node;
+    if (n.contains("not") && n["not"] == ojson::object()) {  // a key that must not be set: a rule, not a setting
+      collect_rules(n, name);
+      return;
+    }
     if (shared(def)) {
       Row row{name, def + " (below)", "", "", required ? "yes" : "", node.value("description", n.value("description", "")), ""};
       if (node.contains("default")) row.fallback = text_of(node["default"]);

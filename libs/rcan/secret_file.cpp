@@ -4,8 +4,15 @@
 #include <iterator>
 
 #include "libs/base/file_exposure.hpp"
+#include "libs/rcan/crypto.hpp"
 
 namespace rcand {
+namespace {
+
+// SHA-256 of config/dev-jwt.secret (without its newline): the secret README.md's examples sign tokens with.
+constexpr std::string_view kDevelopmentSecretSha256 = "ae48e538c4146ada37a47ffc6f38889e8890935713cdfafc4cbf0d55526c0b56";
+
+}  // namespace
 
 SecretFile read_secret_file(const std::filesystem::path& path) {
   std::error_code ec;
@@ -17,7 +24,8 @@ SecretFile read_secret_file(const std::filesystem::path& path) {
   // Editors and `echo` add a newline nobody means as part of the key.
   while (!secret.empty() && (secret.back() == '\n' || secret.back() == '\r')) secret.pop_back();
   if (secret.empty()) return {std::nullopt, "secret file '" + path.string() + "' is empty", {}};
-  return {std::move(secret), {}, others_may_access(path, "this secret")};
+  if (sha256_hex(secret) == kDevelopmentSecretSha256) return {std::move(secret), {}, {}, true};
+  return {std::move(secret), {}, others_may_access(path, "this secret"), false};
 }
 
 }  // namespace rcand

@@ -4,7 +4,8 @@
 # packaging/make-apt-repo.sh (one sources.list line, as on a robot), checking what a robot builder relies on after each
 # step - the service user and its groups, the JWT secret, the unit's enablement and mask, the admin's config edits,
 # the state and log directories. The maintainer scripts run for real (dpkg, deb-systemd-helper, adduser); no
-# systemd runs in the root, as in any image build.
+# systemd runs in the root, as in any image build. Then a vendor's plugin .deb is made in the same root from
+# librcand-sdk-dev alone (its Depends must suffice for cpack).
 #   tests/packaging/lifecycle_test.sh BUILD_DIR
 # Needs root, debootstrap, cpack, dpkg-dev, apt-utils, gpg and a Debian mirror (RCAND_DEBIAN_MIRROR, default deb.debian.org). Where one is
 # missing it exits 77 (ctest: skipped, saying why), unless RCAND_REQUIRE_LIFECYCLE=1 (CI), which makes that a failure.
@@ -145,6 +146,33 @@ check "state and logs are gone" test ! -e "$root/var/lib/rcand" -a ! -e "$root/v
 check "neither enabled nor masked" bash -c "[ ! -L '$root$enabled_link' ] && [ ! -L '$root/etc/systemd/system/rcand.service' ]"
 check "no deb-systemd-helper state left" test ! -e "$root/var/lib/systemd/deb-systemd-helper-enabled/rcand.service.dsh-also"
 check "dpkg knows nothing of rcand" bash -c "! chroot '$root' dpkg-query -W rcand > /dev/null 2>&1"
+
+echo "== a vendor's plugin package, made in this root with librcand-sdk-dev (sdk/README.md's apt line, no Recommends)"
+# librcand-sdk-dev's Depends must bring what packaging a scaffolded plugin runs (cpack: dpkg-shlibdeps, file). The
+# unit test and lintian are left out here (vendor_loop_test runs both on the same template): a build of two sources
+# keeps this step near a minute.
+mkdir -p "$work/v3"
+cp "$work"/debs/librcand-sdk-dev_*.deb "$work/v3/"
+publish "$work/v3"
+apt_in_root install --no-install-recommends librcand-sdk-dev rcand rcand-plugins-core doctest-dev cmake g++ ninja-build \
+  > "$work/apt.log" 2>&1 || {
+  cat "$work/apt.log"
+  exit 1
+}
+check "librcand-sdk-dev brought dpkg-shlibdeps and file" in_root sh -c 'command -v dpkg-shlibdeps > /dev/null && command -v file > /dev/null'
+vendor_build() {
+  in_root sh -c 'cd /root && rcand-plugin new com.acme.lidar --kind capability > /dev/null &&
+    cmake -S acme_lidar -B acme_lidar/build -G Ninja -DCMAKE_INSTALL_PREFIX=/usr -DBUILD_TESTING=OFF &&
+    cmake --build acme_lidar/build && cpack --config acme_lidar/build/CPackConfig.cmake -B acme_lidar/debs' \
+    > "$work/vendor.log" 2>&1 || {
+    cat "$work/vendor.log"
+    return 1
+  }
+}
+check "rcand-plugin new, cmake and cpack make the plugin's .deb" vendor_build
+vendor_deb=$(find "$root/root/acme_lidar/debs" -maxdepth 1 -name 'acme-lidar_*.deb' 2> /dev/null | head -n 1)
+check "the .deb is there, with its copyright and changelog" \
+  bash -c "dpkg-deb -c '$vendor_deb' | grep -q './usr/share/doc/acme-lidar/changelog.Debian.gz'"
 
 echo "== a repository signed by another key"
 mkdir -m 0700 "$work/other.gnupg"

@@ -173,14 +173,25 @@ TEST_CASE("a scaffolded capability builds and tests against the installed SDK al
   for (const auto& entry : fs::directory_iterator(debs))
     if (entry.path().extension() == ".deb") deb = entry.path();
   REQUIRE_MESSAGE(!deb.empty(), "cpack made no .deb in " << debs.string());
-  CHECK(deb.filename().string().rfind("acme-lidar_0.1.0_", 0) == 0);
+  CHECK(deb.filename().string().rfind("acme-lidar_0.1.0-1_", 0) == 0);  // debian/changelog's revision
   const auto depends = run_tool("/usr/bin/dpkg-deb", {"--field", deb.string(), "Depends"});
   CHECK(depends.out.find(std::string("rcand-plugin-abi-") + RCAND_ABI_MAJOR_TEXT + " (>= " + RCAND_ABI_MAJOR_TEXT + "." +
                          RCAND_ABI_MINOR_TEXT + ")") != std::string::npos);
+  // Debian's own checks: no lintian errors (a copyright file, the changelog, a stripped library, a sane control file).
+  if (::access("/usr/bin/lintian", X_OK) == 0) {
+    const auto lint = run_tool("/usr/bin/lintian", {"--fail-on", "error", deb.string()});
+    INFO(lint.out, lint.err);
+    CHECK(lint.exit_code == 0);
+    CHECK(lint.out.find("E: ") == std::string::npos);
+  } else {
+    MESSAGE("SKIPPED: lintian on the plugin's .deb (lintian is not installed: packaging/install-deps.sh --tests)");
+  }
   const fs::path root = source / "root";
   REQUIRE(run_tool("/usr/bin/dpkg-deb", {"-x", deb.string(), root.string()}).exit_code == 0);
   const fs::path installed = root / "usr/lib" / RCAND_LIBRARY_ARCHITECTURE / "rcand/plugins";
   CHECK(fs::is_regular_file(installed / "com.acme.lidar.json"));
+  CHECK(fs::is_regular_file(root / "usr/share/doc/acme-lidar/copyright"));
+  CHECK(fs::is_regular_file(root / "usr/share/doc/acme-lidar/changelog.Debian.gz"));
   const auto served = run_tool(rcand::test::rcand_binary(), {"--check-plugins", "--plugin-path", installed.string()});
   INFO(served.out, served.err);
   CHECK(served.exit_code == 0);

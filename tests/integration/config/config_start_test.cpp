@@ -272,3 +272,33 @@ TEST_CASE("rcand --describe prints the settings table, what they claim, and name
   CHECK(unknown.err.find("--describe: no installed plugin provides 'roboclaw' (known: ") != std::string::npos);
   CHECK(unknown.err.find("dynamixel") != std::string::npos);
 }
+
+TEST_CASE("every setting of every bundled manifest has a description and an example or a default") {
+  const auto reference = run_tool(rcand_binary(), {"--describe", "--markdown", "--plugin-path", plugin_dir().string()});
+  REQUIRE(reference.exit_code == 0);
+  std::istringstream lines(reference.out);
+  std::size_t settings = 0;
+  std::vector<std::string> lacking;
+  for (std::string line; std::getline(lines, line);) {
+    if (!line.starts_with("| `")) continue;
+    std::vector<std::string> cells{""};  // | Setting | Type | Default | Example | Range | Required | Description |
+    for (std::size_t i = 1; i + 1 < line.size(); ++i) {
+      if (line[i] == '\\' && line[i + 1] == '|') cells.back() += line[++i];
+      else if (line[i] == '|') cells.emplace_back();
+      else cells.back() += line[i];
+    }
+    REQUIRE(cells.size() == 7);
+    for (auto& cell : cells) {
+      cell.erase(0, std::min(cell.size(), cell.find_first_not_of(' ')));
+      cell.erase(cell.find_last_not_of(' ') + 1);
+    }
+    if (cells[0].find(" as ") != std::string::npos) continue;  // "channels.left as Motor": a form's heading, no setting
+    ++settings;
+    if (cells[6].empty() || (cells[2].empty() && cells[3].empty())) lacking.push_back(cells[0]);
+  }
+  std::string names;
+  for (const auto& name : lacking) names += name + " ";
+  INFO("lacking a description, or both an example and a default: ", names);
+  CHECK(lacking.empty());
+  CHECK(settings >= 120);
+}

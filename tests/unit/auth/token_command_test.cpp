@@ -89,6 +89,29 @@ TEST_CASE("read_secret_file strips the trailing newline and refuses empty or mis
   CHECK(read_secret_file(shared).warning.empty());
 }
 
+TEST_CASE("the repository's development secret is used without a warning whatever its mode; a real one still warns") {
+  // A fresh clone: git keeps no mode, so config/dev-jwt.secret is 0644 there (README's first commands use it).
+  const TempDir dir{"rcand-auth-test"};
+  const fs::path development = dir.path() / "dev-jwt.secret";
+  fs::copy_file(fs::path(RCAND_SOURCE_DIR) / "config" / "dev-jwt.secret", development);
+  fs::permissions(development, fs::perms(0644));
+  const SecretFile read = read_secret_file(development);
+  REQUIRE(read.secret);
+  CHECK(read.development);
+  CHECK(read.warning.empty());
+  const Run issued = token({"issue", "--secret-file", development.string(), "--role", "owner"});
+  CHECK(issued.code == 0);
+  CHECK(issued.err.empty());
+  // Any other secret with that mode (even one byte away from it) still warns.
+  const fs::path real = dir.write("real.secret", *read.secret + "x\n");
+  fs::permissions(real, fs::perms(0644));
+  CHECK_FALSE(read_secret_file(real).development);
+  CHECK(read_secret_file(real).warning.find("other users may read") != std::string::npos);
+  const Run warned = token({"issue", "--secret-file", real.string(), "--role", "owner"});
+  CHECK(warned.code == 0);
+  CHECK(warned.err.find("warning: --secret-file: other users may read or write this secret") != std::string::npos);
+}
+
 TEST_CASE("token issue: defaults give the role's scopes, aud rcan://*, a 1 h lifetime") {
   const TempDir dir{"rcand-auth-test"};
   const fs::path secret = write_secret(dir, kFileSecret + "\n");
