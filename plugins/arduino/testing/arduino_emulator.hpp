@@ -15,7 +15,7 @@
 #include <thread>
 #include <vector>
 
-#include "protocol.hpp"
+#include "../protocol.hpp"  // not "protocol.hpp": a test may also have another plugin's folder (feetech) on its include path
 
 namespace rcand::plugins::arduino::testing {
 
