@@ -1,8 +1,10 @@
 // Issue 17 benchmarks on the fake buses CI has: halt() latency of the PCA9685 driver (fake register-map bus), the
 // Dynamixel driver (6 emulated servos on a pseudo-terminal, replies timed as on a 1 Mbps wire, status polls running)
 // and the GPIO H-bridge driver (fake chip); then a 100 Hz sync write + sync read loop for the 6 servos with its
-// jitter; the same for the Feetech driver (6 emulated STS3215 servos, 1 Mbps wire timing). Target: halt() <= 2 ms
-// on each.
+// jitter; the same for the Feetech driver (6 emulated STS3215 servos, 1 Mbps wire timing); and the Arduino bridge
+// driver (the bridge firmware's emulator on a pseudo-terminal, heartbeat and ultrasonic polls running), with the port
+// answering and hung. Target: halt() <= 2 ms on each (the Arduino's deadline on a hung port is its halt_deadline_ms,
+// 10 ms).
 //   bench_hw_halt [samples] [loop_cycles]
 #include <algorithm>
 #include <chrono>
@@ -12,6 +14,9 @@
 #include <thread>
 #include <vector>
 
+#include "arduino/arduino_driver.hpp"
+#include "arduino/testing/arduino_emulator.hpp"
+#include "arduino/testing/arduino_pty.hpp"
 #include "dynamixel/dynamixel_driver.hpp"
 #include "dynamixel/posix_serial.hpp"
 #include "dynamixel/testing/pty_pair.hpp"
@@ -27,6 +32,7 @@ using namespace std::chrono;
 using nlohmann::json;
 namespace dxl = rcand::plugins::dynamixel;
 namespace fts = rcand::plugins::feetech;
+namespace ard = rcand::plugins::arduino;
 namespace gpio = rcand::plugins::gpio_motor;
 namespace pca = rcand::plugins::pca9685;
 
@@ -114,6 +120,45 @@ void bench_dynamixel_halt(int samples) {
   }
   report("dynamixel halt() (pty, 6 servos, polls at 100 Hz)", returned);
   report("dynamixel halt() -> sync write at the servos", applied);
+}
+
+// The Arduino bridge at 115200 baud: halt() while the heartbeat (100 ms) and the ultrasonic poll (20 Hz) run, the stop
+// line as the emulated firmware reads it, and halt() with the port hung while a heartbeat waits for its ack.
+void bench_arduino_halt(int samples) {
+  ard::testing::ArduinoPty pty;
+  ard::testing::ArduinoEmulator emulator(pty.master());
+  auto settings = ard::ArduinoSettings::from(rcand::sdk::ConfigView(
+      json{{"port", pty.slave_path()}, {"heartbeat_ms", 100}, {"timeout_s", 0.5}, {"ultrasonic", {{"poll_hz", 20}}}}));
+  ard::ArduinoDriver driver(settings, std::make_shared<ard::ArduinoBus>(settings.port, settings.baud));
+  driver.start();
+  using Board = ard::testing::ArduinoEmulator::Board;
+  using Lines = std::vector<ard::testing::ArduinoEmulator::Line>;
+  std::vector<double> returned, applied, hung;
+  for (int i = 0; i < samples; ++i) {
+    driver.set_wheel_speeds(0.5, -0.5);
+    std::this_thread::sleep_for(microseconds(2000 + (i * 977) % 40000));  // anywhere in the heartbeat and poll cycles
+    emulator.clear_received();
+    const auto t0 = Clock::now();
+    driver.halt();
+    returned.push_back(duration<double, std::micro>(Clock::now() - t0).count());
+    emulator.wait_until([](const Board& b, const Lines&) { return !b.moving(); }, milliseconds(200));
+    for (const auto& line : emulator.received())
+      if (line.text == "{\"cmd\":\"stop\"}") {
+        applied.push_back(duration<double, std::micro>(line.at - t0).count());
+        break;
+      }
+  }
+  for (int i = 0; i < std::max(1, samples / 10); ++i) {
+    driver.set_wheel_speeds(0.5, 0.5);
+    emulator.set_hung(true);
+    std::this_thread::sleep_for(milliseconds(150));  // a heartbeat or poll is written and waits for its reply
+    hung.push_back(time_us([&] { driver.halt(); }));
+    emulator.set_hung(false);
+    emulator.wait_until([](const Board& b, const Lines& l) { return !b.moving() && !l.empty(); }, milliseconds(2000));
+  }
+  report("arduino halt() (pty, heartbeat + 20 Hz polls)", returned);
+  report("arduino halt() -> stop line at the board", applied);
+  report("arduino halt() on a hung port", hung);
 }
 
 void bench_dynamixel_loop(int cycles) {
@@ -219,4 +264,5 @@ int main(int argc, char** argv) {
   bench_dynamixel_loop(cycles);
   bench_feetech_halt(samples);
   bench_feetech_loop(cycles);
+  bench_arduino_halt(samples);
 }

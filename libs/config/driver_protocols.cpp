@@ -57,7 +57,7 @@ constexpr std::array kUnserved{
              "an Ackermann RC car (steering servo and ESC on a PCA9685): rcand's pca9685 plugin drives a "
              "differential drive only",
              true},
-    Unserved{"arduino_serial_json", "motors behind an Arduino's serial firmware: rcand has no plugin for it", true},
+    Unserved{"arduino_serial_json", "plugin org.rcand.arduino in package rcand-plugins-hw provides it"},
     Unserved{"arduino_serial", "motors behind an Arduino's serial firmware: rcand has no plugin for it", true},
     Unserved{"esp32_serial", "motors behind an ESP32's serial firmware: rcand has no plugin for it", true},
     Unserved{"esp32_wifi", "motors behind an ESP32 over Wi-Fi: rcand has no plugin for it", true},

@@ -1,7 +1,8 @@
 // rcand --check-config against a real start (docs/protocol.md §10.4): a config that passes --check-config must not
 // fail at start for any reason --check-config could have seen. Every config of tests/configs/ (the other runtimes'
 // presets and the first-try hardware configs) that passes is started for real: Dynamixel buses on a pseudo-terminal
-// with the servo emulator answering for the configured ids, every other device (I2C bus, GPIO chip, /OE chip, V4L2
+// with the servo emulator answering for the configured ids, Arduino bridges on a pseudo-terminal with the bridge
+// firmware's emulator, every other device (I2C bus, GPIO chip, /OE chip, V4L2
 // camera) pointed at a path that does not exist. Then every driver and capability must be running, or have failed
 // because its device is absent - never for a setting. Also: the bundled config with vision left out is refused, by
 // --check-config and by a start, at camera.depth; and every example `rcand --describe` prints passes --check-config.
@@ -18,6 +19,8 @@
 #include "libs/config/robot_config.hpp"
 #include "libs/yaml/yaml_document.hpp"
 #include "rcand_process.hpp"
+#include "testing/arduino_emulator.hpp"
+#include "testing/arduino_pty.hpp"
 #include "testing/pty_pair.hpp"
 #include "testing/servo_emulator.hpp"
 #include "testing/sts_emulator.hpp"
@@ -25,6 +28,7 @@
 using nlohmann::json;
 using namespace rcand::test;
 namespace dxl = rcand::plugins::dynamixel::testing;
+namespace bridge = rcand::plugins::arduino::testing;
 
 namespace {
 
@@ -50,6 +54,8 @@ struct Bench {
   std::vector<std::unique_ptr<dxl::PtyPair>> ptys;
   std::vector<std::unique_ptr<dxl::ServoEmulator>> emulators;
   std::vector<std::unique_ptr<rcand::plugins::feetech::testing::StsEmulator>> sts_emulators;
+  std::vector<std::unique_ptr<bridge::ArduinoPty>> arduino_ptys;
+  std::vector<std::unique_ptr<bridge::ArduinoEmulator>> arduinos;
 
   std::string absent(const std::string& name) const { return (dir.path() / ("absent-" + name)).string(); }
 
@@ -71,6 +77,10 @@ struct Bench {
           if (servo.contains("id") && servo["id"].is_number_integer()) ids.push_back(servo["id"].get<std::uint8_t>());
         auto& pty = ptys.emplace_back(std::make_unique<dxl::PtyPair>());
         sts_emulators.push_back(std::make_unique<rcand::plugins::feetech::testing::StsEmulator>(pty->master(), ids));
+        driver["port"] = pty->slave_path();
+      } else if (protocol == "arduino_serial_json") {
+        auto& pty = arduino_ptys.emplace_back(std::make_unique<bridge::ArduinoPty>());
+        arduinos.push_back(std::make_unique<bridge::ArduinoEmulator>(pty->master()));
         driver["port"] = pty->slave_path();
       } else if (protocol.starts_with("pca9685")) {
         driver["port"] = absent("i2c");
