@@ -304,10 +304,51 @@ class ShapeReader {
     return bus;
   }
 
+  // The reference runtime writes an Arduino bridge's peripherals as entries of their own on the board's port
+  // (`sensor_type: hcsr04`, `servo`, `digital_array`); rcand's arduino_serial_json driver is the board, one entry.
+  static bool arduino_entry(const json& entry) {
+    return entry.is_object() && entry.contains("protocol") && entry["protocol"].is_string() &&
+           same_text(entry["protocol"].get<std::string>(), "arduino_serial_json") && entry.contains("port") &&
+           entry["port"].is_string();
+  }
+  static bool arduino_peripheral(const json& entry) { return arduino_entry(entry) && entry.contains("sensor_type"); }
+
+  // The first board entry (no sensor_type) on each port.
+  static std::map<std::string, std::size_t> arduino_boards(const json& drivers) {
+    std::map<std::string, std::size_t> boards;
+    for (std::size_t i = 0; i < drivers.size(); ++i)
+      if (arduino_entry(drivers[i]) && !arduino_peripheral(drivers[i])) boards.emplace(drivers[i]["port"].get<std::string>(), i);
+    return boards;
+  }
+
+  // A peripheral entry folded into its board's entry: an HC-SR04 becomes the board's `ultrasonic` block (the obstacle
+  // stop); what the driver has no interface for is named and ignored.
+  void fold_arduino_peripheral(const json& entry, const std::string& path, const std::string& named, NewEntry& board) {
+    const json type = entry["sensor_type"];
+    if (type == "hcsr04" && !board.value.contains("ultrasonic")) {
+      json ultrasonic{{"sensor_type", type}};
+      board.marks.emplace_back(path + ".sensor_type", ".ultrasonic.sensor_type");
+      for (const char* key : {"trigger_pin", "echo_pin"})
+        if (entry.contains(key)) {
+          ultrasonic[key] = entry[key];
+          board.marks.emplace_back(path + "." + key, std::string(".ultrasonic.") + key);
+        }
+      board.value["ultrasonic"] = std::move(ultrasonic);
+      note(path, named + " (an HC-SR04 on the Arduino bridge of " + entry["port"].get<std::string>() +
+                     ") is read as that board's `ultrasonic` block, the obstacle stop; write it there to say so");
+      return;
+    }
+    note(path, named + " (sensor_type " + type.dump() + " on the Arduino bridge of " + entry["port"].get<std::string>() +
+                   ") has no counterpart in rcand's arduino_serial_json driver and is ignored");
+  }
+
   void read_drivers() {
     const auto it = doc_.find("drivers");
     if (it == doc_.end() || !it->is_array()) return;
     const json drivers = *it;
+    const auto boards = arduino_boards(drivers);
+    std::map<std::size_t, std::size_t> board_slot;                 // board entry -> rewritten slot
+    std::vector<std::pair<std::size_t, std::size_t>> peripherals;  // {entry, board entry}
     std::vector<NewEntry> rewritten;
     std::map<std::pair<std::string, std::string>, std::vector<std::size_t>> buses;    // {protocol, port} -> entries
     std::vector<std::pair<std::size_t, std::pair<std::string, std::string>>> bus_at;  // first entry -> bus
@@ -342,6 +383,16 @@ class ShapeReader {
         note(path, message + "; write `camera:` to say so");
         continue;
       }
+      if (arduino_peripheral(entry)) {
+        if (const auto board = boards.find(entry["port"].get<std::string>()); board != boards.end()) {
+          changed = true;
+          peripherals.emplace_back(i, board->second);
+          continue;
+        }
+      }
+      if (arduino_entry(entry) && boards.count(entry["port"].get<std::string>()) > 0 &&
+          boards.at(entry["port"].get<std::string>()) == i)
+        board_slot[i] = rewritten.size();
       if (per_servo(entry)) {
         changed = true;
         const auto key = std::pair(entry["protocol"].get<std::string>(), entry["port"].get<std::string>());
@@ -358,6 +409,15 @@ class ShapeReader {
     if (!changed) return;
     int bus_index = 0;
     for (const auto& [slot, key] : bus_at) rewritten[slot] = merge_servos(drivers, buses[key], bus_index++);
+    for (const auto& [entry, board] : peripherals) {
+      const std::string path = item("drivers", entry);
+      const json& e = drivers[entry];
+      const std::string id = e.value("id", json("")).is_string() ? e.value("id", std::string()) : std::string();
+      const std::string named = id.empty() ? path : path + " (" + single_quoted(id) + ")";
+      if (const auto slot = board_slot.find(board); slot != board_slot.end())
+        fold_arduino_peripheral(e, path, named, rewritten[slot->second]);
+      else note(path, named + " belongs to an Arduino bridge that is not started: ignored");
+    }
 
     Marks old;
     copy_marks(marks_, old, "drivers", "drivers");

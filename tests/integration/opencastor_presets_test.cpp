@@ -21,10 +21,6 @@ const std::filesystem::path kPresets = std::filesystem::path(RCAND_SOURCE_DIR) /
 constexpr const char* kCommit = "466a010fd8743b9ab63d5f7d9a804a6fe77679a5";  // the presets' commit (README there)
 constexpr const char* kMirror = "/work/.mirror/craigm26+OpenCastor/repo";
 
-// The drivers other work brings (issue 30 item 3). A preset that awaits only these passes once they are installed:
-// to flip one, empty its `missing` (it then must pass).
-constexpr const char* kAwaitArduino = "arduino_serial_json (issue 30 item 3)";
-
 // Errors issue 30 does not remove yet (what is left of its measure, named exactly so the table shows it): another
 // runtime's channel shape for rcand's own plugins (four PCA9685 channels named per wheel, the SunFounder Robot HAT
 // and GPIO sensors written as `gpio`), and a camera type rcand has no source for (an OAK-D over DepthAI).
@@ -36,20 +32,19 @@ constexpr const char* kGapOakCamera = "camera.type: expected one of";
 struct Expectation {
   const char* file;
   std::set<std::string> missing;       // driver protocols no installed plugin of rcand's provides: empty = passes
-  const char* awaits = "";             // the driver work that makes it pass, when that is all it needs
   std::vector<const char*> gaps = {};  // other errors still expected (each at least once), see kGap* above
 };
 
 // One row per preset, every preset of the directory.
 const std::vector<Expectation>& expectations() {
   static const std::vector<Expectation> table = {
-      {"adeept_generic.rcan.yaml", {}, "", {kGapPca9685Shape}},
-      {"amazon_kit_generic.rcan.yaml", {}, "", {kGapPca9685Shape}},
-      {"arduino_l298n.rcan.yaml", {"arduino_serial_json"}, kAwaitArduino},
+      {"adeept_generic.rcan.yaml", {}, {kGapPca9685Shape}},
+      {"amazon_kit_generic.rcan.yaml", {}, {kGapPca9685Shape}},
+      {"arduino_l298n.rcan.yaml", {}},
       {"dynamixel_arm.rcan.yaml", {}},
-      {"elegoo_tumbller.rcan.yaml", {"arduino_serial_json"}, kAwaitArduino},
+      {"elegoo_tumbller.rcan.yaml", {}},
       {"esp32_generic.rcan.yaml", {"esp32_websocket"}},
-      {"freenove_4wd.rcan.yaml", {"arduino_serial_json"}, kAwaitArduino},
+      {"freenove_4wd.rcan.yaml", {}},
       {"groq_rover.rcan.yaml", {}},
       {"hlabs/acb-arm-3dof.rcan.yaml", {"acb"}},
       {"hlabs/acb-biped-6dof.rcan.yaml", {"acb"}},
@@ -58,15 +53,15 @@ const std::vector<Expectation>& expectations() {
       {"lego_spike_prime.rcan.yaml", {"spike_hub_serial", "spike_hub_internal"}},
       {"makeblock_mbot.rcan.yaml", {"makeblock_serial"}},
       {"so_arm101_leader.rcan.yaml", {}},  // feetech: plugins/feetech
-      {"sunfounder_picar.rcan.yaml", {}, "", {kGapPca9685Shape}},
-      {"sunfounder_picar_x.rcan.yaml", {}, "", {kGapGpioShape}},
+      {"sunfounder_picar.rcan.yaml", {}, {kGapPca9685Shape}},
+      {"sunfounder_picar_x.rcan.yaml", {}, {kGapGpioShape}},
       {"taalas_hc1.rcan.yaml", {}},
       {"turtlebot3_burger.rcan.yaml", {"ros2_bridge"}},
-      {"turtlebot4.rcan.yaml", {"ros2_bridge"}, "", {kGapOakCamera}},
+      {"turtlebot4.rcan.yaml", {"ros2_bridge"}, {kGapOakCamera}},
       {"unitree_go2.rcan.yaml", {"unitree_sdk2"}},
       {"vex_iq.rcan.yaml", {"vex_iq_serial"}},
-      {"waveshare_alpha.rcan.yaml", {}, "", {kGapGpioShape}},
-      {"yahboom_rosmaster.rcan.yaml", {"gpio_hcsr04", "gpio_ws2812", "i2c_mpu6050"}, "", {kGapPca9685Shape, kGapSharedAddress}},
+      {"waveshare_alpha.rcan.yaml", {}, {kGapGpioShape}},
+      {"yahboom_rosmaster.rcan.yaml", {"gpio_hcsr04", "gpio_ws2812", "i2c_mpu6050"}, {kGapPca9685Shape, kGapSharedAddress}},
   };
   return table;
 }
