@@ -28,6 +28,11 @@ constexpr const char* kGapPca9685Shape = "(settings of plugin org.rcand.pca9685)
 constexpr const char* kGapGpioShape = "(settings of plugin org.rcand.gpio_motor)";
 constexpr const char* kGapSharedAddress = "is already claimed by";
 constexpr const char* kGapOakCamera = "camera.type: expected one of";
+// Pins an Arduino bridge's entry names in shapes of its own (per wheel, or at the entry's top level): the bridge
+// firmware fixes its pins, so rcand's driver takes only its own `channels` names.
+constexpr const char* kGapArduinoPins = "(settings of plugin org.rcand.arduino)";
+// The SO-ARM101 leader lists `teleop` (the arm's leader/follower teleoperation); rcand's teleop drives a base.
+constexpr const char* kGapArmTeleop = "capability teleop requires a differential_drive actuator";
 
 struct Expectation {
   const char* file;
@@ -42,9 +47,9 @@ const std::vector<Expectation>& expectations() {
       {"amazon_kit_generic.rcan.yaml", {}, {kGapPca9685Shape}},
       {"arduino_l298n.rcan.yaml", {}},
       {"dynamixel_arm.rcan.yaml", {}},
-      {"elegoo_tumbller.rcan.yaml", {}},
+      {"elegoo_tumbller.rcan.yaml", {}, {kGapArduinoPins}},
       {"esp32_generic.rcan.yaml", {"esp32_websocket"}},
-      {"freenove_4wd.rcan.yaml", {}},
+      {"freenove_4wd.rcan.yaml", {}, {kGapArduinoPins}},
       {"groq_rover.rcan.yaml", {}},
       {"hlabs/acb-arm-3dof.rcan.yaml", {"acb"}},
       {"hlabs/acb-biped-6dof.rcan.yaml", {"acb"}},
@@ -52,7 +57,7 @@ const std::vector<Expectation>& expectations() {
       {"lego_mindstorms_ev3.rcan.yaml", {"ev3dev_tacho_motor", "ev3dev_sensor"}},
       {"lego_spike_prime.rcan.yaml", {"spike_hub_serial", "spike_hub_internal"}},
       {"makeblock_mbot.rcan.yaml", {"makeblock_serial"}},
-      {"so_arm101_leader.rcan.yaml", {}},  // feetech: plugins/feetech
+      {"so_arm101_leader.rcan.yaml", {}, {kGapArmTeleop}},  // its feetech servos: plugins/feetech
       {"sunfounder_picar.rcan.yaml", {}, {kGapPca9685Shape}},
       {"sunfounder_picar_x.rcan.yaml", {}, {kGapGpioShape}},
       {"taalas_hc1.rcan.yaml", {}},
