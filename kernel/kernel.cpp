@@ -74,9 +74,6 @@ AuthSettings auth_settings(const RobotConfig& config, const std::string& ruri, c
     if (!secret.warning.empty()) logger("kernel.auth")->warn("runtime.auth.jwt_secret_file: {}", secret.warning);
     if (secret.development && !is_loopback_address(address))  // public: anyone who can reach rcand can sign tokens
       logger("kernel.auth")->warn("runtime.auth.jwt_secret_file is the public development secret, off loopback");
-    else if (secret.development)
-      logger("kernel.auth")
-          ->info("runtime.auth.jwt_secret_file is the public development secret (for development on loopback only)");
     settings.jwt_secret = std::move(secret.secret);
   }
   for (const auto& token : auth.tokens)
