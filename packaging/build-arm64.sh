@@ -41,9 +41,14 @@ if [ ! -e "$root/.rcand-build-root" ]; then
   }
   touch "$root/.rcand-build-root"
 fi
-# A root made before rcanctl used CLI11 lacks it (architecture-free, header-only).
-[ -f "$root/usr/include/CLI/CLI.hpp" ] ||
-  chroot "$root" env DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends libcli11-dev > /dev/null
+# A root made before a dependency was added lacks it: CLI11 (rcanctl), libjpeg-turbo (the vision plugin's encoder).
+missing=()
+[ -f "$root/usr/include/CLI/CLI.hpp" ] || missing+=(libcli11-dev)
+[ -f "$root/usr/include/aarch64-linux-gnu/jconfig.h" ] || missing+=(libjpeg62-turbo-dev:arm64)
+if [ ${#missing[@]} -gt 0 ]; then
+  chroot "$root" apt-get -qq update
+  chroot "$root" env DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends "${missing[@]}" > /dev/null
+fi
 
 stage "the sources"
 rm -rf "$root/src" && mkdir -p "$root/src"
