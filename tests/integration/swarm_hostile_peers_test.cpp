@@ -6,6 +6,7 @@
 
 #include <chrono>
 
+#include "eventually.hpp"
 #include "hostile_peers.hpp"
 #include "rcand_process.hpp"
 #include "sanitized_build.hpp"
@@ -44,11 +45,20 @@ TEST_CASE("swarm: concurrent broadcast stops to bravo and nine hostile peers eac
     const auto report = json::parse(answer.body);
     CHECK(report["motors_stopped"] == true);
     REQUIRE(report["nodes"].size() == entries.size() + 1);
-    CHECK(report["summary"] == json{{"total", 11}, {"ok", 2}, {"failed", 9}});
+    // ASan slows every process 2-5x: on a loaded machine a peer's answer can miss the fan-out's 300 ms, which the
+    // report must then say ("timed out"). The normal build asserts the exact outcome of each peer.
+    const auto kind = [](const json& node, const char* expected) {
+      return error_mentions(node, expected) || (kSanitizedBuild && error_mentions(node, "timed out"));
+    };
     CHECK(node_named(report, "origin")["ok"] == true);
     const auto b = node_named(report, "bravo");
-    CHECK(b["ok"] == true);
-    CHECK(b["motors_stopped"] == true);
+    if (kSanitizedBuild && !b.value("ok", false)) {
+      CHECK(error_mentions(b, "timed out"));
+    } else {
+      CHECK(report["summary"] == json{{"total", 11}, {"ok", 2}, {"failed", 9}});
+      CHECK(b.value("ok", false));
+      CHECK(b.value("motors_stopped", false));
+    }
     for (const auto& name : HostilePeers::names()) {
       const auto node = node_named(report, name);
       CAPTURE(node.dump());
@@ -57,13 +67,14 @@ TEST_CASE("swarm: concurrent broadcast stops to bravo and nine hostile peers eac
     }
     // What each misbehaviour is reported as: the limits refuse what never ends, the deadline ends what never comes.
     for (const char* name : {"sleeper", "byte_by_byte", "backlog"}) CHECK(error_mentions(node_named(report, name), "timed out"));
-    CHECK(error_mentions(node_named(report, "headers"), "header limit"));
-    CHECK(error_mentions(node_named(report, "chunked"), "body limit"));
-    CHECK(error_mentions(node_named(report, "mistyped"), "body limit"));
+    CHECK(kind(node_named(report, "headers"), "header limit"));
+    CHECK(kind(node_named(report, "chunked"), "body limit"));
+    CHECK(kind(node_named(report, "mistyped"), "body limit"));
     CHECK(error_mentions(node_named(report, "refused"), "cannot connect"));
   }
-  for (const RcandProcess* robot : {&origin, &bravo}) {
+  for (const RcandProcess* robot : {&origin, &bravo}) {  // a stop that answered late still latched (sanitized builds)
+    CHECK(eventually([robot] { return robot->json("GET", "/api/estop", "guest-token")["estopped"] == true; },
+                     std::chrono::seconds(10), std::chrono::milliseconds(50)));
     CHECK(drive_status(*robot)["moving"] == false);
-    CHECK(robot->json("GET", "/api/estop", "guest-token")["estopped"] == true);
   }
 }
