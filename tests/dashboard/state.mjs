@@ -56,6 +56,12 @@ async function paddingPoint(page, selector) {
   return [box.x + 3, box.y + 3];
 }
 
+// The lists are re-rendered on every health update, so a handle taken in one round trip may be detached by the next
+// (its computed colour is then ''): look the element up and read its colour in one evaluation.
+async function colourOf(page, selector) {
+  return page.evaluate((sel) => getComputedStyle(document.querySelector(sel)).color, selector);
+}
+
 async function open(viewport, token) {
   const context = await browser.newContext({ viewport, deviceScaleFactor: 1, isMobile: viewport.width < 500,
                                              hasTouch: viewport.width < 500 });
@@ -90,10 +96,10 @@ try {
   let png = await shot(page, 'state-1-error.png');
   const badge = await (await page.$('#state')).boundingBox();  // a pill: left of the text, inside the round end
   check('the error badge is red (pixels)', isRed(await pixel(png, badge.x + 5, badge.y + badge.height / 2)));
-  const amber = await page.$eval('#capabilities li[data-name=teleop]', (li) => getComputedStyle(li).color);
+  const amber = await colourOf(page, '#capabilities li[data-name=teleop]');
   check('degraded is amber', amber === 'rgb(179, 107, 0)', amber);
-  check('a failed driver is red', isRed((await page.$eval('#drivers li[data-name=arm0]', (li) => getComputedStyle(li).color))
-    .match(/\d+/g).map(Number)));
+  const driverColour = await colourOf(page, '#drivers li[data-name=arm0]');
+  check('a failed driver is red', isRed(driverColour.match(/\d+/g).map(Number)), driverColour);
 
   // 2. STOP: the red banner says who stopped it, when and why; clear appears (owner).
   await page.click('#estop');
