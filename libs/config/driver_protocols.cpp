@@ -67,6 +67,11 @@ constexpr std::array kUnserved{
     Unserved{"lego_spike", "LEGO SPIKE Prime hub motors: rcand has no plugin for them", true},
     Unserved{"unitree", "a Unitree quadruped's locomotion controller: rcand has no plugin for it", true},
     Unserved{"ros2", "a ROS 2 bridge: rcand has no plugin for it", true},
+    Unserved{"sunfounder_robot_hat",
+             "the SunFounder Robot HAT (its microcontroller on I2C drives the motors and servos): rcand has no plugin "
+             "for it",
+             true},
+    Unserved{"oakd", "a Luxonis OAK camera (frames and depth through Luxonis' DepthAI): rcand has no plugin for it", true},
     Unserved{"gpio_hcsr04",
              "an HC-SR04 ultrasonic ranger, a sensor: rcand's obstacle source is the camera's depth "
              "(camera.depth, plugin org.rcand.vision); remove the entry or add a sensor plugin"},

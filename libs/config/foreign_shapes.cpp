@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <array>
 #include <cctype>
+#include <cstdio>
 #include <map>
 #include <optional>
 #include <string_view>
@@ -173,13 +174,37 @@ class ShapeReader {
                                      "as joints {joint, min_deg, max_deg}; write those to say so");
   }
 
-  // The reference runtime's names of the Raspberry Pi camera (a V4L2 device through libcamera) as camera.type.
+  // The reference runtime's names of the Raspberry Pi camera (a V4L2 device through libcamera) as camera.type; a
+  // Luxonis OAK camera, which only Luxonis' DepthAI library reads (not in Debian), as a driver of protocol 'oakd'
+  // that no plugin of rcand's provides (--check-config names it), not as the vision plugin's camera.
   void read_camera_type() {
     const auto camera = doc_.find("camera");
     if (camera == doc_.end() || !camera->is_object()) return;
     const auto type = camera->find("type");
     if (type == camera->end() || !type->is_string()) return;
     const std::string written = type->get<std::string>();
+    if (same_text(written, "oakd") || same_text(written, "oak-d") || same_text(written, "oak") || same_text(written, "depthai")) {
+      json driver = *camera;
+      driver.erase("type");
+      driver["id"] = "camera";
+      driver["protocol"] = "oakd";
+      if (!doc_.contains("drivers") || !doc_["drivers"].is_array()) doc_["drivers"] = json::array();
+      const std::string target = item("drivers", doc_["drivers"].size());
+      Marks moved;
+      copy_marks(marks_, moved, "camera", target);
+      for (auto& [key, mark] : moved) marks_[key] = mark;
+      marks_[target + ".protocol"] = yaml::nearest_mark(marks_, file_, "camera.type");
+      doc_["drivers"].push_back(std::move(driver));
+      note("camera.type", "camera.type " + single_quoted(written) +
+                              " (a Luxonis OAK camera: its frames and depth come through Luxonis' DepthAI, which "
+                              "rcand's vision plugin has no source for) is read as " +
+                              target +
+                              ", a driver of "
+                              "protocol 'oakd'");
+      doc_.erase("camera");
+      erase_marks(marks_, "camera");
+      return;
+    }
     if (!same_text(written, "picam") && !same_text(written, "picamera") && !same_text(written, "picamera2")) return;
     *type = "csi";
     note("camera.type", "camera.type " + single_quoted(written) +
@@ -313,6 +338,73 @@ class ShapeReader {
   }
   static bool arduino_peripheral(const json& entry) { return arduino_entry(entry) && entry.contains("sensor_type"); }
 
+  // The wiring an Arduino bridge's board entry records in shapes of its own: `channels` keys that are not the six
+  // rcand's driver takes (per wheel: fl_pwm, fl_dir, ...; or motor names M1, M2) and pin keys at the entry's top
+  // level (left_pwm_pin, left_in1, ...). The bridge firmware fixes its pins and rcand sends it wheel speeds, so they
+  // mean nothing to rcand: named once and ignored.
+  void drop_arduino_pins(NewEntry& board, const std::string& named) {
+    static constexpr std::array<std::string_view, 6> kChannels{"left_pwm_pin",  "left_dir_a",  "left_dir_b",
+                                                               "right_pwm_pin", "right_dir_a", "right_dir_b"};
+    json& value = board.value;
+    std::string dropped;
+    if (const auto channels = value.find("channels"); channels != value.end() && channels->is_object()) {
+      const bool own = std::all_of(channels->items().begin(), channels->items().end(), [](const auto& channel) {
+        return std::find(kChannels.begin(), kChannels.end(), channel.key()) != kChannels.end();
+      });
+      if (!own) {
+        dropped = "channels " + channels->dump();
+        value.erase(channels);
+      }
+    }
+    std::vector<std::string> pins;
+    for (const auto& [key, pin] : value.items()) {
+      const std::string_view name = key;
+      if (name.ends_with("_pin") || name.ends_with("_in1") || name.ends_with("_in2") || name == "motor_driver_ic")
+        pins.push_back(key);
+    }
+    for (const auto& key : pins) {
+      dropped += (dropped.empty() ? "" : ", ") + key + " " + value[key].dump();
+      value.erase(key);
+    }
+    if (!dropped.empty())
+      note(board.marks.front().first, named + ": " + dropped +
+                                          " (the wiring, as the reference runtime records it) are fixed by the "
+                                          "bridge firmware, to which rcand's arduino_serial_json driver sends wheel "
+                                          "speeds: ignored");
+  }
+
+  static bool gpio_entry(const json& entry) {
+    const auto protocol = entry.find("protocol");
+    return protocol != entry.end() && protocol->is_string() && same_text(protocol->get_ref<const std::string&>(), "gpio");
+  }
+
+  // A `gpio` entry of the reference runtime that is no GPIO H-bridge: the SunFounder Robot HAT (`interface: i2c`, its
+  // microcontroller at 0x14 drives the motors and servos), or a sensor (`sensor_type`). The HAT and an HC-SR04 are
+  // read as the protocols of that hardware, which no plugin of rcand's serves (--check-config names them); the other
+  // sensors have no counterpart in rcand and are ignored. Returns false when the entry stays as written.
+  bool read_gpio_shape(json& entry, const std::string& path, const std::string& named) {
+    if (!gpio_entry(entry)) return false;
+    const auto interface = entry.find("interface");
+    if (interface != entry.end() && *interface == "i2c") {
+      entry["protocol"] = "sunfounder_robot_hat";
+      note(path, named + " (protocol 'gpio', interface i2c, address " + entry.value("address", json("")).dump() +
+                     ") is the SunFounder Robot HAT's motor and servo controller, not GPIO lines: read as protocol "
+                     "'sunfounder_robot_hat'");
+      return true;
+    }
+    const auto type = entry.find("sensor_type");
+    if (type == entry.end() || !type->is_string()) return false;
+    if (*type == "hcsr04") {
+      entry["protocol"] = "gpio_hcsr04";
+      note(path, named + " (protocol 'gpio', sensor_type hcsr04) is an HC-SR04 on GPIO lines: read as protocol 'gpio_hcsr04'");
+      return true;
+    }
+    note(path, named + " (protocol 'gpio', sensor_type " + type->dump() +
+                   ") is a sensor or output rcand has no counterpart for: ignored");
+    entry = json();  // dropped
+    return true;
+  }
+
   // The first board entry (no sensor_type) on each port.
   static std::map<std::string, std::size_t> arduino_boards(const json& drivers) {
     std::map<std::string, std::size_t> boards;
@@ -342,6 +434,116 @@ class ShapeReader {
                    ") has no counterpart in rcand's arduino_serial_json driver and is ignored");
   }
 
+  static bool pca9685_entry(const json& entry) {
+    const auto protocol = entry.find("protocol");
+    return protocol != entry.end() && protocol->is_string() &&
+           (same_text(protocol->get_ref<const std::string&>(), "pca9685_i2c") ||
+            same_text(protocol->get_ref<const std::string&>(), "pca9685"));
+  }
+
+  // The board a PCA9685 entry drives, {port, address} as written (the plugin's defaults where left out).
+  static std::pair<std::string, std::string> pca9685_board(const json& entry) {
+    const json port = entry.value("port", json("/dev/i2c-1"));
+    json address = entry.value("address", json(64));
+    if (address.is_string()) {
+      try {
+        address = std::stoi(address.get<std::string>(), nullptr, 0);
+      } catch (const std::exception&) {
+      }
+    }
+    char hex[16] = "";
+    if (address.is_number_integer()) std::snprintf(hex, sizeof hex, "0x%02x", address.get<int>());
+    return {port.is_string() ? port.get<std::string>() : port.dump(), *hex ? std::string(hex) : address.dump()};
+  }
+
+  // `channels` naming one channel per wheel ({left_front: 0, left_rear: 1, right_front: 2, right_rear: 3}), the
+  // reference runtime's shape: its pca9685_i2c driver drives channels 0 and 1 as one DC motor's two inputs and 2 and 3
+  // as the other's (castor/drivers/pca9685.py). Read as rcand's H-bridge per side, front input in1, rear in2.
+  static bool per_wheel_channels(const json& entry) {
+    const auto channels = entry.find("channels");
+    if (!pca9685_entry(entry) || channels == entry.end() || !channels->is_object() || channels->size() != 4) return false;
+    if (channels->contains("left") || channels->contains("right")) return false;
+    int left = 0, right = 0;
+    for (const auto& [name, channel] : channels->items()) {
+      if (!channel.is_number_integer()) return false;
+      const bool is_left = name.find("left") != std::string::npos, is_right = name.find("right") != std::string::npos;
+      if (is_left == is_right) return false;
+      (is_left ? left : right) += 1;
+    }
+    return left == 2 && right == 2;
+  }
+
+  // One side's two wheels as a motor {in1, in2, reverse?}: the front wheel's channel drives forward. `polarity` -1 on
+  // both wheels of a side is a motor mounted backwards; wheels of one side that disagree cannot be one motor.
+  static std::optional<json> side_motor(const json& entry, const std::string& side, const std::string& path,
+                                        std::vector<std::pair<std::string, std::string>>& marks, std::string& problem) {
+    std::vector<std::string> wheels;
+    for (const auto& [name, channel] : entry["channels"].items())
+      if (name.find(side) != std::string::npos) wheels.push_back(name);
+    if (wheels[1].find("front") != std::string::npos && wheels[0].find("front") == std::string::npos)
+      std::swap(wheels[0], wheels[1]);
+    json motor = {{"in1", entry["channels"][wheels[0]]}, {"in2", entry["channels"][wheels[1]]}};
+    marks.emplace_back(path + ".channels." + wheels[0], ".channels." + side + ".in1");
+    marks.emplace_back(path + ".channels." + wheels[1], ".channels." + side + ".in2");
+    const auto polarity = entry.find("polarity");
+    if (polarity != entry.end() && polarity->is_object()) {
+      const json first = polarity->value(wheels[0], json(1)), second = polarity->value(wheels[1], json(1));
+      if (first != second) {
+        problem += (problem.empty() ? "" : "; ") + std::string("polarity of ") + wheels[0] + " and " + wheels[1] + " differ";
+        return std::nullopt;
+      }
+      if (first == -1) {
+        motor["reverse"] = true;
+        marks.emplace_back(path + ".polarity." + wheels[0], ".channels." + side + ".reverse");
+      }
+    }
+    return motor;
+  }
+
+  // A PCA9685 entry whose channels name outputs that are no wheel motor ({pan: 8, tilt: 9}): servos.
+  static bool pca9685_servo_entry(const json& entry) {
+    const auto channels = entry.find("channels");
+    if (channels == entry.end() || !channels->is_object() || channels->empty()) return false;
+    for (const auto& [name, channel] : channels->items())
+      if (!channel.is_number_integer() || name.find("left") != std::string::npos || name.find("right") != std::string::npos)
+        return false;
+    return true;
+  }
+
+  // The per-wheel entry rewritten as rcand's {channels: {left, right}, pwm_frequency_hz}; std::nullopt (and a
+  // warning naming why) when its polarity says the two channels of a side are not one motor.
+  std::optional<NewEntry> read_per_wheel_pca9685(const json& entry, const std::string& path, const std::string& named) {
+    NewEntry rewritten{entry, {{path, ""}}};
+    std::string problem;
+    const auto left = side_motor(entry, "left", path, rewritten.marks, problem);
+    const auto right = side_motor(entry, "right", path, rewritten.marks, problem);
+    if (!left || !right) {
+      note(path, named +
+                     ": its channels name one PCA9685 channel per wheel, which rcand reads as one H-bridge per side, "
+                     "but " +
+                     problem + "; write channels: {left: {in1, in2}, right: {in1, in2}}");
+      return std::nullopt;
+    }
+    json& value = rewritten.value;
+    value["channels"] = {{"left", *left}, {"right", *right}};
+    std::string message = named + ": channels " + entry["channels"].dump() +
+                          " (one channel per wheel, the reference runtime's shape; its driver drives each side's two "
+                          "channels as one DC motor's inputs) are read as channels " +
+                          value["channels"].dump();
+    if (value.contains("polarity")) {
+      value.erase("polarity");
+      message += " (polarity -1 on a side: reverse)";
+    }
+    if (value.contains("frequency") && !value.contains("pwm_frequency_hz")) {
+      value["pwm_frequency_hz"] = value["frequency"];
+      value.erase("frequency");
+      rewritten.marks.emplace_back(path + ".frequency", ".pwm_frequency_hz");
+      message += ", frequency as pwm_frequency_hz";
+    }
+    note(path, message + "; write that to say so");
+    return rewritten;
+  }
+
   void read_drivers() {
     const auto it = doc_.find("drivers");
     if (it == doc_.end() || !it->is_array()) return;
@@ -352,6 +554,7 @@ class ShapeReader {
     std::vector<NewEntry> rewritten;
     std::map<std::pair<std::string, std::string>, std::vector<std::size_t>> buses;    // {protocol, port} -> entries
     std::vector<std::pair<std::size_t, std::pair<std::string, std::string>>> bus_at;  // first entry -> bus
+    std::map<std::pair<std::string, std::string>, std::string> pca9685_owners;        // {port, address} -> first entry
     bool changed = false;
     for (std::size_t i = 0; i < drivers.size(); ++i) {
       const json& entry = drivers[i];
@@ -365,6 +568,11 @@ class ShapeReader {
       if (disabled(entry)) {
         note(path, named + " has enabled: false: not started (another runtime's switch)");
         changed = true;
+        continue;
+      }
+      if (json gpio = entry; read_gpio_shape(gpio, path, named)) {
+        changed = true;
+        if (!gpio.is_null()) rewritten.push_back({std::move(gpio), {{path, ""}}});
         continue;
       }
       if (const auto type = camera_protocol_type(entry)) {
@@ -391,8 +599,36 @@ class ShapeReader {
         }
       }
       if (arduino_entry(entry) && boards.count(entry["port"].get<std::string>()) > 0 &&
-          boards.at(entry["port"].get<std::string>()) == i)
+          boards.at(entry["port"].get<std::string>()) == i) {
         board_slot[i] = rewritten.size();
+        NewEntry board{entry, {{path, ""}}};
+        drop_arduino_pins(board, named);
+        if (board.value != entry) {
+          changed = true;
+          rewritten.push_back(std::move(board));
+          continue;
+        }
+      }
+      if (per_wheel_channels(entry))
+        if (auto mapped = read_per_wheel_pca9685(entry, path, named)) {
+          changed = true;
+          pca9685_owners.emplace(pca9685_board(entry), named);
+          rewritten.push_back(std::move(*mapped));
+          continue;
+        }
+      if (pca9685_entry(entry)) {
+        const auto board = pca9685_board(entry);
+        const auto owner = pca9685_owners.find(board);
+        if (owner != pca9685_owners.end() && pca9685_servo_entry(entry)) {
+          changed = true;
+          note(path, named + ": channels " + entry["channels"].dump() + " (servos) are other channels of the PCA9685 at " +
+                         board.second + " on " + board.first + " that " + owner->second +
+                         " drives: no conflict on the chip, but rcand's pca9685 driver owns its board's 16 channels as a "
+                         "differential drive and has no servo outputs: this entry is ignored");
+          continue;
+        }
+        pca9685_owners.emplace(board, named);
+      }
       if (per_servo(entry)) {
         changed = true;
         const auto key = std::pair(entry["protocol"].get<std::string>(), entry["port"].get<std::string>());
