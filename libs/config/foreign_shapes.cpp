@@ -54,6 +54,7 @@ class ShapeReader {
     read_drivers();
     read_camera_type();
     read_links();
+    read_arm_teleop();
   }
 
  private:
@@ -172,6 +173,35 @@ class ShapeReader {
       note("physics.kinematics", "physics.kinematics links " + named +
                                      " (another runtime's {id, limits_deg}) are read "
                                      "as joints {joint, min_deg, max_deg}; write those to say so");
+  }
+
+  // `teleop` listed for an arm (physics.type arm, no locomotion) is the reference runtime's leader/follower
+  // teleoperation of the joints; rcand's teleop capability drives a base (a differential_drive), so on an arm it is
+  // not served: taken out of the list with one warning, as nav without its physics is (§9.5); --strict refuses it.
+  void read_arm_teleop() {
+    const auto physics = doc_.find("physics");
+    const auto protocol = doc_.find("rcan_protocol");
+    if (physics == doc_.end() || !physics->is_object() || physics->value("type", json()) != "arm" || protocol == doc_.end() ||
+        !protocol->is_object())
+      return;
+    const auto listed = protocol->find("capabilities");
+    if (listed == protocol->end() || !listed->is_array()) return;
+    const auto teleop = std::find(listed->begin(), listed->end(), json("teleop"));
+    if (teleop == listed->end()) return;
+    const auto index = static_cast<std::size_t>(teleop - listed->begin());
+    const std::string at = item("rcan_protocol.capabilities", index);
+    note(at, at + ": teleop on an arm (physics.type arm: the reference runtime's leader/follower teleoperation of its "
+                  "joints) is not served: rcand's teleop drives a base (a differential_drive actuator), the joints "
+                  "are served by arm; taken out of the capabilities");
+    Marks old;
+    copy_marks(marks_, old, "rcan_protocol.capabilities", "rcan_protocol.capabilities");
+    erase_marks(marks_, "rcan_protocol.capabilities");
+    marks_["rcan_protocol.capabilities"] = old["rcan_protocol.capabilities"];
+    for (std::size_t i = 0, j = 0; i < listed->size(); ++i) {
+      if (i == index) continue;
+      copy_marks(old, marks_, item("rcan_protocol.capabilities", i), item("rcan_protocol.capabilities", j++));
+    }
+    listed->erase(teleop);
   }
 
   // The reference runtime's names of the Raspberry Pi camera (a V4L2 device through libcamera) as camera.type; a

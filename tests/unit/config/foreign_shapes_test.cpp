@@ -117,3 +117,12 @@ TEST_CASE("camera.type oakd: a driver of protocol 'oakd' (no plugin provides it)
   CHECK(loaded.config.drivers[0].id == "camera");
   CHECK(warnings_naming(loaded, "camera.type 'oakd' (a Luxonis OAK camera") == 1);
 }
+
+TEST_CASE("teleop listed for an arm (the reference runtime's leader/follower) is taken out with one warning") {
+  const auto arm = parse_with({"rcan_protocol:", "  capabilities: [status, arm, teleop, chat]", "physics:", "  type: arm"});
+  CHECK(arm.config.capabilities == std::vector<std::string>{"status", "arm", "chat"});
+  CHECK(warnings_naming(arm, "rcan_protocol.capabilities[2]: teleop on an arm") == 1);
+  // A base keeps it: teleop is its driving.
+  const auto base = parse_with({"rcan_protocol:", "  capabilities: [status, teleop]", "physics:", "  type: differential"});
+  CHECK(base.config.capabilities == std::vector<std::string>{"status", "teleop"});
+}
