@@ -6,7 +6,11 @@
 //   block when there is none, and leave the drivers;
 // - per-servo drivers[] entries (hardware_id, link_id) of one protocol on one port become one bus entry with
 //   `servos: [{id, joint, min_deg, max_deg}]` (the joint from link_id, the limits from that link's limits_deg);
-// - a drivers[] entry with `enabled: false` is not started.
+// - a drivers[] entry with `enabled: false` is not started;
+// - pca9685_i2c `channels` named per wheel are one H-bridge per side; a second entry on that board with servo channels
+//   is ignored; an Arduino bridge's pins in the reference runtime's shapes are its firmware's, ignored;
+// - `gpio` entries that are the SunFounder Robot HAT or an HC-SR04 become those protocols, other gpio sensors are
+//   ignored; camera.type oakd becomes a driver of protocol oakd; `teleop` listed for an arm is taken out.
 // The source marks move with the keys, so every later diagnostic points at what the file says.
 #pragma once
 
