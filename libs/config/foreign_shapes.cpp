@@ -435,6 +435,53 @@ class ShapeReader {
     return true;
   }
 
+  // A TB6612 on GPIO lines in the reference runtime's shape, channels {ain1_gpio, ain2_gpio, pwma_gpio?, bin1_gpio,
+  // bin2_gpio, pwmb_gpio?, standby_gpio?}: motor A left, B right, each PWM input its motor's enable (on at full
+  // speed: a Raspberry Pi drives a line, a speed needs a hardware PWM, `pwm`), STBY the shared `standby` line.
+  bool read_tb6612_gpio(json& entry, const std::string& path, const std::string& named, NewEntry& rewritten) {
+    const auto channels = entry.find("channels");
+    if (!gpio_entry(entry) || channels == entry.end() || !channels->is_object()) return false;
+    for (const char* key : {"ain1_gpio", "ain2_gpio", "bin1_gpio", "bin2_gpio"})
+      if (!channels->contains(key)) return false;
+    static constexpr std::array<std::pair<std::string_view, std::string_view>, 7> kLines{{
+        {"ain1_gpio", ".channels.left.in1"},
+        {"ain2_gpio", ".channels.left.in2"},
+        {"pwma_gpio", ".channels.left.enable"},
+        {"bin1_gpio", ".channels.right.in1"},
+        {"bin2_gpio", ".channels.right.in2"},
+        {"pwmb_gpio", ".channels.right.enable"},
+        {"standby_gpio", ".standby"},
+    }};
+    json left = json::object(), right = json::object(), standby;
+    for (const auto& [name, line] : channels->items()) {
+      const auto found = std::find_if(kLines.begin(), kLines.end(), [&name](const auto& known) { return known.first == name; });
+      if (found == kLines.end()) return false;  // a key of its own: left for the plugin to name
+      const std::string target(found->second);
+      if (target == ".standby") standby = line;
+      else (target.starts_with(".channels.left") ? left : right)[target.substr(target.rfind('.') + 1)] = line;
+      rewritten.marks.emplace_back(path + ".channels." + name, target);
+    }
+    std::string message = named + ": channels " + channels->dump() +
+                          " (a TB6612 on GPIO lines, the reference runtime's shape) are read as channels {left: "
+                          "{in1: ain1, in2: ain2, enable: pwma}, right: {in1: bin1, in2: bin2, enable: pwmb}}";
+    entry["channels"] = {{"left", std::move(left)}, {"right", std::move(right)}};
+    if (!standby.is_null()) {
+      entry["standby"] = std::move(standby);
+      message += ", standby from standby_gpio";
+    }
+    message += " (the PWM inputs on at full speed: a speed needs a hardware PWM, channels.<side>.pwm)";
+    std::string dropped;
+    for (const char* key : {"pwm_freq_hz", "pwm_range"})
+      if (entry.contains(key)) {
+        dropped += (dropped.empty() ? "" : ", ") + std::string(key);
+        entry.erase(key);
+      }
+    if (!dropped.empty()) message += "; " + dropped + " have no counterpart and are ignored";
+    note(path, message + "; write that to say so");
+    rewritten.value = entry;
+    return true;
+  }
+
   // The first board entry (no sensor_type) on each port.
   static std::map<std::string, std::size_t> arduino_boards(const json& drivers) {
     std::map<std::string, std::size_t> boards;
@@ -598,6 +645,11 @@ class ShapeReader {
       if (disabled(entry)) {
         note(path, named + " has enabled: false: not started (another runtime's switch)");
         changed = true;
+        continue;
+      }
+      if (NewEntry bridge{entry, {{path, ""}}}; read_tb6612_gpio(bridge.value, path, named, bridge)) {
+        changed = true;
+        rewritten.push_back(std::move(bridge));
         continue;
       }
       if (json gpio = entry; read_gpio_shape(gpio, path, named)) {

@@ -9,7 +9,8 @@
 // - a drivers[] entry with `enabled: false` is not started;
 // - pca9685_i2c `channels` named per wheel are one H-bridge per side; a second entry on that board with servo channels
 //   is ignored; an Arduino bridge's pins in the reference runtime's shapes are its firmware's, ignored;
-// - `gpio` entries that are the SunFounder Robot HAT or an HC-SR04 become those protocols, other gpio sensors are
+// - a `gpio` TB6612 written {ain1_gpio, ..., standby_gpio} is the gpio driver's channels and standby; `gpio` entries
+//   that are the SunFounder Robot HAT or an HC-SR04 become those protocols, other gpio sensors are
 //   ignored; camera.type oakd becomes a driver of protocol oakd; `teleop` listed for an arm is taken out.
 // The source marks move with the keys, so every later diagnostic points at what the file says.
 #pragma once

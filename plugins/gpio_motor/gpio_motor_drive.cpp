@@ -35,12 +35,17 @@ std::unique_ptr<HBridge> GpioMotorDrive::make_bridge(const std::string& name, co
 }
 
 void GpioMotorDrive::start() {
+  // The shared standby first and inactive: both bridges stay off while their lines are set up.
+  auto standby = settings_.standby
+                     ? chip_->request_output(settings_.standby->line, settings_.standby->active_low, "rcand-standby")
+                     : nullptr;
   auto left = make_bridge("left", settings_.left);
   auto right = make_bridge("right", settings_.right);
   left->stop();
   right->stop();
   {
     std::lock_guard lock(mutex_);
+    standby_ = std::move(standby);
     left_ = std::move(left);
     right_ = std::move(right);
   }
@@ -59,15 +64,23 @@ void GpioMotorDrive::set_wheel_speeds(double left, double right) {
   left_speed_ = std::isfinite(left) ? std::clamp(left, -1.0, 1.0) : 0.0;
   right_speed_ = std::isfinite(right) ? std::clamp(right, -1.0, 1.0) : 0.0;
   // A mirrored motor turns the other way for the same speed.
+  const bool running = left_speed_ != 0.0 || right_speed_ != 0.0;
+  // Standby goes inactive before a stop and active only once both bridges have their new inputs.
+  bool ok_standby = running || !standby_ || standby_->set(false);
   const bool ok_left = left_->set(settings_.left.reverse ? -left_speed_ : left_speed_);
   const bool ok_right = right_->set(settings_.right.reverse ? -right_speed_ : right_speed_);
-  if (ok_left && ok_right) return;
+  if (ok_left && ok_right && running && standby_) ok_standby = standby_->set(true);
+  if (ok_left && ok_right && ok_standby) return;
   ++refused_;
+  if (standby_) standby_->set(false);
   left_->stop();
   right_->stop();
   left_speed_ = right_speed_ = 0.0;
-  last_error_ =
-      std::string("the kernel refused a line change on the ") + (ok_left ? "right" : "left") + " bridge; both motors stopped";
+  last_error_ = std::string("the kernel refused a line change on the ") +
+                (!ok_left    ? "left bridge"
+                 : !ok_right ? "right bridge"
+                             : "standby line") +
+                "; both motors stopped";
   throw GpioError("gpio drive: " + last_error_);
 }
 
@@ -77,7 +90,8 @@ void GpioMotorDrive::halt() noexcept {
   left_speed_ = right_speed_ = 0.0;
   if (!left_) return;
   // Power off both bridges before releasing any input, so the second motor is not left running while the first stops.
-  bool ok = left_->disable();
+  bool ok = !standby_ || standby_->set(false);
+  ok &= left_->disable();
   ok &= right_->disable();
   ok &= left_->stop();
   ok &= right_->stop();
@@ -93,6 +107,7 @@ void GpioMotorDrive::shutdown() noexcept {
   std::lock_guard lock(mutex_);
   left_.reset();  // releases the lines (and disables the PWM)
   right_.reset();
+  standby_.reset();
 }
 
 std::string GpioMotorDrive::fail_safe() const {
@@ -100,6 +115,7 @@ std::string GpioMotorDrive::fail_safe() const {
       "fail-safe: halt = enable and PWM off, then both bridge inputs inactive; if rcand dies the kernel releases "
       "the lines (inputs again on a Raspberry Pi): a pull-down on each enable input (pull-up if active-low) "
       "switches the bridge off";
+  if (settings_.standby) text += "; the shared standby line goes inactive first, and needs the same pull-down";
   if (!settings_.left.enable || !settings_.right.enable) text += "; WARNING: a motor has no enable line configured";
   if (settings_.left.pwm || settings_.right.pwm) text += "; note: a sysfs PWM keeps running after rcand dies";
   return text;

@@ -49,6 +49,7 @@ class GpioMotorDrive final : public sdk::DifferentialDrive {
 
   mutable std::mutex mutex_;  // the bridges: every line change happens under it
   std::unique_ptr<HBridge> left_, right_;
+  std::unique_ptr<OutputLine> standby_;  // settings_.standby: active while a motor runs
   double left_speed_ = 0.0, right_speed_ = 0.0;
   std::uint64_t commands_ = 0, halts_ = 0, refused_ = 0;
   std::string last_error_;

@@ -218,3 +218,42 @@ TEST_CASE("sysfs PWM: period from the frequency, duty in nanoseconds, disabled w
   CHECK_THROWS_WITH_AS(SysfsPwm(3, 0, 1000.0, root.string()), doctest::Contains("enable the PWM overlay"), GpioError);
   std::filesystem::remove_all(root);
 }
+
+TEST_CASE("standby (a TB6612's STBY shared by both motors): requested first, active only while a motor runs") {
+  json c = config();
+  c["standby"] = 19;
+  Rig rig(c);
+  rig.drive->start();
+  auto events = rig.log->events();
+  REQUIRE_FALSE(events.empty());
+  CHECK(events[0].line == "line 19");  // both bridges stay off while their lines are set up
+  CHECK(events[0].request);
+  CHECK_FALSE(rig.levels()["line 19"]);
+  rig.drive->set_wheel_speeds(0.5, 0.5);
+  CHECK(rig.log->events().back().line == "line 19");  // on once both bridges have their inputs
+  CHECK(rig.levels()["line 19"]);
+  rig.drive->set_wheel_speeds(0.0, 0.0);
+  CHECK_FALSE(rig.levels()["line 19"]);
+  rig.drive->set_wheel_speeds(-0.3, 0.0);
+  CHECK(rig.levels()["line 19"]);
+  rig.log->clear();
+  rig.drive->halt();
+  events = rig.log->events();
+  REQUIRE_FALSE(events.empty());
+  CHECK(events[0].line == "line 19");  // off before anything else
+  CHECK_FALSE(rig.levels()["line 19"]);
+  CHECK(rig.drive->status()["fail_safe"].get<std::string>().find("shared standby line") != std::string::npos);
+  // A standby line the kernel refuses stops both motors and says which line it was.
+  json refused = config();
+  refused["standby"] = 19;
+  Rig faulty(refused);
+  faulty.chip->refuse("line 19");
+  faulty.drive->start();
+  CHECK(error_of([&] { faulty.drive->set_wheel_speeds(0.5, 0.5); }).find("standby line; both motors stopped") !=
+        std::string::npos);
+  // One line drives one thing: the standby line is no motor's line too.
+  json twice = config();
+  twice["standby"] = 22;
+  CHECK(error_of([&] { GpioMotorSettings::from(rcand::sdk::ConfigView(twice)); }) ==
+        "channels.left.enable: line 22 is used twice");
+}

@@ -71,6 +71,8 @@ std::optional<std::string> GpioMotorSettings::first_line_name() const {
     for (const LineSettings* l : {&m->in1, &m->in2, m->enable ? &*m->enable : nullptr})
       if (l)
         if (const auto* name = std::get_if<std::string>(&l->line)) return *name;
+  if (standby)
+    if (const auto* name = std::get_if<std::string>(&standby->line)) return *name;
   return std::nullopt;
 }
 
@@ -89,8 +91,10 @@ GpioMotorSettings GpioMotorSettings::from(const sdk::ConfigView& config) {
   if (!channels.is_object()) throw ConfigError("channels: expected {left: {in1, in2, ...}, right: {...}}");
   s.left = motor(channels, "left");
   s.right = motor(channels, "right");
+  if (raw.contains("standby") && !raw["standby"].is_null()) s.standby = line_settings(raw["standby"], "standby");
   // One line drives one thing: a line named twice would let one motor's stop be another's start.
   std::set<std::string> seen;
+  if (s.standby) seen.insert(describe(s.standby->line));
   for (const auto& [side, m] : {std::pair{"left", &s.left}, std::pair{"right", &s.right}})
     for (const auto& [key, l] :
          {std::pair{"in1", &m->in1}, std::pair{"in2", &m->in2}, std::pair{"enable", m->enable ? &*m->enable : nullptr}}) {

@@ -4,6 +4,7 @@
 //     left:  {in1: 17, in2: 27, enable: 22}                       # lines by offset...
 //     right: {in1: GPIO23, in2: GPIO24, enable: {line: 25, active_low: true},
 //             pwm: {chip: 0, channel: 1, frequency_hz: 1000}}     # ...or by name; PWM through /sys/class/pwm
+//   standby: 19                  # optional: a bridge chip's STBY input shared by both motors (TB6612)
 #pragma once
 
 #include <rcand/sdk/config_view.hpp>
@@ -36,6 +37,8 @@ struct MotorSettings {
 struct GpioMotorSettings {
   std::optional<std::string> chip;
   MotorSettings left, right;
+  // A standby input both motors share (a TB6612's STBY): active while a motor runs, inactive at every stop.
+  std::optional<LineSettings> standby;
   std::string sysfs_root = "/sys";
 
   // The first line given by name, used to find the chip when none is configured.

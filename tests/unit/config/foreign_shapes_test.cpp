@@ -126,3 +126,20 @@ TEST_CASE("teleop listed for an arm (the reference runtime's leader/follower) is
   const auto base = parse_with({"rcan_protocol:", "  capabilities: [status, teleop]", "physics:", "  type: differential"});
   CHECK(base.config.capabilities == std::vector<std::string>{"status", "teleop"});
 }
+
+TEST_CASE("gpio: a TB6612 as {ain1_gpio, ..., standby_gpio} is motor A left, B right, PWM inputs as enables") {
+  const auto loaded = parse_with({"drivers:", "  - id: motor_driver", "    protocol: gpio",
+                                  "    channels: {ain1_gpio: 13, ain2_gpio: 6, pwma_gpio: 12, bin1_gpio: 21, bin2_gpio: 20, "
+                                  "pwmb_gpio: 26, standby_gpio: 19}",
+                                  "    pwm_freq_hz: 500"});
+  const json& settings = loaded.config.drivers.at(0).settings;
+  CHECK(settings["channels"] == json::parse(R"({"left": {"in1": 13, "in2": 6, "enable": 12},
+                                                "right": {"in1": 21, "in2": 20, "enable": 26}})"));
+  CHECK(settings["standby"] == 19);
+  CHECK_FALSE(settings.contains("pwm_freq_hz"));
+  CHECK(warnings_naming(loaded, "(a TB6612 on GPIO lines, the reference runtime's shape)") == 1);
+  // A key of its own in that block: left as written, for the plugin to name.
+  const auto other = parse_with({"drivers:", "  - id: motor_driver", "    protocol: gpio",
+                                 "    channels: {ain1_gpio: 13, ain2_gpio: 6, bin1_gpio: 21, bin2_gpio: 20, led_gpio: 4}"});
+  CHECK(other.config.drivers.at(0).settings["channels"].contains("ain1_gpio"));
+}
