@@ -453,7 +453,9 @@ class ShapeReader {
         {"standby_gpio", ".standby"},
     }};
     json left = json::object(), right = json::object(), standby;
-    for (const auto& [name, line] : channels->items()) {
+    for (const auto& channel : channels->items()) {
+      const std::string& name = channel.key();
+      const json& line = channel.value();
       const auto found = std::find_if(kLines.begin(), kLines.end(), [&name](const auto& known) { return known.first == name; });
       if (found == kLines.end()) return false;  // a key of its own: left for the plugin to name
       const std::string target(found->second);
