@@ -417,7 +417,9 @@ class ShapeReader {
     const auto interface = entry.find("interface");
     if (interface != entry.end() && *interface == "i2c") {
       entry["protocol"] = "sunfounder_robot_hat";
-      note(path, named + " (protocol 'gpio', interface i2c, address " + entry.value("address", json("")).dump() +
+      const json address = entry.value("address", json("?"));
+      note(path, named + " (protocol 'gpio', interface i2c, address " +
+                     (address.is_string() ? address.get<std::string>() : address.dump()) +
                      ") is the SunFounder Robot HAT's motor and servo controller, not GPIO lines: read as protocol "
                      "'sunfounder_robot_hat'");
       return true;
