@@ -1,7 +1,8 @@
 // The parts of a snapshot camera that need no network: the libjpeg-turbo decoder (what it decodes equals what OpenCV's
 // own decoder makes of the same bytes; bad input is a JpegError naming it, after which the decoder still works; a
 // header claiming a huge picture is refused before memory is taken) and the URL parser (http only; https refused
-// by name; user info, IPv6 and ports).
+// by name; user info, IPv6 and ports); and the source against a camera this test serves (tests/support/
+// snapshot_camera.hpp): pass-through, basic auth, and each fault named - 404, not a JPEG, too large, no answer.
 #include <doctest/doctest.h>
 
 #include <opencv2/core.hpp>
@@ -10,13 +11,24 @@
 #include <string>
 #include <vector>
 
+#include <netinet/in.h>
+#include <sys/socket.h>
+#include <unistd.h>
+
+#include "camera_source.hpp"
 #include "jpeg_decoder.hpp"
+#include "snapshot_camera.hpp"
 #include "snapshot_client.hpp"
 
+using rcand::plugins::vision::CameraFrame;
 using rcand::plugins::vision::JpegDecoder;
 using rcand::plugins::vision::JpegEncoder;
 using rcand::plugins::vision::JpegError;
+using rcand::plugins::vision::make_snapshot_source;
 using rcand::plugins::vision::parse_snapshot_url;
+using rcand::plugins::vision::SourceError;
+using rcand::plugins::vision::SourceKind;
+using rcand::plugins::vision::SourceSettings;
 
 namespace {
 
@@ -36,7 +48,85 @@ std::string snapshot_decode_error(JpegDecoder& decoder, const std::string& bytes
   return "no error";
 }
 
+SourceSettings snapshot_settings(const std::string& url) {
+  SourceSettings settings;
+  settings.kind = SourceKind::Snapshot;
+  settings.location = url;
+  settings.open_timeout = settings.read_timeout = std::chrono::milliseconds(300);
+  settings.snapshot_max_bytes = 64 * 1024;
+  return settings;
+}
+
+std::string snapshot_open_error(const SourceSettings& settings) {
+  try {
+    make_snapshot_source(settings)->open();
+  } catch (const SourceError& e) {
+    return e.what();
+  }
+  return "no error";
+}
+
 }  // namespace
+
+TEST_CASE("snapshot: the source passes the camera's JPEG through, sends basic auth, and names every fault") {
+  JpegEncoder encoder;
+  const std::string jpeg(encoder.encode(snapshot_test_picture(160, 120), 80));
+  rcand::test::SnapshotCamera camera(jpeg);
+  const std::string url = camera.url();
+  const std::string with_credentials = "http://viewer:s3cret@" + url.substr(7);
+
+  auto source = make_snapshot_source(snapshot_settings(with_credentials));
+  CHECK(source->describe() == "snapshot http://***@" + url.substr(7));
+  source->open();
+  CameraFrame frame;
+  for (int i = 0; i < 3; ++i) {
+    REQUIRE(source->read_frame(frame));
+    REQUIRE(frame.jpeg);
+    CHECK(*frame.jpeg == jpeg);  // the camera's own bytes
+    CHECK(frame.image.empty());
+    CHECK(frame.size == cv::Size(160, 120));
+  }
+  CHECK(camera.connections() == 1);
+  CHECK(camera.last_request().find("\r\nAuthorization: Basic dmlld2VyOnMzY3JldA==") != std::string::npos);
+
+  // The size asked for differs: decoded and scaled.
+  auto smaller = snapshot_settings(url);
+  smaller.width = 80;
+  smaller.height = 60;
+  smaller.size_given = true;
+  source = make_snapshot_source(smaller);
+  source->open();
+  REQUIRE(source->read_frame(frame));
+  CHECK_FALSE(frame.jpeg);
+  CHECK(frame.image.size() == cv::Size(80, 60));
+
+  camera.answer_not_found(true);
+  CHECK(snapshot_open_error(snapshot_settings(url)) == "snapshot " + url + ": 404 Not Found");
+  camera.answer_not_found(false);
+
+  rcand::test::SnapshotCamera html("<html>it works</html>");
+  CHECK(snapshot_open_error(snapshot_settings(html.url())) ==
+        "snapshot " + html.url() +
+            ": the answer is not a picture rcand can use (JPEG decoder: Not a JPEG file: starts with 0x3c 0x68)");
+
+  rcand::test::SnapshotCamera huge(std::string(100 * 1024, 'x'));
+  CHECK(snapshot_open_error(snapshot_settings(huge.url())) ==
+        "snapshot " + huge.url() + ": the answer is larger than 64 KiB (snapshot_max_kib)");
+
+  // A camera that takes the connection and never answers: bounded by read_timeout.
+  const int silent = ::socket(AF_INET, SOCK_STREAM, 0);
+  REQUIRE(silent >= 0);
+  sockaddr_in address{};
+  address.sin_family = AF_INET;
+  address.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+  REQUIRE(::bind(silent, reinterpret_cast<sockaddr*>(&address), sizeof address) == 0);
+  REQUIRE(::listen(silent, 4) == 0);
+  socklen_t length = sizeof address;
+  REQUIRE(::getsockname(silent, reinterpret_cast<sockaddr*>(&address), &length) == 0);
+  const std::string silent_url = "http://127.0.0.1:" + std::to_string(ntohs(address.sin_port)) + "/snapshot.jpg";
+  CHECK(snapshot_open_error(snapshot_settings(silent_url)) == "snapshot " + silent_url + ": no answer within 300 ms");
+  ::close(silent);
+}
 
 TEST_CASE("snapshot: the JPEG decoder reads the size from the header and decodes as OpenCV's decoder does") {
   JpegEncoder encoder;

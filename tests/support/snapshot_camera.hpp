@@ -58,6 +58,11 @@ class SnapshotCamera {
   void answer_not_found(bool not_found) { not_found_ = not_found; }
   int connections() const { return connections_; }
   int requests() const { return requests_; }
+  // The head of the last request (request line and headers).
+  std::string last_request() {
+    std::lock_guard lock(mutex_);
+    return last_request_;
+  }
 
  private:
   void accept_loop() {
@@ -87,6 +92,10 @@ class SnapshotCamera {
         continue;
       }
       const bool get = pending.starts_with("GET /snapshot.jpg HTTP/1.1\r\n");
+      {
+        std::lock_guard lock(mutex_);
+        last_request_ = pending.substr(0, end);
+      }
       pending.erase(0, end + 4);
       ++requests_;
       const std::string answer =
@@ -101,7 +110,7 @@ class SnapshotCamera {
     ::close(fd);
   }
 
-  std::string jpeg_;
+  std::string jpeg_, last_request_;
   int listener_ = -1;
   std::uint16_t port_ = 0;
   std::atomic<bool> not_found_{false};
