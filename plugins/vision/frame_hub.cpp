@@ -271,11 +271,14 @@ void FrameHub::update_stats(Clock::time_point now) {
   if (seconds <= 0) return;
   const double captured = tenths((captured_ - stats_captured_) / seconds);
   const double encoded = tenths((encoded_ - stats_encoded_) / seconds);
-  if (captured != captured_fps_ || encoded != encoded_fps_ || !viewers_.empty()) dirty_ = true;
+  const double passed = tenths((passed_ - stats_passed_) / seconds);
+  if (captured != captured_fps_ || encoded != encoded_fps_ || passed != passed_fps_ || !viewers_.empty()) dirty_ = true;
   captured_fps_ = captured;
   encoded_fps_ = encoded;
+  passed_fps_ = passed;
   stats_captured_ = captured_;
   stats_encoded_ = encoded_;
+  stats_passed_ = passed_;
   for (auto& viewer : viewers_) {
     const auto sent = viewer->writer->counters().sent;
     viewer->fps = tenths((sent - viewer->stats_sent) / seconds);
@@ -345,6 +348,7 @@ sdk::Json FrameHub::status_locked() const {
             {"reconnects", reconnects_}}},
           {"captured_fps", captured_fps_},
           {"encoded_fps", encoded_fps_},
+          {"passed_through_fps", passed_fps_},
           {"frames_captured", captured_},
           {"frames_encoded", encoded_},
           {"frames_passed_through", passed_},

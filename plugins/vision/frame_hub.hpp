@@ -135,8 +135,8 @@ class FrameHub {
   std::uint64_t next_viewer_id_ = 1;
 
   std::uint64_t captured_ = 0, encoded_ = 0, passed_ = 0, rounds_ = 0;
-  std::uint64_t stats_captured_ = 0, stats_encoded_ = 0;
-  double captured_fps_ = 0, encoded_fps_ = 0;
+  std::uint64_t stats_captured_ = 0, stats_encoded_ = 0, stats_passed_ = 0;
+  double captured_fps_ = 0, encoded_fps_ = 0, passed_fps_ = 0;
   Clock::time_point stats_at_;
 };
 

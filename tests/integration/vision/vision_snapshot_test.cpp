@@ -74,6 +74,12 @@ TEST_CASE("vision: a snapshot camera's JPEGs stream as they are; 404 or gone is 
   CHECK(snapshot_vision(rcand)["status"]["camera"]["source"] == "snapshot " + url);
   // The status is published about once a second while viewers watch.
   CHECK(eventually([&] { return snapshot_vision(rcand)["status"]["frames_passed_through"].get<int>() >= 5; }, 10s));
+  CHECK(eventually(
+      [&] {
+        return rcand.request("GET", "/metrics", "guest-token")
+                   .body.find("rcand_vision_frames_per_second{stage=\"passed_through\"} 0\n") == std::string::npos;
+      },
+      10s));
   CHECK(camera->requests() >= 5);
   CHECK(camera->connections() == 1);  // every request on the one kept-alive connection
 
