@@ -20,16 +20,15 @@ class SnapshotSource final : public FrameSource {
 
   // The first picture is fetched here: a camera that does not answer is a fault of open(), not a source that opens
   // and fails at once (which would report "camera back" between faults).
-  void open() override {
-    if (!fetch(first_)) throw SourceError("snapshot " + redact_url(settings_.location) + ": no picture");
-  }
+  void open() override { fetch(first_); }
   bool read_frame(CameraFrame& frame) override {
     if (first_.jpeg || !first_.image.empty()) {
       frame = std::move(first_);
       first_ = CameraFrame{};
       return true;
     }
-    return fetch(frame);
+    fetch(frame);
+    return true;
   }
   bool read(cv::Mat& image) override {
     CameraFrame frame;
@@ -42,7 +41,8 @@ class SnapshotSource final : public FrameSource {
   std::string describe() const override { return "snapshot " + redact_url(settings_.location); }
 
  private:
-  bool fetch(CameraFrame& frame) {
+  // The next picture into `frame`; throws SourceError naming the fault.
+  void fetch(CameraFrame& frame) {
     auto jpeg = client_.fetch();
     try {
       const cv::Size size = decoder_.size(*jpeg);
@@ -50,12 +50,11 @@ class SnapshotSource final : public FrameSource {
       if (!settings_.size_given || size == wanted) {
         frame.jpeg = std::move(jpeg);
         frame.size = size;
-        return true;
+        return;
       }
       frame.jpeg.reset();
       cv::resize(decoder_.decode(*jpeg), frame.image, wanted, 0, 0, cv::INTER_AREA);
       frame.size = wanted;
-      return true;
     } catch (const JpegError& e) {
       throw SourceError("snapshot " + redact_url(settings_.location) + ": the answer is not a picture rcand can use (" +
                         e.what() + ")");
