@@ -6,11 +6,20 @@
 //  - capture -> client latency: the part's X-Timestamp-Us (rcand's steady clock when the frame was captured) to the
 //    moment the viewer holds the whole part (this machine's steady clock: the same CLOCK_MONOTONIC). It includes the
 //    encode, the socket and the viewer thread's own wake-up, so it bounds capture -> socket from above;
-//  - frames encoded per second against frames captured (encode once: equal, whatever the number of viewers);
+//  - frames encoded per second against frames captured (encode once: equal, whatever the number of viewers), and
+//    rcand's CPU per captured frame (streaming CPU / captured fps);
 //  - POST /api/stop round trips (each latches, then is cleared), with nobody watching and then while the viewers
 //    stream, after the measuring window (the e-stop path must not notice the streams).
-//   bench_vision [--viewers N] [--seconds S] [--idle-seconds S] [--width W] [--height H] [--fps F]
+// --source snapshot: the camera is an HTTP snapshot camera this process serves on loopback (tests/support/
+// snapshot_camera.hpp), one JPEG of the test pattern at W x H, polled by rcand at F; its JPEG passes through to viewers
+// (no decode, no encode). --source snapshot-resize asks rcand for half that size: every frame decoded, scaled and
+// re-encoded. The default, --source synthetic, draws and encodes every frame.
+//   bench_vision [--source synthetic|snapshot|snapshot-resize] [--viewers N] [--seconds S] [--idle-seconds S]
+//                [--width W] [--height H] [--fps F]
 #include <nlohmann/json.hpp>
+
+#include <opencv2/core.hpp>
+#include <opencv2/imgcodecs.hpp>
 
 #include <unistd.h>
 
@@ -19,6 +28,7 @@
 #include <cstdio>
 #include <fstream>
 #include <mutex>
+#include <optional>
 #include <sstream>
 #include <string>
 #include <thread>
@@ -26,8 +36,20 @@
 
 #include "mjpeg_client.hpp"
 #include "rcand_process.hpp"
+#include "snapshot_camera.hpp"
 
 namespace {
+
+// Eight colour bars over a smooth gradient: about what a camera's picture costs to decode and encode.
+void draw_bench_pattern(cv::Mat& picture) {
+  for (int y = 0; y < picture.rows; ++y)
+    for (int x = 0; x < picture.cols; ++x) {
+      const int bar = x * 8 / picture.cols;
+      picture.at<cv::Vec3b>(y, x) =
+          cv::Vec3b(static_cast<uchar>((bar & 1) * 150 + y % 64), static_cast<uchar>((bar & 2) * 75 + x % 48),
+                    static_cast<uchar>((bar & 4) * 37 + (x + y) % 80));
+    }
+}
 
 using nlohmann::json;
 using Clock = std::chrono::steady_clock;
@@ -94,12 +116,19 @@ struct Options {
   double seconds = 20, idle_seconds = 5;
   int width = 640, height = 480;
   double fps = 30;
+  std::string source = "synthetic";
 };
 
 Options parse(int argc, char** argv) {
   Options o;
   for (int i = 1; i + 1 < argc; i += 2) {
     const std::string key = argv[i];
+    if (key == "--source") {
+      o.source = argv[i + 1];
+      if (o.source != "synthetic" && o.source != "snapshot" && o.source != "snapshot-resize")
+        throw std::runtime_error("--source: synthetic, snapshot or snapshot-resize");
+      continue;
+    }
     const double value = std::stod(argv[i + 1]);
     if (key == "--viewers") o.viewers = static_cast<int>(value);
     else if (key == "--seconds") o.seconds = value;
@@ -118,12 +147,23 @@ int main(int argc, char** argv) try {
   const Options o = parse(argc, argv);
   auto config = rcand::test::sim_config();
   config["camera"] = {{"type", "synthetic"}, {"resolution", {o.width, o.height}}, {"fps", o.fps}};
+  std::optional<rcand::test::SnapshotCamera> camera;
+  if (o.source != "synthetic") {
+    // The synthetic camera's test pattern, as a camera would serve it.
+    cv::Mat picture(o.height, o.width, CV_8UC3);
+    draw_bench_pattern(picture);
+    std::vector<uchar> jpeg;
+    cv::imencode(".jpg", picture, jpeg, {cv::IMWRITE_JPEG_QUALITY, 80});
+    camera.emplace(std::string(jpeg.begin(), jpeg.end()));
+    config["camera"] = {{"type", "snapshot"}, {"url", camera->url()}, {"fps", o.fps}};
+    if (o.source == "snapshot-resize") config["camera"]["resolution"] = {o.width / 2, o.height / 2};
+  }
   config["rcan_protocol"]["capabilities"] = {"status", "teleop", "vision", "com.acme.gripper"};
   config["runtime"]["capabilities"]["vision"] = {{"max_viewers", std::max(32, o.viewers)}};
   config["runtime"]["logging"]["level"] = "warn";
   rcand::test::RcandProcess rcand(config);
-  std::printf("rcand pid %d on port %u: synthetic %dx%d at %.0f fps, %d viewers, %.0f s\n", rcand.pid(), rcand.port(), o.width,
-              o.height, o.fps, o.viewers, o.seconds);
+  std::printf("rcand pid %d on port %u: %s %dx%d at %.0f fps, %d viewers, %.0f s\n", rcand.pid(), rcand.port(), o.source.c_str(),
+              o.width, o.height, o.fps, o.viewers, o.seconds);
 
   std::this_thread::sleep_for(std::chrono::seconds(1));  // startup settled
   const double idle_cpu = cpu_percent(rcand.pid(), o.idle_seconds);
@@ -193,7 +233,10 @@ int main(int argc, char** argv) try {
               percentile(fps, 1));
   std::printf("rcand CPU (%% of one core):      idle %.1f  streaming %.1f  (streaming - idle: %.1f)\n", idle_cpu, stream_cpu,
               stream_cpu - idle_cpu);
-  std::printf("captured / encoded per second:  %.1f / %.1f\n", captured, encoded);
+  const double passed =
+      (status_after.value("frames_passed_through", 0.0) - status_before.value("frames_passed_through", 0.0)) / window;
+  std::printf("captured / encoded / passed through per second:  %.1f / %.1f / %.1f\n", captured, encoded, passed);
+  std::printf("rcand CPU per captured frame:   %.2f ms (streaming)\n", captured > 0 ? stream_cpu * 10.0 / captured : 0.0);
   std::printf("capture -> client (ms):         p50 %.2f  p99 %.2f  max %.2f  (n=%zu)\n", percentile(latency, 0.5),
               percentile(latency, 0.99), percentile(latency, 1), latency.size());
   for (const auto& [what, ms] : {std::pair{"nobody watching", &idle_stops}, std::pair{"while streaming", &streaming_stops}})

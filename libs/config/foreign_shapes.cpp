@@ -101,6 +101,13 @@ class ShapeReader {
       camera[target] = key == "resolution" ? resolution_of(value) : value;
       copy_marks(marks_, moved, yaml::child_path(from, key), "camera." + target);
     }
+    // The reference runtime's `http` camera polls a URL that answers one JPEG per request: rcand's snapshot camera
+    // (rcand's own `http` is a stream, MJPEG through FFmpeg).
+    if (camera.contains("type") && camera["type"].is_string() && same_text(camera["type"].get<std::string>(), "http")) {
+      camera["type"] = "snapshot";
+      note(from + ".type", from + ".type 'http' (another runtime's snapshot camera: one JPEG per request) is read as " +
+                               "'snapshot'; write 'snapshot' to say so");
+    }
     if (!camera.contains("type") && !default_type.empty()) camera["type"] = std::move(default_type);
     if (!camera.contains("type") && camera.contains("url")) camera["type"] = "url";
     copy_marks(marks_, moved, from, "camera");
@@ -252,7 +259,7 @@ class ShapeReader {
         {"picamera2", "csi"},
         {"picam", "csi"},
         {"mjpeg_stream", "url"},
-        {"http", "url"},
+        {"http", "snapshot"},  // the reference runtime's http camera polls snapshots
     }};
     const auto protocol = entry.find("protocol");
     if (protocol == entry.end() || !protocol->is_string()) return std::nullopt;
@@ -670,7 +677,7 @@ class ShapeReader {
           continue;
         }
         std::string dropped;
-        doc_["camera"] = camera_from(entry, path, entry.contains("url") ? "url" : *type, dropped);
+        doc_["camera"] = camera_from(entry, path, entry.contains("url") && *type != "snapshot" ? "url" : *type, dropped);
         std::string message = named + " (protocol " + single_quoted(protocol) +
                               ") is a camera: read as rcand's `camera` block (plugin org.rcand.vision), not as a driver";
         if (!dropped.empty()) message += "; its keys " + dropped + " have no counterpart and are ignored";

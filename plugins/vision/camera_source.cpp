@@ -88,6 +88,7 @@ std::string_view kind_name(SourceKind kind) noexcept {
     case SourceKind::File: return "file";
     case SourceKind::V4l2: return "v4l2";
     case SourceKind::Url: return "url";
+    case SourceKind::Snapshot: return "snapshot";
   }
   return "unknown";
 }
@@ -98,6 +99,7 @@ std::unique_ptr<FrameSource> make_source(const SourceSettings& settings) {
     case SourceKind::File:
     case SourceKind::V4l2:
     case SourceKind::Url: return make_video_source(settings);
+    case SourceKind::Snapshot: return make_snapshot_source(settings);
   }
   throw SourceError("unknown camera source");
 }

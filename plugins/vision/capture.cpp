@@ -51,9 +51,9 @@ struct Capture::Shared {
         hub->alive();
         continue;
       }
-      cv::Mat frame;
+      CameraFrame frame;
       try {
-        if (!source.read(frame)) return source.describe() + " stopped delivering frames";
+        if (!source.read_frame(frame)) return source.describe() + " stopped delivering frames";
       } catch (const std::exception& e) {
         return e.what();
       }

@@ -40,7 +40,8 @@ struct FrameHub::Viewer {
 };
 
 struct FrameHub::Delivery {
-  std::shared_ptr<const cv::Mat> image;  // null: a NO SIGNAL frame, drawn outside the lock
+  std::shared_ptr<const cv::Mat> image;     // null: a NO SIGNAL frame, drawn outside the lock (unless jpeg is set)
+  std::shared_ptr<const std::string> jpeg;  // the camera's own JPEG: sent as it is
   std::uint64_t seq = 0;
   std::int64_t captured_us = 0, wall_ms = 0;
   bool live = true;
@@ -93,11 +94,18 @@ void FrameHub::stop() noexcept {
 }
 
 void FrameHub::frame(cv::Mat image) {
-  auto shared = std::make_shared<const cv::Mat>(std::move(image));
+  const cv::Size size = image.size();
+  frame(CameraFrame{std::move(image), nullptr, size});
+}
+
+void FrameHub::frame(CameraFrame camera) {
+  auto shared = camera.jpeg ? nullptr : std::make_shared<const cv::Mat>(std::move(camera.image));
   const auto now = Clock::now();
   {
     std::lock_guard lock(mutex_);
     latest_ = std::move(shared);
+    latest_jpeg_ = std::move(camera.jpeg);
+    latest_size_ = camera.size;
     ++latest_seq_;
     ++captured_;
     latest_us_ = steady_us(now);
@@ -196,9 +204,10 @@ std::optional<FrameHub::Delivery> FrameHub::next_delivery(Clock::time_point now,
   Delivery d;
   if (live_) {
     wake = alive_at_ + stall_after_ + 1ms;  // the stall check
-    if (!latest_ || latest_seq_ == delivered_seq_) return std::nullopt;
+    if ((!latest_ && !latest_jpeg_) || latest_seq_ == delivered_seq_) return std::nullopt;
     delivered_seq_ = latest_seq_;
     d.image = latest_;
+    d.jpeg = latest_jpeg_;
     d.seq = latest_seq_;
     d.captured_us = latest_us_;
     d.wall_ms = latest_wall_ms_;
@@ -215,8 +224,8 @@ std::optional<FrameHub::Delivery> FrameHub::next_delivery(Clock::time_point now,
     d.reason = fault_;
     d.captured_us = steady_us(now);
     d.wall_ms = wall_ms();
-    d.width = latest_ ? latest_->cols : options_.width;
-    d.height = latest_ ? latest_->rows : options_.height;
+    d.width = latest_size_.empty() ? options_.width : latest_size_.width;
+    d.height = latest_size_.empty() ? options_.height : latest_size_.height;
   }
   for (const auto& viewer : viewers_) {
     if (viewer->min_interval_us > 0 && d.captured_us - viewer->last_sent_us < viewer->min_interval_us - kIntervalSlackUs)
@@ -230,15 +239,17 @@ std::optional<FrameHub::Delivery> FrameHub::next_delivery(Clock::time_point now,
 }
 
 void FrameHub::deliver(Delivery& d) {
-  sdk::SharedBytes jpeg;
-  try {
-    if (!d.image) d.image = std::make_shared<const cv::Mat>(no_signal_frame(d.width, d.height, d.reason, d.wall_ms));
-    jpeg = encoder_(*d.image);
-  } catch (...) {  // an encoder failure drops this frame; the next one tries again
+  sdk::SharedBytes jpeg = d.jpeg;
+  if (!jpeg) {
+    try {
+      if (!d.image) d.image = std::make_shared<const cv::Mat>(no_signal_frame(d.width, d.height, d.reason, d.wall_ms));
+      jpeg = encoder_(*d.image);
+    } catch (...) {  // an encoder failure drops this frame; the next one tries again
+    }
   }
   {
     std::lock_guard lock(mutex_);
-    ++encoded_;
+    ++(d.jpeg ? passed_ : encoded_);
   }
   if (!jpeg) {
     for (auto& snapshot : d.snapshots) snapshot->respond(sdk::Response::error(500, "INTERNAL", "the frame could not be encoded"));
@@ -260,11 +271,14 @@ void FrameHub::update_stats(Clock::time_point now) {
   if (seconds <= 0) return;
   const double captured = tenths((captured_ - stats_captured_) / seconds);
   const double encoded = tenths((encoded_ - stats_encoded_) / seconds);
-  if (captured != captured_fps_ || encoded != encoded_fps_ || !viewers_.empty()) dirty_ = true;
+  const double passed = tenths((passed_ - stats_passed_) / seconds);
+  if (captured != captured_fps_ || encoded != encoded_fps_ || passed != passed_fps_ || !viewers_.empty()) dirty_ = true;
   captured_fps_ = captured;
   encoded_fps_ = encoded;
+  passed_fps_ = passed;
   stats_captured_ = captured_;
   stats_encoded_ = encoded_;
+  stats_passed_ = passed_;
   for (auto& viewer : viewers_) {
     const auto sent = viewer->writer->counters().sent;
     viewer->fps = tenths((sent - viewer->stats_sent) / seconds);
@@ -334,8 +348,10 @@ sdk::Json FrameHub::status_locked() const {
             {"reconnects", reconnects_}}},
           {"captured_fps", captured_fps_},
           {"encoded_fps", encoded_fps_},
+          {"passed_through_fps", passed_fps_},
           {"frames_captured", captured_},
           {"frames_encoded", encoded_},
+          {"frames_passed_through", passed_},
           {"viewers", std::move(viewers)},
           {"max_viewers", options_.max_viewers}};
 }
@@ -347,12 +363,12 @@ sdk::Json FrameHub::status() const {
 
 FrameHub::Counts FrameHub::counts() const {
   std::lock_guard lock(mutex_);
-  return {captured_, encoded_, rounds_};
+  return {captured_, encoded_, passed_, rounds_};
 }
 
 bool FrameHub::wait(const std::function<bool(const Counts&)>& done, std::chrono::milliseconds limit) const {
   std::unique_lock lock(mutex_);
-  return delivered_.wait_for(lock, limit, [&] { return done(Counts{captured_, encoded_, rounds_}); });
+  return delivered_.wait_for(lock, limit, [&] { return done(Counts{captured_, encoded_, passed_, rounds_}); });
 }
 
 }  // namespace rcand::plugins::vision

@@ -25,6 +25,8 @@
 #include <thread>
 #include <vector>
 
+#include "camera_source.hpp"
+
 namespace rcand::plugins::vision {
 
 // Encodes one frame. The hub counts its calls: one per delivered frame, however many viewers.
@@ -56,6 +58,8 @@ class FrameHub {
 
   // ---- the capture thread (never blocks beyond a brief lock) ----
   void frame(cv::Mat image);
+  // A frame that may be the camera's own JPEG (CameraFrame): delivered as it is, never encoded again.
+  void frame(CameraFrame frame);
   void alive();  // a frame was due but skipped (nobody watches a synthetic source): the camera is not stalled
   void source_opened(const std::string& description, double fps);
   void source_lost(const std::string& reason);
@@ -79,6 +83,7 @@ class FrameHub {
   struct Counts {
     std::uint64_t captured = 0;  // frames the capture thread handed in
     std::uint64_t encoded = 0;   // encoder calls
+    std::uint64_t passed = 0;    // camera JPEGs delivered as they are (no encoder call)
     std::uint64_t rounds = 0;    // deliveries made (a frame pushed to someone)
   };
   Counts counts() const;
@@ -110,6 +115,8 @@ class FrameHub {
 
   // The newest frame, shared with the delivery in progress.
   std::shared_ptr<const cv::Mat> latest_;
+  std::shared_ptr<const std::string> latest_jpeg_;  // set: the newest frame is the camera's own JPEG (latest_ null)
+  cv::Size latest_size_;                            // of the newest frame; empty before the first
   std::uint64_t latest_seq_ = 0, delivered_seq_ = 0;
   std::int64_t latest_us_ = 0, latest_wall_ms_ = 0;  // steady (comparable across processes) and wall time of capture
   Clock::time_point alive_at_;                       // the capture thread's last sign of life
@@ -127,9 +134,9 @@ class FrameHub {
   std::vector<std::shared_ptr<sdk::StreamWriter>> snapshots_;
   std::uint64_t next_viewer_id_ = 1;
 
-  std::uint64_t captured_ = 0, encoded_ = 0, rounds_ = 0;
-  std::uint64_t stats_captured_ = 0, stats_encoded_ = 0;
-  double captured_fps_ = 0, encoded_fps_ = 0;
+  std::uint64_t captured_ = 0, encoded_ = 0, passed_ = 0, rounds_ = 0;
+  std::uint64_t stats_captured_ = 0, stats_encoded_ = 0, stats_passed_ = 0;
+  double captured_fps_ = 0, encoded_fps_ = 0, passed_fps_ = 0;
   Clock::time_point stats_at_;
 };
 

@@ -11,9 +11,11 @@ namespace {
 constexpr sdk::MetricFamily kViewers{
     "rcand_vision_stream_viewers", sdk::MetricType::Gauge, "MJPEG viewers of the camera stream now (GET /api/stream/mjpeg)", {}};
 constexpr std::array<std::string_view, 1> kStageLabel{"stage"};
-constexpr sdk::MetricFamily kFps{"rcand_vision_frames_per_second", sdk::MetricType::Gauge,
-                                 "camera frames per second, captured and encoded for viewers (0 while nobody watches)",
-                                 kStageLabel};
+constexpr sdk::MetricFamily kFps{
+    "rcand_vision_frames_per_second", sdk::MetricType::Gauge,
+    "camera frames per second: captured; encoded for viewers, or passed_through (a camera's own JPEG sent as it is; "
+    "0 while nobody watches)",
+    kStageLabel};
 
 double number(const sdk::Json& doc, const char* key) {
   const auto it = doc.find(key);
@@ -36,6 +38,7 @@ void record_stream_metrics(const sdk::PluginContext& ctx, const sdk::Json& hub_s
   metrics->set(kViewers, viewers != hub_status.end() && viewers->is_array() ? static_cast<double>(viewers->size()) : 0.0);
   metrics->set(kFps, {"captured"}, number(hub_status, "captured_fps"));
   metrics->set(kFps, {"encoded"}, number(hub_status, "encoded_fps"));
+  metrics->set(kFps, {"passed_through"}, number(hub_status, "passed_through_fps"));
 }
 
 }  // namespace rcand::plugins::vision

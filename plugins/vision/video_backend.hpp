@@ -12,7 +12,7 @@
 #include "camera_source.hpp"
 
 // The module's entry symbol, versioned with the interface it is called through (FrameSource, SourceSettings).
-#define RCAND_VISION_VIDEOIO_ENTRY rcand_vision_videoio_source_v1
+#define RCAND_VISION_VIDEOIO_ENTRY rcand_vision_videoio_source_v2
 
 namespace rcand::plugins::vision {
 

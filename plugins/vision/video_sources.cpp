@@ -137,7 +137,8 @@ extern "C" __attribute__((visibility("default"))) rcand::plugins::vision::FrameS
       case SourceKind::File: return new FileSource(settings);
       case SourceKind::V4l2: return new V4l2Source(settings);
       case SourceKind::Url: return new UrlSource(settings);
-      case SourceKind::Synthetic: break;
+      case SourceKind::Synthetic:
+      case SourceKind::Snapshot: break;
     }
   } catch (const std::bad_alloc&) {
   }

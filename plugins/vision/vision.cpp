@@ -1,6 +1,7 @@
 #include "vision.hpp"
 
 #include "jpeg_encoder.hpp"
+#include "snapshot_client.hpp"
 #include "stream_metrics.hpp"
 
 #include <opencv2/core/utils/logger.hpp>
@@ -21,11 +22,12 @@ SourceKind kind_of(const std::string& type) {
       {{"synthetic", "test", "test_pattern"}, SourceKind::Synthetic},
       {{"file", "video"}, SourceKind::File},
       {{"v4l2", "usb", "csi", "webcam", "uvc"}, SourceKind::V4l2},
-      {{"url", "ip", "http", "rtsp", "mjpeg", "stream"}, SourceKind::Url}};
+      {{"url", "ip", "http", "rtsp", "mjpeg", "stream"}, SourceKind::Url},
+      {{"snapshot", "http_snapshot", "jpeg"}, SourceKind::Snapshot}};
   for (const auto& [names, kind] : kTypes)
     if (names.contains(type)) return kind;
   throw ConfigError("camera.type: unknown camera type '" + type.substr(0, 64) +
-                    "'; one of synthetic, file, v4l2 (usb, csi), url (http, rtsp)");
+                    "'; one of synthetic, file, v4l2 (usb, csi), url (http, rtsp), snapshot");
 }
 
 // `device` as a path: 2 and "2" are /dev/video2.
@@ -50,6 +52,7 @@ void read_size(const ConfigView& camera, SourceSettings& s) {
     s.width = r[0].get<int>();
     s.height = r[1].get<int>();
   }
+  s.size_given = raw.contains("resolution") || raw.contains("width") || raw.contains("height");
   s.width = camera.get<int>("width").value_or(s.width);
   s.height = camera.get<int>("height").value_or(s.height);
   if (s.width < 16 || s.width > 7680 || s.height < 16 || s.height > 4320)
@@ -81,9 +84,18 @@ SourceSettings read_source(const ConfigView& camera, const ConfigView& own) {
       s.location = camera.get<std::string>("url").value_or("");
       if (s.location.empty()) throw ConfigError("camera.url: a url camera needs its URL (http://... or rtsp://...)");
       break;
+    case SourceKind::Snapshot: {
+      s.location = camera.get<std::string>("url").value_or("");
+      std::string error;
+      if (s.location.empty()) error = "a snapshot camera needs the URL of its picture (http://cam/snapshot.jpg)";
+      else if (!parse_snapshot_url(s.location, error)) error = redact_url(s.location) + ": " + error;
+      if (!error.empty()) throw ConfigError("camera.url: " + error);
+      break;
+    }
   }
   s.open_timeout = std::chrono::milliseconds(own.get_or<int>("open_timeout_ms", 3000));
   s.read_timeout = std::chrono::milliseconds(own.get_or<int>("read_timeout_ms", 3000));
+  s.snapshot_max_bytes = static_cast<std::size_t>(own.get_or<int>("snapshot_max_kib", 8192)) * 1024;
   return s;
 }
 

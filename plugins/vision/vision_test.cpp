@@ -552,6 +552,9 @@ TEST_CASE("vision: config errors name the key") {
   CHECK(error_of({{"type", "usb"}, {"fourcc", "MJPEG"}}).find("camera.fourcc") != std::string::npos);
   CHECK(error_of({{"type", "file"}}).find("camera.path") != std::string::npos);
   CHECK(error_of({{"type", "url"}}).find("camera.url") != std::string::npos);
+  CHECK(error_of({{"type", "snapshot"}}).find("camera.url: a snapshot camera needs the URL of its picture") != std::string::npos);
+  CHECK(error_of({{"type", "snapshot"}, {"url", "https://u:pw@cam/snap.jpg"}})
+            .find("camera.url: https://***@cam/snap.jpg: https is not supported") != std::string::npos);
   CHECK(error_of({{"type", "synthetic"}, {"width", "wide"}}).find("width") != std::string::npos);
 }
 
