@@ -29,4 +29,9 @@ std::string enter_stop_path_priority(int priority) noexcept {
   }
 }
 
+bool enter_batch_policy() noexcept {
+  sched_param param{};
+  return pthread_setschedparam(pthread_self(), SCHED_BATCH, &param) == 0;
+}
+
 }  // namespace rcand
