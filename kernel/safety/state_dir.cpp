@@ -17,6 +17,7 @@
 #include "libs/base/bounded_text.hpp"
 #include "libs/base/durable_file.hpp"
 #include "libs/base/logging.hpp"
+#include "libs/base/stop_path_priority.hpp"
 
 namespace rcand::kernel {
 namespace {
@@ -147,6 +148,7 @@ void StateDir::start_writer(std::function<LatchRecord()> current) {
   current_ = std::move(current);
   writer_ = std::thread([this] {
     pthread_setname_np(pthread_self(), "state.writer");
+    enter_background_policy();  // its fsyncs follow every latch and clear; the stop's client comes first
     std::unique_lock lock(mutex_);
     for (;;) {
       wake_.wait(lock, [this] { return dirty_ || stopping_; });

@@ -2,6 +2,8 @@
 
 #include <pthread.h>
 #include <sched.h>
+#include <sys/resource.h>
+#include <unistd.h>
 
 #include <atomic>
 #include <cstring>
@@ -32,6 +34,11 @@ std::string enter_stop_path_priority(int priority) noexcept {
 bool enter_batch_policy() noexcept {
   sched_param param{};
   return pthread_setschedparam(pthread_self(), SCHED_BATCH, &param) == 0;
+}
+
+bool enter_background_policy() noexcept {
+  const bool batch = enter_batch_policy();
+  return setpriority(PRIO_PROCESS, static_cast<id_t>(::gettid()), 10) == 0 && batch;
 }
 
 }  // namespace rcand

@@ -17,5 +17,9 @@ std::string enter_stop_path_priority(int priority) noexcept;
 // the wake-up call (a normal thread that slept took the waker's CPU at once: ~50 us per stop, measured), and it
 // still gets its fair share of the CPU right after. Needs no privilege; false when the kernel refused it.
 bool enter_batch_policy() noexcept;
+// Calling thread: SCHED_BATCH at nice 10, for work that follows a stop but has no deadline of its own (the state
+// dir's writer, whose record the running marker already covers): it runs when the stop's client and the stop's
+// own follow-ups leave a CPU, yet still gets ~10 % of a saturated core, so it is never starved for good.
+bool enter_background_policy() noexcept;
 
 }  // namespace rcand
