@@ -33,7 +33,7 @@ cp config/dev-jwt.secret "$work/"
 chmod 600 "$work/dev-jwt.secret"
 "$build/kernel/rcand" --config "$work/robot.rcan.yaml" --plugin-path "$build/plugins" --port "$port" >"$work/out" 2>"$work/err" &
 pids+=($!)
-until grep -q "listening on" "$work/out"; do kill -0 "${pids[0]}"; sleep 0.05; done
+until grep -qs "listening on" "$work/out"; do kill -0 "${pids[0]}"; sleep 0.05; done
 
 echo "== rcand, the C++ client (bench_stop_latency $samples health) =="
 "$build/bench/bench_stop_latency" "$port" "$token" "$samples" health
