@@ -10,6 +10,7 @@
 #include "libs/base/bounded_text.hpp"
 #include "libs/base/closest_match.hpp"
 #include "libs/base/keep_forever.hpp"
+#include "libs/base/stop_path_priority.hpp"
 #include "rcand/sdk/contract/plan.hpp"
 
 namespace rcand::kernel {
@@ -428,22 +429,22 @@ void PluginRuntime::notify_estop() noexcept {
     std::lock_guard lock(crews_mutex_);
     crew = estop_crew_;
   }
-  if (!crew) {
-    for (auto& instance : capabilities_)
-      if (instance.object) instance.object->on_estop();
-    return;
-  }
-  for (const auto& outcome : crew->run_all(std::chrono::steady_clock::now() + kEstopNotifyDeadline)) {
+  if (crew) return crew->start_all();  // reported by the crew's watcher (start_crews)
+  for (auto& instance : capabilities_)
+    if (instance.object) instance.object->on_estop();
+}
+
+// The estop crew's watcher, off the stop path: an on_estop() that threw marks its capability failed, one still
+// running at kEstopNotifyDeadline is logged.
+void PluginRuntime::report_estop_round(const std::vector<DeadlineCrew::Outcome>& outcomes) {
+  for (const auto& outcome : outcomes) {
     if (outcome.state == DeadlineCrew::State::Done) continue;
-    try {
-      const std::string why = outcome.state == DeadlineCrew::State::Failed
-                                  ? "on_estop() threw: " + outcome.error
-                                  : "on_estop() did not return within " + std::to_string(kEstopNotifyDeadline.count()) + " ms";
-      logger("kernel.plugins")->error("capability {}: {}", outcome.name, why);
-      if (auto* instance = capability(outcome.name); instance != nullptr && outcome.state == DeadlineCrew::State::Failed)
-        instance->health.mark_failed(why);
-    } catch (...) {  // reporting must never undo the stop
-    }
+    const std::string why = outcome.state == DeadlineCrew::State::Failed
+                                ? "on_estop() threw: " + outcome.error
+                                : "on_estop() did not return within " + std::to_string(kEstopNotifyDeadline.count()) + " ms";
+    logger("kernel.plugins")->error("capability {}: {}", outcome.name, why);
+    if (auto* instance = capability(outcome.name); instance != nullptr && outcome.state == DeadlineCrew::State::Failed)
+      instance->health.mark_failed(why);
   }
 }
 
@@ -519,7 +520,8 @@ std::pair<std::shared_ptr<DeadlineCrew>, std::shared_ptr<StatusReader>> PluginRu
   std::vector<DeadlineCrew::Job> jobs;
   for (auto& instance : capabilities_)
     if (wanted(instance)) jobs.push_back({instance.name, [object = instance.object.get()] { object->on_estop(); }});
-  auto crew = std::make_shared<DeadlineCrew>("estop.notify", std::move(jobs));
+  auto crew = std::make_shared<DeadlineCrew>("estop.notify", std::move(jobs), [] { enter_batch_policy(); });
+  crew->watch(kEstopNotifyDeadline, [this](std::vector<DeadlineCrew::Outcome> outcomes) { report_estop_round(outcomes); });
 
   std::vector<StatusReader::Source> sources;
   std::vector<std::pair<std::size_t*, std::size_t>> indices;  // set with the swap, under the lock

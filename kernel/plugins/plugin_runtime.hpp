@@ -91,8 +91,10 @@ class PluginRuntime {
   // Every started, healthy capability's status(), read in parallel; one entry per capabilities() element.
   std::vector<std::optional<nlohmann::json>> capability_statuses();
 
-  // The stop path, after the halt: every capability's on_estop(), in parallel on the estop crew, waited for up to
-  // kEstopNotifyDeadline; one that hangs or throws is logged (a throw marks the capability failed).
+  // The stop path, after the halt: starts every capability's on_estop(), in parallel on the estop crew, and returns
+  // without waiting (the answer waits for the halts only; a job can move nothing once the latch is set, the gate
+  // refuses it). The crew's watcher logs an on_estop() still running at kEstopNotifyDeadline and one that threw (its
+  // capability is then marked failed).
   void notify_estop() noexcept;
   static constexpr std::chrono::milliseconds kEstopNotifyDeadline{50};
   // Main thread, once: capabilities shut down (in parallel) and their workers joined, then drivers likewise. A
@@ -136,6 +138,7 @@ class PluginRuntime {
   // The first interface the plugin's manifest `requires` that no configured driver implements (a driver that failed
   // counts: the capability starts, and its state follows that driver's).
   std::optional<std::string> missing_requirement(const PluginRecord& plugin) const;
+  void report_estop_round(const std::vector<DeadlineCrew::Outcome>& outcomes);
 
   PluginHost& host_;
   KernelServices& services_;

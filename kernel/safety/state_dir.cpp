@@ -11,13 +11,13 @@
 #include <cerrno>
 #include <chrono>
 #include <cstring>
-#include <fstream>
-#include <sstream>
 #include <stdexcept>
 #include <string_view>
 
 #include "libs/base/bounded_text.hpp"
+#include "libs/base/durable_file.hpp"
 #include "libs/base/logging.hpp"
+#include "libs/base/stop_path_priority.hpp"
 
 namespace rcand::kernel {
 namespace {
@@ -31,55 +31,6 @@ constexpr const char* kLockFile = "lock";
 
 [[noreturn]] void state_dir_error(const fs::path& dir, const std::string& what) {
   throw std::runtime_error("runtime.state_dir: " + dir.string() + ": " + what);
-}
-
-std::optional<std::string> read_state_file(const fs::path& file) {
-  std::error_code ec;
-  if (!fs::exists(file, ec)) return std::nullopt;
-  std::ifstream in(file, std::ios::binary);
-  if (!in) return std::string();
-  std::stringstream text;
-  text << in.rdbuf();
-  return text.str();
-}
-
-bool fsync_state_dir(const fs::path& dir) {
-  const int fd = ::open(dir.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
-  if (fd < 0) return false;
-  const bool ok = ::fsync(fd) == 0;
-  ::close(fd);
-  return ok;
-}
-
-// Temp file, write, fsync, rename over `name`, fsync the directory: after a crash the file is the old or the new
-// one, whole. Returns an error text, empty when it worked.
-std::string write_state_file(const fs::path& dir, const std::string& name, const std::string& text) {
-  const fs::path final_path = dir / name;
-  const fs::path temp = dir / (name + ".tmp");
-  const int fd = ::open(temp.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0640);
-  if (fd < 0) return "cannot create " + temp.string() + ": " + std::strerror(errno);
-  std::size_t done = 0;
-  while (done < text.size()) {
-    const ssize_t n = ::write(fd, text.data() + done, text.size() - done);
-    if (n < 0 && errno == EINTR) continue;
-    if (n <= 0) {
-      const std::string error = std::strerror(errno);
-      ::close(fd);
-      ::unlink(temp.c_str());  // a full disk keeps no half-written copy
-      return "cannot write " + temp.string() + ": " + error;
-    }
-    done += static_cast<std::size_t>(n);
-  }
-  if (::fsync(fd) != 0) {
-    const std::string error = std::strerror(errno);
-    ::close(fd);
-    return "cannot fsync " + temp.string() + ": " + error;
-  }
-  ::close(fd);
-  if (::rename(temp.c_str(), final_path.c_str()) != 0)
-    return "cannot rename to " + final_path.string() + ": " + std::strerror(errno);
-  if (!fsync_state_dir(dir)) return "cannot fsync " + dir.string();
-  return {};
 }
 
 std::int64_t state_wall_ms() {
@@ -134,7 +85,7 @@ void StateDir::take_lock(const fs::path& lock_file) {
     const int error = errno;
     ::close(lock_fd_);
     lock_fd_ = -1;
-    std::string holder = read_state_file(lock_file).value_or("");
+    std::string holder = read_whole_file(lock_file).value_or("");
     while (!holder.empty() && (holder.back() == '\n' || holder.back() == '\r')) holder.pop_back();
     if (error == EWOULDBLOCK)
       state_dir_error(dir_, "in use by another rcand (" + bounded_text(holder.empty() ? "?" : holder) +
@@ -150,7 +101,7 @@ void StateDir::take_lock(const fs::path& lock_file) {
 // The running marker, and the newest of the two latch records that parse (one that cannot be read may have said
 // "latched": assume it did, unless the other one is readable).
 void StateDir::read_previous() {
-  if (const auto marker = read_state_file(dir_ / kRunningFile)) {
+  if (const auto marker = read_whole_file(dir_ / kRunningFile)) {
     previous_.unclean_exit = true;
     previous_.marker = *marker;
     while (!previous_.marker.empty() && (previous_.marker.back() == '\n' || previous_.marker.back() == '\r'))
@@ -158,7 +109,7 @@ void StateDir::read_previous() {
   }
   bool unreadable = false;
   for (const char* name : {kLatchFile, kSlotFile}) {
-    const auto text = read_state_file(dir_ / name);
+    const auto text = read_whole_file(dir_ / name);
     const bool blank = text && text->find_first_not_of(" \n") == std::string::npos;
     if (!text || (blank && std::string_view(name) == kSlotFile)) continue;  // none, or a slot reserved and never written
     std::uint64_t seq = 0;
@@ -178,13 +129,13 @@ void StateDir::mark_running() {
   if (slot_fd_ < 0 || ::fstat(slot_fd_, &info) != 0)
     state_dir_error(dir_, "cannot open " + slot.string() + ": " + std::strerror(errno));
   if (info.st_size != static_cast<off_t>(kSlotBytes) || info.st_blocks * 512 < static_cast<blkcnt_t>(kSlotBytes)) {
-    std::string text = read_state_file(slot).value_or("");
+    std::string text = read_whole_file(slot).value_or("");
     text.resize(kSlotBytes, ' ');
     if (::pwrite(slot_fd_, text.data(), text.size(), 0) != static_cast<ssize_t>(text.size()) || ::fsync(slot_fd_) != 0)
       state_dir_error(dir_, "cannot reserve " + slot.string() + ": " + std::strerror(errno));
   }
   const std::string marker = "pid " + std::to_string(::getpid()) + ", started " + std::to_string(state_wall_ms()) + " ms\n";
-  if (const auto error = write_state_file(dir_, kRunningFile, marker); !error.empty()) state_dir_error(dir_, error);
+  if (const auto error = replace_file_durably(dir_, kRunningFile, marker); !error.empty()) state_dir_error(dir_, error);
 }
 
 StateDir::~StateDir() {
@@ -197,6 +148,7 @@ void StateDir::start_writer(std::function<LatchRecord()> current) {
   current_ = std::move(current);
   writer_ = std::thread([this] {
     pthread_setname_np(pthread_self(), "state.writer");
+    enter_background_policy();  // its fsyncs follow every latch and clear; the stop's client comes first
     std::unique_lock lock(mutex_);
     for (;;) {
       wake_.wait(lock, [this] { return dirty_ || stopping_; });
@@ -248,7 +200,7 @@ bool StateDir::write_latch(const LatchRecord& record) noexcept {
     bounded.reason = bounded_text(record.reason, 1024);
     bounded.source = bounded_text(record.source, 200);
     const auto slot_error = write_slot(format(bounded, seq_));
-    const auto error = write_state_file(dir_, kLatchFile, format(record, seq_));
+    const auto error = replace_file_durably(dir_, kLatchFile, format(record, seq_));
     auto log = logger("kernel.state");
     if (!slot_error.empty()) log->error("runtime.state_dir: cannot record the e-stop latch in {}: {}", kSlotFile, slot_error);
     if (!error.empty())
@@ -266,7 +218,7 @@ void StateDir::clean_exit(const LatchRecord& last) noexcept {
   if (!write_latch(last)) return;
   std::error_code ec;
   fs::remove(dir_ / kRunningFile, ec);
-  if (ec || !fsync_state_dir(dir_))
+  if (ec || !fsync_directory(dir_))
     logger("kernel.state")
         ->error("runtime.state_dir: cannot remove the running marker in {}; the next start will be latched", dir_.string());
 }

@@ -11,6 +11,7 @@
 #include <algorithm>
 #include <atomic>
 #include <deque>
+#include <stdexcept>
 #include <thread>
 
 #include "libs/base/terminate_trap.hpp"
@@ -55,6 +56,10 @@ struct DeadlineCrew::Shared {
   std::atomic<std::uint32_t> round{0};
   std::atomic<std::uint32_t> completions{0};  // bumped (and woken) whenever a member finishes or retires
   std::deque<Member> members;                 // deque: members never move, their threads hold references
+  // watch(): counts start_all()'s requests (kStop: the watcher exits), and what the watcher does with a round.
+  std::atomic<std::uint32_t> watched{0};
+  std::chrono::milliseconds watch_within{0};
+  std::function<void(std::vector<Outcome>)> report;
 
   void serve(Member& member);
   void completed() noexcept {
@@ -95,7 +100,7 @@ void DeadlineCrew::Shared::serve(Member& member) {
 }
 
 DeadlineCrew::DeadlineCrew(std::string role, std::vector<Job> jobs, std::function<void()> on_thread_start)
-    : shared_(std::make_shared<Shared>()) {
+    : shared_(std::make_shared<Shared>()), role_(role), on_thread_start_(on_thread_start) {
   for (std::size_t i = 0; i < jobs.size(); ++i) {
     auto& member = shared_->members.emplace_back();
     member.name = std::move(jobs[i].name);
@@ -113,6 +118,11 @@ DeadlineCrew::DeadlineCrew(std::string role, std::vector<Job> jobs, std::functio
 }
 
 DeadlineCrew::~DeadlineCrew() {
+  if (watcher_.joinable()) {  // it waits at most watch_within for a round, then sees kStop
+    shared_->watched.store(kStop, std::memory_order_release);
+    futex_wake(shared_->watched, 1);
+    watcher_.join();
+  }
   for (auto& member : shared_->members) {
     member.requested.store(kStop, std::memory_order_release);
     futex_wake(member.requested, 1);
@@ -123,8 +133,7 @@ DeadlineCrew::~DeadlineCrew() {
 }
 
 // `each(f)` calls f(member) for every selected member, in the order the outcomes are reported.
-template <class ForEach>
-std::vector<DeadlineCrew::Outcome> DeadlineCrew::run_round(ForEach each, Clock::time_point deadline) noexcept {
+template <class ForEach> std::uint32_t DeadlineCrew::start_round(ForEach each) noexcept {
   auto& s = *shared_;
   std::uint32_t round = s.round.fetch_add(1) + 1;
   if (round == kStop) round = s.round.fetch_add(1) + 1;  // kStop is the exit request, never a round
@@ -135,6 +144,13 @@ std::vector<DeadlineCrew::Outcome> DeadlineCrew::run_round(ForEach each, Clock::
     }
     futex_wake(member.requested, 1);
   });
+  return round;
+}
+
+template <class ForEach>
+std::vector<DeadlineCrew::Outcome> DeadlineCrew::wait_round(ForEach each, std::uint32_t round, Clock::time_point deadline,
+                                                            bool spin) noexcept {
+  auto& s = *shared_;
   const auto all_done = [&] {
     bool done = true;
     each([&](const Shared::Member& m) {
@@ -142,8 +158,9 @@ std::vector<DeadlineCrew::Outcome> DeadlineCrew::run_round(ForEach each, Clock::
     });
     return done;
   };
-  const auto spin_until = std::min(deadline, Clock::now() + kSpinFor);
-  while (!all_done() && Clock::now() < spin_until) {
+  // The watcher never spins: at the members' priority it would keep one of them off its core.
+  const auto spin_until = spin ? std::min(deadline, Clock::now() + kSpinFor) : Clock::time_point{};
+  while (spin && !all_done() && Clock::now() < spin_until) {
   }
   for (;;) {
     const std::uint32_t seen = s.completions.load(std::memory_order_acquire);
@@ -175,22 +192,71 @@ std::vector<DeadlineCrew::Outcome> DeadlineCrew::run_round(ForEach each, Clock::
 
 std::vector<DeadlineCrew::Outcome> DeadlineCrew::run_all(std::chrono::steady_clock::time_point deadline) noexcept {
   auto& members = shared_->members;
-  return run_round(
-      [&](auto&& f) {
-        for (auto& member : members) f(member);
-      },
-      deadline);
+  const auto all = [&](auto&& f) {
+    for (auto& member : members) f(member);
+  };
+  return wait_round(all, start_round(all), deadline);
+}
+
+void DeadlineCrew::start_all() noexcept {
+  auto& s = *shared_;
+  const auto all = [&](auto&& f) {
+    for (auto& member : s.members) f(member);
+  };
+  if (!watcher_.joinable()) {
+    start_round(all);
+    return;
+  }
+  // One wake-up on the caller's path (each costs an inter-processor interrupt, which on a VM is a trip through the
+  // hypervisor): the watcher starts the round, waking the members, from its own thread.
+  std::uint32_t asked = s.watched.load(std::memory_order_relaxed);
+  do {
+    if (asked + 1 == kStop) return;  // shutting down (or at the wrap point: the next request asks again)
+  } while (!s.watched.compare_exchange_weak(asked, asked + 1, std::memory_order_release, std::memory_order_relaxed));
+  futex_wake(s.watched, 1);
+}
+
+void DeadlineCrew::watch(std::chrono::milliseconds within, std::function<void(std::vector<Outcome>)> report) {
+  if (watcher_.joinable()) throw std::logic_error("DeadlineCrew::watch: already watching");
+  shared_->watch_within = within;
+  shared_->report = std::move(report);
+  watcher_ = std::thread([this] { watch_rounds(); });
+}
+
+// The watcher: sleeps until start_all() asks for a round, starts it and waits for it (up to watch_within), then
+// reports it. Requests that come while it waits are served by one round right after.
+void DeadlineCrew::watch_rounds() noexcept {
+  auto& s = *shared_;
+  pthread_setname_np(pthread_self(), (role_.substr(0, 12) + ".w").c_str());
+  if (on_thread_start_) on_thread_start_();  // as prompt as the members it watches
+  const auto all = [&](auto&& f) {
+    for (auto& member : s.members) f(member);
+  };
+  std::uint32_t seen = 0;
+  for (;;) {
+    std::uint32_t asked = s.watched.load(std::memory_order_acquire);
+    while (asked == seen) {
+      futex_wait(s.watched, seen, nullptr);
+      asked = s.watched.load(std::memory_order_acquire);
+    }
+    if (asked == kStop) return;
+    seen = asked;
+    auto outcomes = wait_round(all, start_round(all), Clock::now() + s.watch_within, /*spin=*/false);
+    try {
+      s.report(std::move(outcomes));
+    } catch (...) {  // a report that fails (no memory) loses only the report
+    }
+  }
 }
 
 std::vector<DeadlineCrew::Outcome> DeadlineCrew::run_some(std::span<const std::size_t> indices,
                                                           std::chrono::steady_clock::time_point deadline) noexcept {
   auto& members = shared_->members;
-  return run_round(
-      [&](auto&& f) {
-        for (const auto index : indices)
-          if (index < members.size()) f(members[index]);
-      },
-      deadline);
+  const auto some = [&](auto&& f) {
+    for (const auto index : indices)
+      if (index < members.size()) f(members[index]);
+  };
+  return wait_round(some, start_round(some), deadline);
 }
 
 bool DeadlineCrew::quiesce(std::chrono::milliseconds grace) noexcept {

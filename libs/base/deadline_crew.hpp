@@ -10,6 +10,7 @@
 #include <memory>
 #include <span>
 #include <string>
+#include <thread>
 #include <vector>
 
 namespace rcand {
@@ -42,15 +43,29 @@ class DeadlineCrew {
   // run_all for the members at `indices` only (outcomes in that order; an index out of range is skipped): the
   // others are neither started nor waited for.
   std::vector<Outcome> run_some(std::span<const std::size_t> indices, std::chrono::steady_clock::time_point deadline) noexcept;
+  // Off the caller's path: what a round asked for by start_all() ended with, handed to `report` on the crew's watcher
+  // thread once every member finished it or failed, or `within` after it started. Startup only, before start_all().
+  void watch(std::chrono::milliseconds within, std::function<void(std::vector<Outcome>)> report);
+  // Any thread; lock-free, allocates nothing, waits for nothing: starts every job (as run_all does) and returns.
+  // With watch(), it wakes only the watcher, which starts the round and reports it (requests that come while it
+  // watches one round: one more round right after).
+  void start_all() noexcept;
   // Waits up to `grace` for members still inside a plugin call; true when none is (parked members do not count).
   bool quiesce(std::chrono::milliseconds grace) noexcept;
   std::size_t size() const noexcept;
 
  private:
   struct Shared;
-  // Starts a round for the members `each` visits and waits for them; defined (and only used) in the .cpp.
-  template <class ForEach> std::vector<Outcome> run_round(ForEach each, std::chrono::steady_clock::time_point deadline) noexcept;
+  // Starts a round for the members `each` visits (its number), and waits for one; defined (and only used) in the .cpp.
+  template <class ForEach> std::uint32_t start_round(ForEach each) noexcept;
+  template <class ForEach>
+  std::vector<Outcome> wait_round(ForEach each, std::uint32_t round, std::chrono::steady_clock::time_point deadline,
+                                  bool spin = true) noexcept;
+  void watch_rounds() noexcept;
   std::shared_ptr<Shared> shared_;
+  std::string role_;
+  std::function<void()> on_thread_start_;
+  std::thread watcher_;  // watch() only
 };
 
 std::string_view to_string(DeadlineCrew::State state) noexcept;

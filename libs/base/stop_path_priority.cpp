@@ -2,6 +2,8 @@
 
 #include <pthread.h>
 #include <sched.h>
+#include <sys/resource.h>
+#include <unistd.h>
 
 #include <atomic>
 #include <cstring>
@@ -27,6 +29,16 @@ std::string enter_stop_path_priority(int priority) noexcept {
   } catch (...) {
     return "out of memory";
   }
+}
+
+bool enter_batch_policy() noexcept {
+  sched_param param{};
+  return pthread_setschedparam(pthread_self(), SCHED_BATCH, &param) == 0;
+}
+
+bool enter_background_policy() noexcept {
+  const bool batch = enter_batch_policy();
+  return setpriority(PRIO_PROCESS, static_cast<id_t>(::gettid()), 10) == 0 && batch;
 }
 
 }  // namespace rcand

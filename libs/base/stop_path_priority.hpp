@@ -12,4 +12,14 @@ namespace rcand {
 // LimitRTPRIO= or CAP_SYS_NICE); the first failure in the process is also logged as a warning naming the fix.
 std::string enter_stop_path_priority(int priority) noexcept;
 
+// Calling thread: SCHED_BATCH, for threads the stop path wakes but does not wait for (the capabilities' on_estop()
+// crew): a batch thread never preempts the running thread when it wakes, so waking one costs the stop path only
+// the wake-up call (a normal thread that slept took the waker's CPU at once: ~50 us per stop, measured), and it
+// still gets its fair share of the CPU right after. Needs no privilege; false when the kernel refused it.
+bool enter_batch_policy() noexcept;
+// Calling thread: SCHED_BATCH at nice 10, for work that follows a stop but has no deadline of its own (the state
+// dir's writer, whose record the running marker already covers): it runs when the stop's client and the stop's
+// own follow-ups leave a CPU, yet still gets ~10 % of a saturated core, so it is never starved for good.
+bool enter_background_policy() noexcept;
+
 }  // namespace rcand

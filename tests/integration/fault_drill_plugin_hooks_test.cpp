@@ -31,9 +31,9 @@ json faulty_config(const std::string& hook, const std::string& fault) {
 
 struct Case {
   std::string hook, fault;
-  int work_status;           // what POST .../work answers
-  bool failed_after_start;   // the capability is out of service once rcand serves
-  bool failed_after_stop;    // ... once a stop ran (on_estop faults)
+  int work_status;          // what POST .../work answers
+  bool failed_after_start;  // the capability is out of service once rcand serves
+  bool failed_after_stop;   // ... once a stop ran (on_estop faults)
 };
 
 void run_drill(const Case& c) {
@@ -66,6 +66,8 @@ void run_drill(const Case& c) {
   CHECK(stop.body.value("motors_stopped", false));
   CHECK(drill::tagged(rcand, "POST", "/api/action", "user-token", kShortMove, id("refused")).status == 423);
   drill::stop_within_limit(rcand, id("stop-again"));  // a hook still hung from the first stop delays nothing
+  // on_estop() runs after the answer (the stop waits for the halts only): its fault is reported just after.
+  if (c.failed_after_stop) CHECK(eventually([&] { return capability_state() == "failed"; }, 20s, 10ms));
   CHECK(capability_state() == (c.failed_after_stop ? "failed" : "ok"));
   drill::check_audit_complete(rcand, audited);
 }
@@ -114,7 +116,8 @@ TEST_CASE("fault drill: status() faults (throws, invalid UTF-8, hangs) never bre
 
 TEST_CASE("fault drill: status() hanging in a capability and a driver holds no I/O thread: stops answer meanwhile") {
   auto config = faulty_config("status", "hang");
-  config["drivers"].push_back({{"id", "bad0"}, {"protocol", "org.rcand.test.faulty_drive"}, {"hook", "status"}, {"fault", "hang"}});
+  config["drivers"].push_back(
+      {{"id", "bad0"}, {"protocol", "org.rcand.test.faulty_drive"}, {"hook", "status"}, {"fault", "hang"}});
   RcandProcess rcand(config, {plugin_dir(), test_plugin_dir() / "faults"});
   // More status readers than rcand has I/O threads, all at once: inline status() calls would hold every thread.
   std::vector<std::future<drill::Answer>> readers;

@@ -7,10 +7,11 @@
 #include <mutex>
 #include <stdexcept>
 #include <thread>
+#include <vector>
 
-#include "libs/base/deadline_crew.hpp"
 #include "kernel/safety/estop.hpp"
 #include "kernel/steady_clock.hpp"
+#include "libs/base/deadline_crew.hpp"
 
 using namespace rcand;
 using namespace rcand::kernel;
@@ -136,4 +137,39 @@ TEST_CASE("the e-stop latches and halts the healthy driver at once while another
   gate.release();
   CHECK(crew.quiesce(5s));
   estop.use_halt_crew(nullptr);
+}
+
+TEST_CASE("start_all returns before a hung job, and the watcher reports the round off the caller's path") {
+  Gate gate;
+  std::atomic<int> quick{0};
+  std::mutex mutex;
+  std::condition_variable reported;
+  std::vector<std::vector<DeadlineCrew::Outcome>> reports;
+  DeadlineCrew crew("watched",
+                    {{"hung", [&] { gate.wait(); }}, {"quick", [&] { ++quick; }}, {"throws", [] { throws_out_of_noexcept(); }}});
+  crew.watch(50ms, [&](std::vector<DeadlineCrew::Outcome> outcomes) {
+    std::lock_guard lock(mutex);
+    reports.push_back(std::move(outcomes));
+    reported.notify_all();
+  });
+  crew.start_all();  // returns at once: the hung job is the watcher's to wait for (up to 50 ms), never the caller's
+  {
+    std::unique_lock lock(mutex);
+    REQUIRE(reported.wait_for(lock, 10s, [&] { return !reports.empty(); }));
+    REQUIRE(reports[0].size() == 3);
+    CHECK(reports[0][0].name == "hung");
+    CHECK(reports[0][0].state == DeadlineCrew::State::Pending);
+    CHECK(reports[0][1].state == DeadlineCrew::State::Done);
+    CHECK(reports[0][2].state == DeadlineCrew::State::Failed);
+    CHECK(reports[0][2].error.find("bus fault during halt") != std::string::npos);
+  }
+  CHECK(quick == 1);
+  gate.release();
+  crew.start_all();  // the next round: every job that can still run runs again, the one that threw stays retired
+  std::unique_lock lock(mutex);
+  REQUIRE(reported.wait_for(lock, 10s, [&] { return reports.size() >= 2; }));
+  CHECK(reports[1][0].state == DeadlineCrew::State::Done);
+  CHECK(reports[1][1].state == DeadlineCrew::State::Done);
+  CHECK(reports[1][2].state == DeadlineCrew::State::Failed);
+  CHECK(quick == 2);
 }

@@ -1,6 +1,8 @@
 #include <doctest/doctest.h>
 #include <pthread.h>
 #include <sched.h>
+#include <sys/resource.h>
+#include <unistd.h>
 
 #include <string>
 #include <thread>
@@ -45,4 +47,25 @@ TEST_CASE("stop path priority: SCHED_FIFO at that priority, or a reason naming t
     CHECK(seen.result.find("runtime.stop_path_priority 10") != std::string::npos);
     CHECK(seen.result.find("LimitRTPRIO=10") != std::string::npos);
   }
+}
+
+TEST_CASE("the stop's follow-up threads: batch (never preempts on wake-up), background also at nice 10") {
+  int batch_policy = -1, background_policy = -1, background_nice = 0;
+  bool batch_ok = false, background_ok = false;
+  std::thread([&] {
+    batch_ok = rcand::enter_batch_policy();
+    sched_param param{};
+    pthread_getschedparam(pthread_self(), &batch_policy, &param);
+  }).join();
+  std::thread([&] {
+    background_ok = rcand::enter_background_policy();
+    sched_param param{};
+    pthread_getschedparam(pthread_self(), &background_policy, &param);
+    background_nice = getpriority(PRIO_PROCESS, static_cast<id_t>(::gettid()));
+  }).join();
+  CHECK(batch_ok);
+  CHECK(batch_policy == SCHED_BATCH);
+  CHECK(background_ok);
+  CHECK(background_policy == SCHED_BATCH);
+  CHECK(background_nice == 10);
 }

@@ -1,0 +1,66 @@
+#!/usr/bin/env bash
+# Issue 32, the stop's answer path: GET /health and POST /api/stop (a clear between) in the same run on one kept-alive
+# connection, against the bundled sim robot (its three drivers, rate limits off):
+#   1. the C++ client (bench_stop_latency ... health), with the stop's excess over /health against the targets;
+#   2. the Python stdlib client (bench/stop_vs_health.py), the same client the reference runtime is measured with.
+# With --reference DIR (a checkout of craigm26/OpenCastor, or its bare mirror: then archived into a temp dir), the
+# Python client runs against its API gateway too (castor.api with config/examples/minimal.rcan.yaml, no hardware: its mock driver; it needs fastapi and uvicorn
+# importable: the script says which import fails when they are not).
+#   bench/run-stop-path.sh [--build DIR] [--samples N] [--reference DIR]
+set -euo pipefail
+cd "$(dirname "$0")/.."
+build=build samples=1000 reference=""
+while [ $# -gt 0 ]; do
+  case $1 in
+    --build) build=$2; shift 2 ;;
+    --samples) samples=$2; shift 2 ;;
+    --reference) reference=$2; shift 2 ;;
+    *) echo "usage: $0 [--build DIR] [--samples N] [--reference DIR]" >&2; exit 2 ;;
+  esac
+done
+token=rcand-dev-owner
+work=$(mktemp -d)
+pids=()
+trap 'for p in "${pids[@]}"; do kill "$p" 2>/dev/null || true; wait "$p" 2>/dev/null || true; done; rm -rf "$work"' EXIT
+
+free_port() { python3 -c 'import socket; s=socket.socket(); s.bind(("127.0.0.1", 0)); print(s.getsockname()[1])'; }
+
+echo "VM: $(nproc) cores, $(grep -m1 'model name' /proc/cpuinfo | cut -d: -f2 | xargs); load: $(cut -d' ' -f1-3 /proc/loadavg)"
+port=$(free_port)
+sed -e '/^runtime:/a\  rate_limit: {per_principal_per_s: 0, per_address_per_s: 0}' \
+    -e "s#state_dir: ../build/state#state_dir: $work/state#" config/sim-rover.rcan.yaml >"$work/robot.rcan.yaml"
+cp config/dev-jwt.secret "$work/"
+chmod 600 "$work/dev-jwt.secret"
+"$build/kernel/rcand" --config "$work/robot.rcan.yaml" --plugin-path "$build/plugins" --port "$port" >"$work/out" 2>"$work/err" &
+pids+=($!)
+until grep -qs "listening on" "$work/out"; do kill -0 "${pids[0]}"; sleep 0.05; done
+
+echo "== rcand, the C++ client (bench_stop_latency $samples health) =="
+"$build/bench/bench_stop_latency" "$port" "$token" "$samples" health
+echo "== rcand, the Python stdlib client =="
+python3 bench/stop_vs_health.py "$port" "$token" "$samples"
+
+[ -n "$reference" ] || exit 0
+echo "== the reference runtime ($reference), the Python stdlib client =="
+src=$reference
+if [ ! -e "$reference/castor/api.py" ]; then  # a bare mirror: its HEAD into a temp dir
+  src=$work/reference
+  mkdir -p "$src"
+  git --git-dir="$reference" archive HEAD | tar -x -C "$src"
+fi
+if ! missing=$(cd "$src" && python3 -c 'import castor.api' 2>&1); then
+  echo "cannot run the reference runtime here: 'python3 -c \"import castor.api\"' in $src fails with:"
+  echo "$missing" | tail -n 1
+  echo "(its gateway needs the packages of its pyproject.toml: pip install -e $src, which needs network access)"
+  exit 0
+fi
+rport=$(free_port)
+ref_token=bench-reference-token
+(cd "$src" && OPENCASTOR_API_TOKEN=$ref_token OPENCASTOR_CONFIG=config/examples/minimal.rcan.yaml \
+  python3 -m uvicorn castor.api:app --host 127.0.0.1 --port "$rport" --log-level warning) >"$work/ref.out" 2>&1 &
+pids+=($!)
+for _ in $(seq 200); do
+  python3 -c "import http.client,sys; c=http.client.HTTPConnection('127.0.0.1',$rport,timeout=1); c.request('GET','/health'); sys.exit(c.getresponse().status!=200)" 2>/dev/null && break
+  sleep 0.1
+done
+python3 bench/stop_vs_health.py "$rport" "$ref_token" "$samples"
