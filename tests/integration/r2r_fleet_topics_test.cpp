@@ -87,10 +87,12 @@ MqttOptions topics_client(const std::string& name, std::uint16_t port) {
   return options;
 }
 
-bool status_from(const json& m, const std::string& robot) { return m["type"] == "status" && m["header"]["source_id"] == robot; }
+bool topics_status_from(const json& m, const std::string& robot) {
+  return m["type"] == "status" && m["header"]["source_id"] == robot;
+}
 
 // The retained message on `topic`, read by mosquitto_sub as a fresh client would (empty when there is none).
-std::string retained_on(std::uint16_t port, const std::string& topic) {
+std::string topics_retained_on(std::uint16_t port, const std::string& topic) {
   const std::string command =
       "mosquitto_sub -h 127.0.0.1 -p " + std::to_string(port) + " -t '" + topic + "' -C 1 -W 5 --retained-only 2>/dev/null";
   std::string out;
@@ -102,13 +104,13 @@ std::string retained_on(std::uint16_t port, const std::string& topic) {
   return out;
 }
 
-std::optional<json> peer_state(const RcandProcess& robot, const std::string& name, const std::string& state) {
+std::optional<json> topics_peer_state(const RcandProcess& robot, const std::string& name, const std::string& state) {
   const auto peer = peer_status(robot, name);
   if (peer && (*peer)["status"].value("state", "") == state) return peer;
   return std::nullopt;
 }
 
-json with_broker(json config, std::uint16_t port, json extra = json::object()) {
+json topics_with_broker(json config, std::uint16_t port, json extra = json::object()) {
   json mqtt = {{"host", "127.0.0.1"}, {"port", port}, {"keepalive_s", 5}};
   mqtt.update(extra);
   config["runtime"]["r2r"]["mqtt"] = std::move(mqtt);
@@ -121,9 +123,9 @@ TEST_CASE("r2r topics (mqtt): status on r2r/status/<name>, retained, read only b
   MosquittoBroker broker;
   TempDir dir;
   const auto token = dir.write("r2r.token", "owner-token\n");
-  auto alpha_config = with_broker(r2r_robot_config("alpha", token), broker.port(), {{"status_subscriptions", "all"}});
-  auto bravo_config = with_broker(r2r_robot_config("bravo", token), broker.port());  // reads no one's status
-  auto charlie_config = with_broker(r2r_robot_config("charlie", token), broker.port());
+  auto alpha_config = topics_with_broker(r2r_robot_config("alpha", token), broker.port(), {{"status_subscriptions", "all"}});
+  auto bravo_config = topics_with_broker(r2r_robot_config("bravo", token), broker.port());  // reads no one's status
+  auto charlie_config = topics_with_broker(r2r_robot_config("charlie", token), broker.port());
   topics_sign_fleet({&alpha_config, &bravo_config, &charlie_config}, dir);
   auto watch_options = topics_client("watch", broker.port());
   watch_options.extra_subscriptions = {"r2r/#"};
@@ -136,7 +138,7 @@ TEST_CASE("r2r topics (mqtt): status on r2r/status/<name>, retained, read only b
   REQUIRE(poll_until<json>([&] { return peer_status(alpha, "bravo"); }));
   REQUIRE(poll_until<json>([&] { return peer_status(alpha, "charlie"); }));
   REQUIRE(poll_until<bool>([&]() -> std::optional<bool> {
-    if (watch.count([](const std::string&, const json& m) { return status_from(m, "alpha"); }) >= 3) return true;
+    if (watch.count([](const std::string&, const json& m) { return topics_status_from(m, "alpha"); }) >= 3) return true;
     return std::nullopt;
   }));
   CHECK(watch.count([](const std::string& topic, const json& m) { return m["type"] == "status" && topic == "r2r/broadcast"; }) ==
@@ -149,30 +151,30 @@ TEST_CASE("r2r topics (mqtt): status on r2r/status/<name>, retained, read only b
   CHECK_FALSE(peer_status(bravo, "alpha"));
 
   // Retained: a client that subscribes now gets bravo's latest status at once.
-  const json retained = json::parse(retained_on(broker.port(), "r2r/status/bravo"), nullptr, false);
+  const json retained = json::parse(topics_retained_on(broker.port(), "r2r/status/bravo"), nullptr, false);
   REQUIRE(retained.is_object());
-  CHECK(status_from(retained, "bravo"));
+  CHECK(topics_status_from(retained, "bravo"));
   CHECK(retained["payload"]["state"] == "idle");
 
   // bravo dies (SIGKILL: no clean shutdown): the broker publishes its last will, a signed `offline` status, which
   // alpha verifies and shows.
   bravo.kill_hard();
   const auto will = watch.wait_for([](const std::string& topic, const json& m) {
-    return topic == "r2r/status/bravo" && status_from(m, "bravo") && m["payload"]["state"] == "offline";
+    return topic == "r2r/status/bravo" && topics_status_from(m, "bravo") && m["payload"]["state"] == "offline";
   });
   REQUIRE(will);
   CHECK(will->second["header"].contains("signature"));
-  CHECK(poll_until<json>([&] { return peer_state(alpha, "bravo", "offline"); }));
-  const json left = json::parse(retained_on(broker.port(), "r2r/status/bravo"), nullptr, false);
+  CHECK(poll_until<json>([&] { return topics_peer_state(alpha, "bravo", "offline"); }));
+  const json left = json::parse(topics_retained_on(broker.port(), "r2r/status/bravo"), nullptr, false);
   CHECK(left.is_object());
   CHECK(left["payload"]["state"] == "offline");
 
   // charlie stops cleanly (SIGTERM: a clean DISCONNECT discards the will): it leaves `offline` there itself.
   CHECK(charlie.stop() == 0);
-  CHECK(poll_until<json>([&] { return peer_state(alpha, "charlie", "offline"); }));
-  const json stopped = json::parse(retained_on(broker.port(), "r2r/status/charlie"), nullptr, false);
+  CHECK(poll_until<json>([&] { return topics_peer_state(alpha, "charlie", "offline"); }));
+  const json stopped = json::parse(topics_retained_on(broker.port(), "r2r/status/charlie"), nullptr, false);
   REQUIRE(stopped.is_object());
-  CHECK(status_from(stopped, "charlie"));
+  CHECK(topics_status_from(stopped, "charlie"));
   CHECK(stopped["payload"]["state"] == "offline");
 }
 
@@ -185,7 +187,7 @@ TEST_CASE("r2r topics (mqtt): the example broker ACL keeps each robot to its own
   auto robot = [&](const std::string& name, json extra) {
     extra["username"] = name;
     extra["password_file"] = dir.write(name + ".mqtt-password", "pw-" + name + "\n").string();
-    return with_broker(r2r_robot_config(name, token), broker.port(), extra);
+    return topics_with_broker(r2r_robot_config(name, token), broker.port(), extra);
   };
   auto alpha_config = robot("alpha", {{"status_subscriptions", "all"}});
   auto bravo_config = robot("bravo", json::object());
@@ -196,17 +198,20 @@ TEST_CASE("r2r topics (mqtt): the example broker ACL keeps each robot to its own
   // The fleet works under the ACL: bravo's status reaches alpha, alpha's command moves bravo.
   REQUIRE(poll_until<json>([&] { return peer_status(alpha, "bravo"); }));
   int status = 0;
-  alpha.json("POST", "/api/r2r/send", "user-token",
-             json{{"type", "command"},
-                  {"target", "bravo"},
-                  {"payload", {{"type", "move"}, {"linear", 0.3}, {"angular", 0.0}, {"duration_ms", 3000}}}}
-                 .dump(),
-             &status);
+  const int commands_before = drive_status(bravo)["commands"].get<int>();
+  const json sent = alpha.json("POST", "/api/r2r/send", "user-token",
+                               json{{"type", "command"},
+                                    {"target", "bravo"},
+                                    {"payload", {{"type", "move"}, {"linear", 0.3}, {"angular", 0.0}, {"duration_ms", 3000}}}}
+                                   .dump(),
+                               &status);
   REQUIRE(status == 200);
-  REQUIRE(poll_until<bool>([&]() -> std::optional<bool> {
-    if (drive_status(bravo)["moving"] == true) return true;
+  const auto moved = poll_until<bool>([&]() -> std::optional<bool> {
+    if (drive_status(bravo)["moving"] == true || drive_status(bravo)["commands"].get<int>() > commands_before) return true;
     return std::nullopt;
-  }));
+  });
+  INFO("sent: " << sent.dump() << "\nbravo's log:\n" << bravo.stderr_text() << "\nalpha's log:\n" << alpha.stderr_text());
+  REQUIRE(moved);
 
   // delta, a third robot reading every status (and the broadcasts), is the witness.
   auto witness_options = topics_client("delta", broker.port());
@@ -222,7 +227,7 @@ TEST_CASE("r2r topics (mqtt): the example broker ACL keeps each robot to its own
   intruder_options.extra_subscriptions = {"r2r/charlie"};  // its own direct topic: allowed
   TopicsWatch intruder(intruder_options);
   REQUIRE(eventually([&] { return witness.transport().connected() && intruder.transport().connected(); }));
-  REQUIRE(witness.wait_for([](const std::string&, const json& m) { return status_from(m, "bravo"); }));
+  REQUIRE(witness.wait_for([](const std::string&, const json& m) { return topics_status_from(m, "bravo"); }));
 
   // The forged status is dropped by the broker: the witness gets the intruder's next broadcast, never the forgery.
   const std::string forged = r2r_message("bravo", "status", {{"state", "forged"}, {"estopped", true}});
@@ -235,7 +240,7 @@ TEST_CASE("r2r topics (mqtt): the example broker ACL keeps each robot to its own
     }) > 0;
   }));
   CHECK(witness.count([](const std::string&, const json& m) { return m["payload"]["state"] == "forged"; }) == 0);
-  CHECK_FALSE(peer_state(alpha, "bravo", "forged"));
+  CHECK_FALSE(topics_peer_state(alpha, "bravo", "forged"));
 
   // Reading bravo's direct topic is refused: alpha's next command for bravo reaches bravo (its log of commands grows)
   // and not the intruder, which still gets what is sent to r2r/charlie afterwards.
@@ -262,7 +267,7 @@ TEST_CASE("r2r topics (mqtt): a robot that loses its broker keeps its local safe
   MosquittoBroker broker;
   TempDir dir;
   const auto token = dir.write("r2r.token", "owner-token\n");
-  auto alpha_config = with_broker(r2r_robot_config("alpha", token), broker.port());
+  auto alpha_config = topics_with_broker(r2r_robot_config("alpha", token), broker.port());
   topics_sign_fleet({&alpha_config}, dir);
   RcandProcess alpha(alpha_config);
   const auto link_up = [&]() -> std::optional<bool> {
@@ -305,7 +310,7 @@ TEST_CASE("r2r topics (mqtt): a robot that loses its broker keeps its local safe
   REQUIRE(link_is(true));
   const auto back = poll_until<json>(
       [&]() -> std::optional<json> {
-        const json retained = json::parse(retained_on(broker.port(), "r2r/status/alpha"), nullptr, false);
+        const json retained = json::parse(topics_retained_on(broker.port(), "r2r/status/alpha"), nullptr, false);
         if (retained.is_object() && retained["payload"]["estopped"] == true) return retained;
         return std::nullopt;
       },
