@@ -30,7 +30,7 @@ namespace {
 using nlohmann::json;
 namespace r2r = kernel::r2r;
 
-struct FleetOptions {
+struct FleetKeysOptions {
   std::string sub;
   bool as_json = false;
   // stop
@@ -88,7 +88,7 @@ std::optional<std::string> fleet_split_broker(const std::string& text, MqttPubli
   return std::nullopt;
 }
 
-std::optional<int> fleet_parse(std::span<const std::string> args, FleetOptions& o, std::ostream& out, std::ostream& err) {
+std::optional<int> fleet_parse(std::span<const std::string> args, FleetKeysOptions& o, std::ostream& out, std::ostream& err) {
   const auto app =
       make_command_app("rcanctl fleet", "A fleet's keys and its e-stop over MQTT (README \"A fleet of ten robots\").",
                        "Exit: 0 done (stop: the broker acknowledged the e-stop), 1 failed, 2 usage error.\n"
@@ -180,7 +180,7 @@ bool fleet_write_new(const std::filesystem::path& path, const std::string& text,
   return ok;
 }
 
-int run_keygen(const FleetOptions& o, std::ostream& out, std::ostream& err) {
+int run_keygen(const FleetKeysOptions& o, std::ostream& out, std::ostream& err) {
   const std::filesystem::path dir = o.out_dir;
   const auto private_file = dir / (o.name + ".key");
   const auto public_file = dir / (o.name + ".pub");
@@ -246,7 +246,7 @@ std::string fleet_entry_key(const json& entry, const std::filesystem::path& peer
   return r2r::Ed25519Key::public_from_file(file).public_base64();
 }
 
-int run_enroll(const FleetOptions& o, std::ostream& out, std::ostream& err) {
+int run_enroll(const FleetKeysOptions& o, std::ostream& out, std::ostream& err) {
   std::string key_base64;
   try {
     std::error_code ec;
@@ -298,7 +298,7 @@ int run_enroll(const FleetOptions& o, std::ostream& out, std::ostream& err) {
   return kExitOk;
 }
 
-int run_revoke(const FleetOptions& o, std::ostream& out, std::ostream& err) {
+int run_revoke(const FleetKeysOptions& o, std::ostream& out, std::ostream& err) {
   try {
     PeersFileLock lock(o.peers_file);
     json doc = r2r::read_peers_document(o.peers_file, false);
@@ -323,7 +323,7 @@ int run_revoke(const FleetOptions& o, std::ostream& out, std::ostream& err) {
   return kExitOk;
 }
 
-int run_list(const FleetOptions& o, std::ostream& out, std::ostream& err) {
+int run_list(const FleetKeysOptions& o, std::ostream& out, std::ostream& err) {
   json rows = json::array();
   try {
     const json doc = r2r::read_peers_document(o.peers_file, false);
@@ -349,7 +349,7 @@ int run_list(const FleetOptions& o, std::ostream& out, std::ostream& err) {
   return kExitOk;
 }
 
-int run_stop_over_mqtt(const FleetOptions& o, std::ostream& out, std::ostream& err) {
+int run_stop_over_mqtt(const FleetKeysOptions& o, std::ostream& out, std::ostream& err) {
   std::optional<r2r::Ed25519Key> key;
   try {
     key.emplace(r2r::Ed25519Key::private_from_file(o.key_file));
@@ -389,7 +389,7 @@ int run_stop_over_mqtt(const FleetOptions& o, std::ostream& out, std::ostream& e
 }  // namespace
 
 int run_fleet(std::span<const std::string> args, std::ostream& out, std::ostream& err) {
-  FleetOptions options;
+  FleetKeysOptions options;
   if (auto done = fleet_parse(args, options, out, err)) return *done;
   if (options.sub == "keygen") return run_keygen(options, out, err);
   if (options.sub == "enroll") return run_enroll(options, out, err);
