@@ -396,22 +396,39 @@ class Fleet:
         self.pub[broker.name].stdin.flush()
         return t0
 
-    def estop_trials(self, broker, robots, label):
+    def publish_rcanctl(self, broker, reason):
+        """The same fleet stop sent by `rcanctl fleet stop` (a process started per stop: its start is measured)."""
+        t0 = now_us()
+        subprocess.run([os.path.join(self.build, "rcanctl", "rcanctl"), "fleet", "stop", "--mqtt",
+                        f"127.0.0.1:{broker.port}", "--key", os.path.join(self.root, "keys", SENDER + ".pem"),
+                        "--name", SENDER, "--reason", "fleet bench: " + reason], check=True, timeout=10,
+                       stdout=subprocess.DEVNULL)
+        return t0
+
+    def estop_trials(self, broker, robots, label, trials_count=None, via_rcanctl=False):
         trials, stuck = [], []
         payload_type = self.args.estop_type
-        for k in range(self.args.trials):
+        for k in range(trials_count or self.args.trials):
             self.prepare(robots)
             time.sleep(0.3)
-            t0 = self.publish(broker, f"{label} trial {k}")
+            wall0 = time.time() * 1000
+            t0 = (self.publish_rcanctl if via_rcanctl else self.publish)(broker, f"{label} trial {k}")
             time.sleep(self.args.settle_stop)
             states = list(self.pool.map(self.drive, robots))
+            if payload_type == "estop":  # the latch record (wall ms) beside the drive's own halt time (monotonic us)
+                latches = [http_json(r.port, "GET", "/api/estop")[1] for r in robots]
+                unlatched = [r.name for r, e in zip(robots, latches) if not e.get("estopped")]
+                if unlatched:
+                    log(f"estop {label} trial {k}: {len(unlatched)} not latched, e.g. {unlatched[:5]}")
+                latch_ms = [e["since_ms"] - wall0 for e in latches if e.get("estopped")]
             moving = [r.name for r, s in zip(robots, states) if s.get("moving") is not False]
             if moving:
                 stuck.append((k, moving[:10], len(moving)))
                 log(f"estop {label} trial {k}: {len(moving)} still moving, e.g. {moving[:5]}")
                 continue
             zeros = [(s["zero_since_us"] - t0) / 1000 for s in states]
-            trials.append({"last_ms": max(zeros), "median_robot_ms": pct(zeros, 0.5), "first_ms": min(zeros)})
+            trials.append({"last_ms": max(zeros), "median_robot_ms": pct(zeros, 0.5), "first_ms": min(zeros),
+                           "last_latch_ms": max(latch_ms) if payload_type == "estop" and latch_ms else None})
         latched = sum(1 for r in robots if http_json(r.port, "GET", "/api/estop")[1].get("estopped"))
         last = [t["last_ms"] for t in trials]
         out = {"label": label, "broker": broker.name, "robots": len(robots), "trials_ok": len(trials),
@@ -420,6 +437,9 @@ class Fleet:
                "last_at_zero_ms": {"p50": round(pct(last, 0.5), 2), "p99": round(pct(last, 0.99), 2),
                                    "max": round(max(last), 2) if last else None},
                "median_robot_ms_p50": round(pct([t["median_robot_ms"] for t in trials], 0.5), 2)}
+        latch = [t["last_latch_ms"] for t in trials if t["last_latch_ms"] is not None]
+        if latch:  # wall clock, whole milliseconds
+            out["last_latch_record_ms"] = {"p50": pct(latch, 0.5), "p99": pct(latch, 0.99), "max": max(latch)}
         log("estop", json.dumps(out))
         self.results.setdefault("estop", []).append(out)
         return out
@@ -562,6 +582,8 @@ def main():
     parser.add_argument("--auctions", type=int, default=10)
     parser.add_argument("--phases", default="steady,estop,auction,reaward,down")
     parser.add_argument("--estop-type", default="estop", help="the command payload type: estop (fleet e-stop) or stop")
+    parser.add_argument("--rcanctl-trials", type=int, default=0,
+                        help="also this many e-stop trials sent by `rcanctl fleet stop` (its process start included)")
     parser.add_argument("--bid-window-ms", type=int, default=1000)
     parser.add_argument("--batch", type=int, default=20)
     parser.add_argument("--settle", type=float, default=5.0, help="s after a fleet size is up, before its window")
@@ -598,6 +620,8 @@ def main():
             fleet.reaward()
         if "estop" in phases:
             fleet.estop_trials(fleet.brokers[0], fleet.alive(), "published at A")
+            if args.rcanctl_trials:
+                fleet.estop_trials(fleet.brokers[0], fleet.alive(), "rcanctl fleet stop at A", args.rcanctl_trials, True)
         if "down" in phases:
             fleet.broker_down()
     except Exception as error:  # noqa: BLE001 - reported, then everything is cleaned up
