@@ -367,8 +367,23 @@ class Fleet:
             spent = ticks - before_threads.get(tid, (comm, 0))[1]
             threads[comm] = threads.get(comm, 0) + spent / CLK_TCK / elapsed * 100
         out["one_robot_threads_cpu_pct"] = {k: round(v, 2) for k, v in sorted(threads.items(), key=lambda kv: -kv[1]) if v > 0}
+        out["topics_seen_2s"] = self.topics_seen(self.brokers[0])
         log("steady", json.dumps(out))
         self.results.setdefault("steady", []).append(out)
+
+    def topics_seen(self, broker):
+        """What 2 s of r2r/# at `broker` carry, by topic family: shows where status goes (before/after issue 31)."""
+        out = subprocess.run(["mosquitto_sub", "-h", "127.0.0.1", "-p", str(broker.port), "-t", "r2r/#", "-v", "-W", "2",
+                              "-F", "%t %r"], capture_output=True, text=True, timeout=10).stdout
+        families = {}
+        for line in out.splitlines():
+            topic, _, retained = line.partition(" ")
+            family = "r2r/status/<name>" if topic.startswith("r2r/status/") else \
+                ("r2r/broadcast" if topic == "r2r/broadcast" else "r2r/<name>")
+            if retained.strip() == "1":
+                family += " (retained)"
+            families[family] = families.get(family, 0) + 1
+        return families
 
     # ---------------------------------------------------------------- fleet e-stop
     def prepare(self, robots):
