@@ -9,6 +9,7 @@
 #include "discover_command.hpp"
 #include "doctor_command.hpp"
 #include "exit_codes.hpp"
+#include "fleet_command.hpp"
 #include "operator_commands.hpp"
 #include "r2r_command.hpp"
 #include "robot_commands.hpp"
@@ -41,6 +42,8 @@ constexpr Subcommand kSubcommands[] = {
     {"swarm", "status|stop|command on swarm.yaml nodes in parallel (--node, --tag, --swarm, --json)", rcand::rcanctl::run_swarm},
     {"discover", "find robots on the LAN by mDNS (_rcan._tcp) and check each one's DISCOVER document (--timeout S, --json)",
      rcand::rcanctl::run_discover},
+    {"fleet", "a fleet's R2R keys (keygen, enroll, revoke, list) and its e-stop over MQTT (fleet stop --mqtt)",
+     rcand::rcanctl::run_fleet},
     {"r2r", "robot-to-robot: send one message and print the answers, watch traffic, run an auction (r2r --help)",
      rcand::rcanctl::run_r2r},
     {"watch", "live telemetry (WS /ws/telemetry): a refreshing table, or JSON lines with --json", rcand::rcanctl::run_watch},

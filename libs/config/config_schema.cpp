@@ -269,6 +269,7 @@ std::string_view last_segment(std::string_view schema_path) {
 // The services' fragments, registered before main (ConfigFragment), and whether the index below was built already.
 struct FragmentRegistry {
   std::vector<const std::vector<KeySpec>*> fragments;
+  std::vector<std::pair<std::string_view, FragmentFileCheck>> file_checks;  // {block path, check}
   bool indexed = false;
 };
 FragmentRegistry& registry() {
@@ -636,6 +637,27 @@ const json& schema_default(std::string_view schema_path) {
   return spec ? spec->default_value : none;
 }
 
+void check_fragment_files(const json& doc, const std::map<std::string, SourceMark>& marks, const std::string& file,
+                          const std::filesystem::path& base_dir, std::vector<ConfigDiagnostic>& out) {
+  for (const auto& [block_path, files] : registry().file_checks) {
+    const json* block = &doc;
+    for (std::size_t at = 0; block != nullptr && at <= block_path.size();) {
+      const std::size_t dot = std::min(block_path.find('.', at), block_path.size());
+      const auto it = block->is_object() ? block->find(std::string(block_path.substr(at, dot - at))) : block->end();
+      block = block->is_object() && it != block->end() ? &*it : nullptr;
+      at = dot + 1;
+    }
+    if (block == nullptr || block->is_null()) continue;
+    for (auto& [key_path, problem] : files(*block, base_dir)) {
+      ConfigDiagnostic diagnostic;
+      diagnostic.mark = yaml::nearest_mark(marks, file, key_path);
+      diagnostic.key_path = key_path;
+      diagnostic.message = std::move(problem);
+      out.push_back(std::move(diagnostic));
+    }
+  }
+}
+
 void validate_config(const json& doc, const std::map<std::string, SourceMark>& marks, const std::string& file,
                      std::vector<ConfigDiagnostic>& out) {
   Validator validator(marks, file, out);
@@ -657,6 +679,11 @@ ConfigFragment::ConfigFragment(std::vector<KeySpec> rows) : rows_(std::move(rows
   auto& registry = config_detail::registry();
   if (registry.indexed) throw std::logic_error("a config fragment was registered after the first validation");
   registry.fragments.push_back(&rows_);
+}
+
+ConfigFragment::ConfigFragment(std::vector<KeySpec> rows, std::string_view block_path, FragmentFileCheck files)
+    : ConfigFragment(std::move(rows)) {
+  config_detail::registry().file_checks.emplace_back(block_path, files);
 }
 
 void ConfigFragment::check(const nlohmann::json& block, std::string_view schema_path) const {

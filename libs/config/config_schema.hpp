@@ -7,6 +7,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include <filesystem>
 #include <map>
 #include <optional>
 #include <string>
@@ -46,6 +47,10 @@ const KeySpec* find_spec(std::string_view schema_path);
 // The table's default for `schema_path` (null json when it has none).
 const nlohmann::json& schema_default(std::string_view schema_path);
 
+// Runs every fragment's FragmentFileCheck on its block of `doc` (already validated), appending an error per problem.
+void check_fragment_files(const nlohmann::json& doc, const std::map<std::string, SourceMark>& marks, const std::string& file,
+                          const std::filesystem::path& base_dir, std::vector<ConfigDiagnostic>& out);
+
 // Appends an error or warning to `out` for every problem in `doc`.
 void validate_config(const nlohmann::json& doc, const std::map<std::string, SourceMark>& marks, const std::string& file,
                      std::vector<ConfigDiagnostic>& out);
@@ -68,9 +73,17 @@ using config_detail::ValueType;
 // static object in the service's library: it registers itself before main, so the loader, --check-config and a
 // SIGHUP reload check its keys like the kernel's, while the kernel never names the service. Registering after the
 // first validation is a programming error (std::logic_error).
+// What a fragment checks beyond its keys' values, with the config file's directory: the files its keys name (a peers
+// file parses, its keys decode). Runs after a file's keys passed the table, at start, --check-config and each SIGHUP
+// reload; returns {key path, problem} for each problem (the key path locates it in the config file).
+using FragmentFileCheck = std::vector<std::pair<std::string, std::string>> (*)(const nlohmann::json& block,
+                                                                               const std::filesystem::path& base_dir);
+
 class ConfigFragment {
  public:
   explicit ConfigFragment(std::vector<KeySpec> rows);
+  // The same, with `files` run on the value at `block_path` (a plain path such as "runtime.r2r") when it is present.
+  ConfigFragment(std::vector<KeySpec> rows, std::string_view block_path, FragmentFileCheck files);
   ConfigFragment(const ConfigFragment&) = delete;
   ConfigFragment& operator=(const ConfigFragment&) = delete;
 

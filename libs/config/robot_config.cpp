@@ -268,6 +268,13 @@ LoadedConfig parse_robot_config(std::string_view yaml, const std::string& displa
   }
   if (document.ok) read_foreign_shapes(document, display_name, diagnostics);
   if (document.ok) config_detail::validate_config(document.doc, document.marks, display_name, diagnostics);
+  const auto error_found = [&diagnostics] {
+    return std::any_of(diagnostics.begin(), diagnostics.end(),
+                       [](const ConfigDiagnostic& d) { return d.severity == ConfigDiagnostic::Severity::Error; });
+  };
+  // The files the keys name are read only once the keys themselves are right.
+  if (document.ok && !error_found())
+    config_detail::check_fragment_files(document.doc, document.marks, display_name, base_dir, diagnostics);
   sort_by_position(diagnostics);
   const bool has_error = std::any_of(diagnostics.begin(), diagnostics.end(),
                                      [](const ConfigDiagnostic& d) { return d.severity == ConfigDiagnostic::Severity::Error; });

@@ -178,7 +178,20 @@ sdk::Scope required_scope(MessageType type) noexcept {
 }
 
 MessageAuthenticator::MessageAuthenticator(const Authenticator& tokens, MessageAuthSettings settings)
-    : tokens_(tokens), settings_(std::move(settings)) {}
+    : tokens_(tokens), settings_(std::move(settings)), peers_(std::make_shared<const std::vector<PeerKey>>(settings_.peers)) {}
+
+void MessageAuthenticator::replace_peers(std::vector<PeerKey> peers) {
+  auto table = std::make_shared<const std::vector<PeerKey>>(std::move(peers));
+  std::lock_guard lock(peers_mutex_);
+  peers_.swap(table);
+}
+
+std::shared_ptr<const std::vector<PeerKey>> MessageAuthenticator::current_peers() const {
+  std::lock_guard lock(peers_mutex_);
+  return peers_;
+}
+
+std::size_t MessageAuthenticator::peer_count() const { return current_peers()->size(); }
 
 std::variant<Principal, AuthFailure> MessageAuthenticator::authorize(const Envelope& envelope, const json& raw,
                                                                      const std::optional<Principal>& transport_principal,
@@ -220,9 +233,10 @@ std::variant<Principal, AuthFailure> MessageAuthenticator::verify_signature(cons
       !signature["sig"].is_string())
     return AuthFailure{"header.signature must be {\"key_id\": string, \"sig\": base64 string}"};
   const std::string& key_id = signature["key_id"].get_ref<const std::string&>();
-  const auto peer = std::find_if(settings_.peers.begin(), settings_.peers.end(),
-                                 [&](const PeerKey& candidate) { return candidate.name == key_id; });
-  if (peer == settings_.peers.end() || !peer->key) return AuthFailure{"unknown signing key '" + key_id + "'"};
+  const auto table = current_peers();
+  const auto peer =
+      std::find_if(table->begin(), table->end(), [&](const PeerKey& candidate) { return candidate.name == key_id; });
+  if (peer == table->end() || !peer->key) return AuthFailure{"unknown signing key '" + key_id + "'"};
   const auto sig = base64_decode(signature["sig"].get_ref<const std::string&>());
   if (!sig || !peer->key->verify(signing_input(raw), *sig)) return AuthFailure{"bad signature for key '" + key_id + "'"};
   // Checked only after the signature holds, so the timestamp is the sender's own.

@@ -9,6 +9,7 @@
 #include <cstdint>
 #include <filesystem>
 #include <memory>
+#include <mutex>
 #include <optional>
 #include <string>
 #include <string_view>
@@ -87,11 +88,17 @@ class MessageAuthenticator {
                                                  const std::optional<Principal>& transport_principal, sdk::Scope needed,
                                                  double now_s) const;
   const MessageAuthSettings& settings() const noexcept { return settings_; }
+  // A SIGHUP reload (runtime.r2r.peers_file): from now on signatures are checked against `peers`, all at once.
+  void replace_peers(std::vector<PeerKey> peers);
+  std::size_t peer_count() const;
 
  private:
   std::variant<Principal, AuthFailure> verify_signature(const Envelope& envelope, const nlohmann::json& raw, double now_s) const;
+  std::shared_ptr<const std::vector<PeerKey>> current_peers() const;
   const Authenticator& tokens_;
-  MessageAuthSettings settings_;
+  MessageAuthSettings settings_;  // its peers as at start; peers_ is the table in force
+  mutable std::mutex peers_mutex_;
+  std::shared_ptr<const std::vector<PeerKey>> peers_;
 };
 
 // The scope a message type needs from its sender: status/error need `status`, the rest `control`.

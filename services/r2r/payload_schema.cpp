@@ -109,8 +109,11 @@ std::optional<PayloadFault> check_negotiation(const json& p) {
 }
 
 std::optional<PayloadFault> check_command(const json& p) {
-  // The body of POST /api/action: the kernel's action route validates the rest exactly as over HTTP.
-  return string_field(p, "type", true, true);
+  // The body of POST /api/action: the kernel's action route validates the rest exactly as over HTTP. The fleet
+  // e-stop is not an action: its only other field is checked here.
+  if (auto bad = string_field(p, "type", true, true)) return bad;
+  if (p["type"] == "estop") return string_field(p, "reason", false, false);
+  return std::nullopt;
 }
 
 std::optional<PayloadFault> check_error(const json& p) {
@@ -125,6 +128,12 @@ std::optional<PayloadFault> check_error(const json& p) {
 }
 
 }  // namespace
+
+bool is_fleet_estop(MessageType type, const nlohmann::json& payload) noexcept {
+  if (type != MessageType::Command || !payload.is_object()) return false;
+  const auto it = payload.find("type");
+  return it != payload.end() && it->is_string() && it->get_ref<const std::string&>() == "estop";
+}
 
 std::optional<PayloadFault> check_payload(MessageType type, const nlohmann::json& payload) {
   switch (type) {

@@ -33,7 +33,7 @@ class R2rModule final : public Service {
            api->execute_action(principal, std::move(body), std::move(done));
          },
          host.status_document, host.estop, host.clock, host.swarm_now, host.registry.identity().ruri, host.registry.names(),
-         fleet_lookup(host)});
+         fleet_lookup(host), stop_lane(host)});
     if (!service_) return;
     bridge_.attach(service_->node());
     service_->node().observe_messages(r2r::message_metrics(host.plugin_services));
@@ -58,6 +58,20 @@ class R2rModule final : public Service {
   // The fleet plugin's auctions, looked up at each use: plugins start after this service is made, and may fail.
   static r2r::PluginBridge::FleetLookup fleet_lookup(ServiceHost& host) {
     return [directory = &host.plugin_services] { return sdk::find<sdk::FleetAuctions>(*directory); };
+  }
+
+  // The fleet e-stop's way to the latch: POST /api/stop itself, run inline as the R2R sender (Api::execute answers on
+  // the calling thread: the route's audit entry, then Estop::latch), so it never waits behind a command's worker.
+  static r2r::StopExecutor stop_lane(ServiceHost& host) {
+    return [api = &host.api, clock = &host.clock](const Principal& principal, nlohmann::json body) {
+      http::Request request;
+      request.method = "POST";
+      request.target = request.path = "/api/stop";
+      request.body = body.dump(-1, ' ', false, nlohmann::json::error_handler_t::replace);
+      request.remote = "r2r";
+      request.headers["x-message-id"] = "r2r-estop-" + std::to_string(clock->wall_ms());
+      api->execute(principal, std::move(request), [](http::Response) {});
+    };
   }
 
   ServiceHost& host_;

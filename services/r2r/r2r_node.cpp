@@ -338,6 +338,33 @@ struct R2rNode::Impl {
   }
 
   LocalStatus local_status() const { return deps.status_source ? deps.status_source() : LocalStatus{}; }
+
+  // This robot's status now, sent at once whatever the interval (a fleet e-stop's latch: the fleet sees it now).
+  void publish_status_now() {
+    const LocalStatus local = local_status();
+    std::vector<Wire> out;
+    {
+      std::lock_guard lock(mutex);
+      json status = status_payload_locked(local);
+      out.push_back(wire(MessageType::Status, status, std::nullopt));
+      last_status = std::move(status);
+      last_status_us = deps.clock.now_us();
+      status_sent = true;
+    }
+    transmit(std::move(out));
+  }
+
+  // The fleet e-stop (docs/protocol.md §11.13): POST /api/stop's latch as the sender, on this (transport) thread, then
+  // the latched status at once. The latch's reason names the sender and its reason.
+  void fleet_estop(const Principal& principal, const Envelope& envelope, const std::string& transport) {
+    const auto it = envelope.payload.find("reason");
+    const std::string reason = it != envelope.payload.end() && it->is_string() ? it->get<std::string>() : std::string();
+    const std::string text = "fleet e-stop from '" + envelope.source_id + "'" + (reason.empty() ? "" : ": " + reason);
+    log->warn("r2r: {} (via {})", bounded_text(text, 300), transport);
+    deps.stop_executor(principal,
+                       json{{"reason", bounded_text(text, 200)}, {"from", "r2r " + bounded_text(envelope.source_id, 60)}});
+    publish_status_now();
+  }
 };
 
 R2rNode::R2rNode(R2rNodeDeps deps) : identity_(deps.identity), impl_(std::make_shared<Impl>(std::move(deps))) {
@@ -410,10 +437,17 @@ void R2rNode::receive(InboundMessage message) {
   };
 
   const double now = s.now_s();
-  auto who = s.auth.authorize(envelope, envelope.received, message.principal, required_scope(envelope.type), now);
+  // A fleet e-stop needs what POST /api/stop needs (scope status); any other command, control.
+  const bool estop = is_fleet_estop(envelope.type, envelope.payload);
+  auto who = s.auth.authorize(envelope, envelope.received, message.principal,
+                              estop ? sdk::Scope::Status : required_scope(envelope.type), now);
+  // Through a broker or a broadcast address no bearer token authenticates a sender: there a stop must be signed.
+  if (estop && !transport_may_carry_secrets(message.transport) && std::holds_alternative<Principal>(who) &&
+      std::get<Principal>(who).via != "signature")
+    who = AuthFailure{"a fleet e-stop via " + message.transport + " must be signed (header.signature)"};
   if (auto* failure = std::get_if<AuthFailure>(&who)) {
-    refuse_unauthorized("unauthorized " + std::string(type_name(envelope.type)) + " from '" + source + "' via " +
-                            message.transport + ": " + failure->message,
+    refuse_unauthorized("unauthorized " + std::string(estop ? "fleet e-stop" : type_name(envelope.type)) + " from '" + source +
+                            "' via " + message.transport + ": " + failure->message,
                         failure->message);
     return;
   }
@@ -478,7 +512,9 @@ void R2rNode::receive(InboundMessage message) {
   }
 
   if (s.observer) s.observer(false, envelope.type, message.transport);
-  if (run_command) {
+  if (run_command && estop && s.deps.stop_executor) {
+    s.fleet_estop(principal, envelope, message.transport);
+  } else if (run_command) {
     if (!s.deps.command_executor) {
       refuse_unauthorized("command from '" + source + "' refused: this robot does not accept R2R commands",
                           "this robot does not accept R2R commands");
@@ -594,6 +630,8 @@ json R2rNode::status_payload() const {
   std::lock_guard lock(impl_->mutex);
   return impl_->status_payload_locked(local);
 }
+
+void R2rNode::replace_peers(std::vector<PeerKey> peers) { impl_->auth.replace_peers(std::move(peers)); }
 
 NodeCounters R2rNode::counters() const {
   std::lock_guard lock(impl_->mutex);

@@ -56,6 +56,10 @@ using StatusSource = std::function<LocalStatus()>;
 // pre-check, the audit entry). `done` is called once, from any thread, with the HTTP status and JSON body.
 using CommandDone = std::function<void(int http_status, nlohmann::json body)>;
 using CommandExecutor = std::function<void(const Principal& principal, nlohmann::json body, CommandDone done)>;
+// The fleet e-stop (docs/protocol.md §11.13): a `command` whose payload is {"type":"estop","reason"?} latches the robot
+// exactly as POST /api/stop with `body` ({"reason","from"}) as `principal` - same audit entry, same latch - on the
+// calling (transport) thread: never behind a worker queue. Returns once latched. There is no R2R way to clear.
+using StopExecutor = std::function<void(const Principal& principal, nlohmann::json body)>;
 
 // A validated inbound message as subscribers see it.
 struct ReceivedMessage {
@@ -77,6 +81,7 @@ struct R2rNodeDeps {
   // one for a robot in the peer table. May be empty (only heard peers are known). Any thread; must not block.
   std::function<bool(const std::string& id)> fleet_member;
   std::shared_ptr<spdlog::logger> log;  // null: spdlog's default logger
+  StopExecutor stop_executor;           // may be empty: a fleet e-stop is refused (code 103, "commands disabled")
 };
 
 // What send_message() did: the message as sent without any bearer token (the spelling safe to show), and the
@@ -136,6 +141,8 @@ class R2rNode {
   nlohmann::json status_payload() const;
   NodeCounters counters() const;
   const NodeIdentity& identity() const noexcept { return identity_; }
+  // The peers whose signatures are accepted from now on, all at once (a SIGHUP reload of runtime.r2r.peers_file).
+  void replace_peers(std::vector<PeerKey> peers);
 
  private:
   struct Impl;

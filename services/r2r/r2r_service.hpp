@@ -39,6 +39,9 @@ struct R2rServiceDeps {
   // The fleet plugin's auctions (sdk::find<sdk::FleetAuctions> over the plugins' services), looked up at each use:
   // null while nothing offers them (the plugin is not installed, not started yet, or failed).
   std::function<const sdk::FleetAuctions*()> fleet;
+  // POST /api/stop as `principal` with `body` ({"reason","from"}), inline on the calling thread (the fleet e-stop,
+  // docs/protocol.md §11.13): the same route, audit entry and latch as HTTP's, behind no queue.
+  r2r::StopExecutor execute_stop;
 };
 
 class R2rService {

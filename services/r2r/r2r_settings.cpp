@@ -6,6 +6,7 @@
 #include "libs/base/file_exposure.hpp"
 #include "libs/config/config_schema.hpp"
 #include "libs/rcan/secret_file.hpp"
+#include "services/r2r/peers_file.hpp"
 
 namespace rcand::kernel::r2r {
 namespace {
@@ -19,6 +20,8 @@ std::string check_one_key(const json& peer) {
     return "give exactly one of public_key_file and public_key";
   return "";
 }
+
+std::vector<std::pair<std::string, std::string>> check_r2r_files(const json& block, const std::filesystem::path& base_dir);
 
 // runtime.r2r: this service's keys. They join the config's one table (libs/config/config_schema.hpp), so the file
 // is checked with file:line:column before anything here runs; load_r2r_settings() runs the same check on a block it
@@ -63,6 +66,9 @@ const ConfigFragment kR2rKeys({
      .description = "the peer's Ed25519 public key: 32 bytes, base64"},
     {.path = "runtime.r2r.peers[].role", .type = String, .default_value = "USER", .check = check_role,
      .description = "what the peer's signed messages may do: GUEST, USER, LEASEE, OWNER or CREATOR"},
+    {.path = "runtime.r2r.peers_file", .type = String, .non_empty = true,
+     .description = "the fleet's peers file (YAML {peers: [{name, public_key|public_key_file, role}]}, relative to this "
+                    "file; rcanctl fleet enroll writes it): merged with peers, re-read on SIGHUP"},
     // The transports (WebSocket /ws/r2r, UDP status, MQTT).
     {.path = "runtime.r2r.enabled", .type = Boolean, .default_value = false,
      .description = "speak R2R (seed 004): WS /ws/r2r, UDP status, MQTT when configured"},
@@ -108,7 +114,7 @@ const ConfigFragment kR2rKeys({
      .description = "MQTT client id (default rcand-<robot name>)"},
     {.path = "runtime.r2r.mqtt.keepalive_s", .type = Integer, .default_value = 30, .min = 5, .max = 65535,
      .description = "MQTT keep-alive"},
-});
+}, "runtime.r2r", check_r2r_files);
 // clang-format on
 
 constexpr std::string_view kBlock = "runtime.r2r";
@@ -171,7 +177,31 @@ std::vector<PeerKey> read_peers(const json& peers, const std::filesystem::path& 
   return out;
 }
 
+// At start, --check-config and each SIGHUP reload (config_schema.hpp): the peers file exists, parses, every key
+// decodes, and no robot is both in it and inline. A public key is no secret: its file mode is not checked.
+std::vector<std::pair<std::string, std::string>> check_r2r_files(const json& block, const std::filesystem::path& base_dir) {
+  const auto file = block.find("peers_file");
+  if (file == block.end() || !file->is_string()) return {};
+  try {
+    const LoadedPeers loaded = load_peers_file(resolve(base_dir, file->get<std::string>()));
+    const json peers = block.contains("peers") ? block["peers"] : json::array();
+    for (std::size_t i = 0; peers.is_array() && i < peers.size(); ++i)
+      for (std::size_t j = 0; j < loaded.peers.size(); ++j)
+        if (peers[i].is_object() && peers[i].value("name", "") == loaded.peers[j].name)
+          return {{"runtime.r2r.peers[" + std::to_string(i) + "].name",
+                   "'" + loaded.peers[j].name + "' is also in the peers file at " + loaded.where[j] + ": keep one"}};
+  } catch (const std::exception& e) {
+    return {{"runtime.r2r.peers_file", e.what()}};
+  }
+  return {};
+}
+
 }  // namespace
+
+std::vector<PeerKey> reload_peers(const R2rSettings& settings) {
+  if (!settings.peers_file) return settings.inline_peers;
+  return merge_peers(settings.inline_peers, settings.inline_where, load_peers_file(*settings.peers_file));
+}
 
 R2rSettings load_r2r_settings(const json& r2r, const std::filesystem::path& base_dir) {
   R2rSettings s;
@@ -196,7 +226,14 @@ R2rSettings load_r2r_settings(const json& r2r, const std::filesystem::path& base
     if (auto problem = others_may_access(path, "this private key"); !problem.empty())
       s.warnings.push_back(std::string(kBlock) + ".private_key_file: " + problem);
   }
-  s.auth.peers = read_peers(read(r2r, "peers"), base_dir);
+  s.inline_peers = read_peers(read(r2r, "peers"), base_dir);
+  for (std::size_t i = 0; i < s.inline_peers.size(); ++i) s.inline_where.push_back("runtime.r2r.peers[" + std::to_string(i) + "]");
+  if (const json file = read(r2r, "peers_file"); file.is_string()) s.peers_file = resolve(base_dir, file.get<std::string>());
+  try {
+    s.auth.peers = reload_peers(s);
+  } catch (const std::exception& e) {
+    bad("peers_file", e.what());
+  }
   return s;
 }
 
