@@ -233,6 +233,8 @@ class Fleet:
             peers.append({"name": name, "public_key": base64.b64encode(raw).decode(),
                           "role": "owner" if name == SENDER else "user"})
         self.peers = peers  # every robot enrolled; the operator's key may stop the fleet
+        self.peers_file = os.path.join(keydir, "fleet-peers.yaml")  # the one fleet file every robot reads
+        json.dump({"peers": peers}, open(self.peers_file, "w"), indent=1)  # JSON is YAML
 
     def start_brokers(self):
         pa, pb = free_ports(2)
@@ -266,7 +268,7 @@ class Fleet:
         rt["r2r"] = {"enabled": True, "udp_enabled": False, "ws_dial": False,
                      "mqtt": {"host": "127.0.0.1", "port": robot.broker.port, "keepalive_s": 10},
                      "private_key_file": robot.keyfile, "require_signatures": True,
-                     "peers": [p for p in self.peers if p["name"] != robot.name],
+                     "peers_file": self.peers_file,
                      "origin": {"x": robot.origin[0], "y": robot.origin[1], "heading_deg": 0},
                      "bid_window_ms": self.args.bid_window_ms, "status_interval_ms": 1000}
         return config
@@ -454,7 +456,8 @@ class Fleet:
                "median_robot_ms_p50": round(pct([t["median_robot_ms"] for t in trials], 0.5), 2)}
         latch = [t["last_latch_ms"] for t in trials if t["last_latch_ms"] is not None]
         if latch:  # wall clock, whole milliseconds
-            out["last_latch_record_ms"] = {"p50": pct(latch, 0.5), "p99": pct(latch, 0.99), "max": max(latch)}
+            out["last_latch_record_ms"] = {"p50": round(pct(latch, 0.5), 1), "p99": round(pct(latch, 0.99), 1),
+                                           "max": round(max(latch), 1)}
         log("estop", json.dumps(out))
         self.results.setdefault("estop", []).append(out)
         return out
