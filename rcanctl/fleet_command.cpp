@@ -133,13 +133,12 @@ std::optional<int> fleet_parse(std::span<const std::string> args, FleetOptions& 
   app->require_subcommand(1);
   if (auto done = parse_command_line(*app, args, out, err)) return done;
   o.sub = app->get_subcommands().front()->get_name();
-  CLI::App& action = *app->get_subcommands().front();
   if (o.sub == "stop") {
     if (!o.password_file.empty() && !o.token_file.empty())
-      return usage_error(action, "give --password-file or --token-file, not both", err);
+      return usage_error(*app, "give --password-file or --token-file, not both", err);
     if (o.cert_file.empty() != o.tls_key_file.empty())
-      return usage_error(action, "--tls-cert-file and --tls-key-file go together", err);
-    if (!o.cert_file.empty() && o.ca_file.empty()) return usage_error(action, "mutual TLS needs --tls-ca-file too", err);
+      return usage_error(*app, "--tls-cert-file and --tls-key-file go together", err);
+    if (!o.cert_file.empty() && o.ca_file.empty()) return usage_error(*app, "mutual TLS needs --tls-ca-file too", err);
     if (!o.username.empty()) o.mqtt.username = o.username;
     if (!o.password_file.empty()) o.mqtt.password_file = o.password_file;
     if (!o.token_file.empty()) o.mqtt.token_file = o.token_file;
@@ -148,13 +147,13 @@ std::optional<int> fleet_parse(std::span<const std::string> args, FleetOptions& 
     if (!o.tls_key_file.empty()) o.mqtt.key_file = o.tls_key_file;
     o.mqtt.timeout = std::chrono::seconds(o.timeout_s);
     o.mqtt.client_id = "rcanctl-fleet-stop-" + std::to_string(::getpid());
-    if (auto bad = fleet_split_broker(o.broker, o.mqtt)) return usage_error(action, *bad, err);
+    if (auto bad = fleet_split_broker(o.broker, o.mqtt)) return usage_error(*app, *bad, err);
   }
   if (o.sub == "keygen" || o.sub == "enroll" || o.sub == "revoke")
-    if (const auto bad = fleet_bad_name(o.name); !bad.empty()) return usage_error(action, bad, err);
+    if (const auto bad = fleet_bad_name(o.name); !bad.empty()) return usage_error(*app, bad, err);
   if (o.sub == "enroll") {
     const auto role = sdk::parse_role(o.role);
-    if (!role) return usage_error(action, "--role must be GUEST, USER, LEASEE, OWNER or CREATOR, got '" + o.role + "'", err);
+    if (!role) return usage_error(*app, "--role must be GUEST, USER, LEASEE, OWNER or CREATOR, got '" + o.role + "'", err);
     o.role = std::string(sdk::role_name(*role));
   }
   return std::nullopt;
@@ -269,10 +268,12 @@ int run_enroll(const FleetOptions& o, std::ostream& out, std::ostream& err) {
       const std::string role = it->contains("role")
                                    ? std::string(sdk::role_name(*sdk::parse_role((*it)["role"].get<std::string>())))
                                    : std::string("USER");
-      if (fleet_entry_key(*it, o.peers_file) == key_base64 && role == o.role) action = "already enrolled";
+      const bool same_key = fleet_entry_key(*it, o.peers_file) == key_base64;
+      if (same_key && role == o.role) action = "already enrolled";
       else if (!o.replace) {
-        err << "rcanctl fleet enroll: '" << o.name << "' is enrolled in " << o.peers_file << " with another "
-            << (role == o.role ? "key" : "role (" + role + ")") << "; --replace to replace it\n";
+        err << "rcanctl fleet enroll: '" << o.name << "' is enrolled in " << o.peers_file << " with "
+            << (same_key ? "" : "another key") << (!same_key && role != o.role ? " and " : "")
+            << (role == o.role ? "" : "role " + role) << "; --replace to replace it\n";
         return kExitFailure;
       } else {
         *it = entry;

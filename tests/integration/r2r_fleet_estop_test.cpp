@@ -4,6 +4,8 @@
 // unsigned stop and one signed by a key no robot has enrolled latch none and are never answered on the wire.
 #include <doctest/doctest.h>
 
+#include <signal.h>
+
 #include <chrono>
 #include <mutex>
 
@@ -67,32 +69,40 @@ struct FleetWire {
 
 const std::vector<std::string> kFleetNames{"alpha", "bravo", "charlie"};
 
-json fleet_robot(const std::string& name, const std::filesystem::path& token, std::uint16_t broker, const json& peers) {
+json fleet_robot(const std::string& name, const std::filesystem::path& token, std::uint16_t broker,
+                 const std::filesystem::path& peers_file) {
   auto config = r2r_robot_config(name, token);
   config["runtime"]["r2r"]["mqtt"] = {{"host", "127.0.0.1"}, {"port", broker}, {"keepalive_s", 5}};
   config["runtime"]["r2r"]["status_interval_ms"] = 60000;  // a latched status seen soon was sent at once
-  config["runtime"]["r2r"]["peers"] = peers;
+  config["runtime"]["r2r"]["peers_file"] = peers_file.string();
   return config;
+}
+
+ProcessResult fleet_tool(const std::vector<std::string>& args) {
+  std::vector<std::string> words{"fleet"};
+  words.insert(words.end(), args.begin(), args.end());
+  return run_tool(rcanctl_binary(), words);
 }
 
 bool fleet_latched(const RcandProcess& robot) { return robot.json("GET", "/api/status", "guest-token").value("estopped", false); }
 
 }  // namespace
 
-TEST_CASE("fleet e-stop (mqtt): rcanctl fleet stop latches three robots; unsigned and unenrolled stops latch none, unanswered") {
+TEST_CASE(
+    "fleet e-stop (mqtt): unsigned and unenrolled stops latch none, unanswered; enroll + SIGHUP admits a sender; "
+    "rcanctl fleet stop latches three robots") {
   MosquittoBroker broker;
   TempDir dir;
   const auto token = dir.write("r2r.token", "owner-token\n");
-  const Ed25519Key ops = Ed25519Key::generate();
-  const auto ops_key = dir.write("ops.pem", ops.private_pem());
-  std::filesystem::permissions(ops_key, std::filesystem::perms::owner_read | std::filesystem::perms::owner_write);
-  const Ed25519Key stranger = Ed25519Key::generate();
-  // GUEST: a stop needs scope status only, as POST /api/stop.
-  const json peers = json::array({{{"name", "ops"}, {"public_key", ops.public_base64()}, {"role", "GUEST"}}});
+  const std::string keys = (dir.path() / "keys").string();
+  const std::string peers_file = (dir.path() / "fleet-peers.yaml").string();
+  // The operator's keys, made and enrolled as the README says; "ops" as GUEST: a stop needs scope status only.
+  for (const std::string name : {"ops", "stranger"}) REQUIRE(fleet_tool({"keygen", name, "--out", keys}).exit_code == 0);
+  REQUIRE(fleet_tool({"enroll", "--peers-file", peers_file, "ops", keys + "/ops.pub", "--role", "guest"}).exit_code == 0);
   FleetWire wire(broker.port());
   std::vector<std::unique_ptr<RcandProcess>> robots;
   for (const auto& name : kFleetNames)
-    robots.push_back(std::make_unique<RcandProcess>(fleet_robot(name, token, broker.port(), peers)));
+    robots.push_back(std::make_unique<RcandProcess>(fleet_robot(name, token, broker.port(), peers_file)));
   REQUIRE(poll_until<bool>(
       [&]() -> std::optional<bool> {
         for (const auto& name : kFleetNames)
@@ -107,11 +117,15 @@ TEST_CASE("fleet e-stop (mqtt): rcanctl fleet stop latches three robots; unsigne
   };
   REQUIRE(wire.client.send(r2r_message("ops", "command", {{"type", "estop"}, {"reason", "unsigned"}}), std::nullopt));
   json forged = json::parse(r2r_message("stranger", "command", {{"type", "estop"}, {"reason", "unenrolled"}}));
-  rcand::kernel::r2r::sign_message(forged, "stranger", stranger);
+  rcand::kernel::r2r::sign_message(forged, "stranger",
+                                   Ed25519Key::private_from_file(std::filesystem::path(keys) / "stranger.key"));
   REQUIRE(wire.client.send(forged.dump(), std::nullopt));
+  const auto stranger_stop = fleet_tool({"stop", "--mqtt", "127.0.0.1:" + std::to_string(broker.port()), "--key",
+                                         keys + "/stranger.key", "--name", "stranger", "--reason", "not yet"});
+  CHECK(stranger_stop.exit_code == 0);  // the broker took it; no robot acts on it
   for (const auto& robot : robots) {
     REQUIRE(poll_until<bool>([&]() -> std::optional<bool> {
-      if (rejected(*robot) >= 2) return true;
+      if (rejected(*robot) >= 3) return true;
       return std::nullopt;
     }));
     CHECK_FALSE(fleet_latched(*robot));
@@ -121,10 +135,32 @@ TEST_CASE("fleet e-stop (mqtt): rcanctl fleet stop latches three robots; unsigne
   }
   CHECK(wire.errors() == 0);  // a broadcast is never answered
 
-  // The operator's stop: signed with the enrolled key, acknowledged by the broker.
-  const auto result =
-      run_tool(rcanctl_binary(), {"fleet", "stop", "--mqtt", "127.0.0.1:" + std::to_string(broker.port()), "--key",
-                                  ops_key.string(), "--name", "ops", "--reason", "aisle 3 blocked", "--json"});
+  // A peers file broken on disk: the reload is refused with the file's line, the table in force stays.
+  std::filesystem::copy_file(peers_file, peers_file + ".good");
+  dir.write("fleet-peers.yaml", "peers:\n  - name: ops\n    public_key: not-a-key\n");
+  ::kill(robots[0]->pid(), SIGHUP);
+  INFO("alpha's log: " << robots[0]->stderr_text());
+  CHECK(poll_until<bool>([&]() -> std::optional<bool> {
+    if (robots[0]->stderr_text().find("fleet-peers.yaml:3:5: error: peers[0].public_key: expected a PEM Ed25519 key") !=
+        std::string::npos)
+      return true;
+    return std::nullopt;
+  }));
+  std::filesystem::rename(peers_file + ".good", peers_file);
+
+  // Enrolled, the file copied (here: shared) and every robot sent SIGHUP: the stranger is a peer now.
+  REQUIRE(fleet_tool({"enroll", "--peers-file", peers_file, "stranger", keys + "/stranger.pub"}).exit_code == 0);
+  for (const auto& robot : robots) {
+    ::kill(robot->pid(), SIGHUP);
+    REQUIRE(poll_until<bool>([&]() -> std::optional<bool> {
+      if (robot->stderr_text().find("peers accepted") != std::string::npos) return true;
+      return std::nullopt;
+    }));
+  }
+
+  // The stop: signed with an enrolled key, acknowledged by the broker.
+  const auto result = fleet_tool({"stop", "--mqtt", "127.0.0.1:" + std::to_string(broker.port()), "--key", keys + "/stranger.key",
+                                  "--name", "stranger", "--reason", "aisle 3 blocked", "--json"});
   INFO("rcanctl: " << result.out << result.err);
   REQUIRE(result.exit_code == 0);
   const json printed = json::parse(result.out, nullptr, false);
@@ -137,14 +173,14 @@ TEST_CASE("fleet e-stop (mqtt): rcanctl fleet stop latches three robots; unsigne
       return std::nullopt;
     }));
     const json estop = robot.json("GET", "/api/estop", "guest-token");
-    CHECK(estop["reason"] == "fleet e-stop from 'ops': aisle 3 blocked");
-    CHECK(estop["principal"] == "ops");
-    CHECK(estop["from"] == "r2r ops");
+    CHECK(estop["reason"] == "fleet e-stop from 'stranger': aisle 3 blocked");
+    CHECK(estop["principal"] == "stranger");
+    CHECK(estop["from"] == "r2r stranger");
     // Audited as the sender, as POST /api/stop.
     const json audit = robot.json("GET", "/api/audit?limit=20", "owner-token");
     bool audited = false;
     for (const auto& entry : audit["entries"])
-      audited = audited || (entry.value("principal", "") == "ops" && entry.value("event", "") == "POST /api/stop");
+      audited = audited || (entry.value("principal", "") == "stranger" && entry.value("event", "") == "POST /api/stop");
     CHECK(audited);
     // The latched status on the wire, long before the 60 s interval.
     const std::string& name = kFleetNames[i];
