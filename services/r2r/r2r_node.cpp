@@ -365,7 +365,34 @@ struct R2rNode::Impl {
                        json{{"reason", bounded_text(text, 200)}, {"from", "r2r " + bounded_text(envelope.source_id, 60)}});
     publish_status_now();
   }
+
+  // What this robot leaves on its status topic when it goes away (MQTT's last will, and a clean stop): its last
+  // status in state "offline", signed now when signing is on.
+  std::string offline_status() const {
+    json payload;
+    {
+      std::lock_guard lock(mutex);
+      payload = status_sent ? last_status : status_payload_locked(LocalStatus{});
+    }
+    payload["state"] = "offline";
+    payload["task_progress"] = nullptr;
+    return wire(MessageType::Status, payload, std::nullopt).open_bytes;
+  }
 };
+
+namespace {
+// A status on its sender's own status topic (MQTT r2r/status/<name>, docs/protocol.md §11.13) may be a retained copy
+// set before this robot started: a status is no action, so that is no replay to refuse.
+bool r2r_status_on_own_topic(const InboundMessage& message, const Envelope& envelope) {
+  return message.status_topic && envelope.type == MessageType::Status && message.peer.ends_with("/status/" + envelope.source_id);
+}
+// The `offline` status left there (the last will, or published at a clean stop) was signed when it was set, possibly
+// long ago: its signature is checked as of its own timestamp, and all it can ever do is mark that robot offline.
+bool r2r_offline_left_behind(const InboundMessage& message, const Envelope& envelope) {
+  const auto state = envelope.payload.find("state");
+  return r2r_status_on_own_topic(message, envelope) && state != envelope.payload.end() && *state == "offline";
+}
+}  // namespace
 
 R2rNode::R2rNode(R2rNodeDeps deps) : identity_(deps.identity), impl_(std::make_shared<Impl>(std::move(deps))) {
   for (Transport* transport : impl_->deps.transports) add_transport(transport);
@@ -388,7 +415,13 @@ void R2rNode::start() {
     impl_->started = true;
   }
   // stop() (also run by the destructor) stops every transport, so no delivery outlives the node.
-  for (Transport* transport : transports) transport->start([this](InboundMessage message) { receive(std::move(message)); });
+  for (Transport* transport : transports) {
+    transport->set_offline_status([weak = std::weak_ptr<Impl>(impl_)] {
+      const auto self = weak.lock();
+      return self ? self->offline_status() : std::string();
+    });
+    transport->start([this](InboundMessage message) { receive(std::move(message)); });
+  }
 }
 
 void R2rNode::stop() noexcept {
@@ -440,7 +473,8 @@ void R2rNode::receive(InboundMessage message) {
   // A fleet e-stop needs what POST /api/stop needs (scope status); any other command, control.
   const bool estop = is_fleet_estop(envelope.type, envelope.payload);
   auto who = s.auth.authorize(envelope, envelope.received, message.principal,
-                              estop ? sdk::Scope::Status : required_scope(envelope.type), now);
+                              estop ? sdk::Scope::Status : required_scope(envelope.type),
+                              r2r_offline_left_behind(message, envelope) ? envelope.timestamp : now);
   // Through a broker or a broadcast address no bearer token authenticates a sender: there a stop must be signed.
   if (estop && !transport_may_carry_secrets(message.transport) && std::holds_alternative<Principal>(who) &&
       std::get<Principal>(who).via != "signature")
@@ -455,7 +489,7 @@ void R2rNode::receive(InboundMessage message) {
   if (principal.via == "signature") {
     // Signed before this robot started: its replay memory cannot know whether it was handled before a restart, so it
     // is refused (103) - nothing signed before a restart is replayable after it.
-    if (envelope.timestamp < s.started_s) {
+    if (envelope.timestamp < s.started_s && !r2r_status_on_own_topic(message, envelope)) {
       const std::string why =
           "signed message timestamped before this robot started (" + json(s.started_s).dump() + "): refused as a possible replay";
       refuse_unauthorized("refused a signed " + std::string(type_name(envelope.type)) + " from '" + source + "' via " +

@@ -95,7 +95,7 @@ const ConfigFragment kR2rKeys({
      .description = "where status datagrams go (e.g. [\"192.168.1.255\"]); none when absent: UDP status is not sent"},
     {.path = "runtime.r2r.udp_broadcast[]", .type = String, .non_empty = true,
      .description = "an IP address, optionally with :port"},
-    {.path = "runtime.r2r.mqtt", .type = Mapping, .open = true, .description = "MQTT broker for R2R (topics r2r/<name>, r2r/broadcast)"},
+    {.path = "runtime.r2r.mqtt", .type = Mapping, .open = true, .description = "MQTT broker for R2R (topics r2r/<name>, r2r/broadcast, r2r/status/<name>)"},
     {.path = "runtime.r2r.mqtt.host", .type = String, .non_empty = true, .description = "broker host"},
     {.path = "runtime.r2r.mqtt.port", .type = Integer, .min = 1, .max = 65535,
      .description = "broker port (1883, or 8883 with tls)"},
@@ -114,6 +114,8 @@ const ConfigFragment kR2rKeys({
      .description = "MQTT client id (default rcand-<robot name>)"},
     {.path = "runtime.r2r.mqtt.keepalive_s", .type = Integer, .default_value = 30, .min = 5, .max = 65535,
      .description = "MQTT keep-alive"},
+    {.path = "runtime.r2r.mqtt.status_subscriptions", .type = Any,
+     .description = "whose status this robot reads (r2r/status/<name>): a list of robot names, or all; none by default"},
 }, "runtime.r2r", check_r2r_files);
 // clang-format on
 

@@ -24,9 +24,12 @@ struct InboundMessage {
   // False when the sender may not see this robot's bearer token in an answer (a WebSocket client below OWNER: a
   // guest watching the fleet must not learn the credential this robot acts with).
   bool trusted_with_secrets = true;
-  // Arrived as a broadcast (MQTT r2r/broadcast or r2r/status/#, any UDP datagram): never answered with an `error`
+  // Arrived as a broadcast (MQTT r2r/broadcast or r2r/status/<name>, any UDP datagram): never answered with an `error`
   // (docs/protocol.md §11.12) - N robots would answer each other N·(N-1) times.
   bool broadcast = false;
+  // Arrived on the sender's own status topic (MQTT r2r/status/<name>): a retained copy or a last will may be older
+  // than the replay window (docs/protocol.md §11.13).
+  bool status_topic = false;
 };
 
 // A transport that may carry this robot's bearer token (header.auth.token): a WebSocket has an authenticated peer at
@@ -52,6 +55,10 @@ class Transport {
   virtual bool send_own(const std::string& with_token, const std::string& open, const std::optional<std::string>& target_id) {
     return send(transport_may_carry_secrets(name()) ? with_token : open, target_id);
   }
+  // A transport that keeps each robot's last status on a topic of its own (MQTT: retained r2r/status/<name>) leaves
+  // `offline()` there when this robot goes away: as its last will when the broker loses it, published by stop() on a
+  // clean shutdown. Set before start(); any thread may call it; it must not block. Others ignore it.
+  virtual void set_offline_status(std::function<std::string()> offline) { (void)offline; }
   // Stops receiving and sending; idempotent. No Deliver call runs after it returns.
   virtual void stop() noexcept = 0;
 };

@@ -85,11 +85,12 @@ TEST_CASE("r2r chatter (mqtt): robots without signing keys never answer each oth
   std::vector<std::unique_ptr<RcandProcess>> robots;
   for (const std::string name : {"alpha", "bravo", "charlie"}) {
     auto config = r2r_robot_config(name, token);  // a token, which MQTT never carries, and no signing keys
-    config["runtime"]["r2r"]["mqtt"] = {{"host", "127.0.0.1"}, {"port", broker.port()}, {"keepalive_s", 5}};
+    // Each reads every robot's status (r2r/status/#), as a fleet view does: the case that used to cost N·(N-1) errors.
+    config["runtime"]["r2r"]["mqtt"] = {
+        {"host", "127.0.0.1"}, {"port", broker.port()}, {"keepalive_s", 5}, {"status_subscriptions", "all"}};
     robots.push_back(std::make_unique<RcandProcess>(config));
   }
-  // Every robot has broadcast its status (every 300 ms) several times, so each has refused the others' often. (The
-  // watcher may see each status twice: r2r/# and r2r/broadcast overlap.)
+  // Every robot has published its status (every 300 ms) several times, so each has refused the others' often.
   const auto heard = poll_until<bool>(
       [&]() -> std::optional<bool> {
         for (const std::string name : {"alpha", "bravo", "charlie"})

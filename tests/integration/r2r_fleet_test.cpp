@@ -114,7 +114,8 @@ TEST_CASE("r2r fleet (mqtt): status, auction, command and errors round-trip thro
   TempDir dir;
   const auto token = dir.write("r2r.token", "owner-token\n");
   auto with_mqtt = [&](json config) {
-    config["runtime"]["r2r"]["mqtt"] = {{"host", "127.0.0.1"}, {"port", broker.port()}, {"keepalive_s", 5}};
+    config["runtime"]["r2r"]["mqtt"] = {
+        {"host", "127.0.0.1"}, {"port", broker.port()}, {"keepalive_s", 5}, {"status_subscriptions", "all"}};
     return config;
   };
   auto bravo_config = with_mqtt(r2r_robot_config("bravo", token, 2.0, 0.0));
@@ -145,7 +146,7 @@ TEST_CASE("r2r fleet (mqtt): status, auction, command and errors round-trip thro
     });
   };
 
-  // status: each robot hears the other on r2r/broadcast.
+  // status: each robot reads the other's on r2r/status/<name> (status_subscriptions: all).
   const auto heard = poll_until<json>([&] { return peer_status(alpha, "bravo"); });
   REQUIRE(heard);
   CHECK((*heard)["transport"] == "mqtt");

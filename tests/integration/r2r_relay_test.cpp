@@ -185,7 +185,9 @@ TEST_CASE("r2r relay (mqtt): a WebSocket client's signed command reaches a robot
   const auto token = dir.write("r2r.token", "owner-token\n");
   RelayKeys keys;
   auto with_mqtt = [&](json config) {
-    config["runtime"]["r2r"]["mqtt"] = {{"host", "127.0.0.1"}, {"port", broker.port()}, {"keepalive_s", 5}};
+    // Each learns of the other from its status (r2r/status/<name>): alpha relays to bravo, bravo answers through alpha.
+    config["runtime"]["r2r"]["mqtt"] = {
+        {"host", "127.0.0.1"}, {"port", broker.port()}, {"keepalive_s", 5}, {"status_subscriptions", "all"}};
     return config;
   };
   auto bravo_config = with_mqtt(r2r_robot_config("bravo", token));
@@ -193,7 +195,7 @@ TEST_CASE("r2r relay (mqtt): a WebSocket client's signed command reaches a robot
   keys.sign_robots({&bravo_config, &alpha_config}, dir);
   RcandProcess bravo(bravo_config);
   RcandProcess alpha(alpha_config);
-  REQUIRE(poll_until<json>([&] { return peer_status(alpha, "bravo"); }));  // heard on r2r/broadcast
+  REQUIRE(poll_until<json>([&] { return peer_status(alpha, "bravo"); }));  // heard on r2r/status/bravo
 
   rcand::kernel::r2r::MqttOptions observer_options;
   observer_options.robot_name = "relay-observer";

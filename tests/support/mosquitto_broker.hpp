@@ -1,6 +1,6 @@
 // A real mosquitto broker for tests (header-only): listens on 127.0.0.1 on a free port with a config of its own in a
-// temporary directory, anonymous or with a password file; ready when its port accepts connections (polled, no fixed
-// sleep); stopped with SIGTERM (SIGKILL if it lingers) and reaped. restart() keeps the port, for reconnect tests.
+// temporary directory, anonymous or with a password file (and an acl_file); ready when its port accepts connections (polled, no
+// fixed sleep); stopped with SIGTERM (SIGKILL if it lingers) and reaped. restart() keeps the port, for reconnect tests.
 #pragma once
 
 #include <boost/asio/io_context.hpp>
@@ -20,6 +20,7 @@
 #include <stdexcept>
 #include <string>
 #include <thread>
+#include <vector>
 
 namespace rcand::test {
 
@@ -37,11 +38,18 @@ inline bool tcp_port_open(std::uint16_t port) {
   return !ec;
 }
 
+struct BrokerUser {
+  std::string name, password;
+};
+
 class MosquittoBroker {
  public:
   // user/password empty: anonymous clients allowed; otherwise only that user (password file made with mosquitto_passwd).
   explicit MosquittoBroker(std::string user = {}, std::string password = {})
-      : user_(std::move(user)), password_(std::move(password)) {
+      : MosquittoBroker(user.empty() ? std::vector<BrokerUser>{} : std::vector<BrokerUser>{{user, password}}, {}) {}
+  // Only these users (password_file made with mosquitto_passwd -b), each held to acl_file when one is given.
+  MosquittoBroker(std::vector<BrokerUser> users, std::filesystem::path acl_file)
+      : users_(std::move(users)), acl_file_(std::move(acl_file)) {
     std::random_device random;
     dir_ = std::filesystem::temp_directory_path() / ("rcand-mqtt-" + std::to_string(::getpid()) + "-" + std::to_string(random()));
     std::filesystem::create_directories(dir_);
@@ -69,15 +77,19 @@ class MosquittoBroker {
     if (const passwd* me = ::getpwuid(::geteuid())) conf << "user " << me->pw_name << "\n";
     conf << "listener " << port_ << " 127.0.0.1\n"
          << "persistence false\nset_tcp_nodelay true\nlog_dest stderr\nlog_type error\nlog_type warning\n";
-    if (user_.empty()) {
+    if (users_.empty()) {
       conf << "allow_anonymous true\n";
     } else {
       conf << "allow_anonymous false\npassword_file " << (dir_ / "passwd").string() << "\n";
-      const std::string command = "mosquitto_passwd -b -c '" + (dir_ / "passwd").string() + "' '" + user_ + "' '" +
-                                  password_ + "' >/dev/null 2>&1";
-      if (std::system(command.c_str()) != 0) throw std::runtime_error("mosquitto_passwd failed");
+      for (std::size_t i = 0; i < users_.size(); ++i) {
+        const std::string command = "mosquitto_passwd -b " + std::string(i == 0 ? "-c " : "") + "'" + (dir_ / "passwd").string() +
+                                    "' '" + users_[i].name + "' '" + users_[i].password + "' >/dev/null 2>&1";
+        if (std::system(command.c_str()) != 0) throw std::runtime_error("mosquitto_passwd failed");
+      }
       std::filesystem::permissions(dir_ / "passwd", std::filesystem::perms::owner_read | std::filesystem::perms::owner_write);
     }
+    // As docs/examples/mosquitto-acl.conf says: the client id is the username, so no one takes over another's session.
+    if (!acl_file_.empty()) conf << "acl_file " << acl_file_.string() << "\nuse_username_as_clientid true\n";
     conf.close();
   }
 
@@ -107,6 +119,15 @@ class MosquittoBroker {
     }
   }
 
+  // SIGKILL (a broker that dies: no clean goodbye to its clients) and reap.
+  void kill_hard() {
+    if (pid_ <= 0) return;
+    ::kill(pid_, SIGKILL);
+    int status = 0;
+    ::waitpid(pid_, &status, 0);
+    pid_ = -1;
+  }
+
   void stop() {
     if (pid_ <= 0) return;
     ::kill(pid_, SIGTERM);
@@ -125,7 +146,8 @@ class MosquittoBroker {
 
  private:
   std::filesystem::path dir_;
-  std::string user_, password_;
+  std::vector<BrokerUser> users_;
+  std::filesystem::path acl_file_;
   std::uint16_t port_ = 0;
   pid_t pid_ = -1;
 };

@@ -74,6 +74,23 @@ MqttOptions mqtt_options_from_config(const nlohmann::json& mqtt, const std::stri
   options.token_file = file(mqtt, "token_file", at);
   if (options.password_file && options.token_file)
     throw std::invalid_argument(at + ": set password_file or token_file, not both");
+  if (mqtt.contains("status_subscriptions") && !mqtt["status_subscriptions"].is_null()) {
+    const auto& wanted = mqtt["status_subscriptions"];
+    const std::string key = at + ".status_subscriptions";
+    if (wanted.is_string() && wanted == "all") {
+      options.status_of_all = true;
+    } else if (wanted.is_array()) {
+      for (const auto& name : wanted) {
+        // A name, not a pattern: a wildcard would subscribe to more than that robot.
+        if (!name.is_string() || name.get_ref<const std::string&>().empty() ||
+            name.get_ref<const std::string&>().find_first_of(std::string_view("+#\0", 3)) != std::string::npos)
+          throw std::invalid_argument(key + ": expected robot names (no '+' or '#'), or all");
+        options.status_subscriptions.push_back(name.get<std::string>());
+      }
+    } else {
+      throw std::invalid_argument(key + ": expected a list of robot names, or all");
+    }
+  }
   if (mqtt.contains("tls") && !mqtt["tls"].is_null()) {
     const auto& tls = mqtt["tls"];
     if (!tls.is_object()) throw std::invalid_argument(at + ".tls: expected a mapping");
@@ -99,7 +116,11 @@ struct MqttTransport::State {
   const std::shared_ptr<spdlog::logger> log;
   mosquitto* client = nullptr;
   std::string own_topic, broadcast_topic;
-  std::string status_topics;  // "r2r/status/": status broadcasts, one topic per robot
+  std::string status_topics;     // "r2r/status/": status broadcasts, one topic per robot
+  std::string own_status_topic;  // "r2r/status/<own name>": retained, with the last will
+
+  std::mutex offline_mutex;
+  std::function<std::string()> offline;  // this robot's `offline` status (the will); may be empty
 
   std::shared_mutex deliver_mutex;  // shared by deliveries, exclusive in stop()
   Deliver deliver;
@@ -113,6 +134,19 @@ struct MqttTransport::State {
   void count(std::uint64_t MqttCounters::*field) {
     std::lock_guard lock(counters_mutex);
     ++(counters.*field);
+  }
+
+  std::string offline_status() {
+    std::lock_guard lock(offline_mutex);
+    return offline ? offline() : std::string();
+  }
+
+  // The will goes to the broker in each CONNECT: set afresh before every (re)connect, so its timestamp is the
+  // connection's (a reader still sees it age while the robot stays connected: §11.13 says what it does with that).
+  void set_will() {
+    const std::string will = offline_status();
+    if (will.empty()) return;
+    mosquitto_will_set(client, own_status_topic.c_str(), static_cast<int>(will.size()), will.data(), 1, true);
   }
 
   static void on_connect(mosquitto* client, void* self, int rc) {
@@ -129,6 +163,10 @@ struct MqttTransport::State {
     mosquitto_subscribe(client, nullptr, state.own_topic.c_str(), 1);
     mosquitto_subscribe(client, nullptr, state.broadcast_topic.c_str(), 1);
     for (const auto& topic : state.options.extra_subscriptions) mosquitto_subscribe(client, nullptr, topic.c_str(), 1);
+    // Status: QoS 0 like its publishes; a subscription gets each robot's retained (latest, or offline) status at once.
+    if (state.options.status_of_all) mosquitto_subscribe(client, nullptr, (state.status_topics + "#").c_str(), 0);
+    for (const auto& name : state.options.status_subscriptions)
+      mosquitto_subscribe(client, nullptr, (state.status_topics + name).c_str(), 0);
     if (state.outage_logged.exchange(false))
       state.log->info("r2r mqtt: reconnected to {}:{}", state.options.host, state.options.port);
     else state.log->info("r2r mqtt: connected to {}:{} as {}", state.options.host, state.options.port, state.own_topic);
@@ -138,6 +176,7 @@ struct MqttTransport::State {
     auto& state = *static_cast<State*>(self);
     state.connected = false;
     state.count(&MqttCounters::disconnects);
+    if (state.running) state.set_will();  // the network thread reconnects next: with a will of this moment
     if (rc != 0 && state.running && !state.outage_logged.exchange(true))
       state.log->warn("r2r mqtt: lost the broker {}:{} ({}); reconnecting", state.options.host, state.options.port,
                       mosquitto_strerror(rc));
@@ -151,7 +190,8 @@ struct MqttTransport::State {
     inbound.bytes.assign(static_cast<const char*>(message->payload), static_cast<std::size_t>(message->payloadlen));
     inbound.transport = "mqtt";
     inbound.peer = message->topic ? message->topic : "";
-    inbound.broadcast = inbound.peer == state.broadcast_topic || inbound.peer.starts_with(state.status_topics);
+    inbound.status_topic = inbound.peer.starts_with(state.status_topics);
+    inbound.broadcast = inbound.peer == state.broadcast_topic || inbound.status_topic;
     // No reply route: the answer goes out through send() to r2r/<source_id>.
     std::shared_lock lock(state.deliver_mutex);
     if (state.deliver) state.deliver(std::move(inbound));
@@ -170,6 +210,7 @@ void MqttTransport::start(Deliver deliver) {
   s.own_topic = o.topic_prefix + "/" + o.robot_name;
   s.broadcast_topic = o.topic_prefix + "/broadcast";
   s.status_topics = o.topic_prefix + "/status/";
+  s.own_status_topic = s.status_topics + o.robot_name;
   const std::string client_id = o.client_id.empty() ? "rcand-" + o.robot_name : o.client_id;
 
   // The broker password or token, with a warning when other users of the machine may read it (as for every secret).
@@ -209,6 +250,7 @@ void MqttTransport::start(Deliver deliver) {
   mosquitto_disconnect_callback_set(s.client, &State::on_disconnect);
   mosquitto_message_callback_set(s.client, &State::on_message);
   mosquitto_reconnect_delay_set(s.client, 1, 30, true);
+  s.set_will();
   {
     std::unique_lock lock(s.deliver_mutex);
     s.deliver = std::move(deliver);
@@ -232,10 +274,17 @@ bool MqttTransport::send(const std::string& bytes, const std::optional<std::stri
   // topic levels, which MQTT allows; wildcards and NUL never reach the broker.
   if (target_id && (target_id->empty() || target_id->find_first_of(std::string_view("+#\0", 3)) != std::string::npos))
     return false;
-  const std::string topic = target_id ? s.options.topic_prefix + "/" + *target_id : s.broadcast_topic;
+  // This robot's status goes to its own topic, retained (a subscriber gets the latest at once); a status for one
+  // robot (rare: an answer) and everything else as before.
+  const bool status = peek_message(bytes).type == "status";
+  const bool own_status = status && !target_id;
+  const std::string topic = target_id    ? s.options.topic_prefix + "/" + *target_id
+                            : own_status ? s.own_status_topic
+                                         : s.broadcast_topic;
   if (mosquitto_pub_topic_check(topic.c_str()) != MOSQ_ERR_SUCCESS) return false;
-  const int qos = peek_message(bytes).type == "status" ? 0 : 1;
-  const int rc = mosquitto_publish(s.client, nullptr, topic.c_str(), static_cast<int>(bytes.size()), bytes.data(), qos, false);
+  const int qos = status ? 0 : 1;
+  const int rc =
+      mosquitto_publish(s.client, nullptr, topic.c_str(), static_cast<int>(bytes.size()), bytes.data(), qos, own_status);
   // QoS 1 while disconnected is queued by libmosquitto and sent after the reconnect.
   const bool ok = rc == MOSQ_ERR_SUCCESS || (rc == MOSQ_ERR_NO_CONN && qos > 0);
   s.count(ok ? &MqttCounters::published : &MqttCounters::publish_failed);
@@ -249,12 +298,23 @@ void MqttTransport::stop() noexcept {
     s.deliver = nullptr;
   }
   if (s.client == nullptr) return;
+  // A clean DISCONNECT discards the will: say `offline` ourselves, queued ahead of the DISCONNECT (one ordered queue).
+  if (s.running && s.connected) {
+    const std::string offline = s.offline_status();
+    if (!offline.empty())
+      mosquitto_publish(s.client, nullptr, s.own_status_topic.c_str(), static_cast<int>(offline.size()), offline.data(), 0, true);
+  }
   s.running = false;
   mosquitto_disconnect(s.client);
   mosquitto_loop_stop(s.client, false);
   mosquitto_destroy(s.client);
   s.client = nullptr;
   s.connected = false;
+}
+
+void MqttTransport::set_offline_status(std::function<std::string()> offline) {
+  std::lock_guard lock(state_->offline_mutex);
+  state_->offline = std::move(offline);
 }
 
 bool MqttTransport::connected() const noexcept { return state_->connected; }

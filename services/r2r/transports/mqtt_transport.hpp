@@ -1,13 +1,16 @@
-// R2R through an MQTT broker (docs/protocol.md §11) with libmosquitto: subscribes `r2r/<own name>` and `r2r/broadcast`,
-// publishes a targeted message to `r2r/<target>` and a broadcast to `r2r/broadcast`; QoS 1 for everything but
-// `status` (QoS 0: the next one supersedes it). libmosquitto's own network thread does the I/O and reconnects with
-// a growing delay; an outage is logged once when it starts and once when it ends. Passwords and tokens are read
-// from files and never logged.
+// R2R through an MQTT broker (docs/protocol.md §11.2) with libmosquitto: subscribes `r2r/<own name>` and
+// `r2r/broadcast`, and the status topics it is told to (`status_subscriptions`); publishes a targeted message to
+// `r2r/<target>`, this robot's `status` to `r2r/status/<own name>` (retained, QoS 0: the next one supersedes it; the
+// last will says `offline` there, and stop() publishes it on a clean shutdown) and any other broadcast to
+// `r2r/broadcast` (QoS 1). So status costs the broker one delivery per subscriber, not one per robot of the fleet.
+// libmosquitto's own network thread does the I/O and reconnects with a growing delay; an outage is logged once when it
+// starts and once when it ends. Passwords and tokens are read from files and never logged.
 #pragma once
 
 #include <chrono>
 #include <cstdint>
 #include <filesystem>
+#include <functional>
 #include <memory>
 #include <optional>
 #include <string>
@@ -38,7 +41,11 @@ struct MqttOptions {
   int keepalive_s = 30;
   std::string topic_prefix = "r2r";
   std::vector<std::string> extra_subscriptions;  // e.g. "r2r/#" for an observer (rcanctl r2r watch)
-  std::shared_ptr<spdlog::logger> log;           // null: spdlog's default logger
+  // runtime.r2r.mqtt.status_subscriptions: the robots whose status this one reads (r2r/status/<name>), or all of them
+  // (`all`: r2r/status/+, a fleet view). None by default: auctions need no one's status.
+  std::vector<std::string> status_subscriptions;
+  bool status_of_all = false;
+  std::shared_ptr<spdlog::logger> log;  // null: spdlog's default logger
 };
 
 // Reads runtime.r2r.mqtt (relative files against base_dir). Throws std::invalid_argument naming the key at fault.
@@ -61,7 +68,9 @@ class MqttTransport : public Transport {
   // Queues the publish; false when not started or libmosquitto refuses it (never because the broker is down:
   // QoS 1 messages wait for the reconnect).
   bool send(const std::string& bytes, const std::optional<std::string>& target_id) override;
+  // Publishes `offline()` retained on r2r/status/<own name> before it disconnects (a clean shutdown sends no will).
   void stop() noexcept override;
+  void set_offline_status(std::function<std::string()> offline) override;
 
   bool connected() const noexcept;
   MqttCounters counters() const;

@@ -272,3 +272,54 @@ TEST_CASE("settings: max_peers, peer_expiry_s and max_held_tasks are read and ch
   CHECK_THROWS_WITH_AS(load_r2r_settings(json{{"peer_expiry_s", -1}}, "."), doctest::Contains("runtime.r2r.peer_expiry_s"),
                        std::invalid_argument);
 }
+
+TEST_CASE("status topic: a signed offline status hours old counts only from its sender's own topic; a stale live one never") {
+  Fleet fleet;
+  auto alex_key = std::make_shared<const Ed25519Key>(Ed25519Key::generate());
+  auto bob_key = std::make_shared<const Ed25519Key>(Ed25519Key::generate());
+  fleet.add("alex", {"nav"}, FleetPose{}, hardening_signed_settings(alex_key, "bob", bob_key));
+  Robot& bob = fleet.add("bob", {"teleop"}, FleetPose{}, hardening_signed_settings(bob_key, "alex", alex_key));
+  fleet.advance(10ms);
+  // alex's last will, signed when it connected an hour ago (long before bob started).
+  const auto signed_status = [&](const std::string& state, double age_s) {
+    json message{{"header", {{"version", "1.0"}, {"timestamp", fleet.clock.wall_ms() / 1000.0 - age_s}, {"source_id", "alex"}}},
+                 {"type", "status"},
+                 {"payload", {{"state", state}, {"estopped", false}, {"battery", nullptr}, {"position", nullptr}}}};
+    sign_message(message, "alex", *alex_key);
+    return message.dump();
+  };
+  const auto deliver = [&](const std::string& bytes, const std::string& topic) {
+    InboundMessage message;
+    message.bytes = bytes;
+    message.transport = "mqtt";
+    message.peer = topic;
+    message.broadcast = true;
+    message.status_topic = topic.starts_with("r2r/status/");
+    bob.node->receive(std::move(message));
+  };
+  const auto alex_state = [&]() -> std::string {
+    const json doc = bob.node->peers();
+    for (const auto& peer : doc["peers"])
+      if (peer["name"] == "alex" && peer["status"].is_object()) return peer["status"].value("state", "");
+    return "";
+  };
+  const auto rejected = [&] { return bob.node->counters().rejected; };
+
+  // Not on alex's own status topic: the stale signature is refused, whatever it says.
+  REQUIRE(alex_state() == "idle");  // alex's live status, heard over the in-memory network
+  auto before = rejected();
+  deliver(signed_status("offline", 3600), "r2r/broadcast");
+  deliver(signed_status("offline", 3600), "r2r/status/carol");
+  CHECK(rejected() == before + 2);
+  CHECK(alex_state() == "idle");
+  // A live status an hour old is stale on any topic.
+  deliver(signed_status("running", 3600), "r2r/status/alex");
+  CHECK(rejected() == before + 3);
+  CHECK(alex_state() == "idle");
+  // The will on alex's own topic: verified as of its own timestamp, and alex shows offline.
+  deliver(signed_status("offline", 3600), "r2r/status/alex");
+  CHECK(alex_state() == "offline");
+  // A retained live status set just before bob started (inside the window) is taken from alex's topic.
+  deliver(signed_status("running", 1), "r2r/status/alex");
+  CHECK(alex_state() == "running");
+}

@@ -59,10 +59,9 @@ TEST_CASE("targeted messages reach r2r/<name> only; broadcasts reach everyone") 
   CHECK(got->peer == "r2r/robot-b");
   CHECK_FALSE(got->reply);  // answers go through send() to r2r/<source_id>
 
-  // Status uses QoS 0 but still arrives on a healthy broker.
-  REQUIRE(a.send(wire_message("status"), std::nullopt));
-  CHECK(at_c.wait_until([](const InboundMessage& m) { return m.bytes == wire_message("status"); }));
-  // robot-c never saw the command for robot-b (it arrived at robot-b before the later status reached robot-c).
+  // A later broadcast reaches robot-c; robot-c never saw the command for robot-b (it arrived at robot-b first).
+  REQUIRE(a.send(wire_message("negotiation"), std::nullopt));
+  CHECK(at_c.wait_until([](const InboundMessage& m) { return m.bytes == wire_message("negotiation"); }));
   CHECK_FALSE(at_c.wait_until([](const InboundMessage& m) { return m.bytes == wire_message("command"); }, 0ms));
 
   // Names cannot smuggle topic wildcards or a NUL.
@@ -70,6 +69,61 @@ TEST_CASE("targeted messages reach r2r/<name> only; broadcasts reach everyone") 
   CHECK_FALSE(a.send(wire_message("command"), std::string("robot-+")));
   CHECK_FALSE(a.send(wire_message("command"), std::string("robot\0b", 7)));
   CHECK_FALSE(a.send(wire_message("command"), std::string()));
+}
+
+TEST_CASE("status goes to r2r/status/<name>, retained, read only by its subscribers; a clean stop leaves offline there") {
+  rcand::test::MosquittoBroker broker;
+  auto reader_options = options_for("reader", broker.port());
+  reader_options.status_subscriptions = {"robot-a"};
+  auto fleet_options = options_for("fleet-view", broker.port());
+  fleet_options.status_of_all = true;
+  MqttTransport a(options_for("robot-a", broker.port())), b(options_for("robot-b", broker.port())), reader(reader_options),
+      fleet_view(fleet_options);
+  const std::string offline_bytes = wire_message("status", "robot-a-offline");  // the node's offline status, in short
+  a.set_offline_status([&] { return offline_bytes; });
+  rcand::test::Inbox at_b, at_reader, at_fleet;
+  a.start([](InboundMessage) {});
+  b.start(at_b.deliver());
+  reader.start(at_reader.deliver());
+  fleet_view.start(at_fleet.deliver());
+  REQUIRE(eventually([&] { return a.connected() && b.connected() && reader.connected() && fleet_view.connected(); }));
+
+  // Sent until the subscriptions are in place (acknowledged asynchronously).
+  const auto is_status = [](const InboundMessage& m) { return m.bytes == wire_message("status"); };
+  REQUIRE(eventually([&] {
+    a.send(wire_message("status"), std::nullopt);
+    return at_reader.size() > 0 && at_fleet.size() > 0;
+  }));
+  const auto got = at_reader.wait_until(is_status);
+  REQUIRE(got);
+  CHECK(got->peer == "r2r/status/robot-a");
+  CHECK(got->broadcast);  // never answered with an error
+  CHECK(got->status_topic);
+  CHECK(at_fleet.wait_until(is_status));
+  // robot-b reads no one's status: a broadcast sent after it arrives, the status never did.
+  REQUIRE(a.send(wire_message("task_request"), std::nullopt));
+  REQUIRE(at_b.wait_until([](const InboundMessage& m) { return m.bytes == wire_message("task_request"); }));
+  CHECK_FALSE(at_b.wait_until(is_status, 0ms));
+
+  // Retained: a reader that subscribes later gets the latest status at once, without waiting for the next one.
+  auto late_options = reader_options;
+  late_options.robot_name = "late-reader";  // a client id of its own: the broker would drop the other one
+  MqttTransport late(late_options);
+  rcand::test::Inbox at_late;
+  late.start(at_late.deliver());
+  CHECK(at_late.wait_until(is_status));
+  late.stop();
+
+  // A clean stop sends no will: the transport publishes the offline status itself, retained.
+  a.stop();
+  const auto offline = at_reader.wait_until([&](const InboundMessage& m) { return m.bytes == offline_bytes; });
+  REQUIRE(offline);
+  CHECK(offline->peer == "r2r/status/robot-a");
+  late_options.robot_name = "later-reader";
+  MqttTransport after(late_options);
+  rcand::test::Inbox at_after;
+  after.start(at_after.deliver());
+  CHECK(at_after.wait_until([&](const InboundMessage& m) { return m.bytes == offline_bytes; }));
 }
 
 TEST_CASE("a peer whose id is a RURI gets its messages on r2r/<RURI> (topic levels are legal in an id)") {
@@ -171,4 +225,12 @@ TEST_CASE("runtime.r2r.mqtt is read with errors naming the key") {
   CHECK_THROWS_WITH_AS(mqtt_options_from_config(json{{"tls", {{"cert_file", "c.pem"}}}}, "r", "/"),
                        "runtime.r2r.mqtt.tls.ca_file: required for TLS", std::invalid_argument);
   CHECK_THROWS_AS(mqtt_options_from_config(json{{"password_file", "p"}, {"token_file", "t"}}, "r", "/"), std::invalid_argument);
+  CHECK(mqtt_options_from_config(json{{"status_subscriptions", "all"}}, "r", "/").status_of_all);
+  CHECK(mqtt_options_from_config(json{{"status_subscriptions", {"a", "b"}}}, "r", "/").status_subscriptions ==
+        std::vector<std::string>{"a", "b"});
+  CHECK_FALSE(mqtt_options_from_config(json::object(), "r", "/").status_of_all);
+  CHECK_THROWS_WITH_AS(mqtt_options_from_config(json{{"status_subscriptions", {"a", "+"}}}, "r", "/"),
+                       "runtime.r2r.mqtt.status_subscriptions: expected robot names (no '+' or '#'), or all",
+                       std::invalid_argument);
+  CHECK_THROWS_AS(mqtt_options_from_config(json{{"status_subscriptions", "some"}}, "r", "/"), std::invalid_argument);
 }
