@@ -18,7 +18,7 @@ struct PayloadFault {
 // nullopt when `payload` (already known to be an object) is acceptable for `type`.
 std::optional<PayloadFault> check_payload(MessageType type, const nlohmann::json& payload);
 
-// A `command` payload {"type":"estop","reason"?}: the fleet e-stop (docs/protocol.md §11.13), scope `status`.
+// A `command` payload {"type":"estop","reason"?}: the fleet e-stop (docs/protocol.md §11.15), scope `status`.
 bool is_fleet_estop(MessageType type, const nlohmann::json& payload) noexcept;
 
 }  // namespace rcand::kernel::r2r

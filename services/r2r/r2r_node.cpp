@@ -354,7 +354,7 @@ struct R2rNode::Impl {
     transmit(std::move(out));
   }
 
-  // The fleet e-stop (docs/protocol.md §11.13): POST /api/stop's latch as the sender, on this (transport) thread, then
+  // The fleet e-stop (docs/protocol.md §11.15): POST /api/stop's latch as the sender, on this (transport) thread, then
   // the latched status at once. The latch's reason names the sender and its reason.
   void fleet_estop(const Principal& principal, const Envelope& envelope, const std::string& transport) {
     const auto it = envelope.payload.find("reason");

@@ -56,7 +56,7 @@ using StatusSource = std::function<LocalStatus()>;
 // pre-check, the audit entry). `done` is called once, from any thread, with the HTTP status and JSON body.
 using CommandDone = std::function<void(int http_status, nlohmann::json body)>;
 using CommandExecutor = std::function<void(const Principal& principal, nlohmann::json body, CommandDone done)>;
-// The fleet e-stop (docs/protocol.md §11.13): a `command` whose payload is {"type":"estop","reason"?} latches the robot
+// The fleet e-stop (docs/protocol.md §11.15): a `command` whose payload is {"type":"estop","reason"?} latches the robot
 // exactly as POST /api/stop with `body` ({"reason","from"}) as `principal` - same audit entry, same latch - on the
 // calling (transport) thread: never behind a worker queue. Returns once latched. There is no R2R way to clear.
 using StopExecutor = std::function<void(const Principal& principal, nlohmann::json body)>;

@@ -40,7 +40,7 @@ struct R2rServiceDeps {
   // null while nothing offers them (the plugin is not installed, not started yet, or failed).
   std::function<const sdk::FleetAuctions*()> fleet;
   // POST /api/stop as `principal` with `body` ({"reason","from"}), inline on the calling thread (the fleet e-stop,
-  // docs/protocol.md §11.13): the same route, audit entry and latch as HTTP's, behind no queue.
+  // docs/protocol.md §11.15): the same route, audit entry and latch as HTTP's, behind no queue.
   r2r::StopExecutor execute_stop;
 };
 

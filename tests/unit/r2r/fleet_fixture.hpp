@@ -50,6 +50,7 @@ struct Robot {
   LocalStatus status;  // pose in the robot's own frame; tasks_held from `fleet` at each settle()
   int moves = 0;       // commands the stand-in action route executed
   std::vector<std::string> command_principals;
+  std::vector<json> stops;  // {"principal", "body"} of each fleet e-stop the stand-in POST /api/stop latched
   std::unique_ptr<Authenticator> auth;
   std::unique_ptr<R2rNode> node;
   std::unique_ptr<PluginBridge> bridge;
@@ -100,7 +101,13 @@ class Fleet {
                          },
                      .transports = {&net.endpoint(name)},
                      .fleet_member = nullptr,  // only robots heard from are relayed to
-                     .log = nullptr};
+                     .log = nullptr,
+                     .stop_executor =
+                         [&r](const Principal& who, json body) {
+                           r.status.estopped = true;
+                           r.status.state = "estop";
+                           r.stops.push_back({{"principal", who.name}, {"body", std::move(body)}});
+                         }};
     r.node = std::make_unique<R2rNode>(std::move(deps));
     r.node->start();
     r.bridge = std::make_unique<PluginBridge>(

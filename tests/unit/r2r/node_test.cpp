@@ -50,9 +50,8 @@ TEST_CASE("task_request / task_response / negotiation / error round-trip, and su
   bob.node->subscribe(MessageType::TaskRequest, [&](const ReceivedMessage& m) { bob_saw.push_back(m); });
 
   // A direct request (no bid_deadline) is answered with task_response.
-  REQUIRE(std::holds_alternative<std::string>(
-      alex.node->send(MessageType::TaskRequest, {{"task_id", "T1"}, {"description", "pick"}, {"required_capabilities", {"arm"}}},
-                      "bob")));
+  REQUIRE(std::holds_alternative<std::string>(alex.node->send(
+      MessageType::TaskRequest, {{"task_id", "T1"}, {"description", "pick"}, {"required_capabilities", {"arm"}}}, "bob")));
   fleet.settle();
   REQUIRE(bob_saw.size() == 1);
   CHECK(bob_saw[0].envelope.payload["task_id"] == "T1");
@@ -116,6 +115,37 @@ TEST_CASE("command: runs through the action route as the sender; e-stopped answe
   REQUIRE(replies.size() == 1);
   CHECK(replies[0]["payload"]["code"] == 103);
   CHECK_FALSE(replies[0]["payload"]["ref"].contains("auth"));  // the token is never echoed
+}
+
+TEST_CASE("fleet e-stop: a command {type: estop} needs scope status, latches as the sender, status goes out at once") {
+  Fleet fleet;
+  Robot& bob = fleet.add("bob", {"teleop"}, std::nullopt);
+  fleet.settle();
+  const std::size_t statuses = fleet.net.sent("status", "bob").size();
+  // A guest (scope status, as POST /api/stop) may stop the robot; no tick runs between the stop and its status.
+  json stop = fleet.message("command", {{"type", "estop"}, {"reason", "aisle 3"}}, "alex");
+  stop["header"]["auth"]["token"] = kViewerToken;
+  std::vector<json> replies;
+  fleet.net.inject("bob", stop.dump(), &replies);
+  REQUIRE(bob.stops.size() == 1);
+  CHECK(bob.stops[0]["principal"] == "viewer");
+  CHECK(bob.stops[0]["body"] == json{{"reason", "fleet e-stop from 'alex': aisle 3"}, {"from", "r2r alex"}});
+  CHECK(replies.empty());
+  fleet.net.pump();  // the queued messages go out; the nodes do not tick
+  const auto sent = fleet.net.sent("status", "bob");
+  REQUIRE(sent.size() == statuses + 1);
+  CHECK(sent.back().message["payload"]["estopped"] == true);
+  CHECK(bob.moves == 0);  // never the action route
+
+  // Never refused while latched; a reason that is not text is a malformed message (100), nothing latches.
+  fleet.net.inject("bob", stop.dump(), &replies);
+  CHECK(bob.stops.size() == 2);
+  json bad = fleet.message("command", {{"type", "estop"}, {"reason", 7}}, "alex");
+  bad["header"]["auth"]["token"] = kViewerToken;
+  fleet.net.inject("bob", bad.dump(), &replies);
+  CHECK(bob.stops.size() == 2);
+  REQUIRE(replies.size() == 1);
+  CHECK(replies[0]["payload"]["code"] == 100);
 }
 
 TEST_CASE("bad messages: 100 (malformed, unknown type), 101 (unknown target), 103 (wrong token); none reach subscribers") {
@@ -241,7 +271,7 @@ TEST_CASE("auction: a winner silent past bid_deadline + 2 s gets 104 and the tas
   task.required_capabilities = {"arm"};
   task.location = FleetPoint{0.0, 0.0};
   alex.fleet->open_auction(task);
-  fleet.settle();  // bids are in
+  fleet.settle();                          // bids are in
   fleet.net.endpoint("bob").muted = true;  // bob goes silent before the award
   fleet.advance(1000ms);
   CHECK((*alex.fleet->auction_result("T-silent"))["state"] == "awarded");

@@ -51,7 +51,8 @@ struct RefusalRig {
                          },
                      .transports = {&net.endpoint("bob")},
                      .fleet_member = nullptr,
-                     .log = log};
+                     .log = log,
+                     .stop_executor = nullptr};
     node = std::make_unique<R2rNode>(std::move(deps));
     node->start();
   }

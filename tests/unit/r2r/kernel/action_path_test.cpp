@@ -154,7 +154,8 @@ TEST_CASE("an R2R command to an e-stopped robot is answered 105 by the node, thr
                                                  .command_executor = std::move(executor),
                                                  .transports = {&net.endpoint(name)},
                                                  .fleet_member = nullptr,
-                                                 .log = nullptr});
+                                                 .log = nullptr,
+                                                 .stop_executor = nullptr});
   };
   // bob's executor hands the command to the real Api; answers may come from a capability worker.
   std::mutex mutex;
