@@ -393,10 +393,15 @@ class Fleet:
         move = {"type": "move", "linear": 0.4, "angular": 0.0, "duration_ms": 60000}
 
         def one(r):
-            http_json(r.port, "POST", "/api/estop/clear")
-            status, body = http_json(r.port, "POST", "/api/action", move)
-            if status != 200:
-                raise RuntimeError(f"{r.name}: move refused {status} {body}")
+            for _ in range(3):  # a 423: a late copy of an earlier stop latched it between clear and move
+                http_json(r.port, "POST", "/api/estop/clear")
+                status, body = http_json(r.port, "POST", "/api/action", move)
+                if status == 200:
+                    return 0
+                if status != 423:
+                    break
+                time.sleep(0.5)
+            raise RuntimeError(f"{r.name}: move refused {status} {body}")
         list(self.pool.map(one, robots))
 
     def drive(self, r):
