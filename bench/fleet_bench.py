@@ -423,7 +423,7 @@ class Fleet:
         t0 = now_us()
         subprocess.run([os.path.join(self.build, "rcanctl", "rcanctl"), "fleet", "stop", "--mqtt",
                         f"127.0.0.1:{broker.port}", "--key", os.path.join(self.root, "keys", SENDER + ".pem"),
-                        "--name", SENDER, "--reason", "fleet bench: " + reason], check=True, timeout=10,
+                        "--name", SENDER, "--reason", "fleet bench: " + reason], check=True, timeout=60,
                        stdout=subprocess.DEVNULL)
         return t0
 
@@ -437,6 +437,10 @@ class Fleet:
             t0 = (self.publish_rcanctl if via_rcanctl else self.publish)(broker, f"{label} trial {k}")
             time.sleep(self.args.settle_stop)
             states = list(self.pool.map(self.drive, robots))
+            waited = now_us()
+            while any(st.get("moving") is not False for st in states) and now_us() - waited < self.args.stop_wait * 1e6:
+                time.sleep(0.25)  # a late robot: read again (its halt time is its own record, not this read's)
+                states = [st if st.get("moving") is False else self.drive(r) for r, st in zip(robots, states)]
             if payload_type == "estop":  # the latch record (wall ms) beside the drive's own halt time (monotonic us)
                 latches = [http_json(r.port, "GET", "/api/estop")[1] for r in robots]
                 unlatched = [r.name for r, e in zip(robots, latches) if not e.get("estopped")]
@@ -612,6 +616,7 @@ def main():
     parser.add_argument("--settle", type=float, default=5.0, help="s after a fleet size is up, before its window")
     parser.add_argument("--window", type=float, default=20.0, help="steady-state window, s")
     parser.add_argument("--settle-stop", type=float, default=1.0, help="s after a publish before reading the drives")
+    parser.add_argument("--stop-wait", type=float, default=10.0, help="s more for a late robot before a trial fails")
     parser.add_argument("--timeout", type=int, default=1500, help="total bound, s")
     parser.add_argument("--json", help="write the results here")
     parser.add_argument("--keep", action="store_true", help="keep the temp dir (logs)")
