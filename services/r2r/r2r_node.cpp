@@ -472,9 +472,9 @@ void R2rNode::receive(InboundMessage message) {
   const double now = s.now_s();
   // A fleet e-stop needs what POST /api/stop needs (scope status); any other command, control.
   const bool estop = is_fleet_estop(envelope.type, envelope.payload);
-  auto who = s.auth.authorize(envelope, envelope.received, message.principal,
-                              estop ? sdk::Scope::Status : required_scope(envelope.type),
-                              r2r_offline_left_behind(message, envelope) ? envelope.timestamp : now);
+  auto who =
+      s.auth.authorize(envelope, envelope.received, message.principal, estop ? sdk::Scope::Status : required_scope(envelope.type),
+                       r2r_offline_left_behind(message, envelope) ? envelope.timestamp : now);
   // Through a broker or a broadcast address no bearer token authenticates a sender: there a stop must be signed.
   if (estop && !transport_may_carry_secrets(message.transport) && std::holds_alternative<Principal>(who) &&
       std::get<Principal>(who).via != "signature")
