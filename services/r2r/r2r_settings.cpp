@@ -229,7 +229,8 @@ R2rSettings load_r2r_settings(const json& r2r, const std::filesystem::path& base
       s.warnings.push_back(std::string(kBlock) + ".private_key_file: " + problem);
   }
   s.inline_peers = read_peers(read(r2r, "peers"), base_dir);
-  for (std::size_t i = 0; i < s.inline_peers.size(); ++i) s.inline_where.push_back("runtime.r2r.peers[" + std::to_string(i) + "]");
+  for (std::size_t i = 0; i < s.inline_peers.size(); ++i)
+    s.inline_where.push_back("runtime.r2r.peers[" + std::to_string(i) + "]");
   if (const json file = read(r2r, "peers_file"); file.is_string()) s.peers_file = resolve(base_dir, file.get<std::string>());
   try {
     s.auth.peers = reload_peers(s);
