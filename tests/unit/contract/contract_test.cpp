@@ -156,7 +156,7 @@ struct Asked {
   bool latched;
 };
 
-std::string describe(const Asked& a) {
+std::string describe_probe(const Asked& a) {
   return a.probe.method + " " + a.probe.path + " " + a.probe.body.dump() + " as " + std::string(rcand::sdk::role_name(a.role)) +
          (a.latched ? ", latched" : "");
 }
@@ -177,6 +177,7 @@ TEST_CASE("contract: every row of the route table gets the same answer from both
   for (bool latched : {false, true})
     for (const auto& probe : probes_of(table.rows))
       for (Role role : {Role::Guest, Role::User, Role::Owner}) asked.push_back({probe, role, latched});
+  MESSAGE(table.rows.size() << " rows, " << asked.size() << " requests on each host");
 
   std::vector<Answer> fake;
   for (const auto& a : asked) {
@@ -197,7 +198,7 @@ TEST_CASE("contract: every row of the route table gets the same answer from both
     latched = a.latched;
     int status = 0;
     const json body = robot.json(a.probe.method, a.probe.path, token_of(a.role), a.probe.body.dump(), &status);
-    INFO(describe(a) << ": fake host " << fake[i].body.dump() << ", rcand " << body.dump());
+    INFO(describe_probe(a) << ": fake host " << fake[i].body.dump() << ", rcand " << body.dump());
     CHECK(status == fake[i].status);
     if (status >= 300) {
       CHECK(body.value("code", "") == fake[i].body.value("code", ""));
