@@ -3,7 +3,7 @@
 #include <algorithm>
 #include <stdexcept>
 
-#include <rcand/sdk/contract/door.hpp>
+#include <rcand/sdk/contract/route_match.hpp>
 
 namespace rcand::kernel {
 
@@ -30,7 +30,7 @@ void Router::wrap(std::string_view method, std::string_view path, Decorator deco
 }
 
 Router::Match Router::match(std::string_view method, std::string_view path) const {
-  // The contract's matching (rcand/sdk/contract/door.hpp), as the fake host's.
+  // The contract's matching (rcand/sdk/contract/route_match.hpp), as the fake host's.
   auto found = sdk::contract::match_rows(
       routes_,
       [](const Route& r) {
