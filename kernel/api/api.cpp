@@ -181,11 +181,14 @@ void Api::dispatch(const Route& route, Call& call, Reply reply) {
     call.audit_seq = spec.stop ? audit_.begin_stop(call.principal, call.message_id, std::move(event), estop_.latched())
                                : audit_.begin(call.principal, call.message_id, std::move(event), call.audit_note);
   }
-  // The one door (rcand/sdk/contract/door.hpp), as on the fake host; authentication has checked the row's scope.
-  auto verdict = sdk::contract::decide({"principal '" + call.principal + "'", call.scopes}, spec, estop_.latched());
-  if (!verdict.run) {
-    if (spec.audited) audit_.finish(call.audit_seq, "blocked", verdict.why);
-    return reply(json_response(verdict.refusal.status, verdict.refusal.body));
+  // The one door's e-stop step (rcand/sdk/contract/door.hpp), as on the fake host; authentication checked the row's
+  // scope. Only for motion rows: the stop lane builds nothing here.
+  if (spec.motion) {
+    auto verdict = sdk::contract::decide({"principal '" + call.principal + "'", call.scopes}, spec, estop_.latched());
+    if (!verdict.run) {
+      if (spec.audited) audit_.finish(call.audit_seq, "blocked", verdict.why);
+      return reply(json_response(verdict.refusal.status, verdict.refusal.body));
+    }
   }
   route.handler(call, std::move(reply));
 }
