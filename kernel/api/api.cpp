@@ -2,6 +2,8 @@
 
 #include <algorithm>
 
+#include <rcand/sdk/contract/door.hpp>
+
 #include "kernel/api/answers.hpp"
 #include "libs/base/bounded_text.hpp"
 
@@ -179,10 +181,14 @@ void Api::dispatch(const Route& route, Call& call, Reply reply) {
     call.audit_seq = spec.stop ? audit_.begin_stop(call.principal, call.message_id, std::move(event), estop_.latched())
                                : audit_.begin(call.principal, call.message_id, std::move(event), call.audit_note);
   }
-  if (spec.motion && estop_.latched()) {
-    if (spec.audited) audit_.finish(call.audit_seq, "blocked", "e-stop active");
-    reply(error_response(423, "ESTOP_ACTIVE", "e-stop is latched; clear it with POST /api/estop/clear"));
-    return;
+  // The one door's e-stop step (rcand/sdk/contract/door.hpp), as on the fake host; authentication checked the row's
+  // scope. Only for motion rows: the stop lane builds nothing here.
+  if (spec.motion) {
+    auto verdict = sdk::contract::decide({"principal '" + call.principal + "'", call.scopes}, spec, estop_.latched());
+    if (!verdict.run) {
+      if (spec.audited) audit_.finish(call.audit_seq, "blocked", verdict.why);
+      return reply(json_response(verdict.refusal.status, verdict.refusal.body));
+    }
   }
   route.handler(call, std::move(reply));
 }

@@ -4,6 +4,8 @@
 #include <atomic>
 #include <memory>
 
+#include <rcand/sdk/contract/door.hpp>
+
 #include "kernel/api/answers.hpp"
 #include "kernel/api/api.hpp"
 #include "kernel/auth/caller_credential.hpp"
@@ -168,21 +170,24 @@ class CapabilityRoutes {
         });
   }
 
-  // What a mount answers when no row of a running capability matched: not declared, out of service, or no route.
-  void unrouted(std::string name, Call& call, const Reply& reply) const {
+  // The one door (rcand/sdk/contract/door.hpp) for a route found after matching: its scope, then the e-stop.
+  bool admitted(Call& call, const Reply& reply, const contract::RouteRow& row) const {
+    auto verdict = contract::decide({"principal '" + call.principal + "'", call.scopes}, row, d_.estop.latched());
+    if (!verdict.run) refuse(call, reply, answer(verdict.refusal), "blocked", verdict.why);
+    return verdict.run;
+  }
+
+  // What an Unserved row answers: not declared, out of service, or no route.
+  void unrouted(const std::string& owner, Call& call, const Reply& reply) const {
     const std::string& path = call.request.path;
-    const bool custom = path.starts_with(kCustomPrefix);
     std::string subpath;
-    if (custom) {
-      const std::string rest = path.substr(kCustomPrefix.size());
-      name = rest.substr(0, rest.find('/'));
-      subpath = rest.substr(name.size());
-      if (find_standard_capability(name) != nullptr)  // standard ones have their own endpoints
-        return refuse(
-            call, reply,
-            error_response(404, "NOT_FOUND", "'" + bounded_text(name) + "' is a standard capability; use its standard endpoint"),
-            "blocked", "standard capability under /api/cap");
-    }
+    const std::string name = contract::unserved_capability(owner, path, &subpath);
+    const bool custom = path.starts_with(kCustomPrefix);
+    if (custom && find_standard_capability(name) != nullptr)  // standard ones have their own endpoints
+      return refuse(
+          call, reply,
+          error_response(404, "NOT_FOUND", "'" + bounded_text(name) + "' is a standard capability; use its standard endpoint"),
+          "blocked", "standard capability under /api/cap");
     ReloadGate::Pass pass;
     CapabilityInstance* instance = available(name, call, reply, pass);
     if (instance == nullptr) return;
@@ -191,12 +196,7 @@ class CapabilityRoutes {
       return r.action_type.empty() && r.method == call.request.method && r.path == (custom ? subpath : path);
     });
     if (added != instance->routes.end()) {
-      const Scope scope = contract::route_scope(added->scope, added->method, custom);
-      if (!call.has_scope(scope))
-        return refuse(call, reply, answer(contract::insufficient_scope("principal '" + call.principal + "'", scope)), "blocked",
-                      "insufficient privileges");
-      if (added->motion && d_.estop.latched())
-        return refuse(call, reply, answer(contract::estop_active()), "blocked", "e-stop active");
+      if (!admitted(call, reply, contract::live_row(name, added->method, added->scope, added->motion))) return;
       JsonBody body = parse_json_body(call.request.body);
       if (!body.error.empty())
         return refuse(call, reply, error_response(400, "BAD_REQUEST", body.error, {{"field", "body"}}), "blocked", "bad body");
@@ -207,14 +207,12 @@ class CapabilityRoutes {
       if (route.action_type.empty() && route.path == (custom ? subpath : path)) methods.push_back(route.method);
     for (const auto& route : instance->stream_routes)
       if (route.path == (custom ? subpath : path)) methods.push_back(route.method);
-    if (!methods.empty())
-      return refuse(call, reply,
-                    answer(contract::method_not_allowed(bounded_text(call.request.method), bounded_text(path), methods)),
-                    "blocked", "method not allowed");
-    refuse(call, reply, answer(contract::no_endpoint(name, bounded_text(path))), "blocked", "no such route");
+    const char* why = methods.empty() ? "no such route" : "method not allowed";
+    refuse(call, reply, answer(contract::no_route(name, bounded_text(call.request.method), bounded_text(path), methods)),
+           "blocked", why);
   }
 
-  // POST /api/action: the capability is chosen by the body's "type" (the standard table's action types).
+  // POST /api/action: the body's "type" picks its own row of the table.
   void action(Call& call, const Reply& reply) const {
     JsonBody body = parse_json_body(call.request.body);
     if (!body.error.empty()) return reply(error_response(400, "BAD_REQUEST", body.error, {{"field", "body"}}));
@@ -222,31 +220,25 @@ class CapabilityRoutes {
     for (const auto& cap : standard_capabilities())
       if (d_.registry.declared(cap.name))
         for (auto type : cap.action_types) declared_types.emplace_back(type);
-    if (!body.value.is_object() || !body.value.contains("type") || !body.value["type"].is_string())
-      return reply(answer(contract::missing_action_type(declared_types)));
-    const std::string type = body.value["type"].get<std::string>();
-    const StandardCapability* standard = capability_of_action(type);
-    if (standard == nullptr) return reply(answer(contract::unknown_action_type(bounded_text(type), declared_types)));
+    sdk::Response refusal;
+    const std::string type = contract::action_type_of(body.value, declared_types, refusal);
+    if (refusal.status != 200) return reply(answer(refusal));
+    const contract::RouteRow* row = contract::match(table_, "POST", contract::kActionPath, type).row;
     call.audit_seq = d_.audit.begin(call.principal, call.message_id, "POST /api/action " + type, call.audit_note);
     ReloadGate::Pass pass;
-    CapabilityInstance* instance = available(std::string(standard->name), call, reply, pass);
+    CapabilityInstance* instance = available(row->capability, call, reply, pass);
     if (instance == nullptr) return;
-    const sdk::Route* route = nullptr;
-    for (const auto& candidate : instance->routes)
-      if (candidate.path == contract::kActionPath && candidate.action_type == type && candidate.method == "POST")
-        route = &candidate;
-    if (route == nullptr)
+    const auto route = std::find_if(instance->routes.begin(), instance->routes.end(), [&](const sdk::Route& r) {
+      return r.path == contract::kActionPath && r.action_type == type && r.method == "POST";
+    });
+    if (route == instance->routes.end())
       return refuse(call, reply, answer(contract::no_endpoint(instance->name, std::string(contract::kActionPath))), "blocked",
                     "no such route");
-    const Scope scope = contract::route_scope(route->scope, "POST", false);
-    if (!call.has_scope(scope))
-      return refuse(call, reply, answer(contract::insufficient_scope("principal '" + call.principal + "'", scope)), "blocked",
-                    "insufficient privileges");
-    if (route->motion && d_.estop.latched())
-      return refuse(call, reply, answer(contract::estop_active()), "blocked", "e-stop active");
+    if (!admitted(call, reply, contract::live_row(instance->name, "POST", route->scope, route->motion))) return;
     dispatch(*instance, *route, call, std::move(body.value), reply, std::move(pass));
   }
 
+  std::vector<contract::RouteRow> table_;  // set once at startup, before serving
   void dispatch(CapabilityInstance& instance, const sdk::Route& route, Call& call, json body, const Reply& reply,
                 ReloadGate::Pass pass) const;
   // The once-only answer of a dispatched request, and its timeout: a handler still running then fails its
@@ -305,46 +297,6 @@ void CapabilityRoutes::dispatch(CapabilityInstance& instance, const sdk::Route& 
   });
 }
 
-// Whether a standard capability's route at `path` lies inside its mounts (custom capabilities' always do).
-bool within_mounts(const StandardCapability* standard, const std::string& path) {
-  return !standard || std::any_of(standard->mounts.begin(), standard->mounts.end(), [&](std::string_view mount) {
-    return mount.ends_with('*') ? path.starts_with(mount.substr(0, mount.size() - 1)) : path == mount;
-  });
-}
-
-// Rows for the routes a running capability registered (JSON and stream ones); a route outside its capability's
-// mounts is never served.
-void add_instance_routes(Router& router, const std::shared_ptr<const CapabilityRoutes>& routes,
-                         const CapabilityInstance& instance) {
-  const StandardCapability* standard = find_standard_capability(instance.name);
-  auto add = [&](const std::string& method, const std::string& route_path, Scope declared, bool motion, RouteHandler handler) {
-    const std::string path = contract::served_path(instance.name, route_path);
-    if (!within_mounts(standard, path)) {
-      logger("kernel.api")->warn("capability {}: route {} {} is outside its endpoints; not served", instance.name, method, path);
-      return;
-    }
-    const Scope scope = contract::route_scope(declared, method, standard == nullptr);
-    try {
-      router.add({method, path, scope, !is_read(method), motion}, std::move(handler));
-    } catch (const std::logic_error&) {
-      logger("kernel.api")
-          ->warn("capability {}: route {} {} registered twice; the first one is served", instance.name, method, path);
-    }
-  };
-  for (const auto& route : instance.routes) {
-    if (!route.action_type.empty()) continue;  // served through POST /api/action
-    add(route.method, route.path, route.scope, route.motion,
-        [routes, name = instance.name, method = route.method, path = route.path](Call& call, Reply reply) {
-          routes->serve(name, method, path, call, reply);
-        });
-  }
-  for (const auto& route : instance.stream_routes)
-    add(route.method, route.path, route.scope, false,
-        [routes, name = instance.name, method = route.method, path = route.path](Call& call, Reply reply) {
-          routes->serve_stream(name, method, path, call, reply);
-        });
-}
-
 }  // namespace
 
 json served_routes(const CapabilityInstance& instance) {
@@ -360,37 +312,42 @@ json served_routes(const CapabilityInstance& instance) {
     if (!route.action_type.empty()) {  // POST /api/action, picked by the body's type
       add(route.method, route.path, route.scope, route.motion, nullptr);
       list.back()["type"] = route.action_type;
-    } else if (const std::string path = contract::served_path(instance.name, route.path); within_mounts(standard, path)) {
+    } else if (const std::string path = contract::served_path(instance.name, route.path);
+               contract::within_mounts(standard, path)) {
       add(route.method, path, route.scope, route.motion, nullptr);
     }
   }
   for (const auto& route : instance.stream_routes)
-    if (const std::string path = contract::served_path(instance.name, route.path); within_mounts(standard, path))
+    if (const std::string path = contract::served_path(instance.name, route.path); contract::within_mounts(standard, path))
       add(route.method, path, route.scope, false, "stream");
   return list;
 }
 
 void add_capability_routes(Router& router, const CapabilityRouteDeps& deps) {
-  auto routes = std::make_shared<const CapabilityRoutes>(deps);
-  for (const auto& instance : deps.runtime.capabilities())
-    if (instance.object && !instance.health.failed()) add_instance_routes(router, routes, instance);
-  // Fallbacks: reads need status, anything else control; the capability decides the rest once it is known.
-  auto fallback = [&](const std::string& mount, std::string name) {
-    for (auto [method, scope] : {std::pair{"GET", Scope::Status}, std::pair{"*", Scope::Control}}) {
-      const Route* served = router.match(method, mount).route;  // a prefix mount is served only by that very row
-      if (served != nullptr && (!mount.ends_with('*') || (served->spec.path == mount && served->spec.method == method))) continue;
-      router.add({method, mount, scope, scope == Scope::Control},
-                 [routes, name](Call& call, Reply reply) { routes->unrouted(name, call, reply); });
-    }
-  };
-  for (const auto& cap : standard_capabilities())
-    for (auto mount : cap.mounts) fallback(std::string(mount), std::string(cap.name));
-  router.add({"GET", std::string(kCustomPrefix) + "*", Scope::Control},
-             [routes](Call& call, Reply reply) { routes->unrouted("", call, reply); });
-  router.add({"*", std::string(kCustomPrefix) + "*", Scope::Control, true},
-             [routes](Call& call, Reply reply) { routes->unrouted("", call, reply); });
-  router.add({"POST", std::string(contract::kActionPath), Scope::Control},
-             [routes](Call& call, Reply reply) { routes->action(call, reply); });
+  std::vector<contract::RunningCapability> running;
+  for (const auto& instance : deps.runtime.capabilities()) {
+    if (!instance.object || instance.health.failed()) continue;
+    auto& cap = running.emplace_back(contract::RunningCapability{instance.name, {}});
+    for (const auto& r : instance.routes) cap.routes.push_back({r.method, r.path, r.action_type, r.scope, r.motion, false});
+    for (const auto& r : instance.stream_routes) cap.routes.push_back({r.method, r.path, "", r.scope, false, true});
+  }
+  auto table = contract::route_table(running);
+  for (const auto& refused : table.refused) logger("kernel.api")->warn("{}", refused);
+  auto routes = std::make_shared<CapabilityRoutes>(deps);
+  routes->table_ = std::move(table.rows);
+  for (const auto& row : routes->table_) {
+    if (!row.action_type.empty()) continue;  // an action type's row: POST /api/action picks it by the body's type
+    RouteHandler handler = [routes = std::shared_ptr<const CapabilityRoutes>(routes), row](Call& call, Reply reply) {
+      switch (row.kind) {
+        case contract::RowKind::Route: return routes->serve(row.capability, row.method, row.route_path, call, reply);
+        case contract::RowKind::Stream: return routes->serve_stream(row.capability, row.method, row.route_path, call, reply);
+        case contract::RowKind::Action: return routes->action(call, reply);
+        case contract::RowKind::Unserved: return routes->unrouted(row.capability, call, reply);
+      }
+    };
+    const bool audited = row.kind != contract::RowKind::Action && !is_read(row.method);
+    router.add({row.method, row.path, row.scope, audited, row.motion}, std::move(handler));
+  }
 }
 
 }  // namespace rcand::kernel

@@ -1,7 +1,8 @@
-// The capabilities' endpoints (RCAN §9, docs/protocol.md §7): at startup, one row per route a running capability
-// registered (standard ones at their mounts from the standard table, custom ones under /api/cap/<name>), one
-// POST /api/action row that picks the capability by the body's "type", and one fallback row per mount that answers
-// for a capability that is not declared (404 CAPABILITY_NOT_FOUND), out of service (503) or has no such route.
+// The capabilities' endpoints (RCAN §9, docs/protocol.md §7): at startup, the SDK contract's route table
+// (rcand/sdk/contract/door.hpp, the one the fake host serves): one row per route a running capability registered
+// (standard ones at their mounts, custom ones under /api/cap/<name>, each /api/action type its own), and fallback
+// rows that answer for a capability that is not declared (404 CAPABILITY_NOT_FOUND), out of service (503) or has no
+// such route. POST /api/action picks its type's row by the body's "type".
 // Handlers run on the capability's own worker, answered within runtime.handler_timeout_ms.
 #pragma once
 

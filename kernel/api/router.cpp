@@ -3,19 +3,9 @@
 #include <algorithm>
 #include <stdexcept>
 
+#include <rcand/sdk/contract/route_match.hpp>
+
 namespace rcand::kernel {
-namespace {
-
-bool is_prefix(const std::string& path) { return !path.empty() && path.back() == '*'; }
-
-// 0: no match; otherwise larger is more specific (an exact row beats every prefix, a longer prefix a shorter one).
-std::size_t specificity(const std::string& pattern, std::string_view path) {
-  if (!is_prefix(pattern)) return pattern == path ? std::string::npos : 0;
-  const std::string_view prefix(pattern.data(), pattern.size() - 1);
-  return path.size() > prefix.size() && path.substr(0, prefix.size()) == prefix ? prefix.size() : 0;
-}
-
-}  // namespace
 
 void Router::add(RouteSpec spec, RouteHandler handler) {
   for (const auto& route : routes_)
@@ -40,26 +30,14 @@ void Router::wrap(std::string_view method, std::string_view path, Decorator deco
 }
 
 Router::Match Router::match(std::string_view method, std::string_view path) const {
-  // The most specific pattern with a row for this method (or "*") wins: POST on a path whose exact row is GET-only
-  // falls through to a prefix row, so a capability's mount answers it (after authentication) rather than the table.
-  Match found;
-  std::size_t found_specificity = 0, top = 0;
-  int found_rank = 0;
-  for (const auto& route : routes_) {
-    const std::size_t s = specificity(route.spec.path, path);
-    if (s == 0) continue;
-    top = std::max(top, s);
-    const int rank = route.spec.method == method ? 2 : route.spec.method == "*" ? 1 : 0;
-    if (rank > 0 && (s > found_specificity || (s == found_specificity && rank > found_rank))) {
-      found.route = &route;
-      found_specificity = s;
-      found_rank = rank;
-    }
-  }
-  if (found.route != nullptr) return found;
-  for (const auto& route : routes_)
-    if (top != 0 && specificity(route.spec.path, path) == top) found.allowed.push_back(route.spec.method);
-  return found;
+  // The contract's matching (rcand/sdk/contract/route_match.hpp), as the fake host's.
+  auto found = sdk::contract::match_rows(
+      routes_,
+      [](const Route& r) {
+        return sdk::contract::RowKey{r.spec.method, r.spec.path, {}};
+      },
+      method, path);
+  return {found.row, std::move(found.allowed)};
 }
 
 }  // namespace rcand::kernel

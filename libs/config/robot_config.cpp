@@ -167,9 +167,6 @@ RobotConfig extract(yaml::YamlDocument yaml, const fs::path& source_file, const 
 
   c.has_agent = doc.contains("agent");
   c.has_camera = doc.contains("camera");
-  c.min_obstacle_m = optional_value<double>(doc, "agent.min_obstacle_m");
-  if (!c.min_obstacle_m)
-    if (const auto cm = optional_value<double>(doc, "safety.obstacle_stop_cm")) c.min_obstacle_m = *cm / 100.0;
 
   c.wheel_circumference_m = optional_value<double>(doc, "physics.wheel_circumference_m");
   c.turn_time_per_deg_s = optional_value<double>(doc, "physics.turn_time_per_deg_s");
@@ -187,8 +184,6 @@ RobotConfig extract(yaml::YamlDocument yaml, const fs::path& source_file, const 
   c.enable_jwt = value_or_default<bool>(doc, "rcan_protocol.enable_jwt");
 
   c.estop_on_startup = value_or_default<bool>(doc, "safety.estop_on_startup");
-  c.watchdog_ms = static_cast<int>(value_or_default<std::int64_t>(doc, "safety.watchdog_ms"));
-  c.max_linear_speed = value_or_default<double>(doc, "safety.max_linear_speed");
 
   c.runtime = extract_runtime(doc, base_dir);
   apply_config_defaults(c, warnings);

@@ -92,7 +92,6 @@ struct RobotConfig {
   std::string robot_name, robot_uuid, manufacturer, model;
   std::optional<std::string> ruri;
   bool has_agent = false, has_camera = false;
-  std::optional<double> min_obstacle_m;  // agent.min_obstacle_m, or safety.obstacle_stop_cm / 100
   std::optional<double> wheel_circumference_m, turn_time_per_deg_s;
   double max_wheel_rps = 1.0;
   bool has_kinematics = false;
@@ -101,8 +100,6 @@ struct RobotConfig {
   std::optional<std::vector<std::string>> capabilities;  // nullopt when the key is absent (auto-detect)
   bool enable_mdns = false, enable_jwt = true;
   bool estop_on_startup = false;
-  int watchdog_ms = 500;
-  double max_linear_speed = 1.0;
   RuntimeConfig runtime;
   std::uint16_t listen_port() const { return runtime.listen_port.value_or(rcan_port); }
   // Where `key_path` was written, or the nearest written ancestor's mark.

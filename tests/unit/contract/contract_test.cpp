@@ -124,6 +124,90 @@ TEST_CASE("contract: a real rcand answers the same request table the same way") 
   }
 }
 
+// ---- every row of the route table (rcand/sdk/contract/door.hpp), generated -----------------------------------------
+
+namespace {
+
+// One request per row of the table the fake host serves (rcand builds the same one from the same rules): the row's
+// method ("*": POST, and DELETE), its path (a prefix's '*' made a name), and for a POST /api/action row a body with
+// its type, or none at all for the action row itself.
+struct Probe {
+  std::string method, path;
+  json body;
+};
+
+std::vector<Probe> probes_of(const std::vector<rcand::sdk::contract::RouteRow>& rows) {
+  std::vector<Probe> probes;
+  for (const auto& row : rows) {
+    std::string path = row.path;
+    if (path.ends_with('*')) path = path.substr(0, path.size() - 1) + "probe";
+    const json body = row.action_type.empty() ? json::object() : json{{"type", row.action_type}};
+    for (const std::string& method : row.method == "*" ? std::vector<std::string>{"POST", "DELETE"} : std::vector{row.method})
+      probes.push_back({method, path, body});
+  }
+  probes.push_back({"POST", "/api/cap/teleop/probe", json::object()});  // a standard capability under /api/cap
+  probes.push_back({"POST", "/api/action", json{{"type", "fly"}}});     // a type no row has
+  return probes;
+}
+
+struct Asked {
+  Probe probe;
+  Role role;
+  bool latched;
+};
+
+std::string describe_probe(const Asked& a) {
+  return a.probe.method + " " + a.probe.path + " " + a.probe.body.dump() + " as " + std::string(rcand::sdk::role_name(a.role)) +
+         (a.latched ? ", latched" : "");
+}
+
+}  // namespace
+
+TEST_CASE("contract: every row of the route table gets the same answer from both hosts") {
+  rcand::sdk::testing::FakeHost host;
+  host.add_driver_instance<rcand::sdk::testing::RecordingDrive>("drive0", host.clock());
+  host.load(RCAND_ENTRY_FUNCTION, teleop_manifest());
+  host.add_capability("teleop");
+  const auto table = host.route_table();
+  CHECK(table.refused.empty());
+  // teleop's two types, a fallback for every other standard mount and type, /api/cap/* and /api/action itself
+  REQUIRE(table.rows.size() >= 10);
+
+  std::vector<Asked> asked;
+  for (bool latched : {false, true})
+    for (const auto& probe : probes_of(table.rows))
+      for (Role role : {Role::Guest, Role::User, Role::Owner}) asked.push_back({probe, role, latched});
+  MESSAGE(table.rows.size() << " rows, " << asked.size() << " requests on each host");
+
+  std::vector<Answer> fake;
+  for (const auto& a : asked) {
+    if (a.latched) host.latch_estop("contract test");
+    const auto response = host.call(a.probe.method, a.probe.path, a.probe.body, a.role);
+    if (a.latched) host.clear_estop();
+    fake.push_back({response.status, response.body});
+  }
+
+  json config = rcand::test::sim_config();
+  config["drivers"] = json::array({{{"id", "drive0"}, {"protocol", "sim_diff_drive"}}});
+  config["rcan_protocol"]["capabilities"] = {"status", "teleop"};
+  rcand::test::RcandProcess robot(config);
+  bool latched = false;
+  for (std::size_t i = 0; i < asked.size(); ++i) {
+    const Asked& a = asked[i];
+    if (a.latched && !latched) REQUIRE(robot.request("POST", "/api/stop", "owner-token").status == 200);
+    latched = a.latched;
+    int status = 0;
+    const json body = robot.json(a.probe.method, a.probe.path, token_of(a.role), a.probe.body.dump(), &status);
+    INFO(describe_probe(a) << ": fake host " << fake[i].body.dump() << ", rcand " << body.dump());
+    CHECK(status == fake[i].status);
+    if (status >= 300) {
+      CHECK(body.value("code", "") == fake[i].body.value("code", ""));
+      CHECK(body.value("field", "") == fake[i].body.value("field", ""));
+    }
+  }
+  CHECK(robot.request("POST", "/api/estop/clear", "owner-token").status == 200);
+}
+
 // ---- plugin settings and the manifest's "config" schema (rcand/sdk/contract/settings.hpp) ----------------------
 
 namespace {

@@ -37,6 +37,7 @@
 #include "rcand/sdk/bounded_text.hpp"
 #include "rcand/sdk/capability.hpp"
 #include "rcand/sdk/context.hpp"
+#include "rcand/sdk/contract/door.hpp"
 #include "rcand/sdk/contract/plan.hpp"
 #include "rcand/sdk/contract/requests.hpp"
 #include "rcand/sdk/contract/settings.hpp"
@@ -200,9 +201,10 @@ class FakeHost {
 
   // ---- requests --------------------------------------------------------------------------------------------
 
-  // Routes like the kernel: POST /api/action by body "type"; custom capabilities under /api/cap/<name>/...;
-  // other standard routes by exact method and path. Scope check (403), then e-stop check for motion routes
-  // (423, handler not called), then the handler; afterwards run_pending().
+  // Routes as the kernel, through the same door (rcand/sdk/contract/door.hpp): the row of route_table() the request
+  // matches (404/405 for none; POST /api/action: then its type's row), its scope (403), the e-stop for a motion row
+  // (423, handler not called), then the handler, or a fallback row's 404 (not declared, no such route) or 405;
+  // afterwards run_pending().
   // The request carries `scopes` as what the caller's credential grants (default: every scope of `role`, as a
   // pre-shared token; narrower: a JWT's scope claim) and a TestCredential, as rcand attaches its own.
   Response call(std::string method, std::string path, nlohmann::json body = {}, Role role = Role::Owner,
@@ -210,6 +212,18 @@ class FakeHost {
     Response response = dispatch(std::move(method), std::move(path), std::move(body), role, std::move(scopes));
     run_pending();
     return response;
+  }
+
+  // The capability route table the running capabilities serve, as rcand builds it (rcand/sdk/contract/door.hpp):
+  // every request call() makes goes through it. Routes left out are named in `refused`.
+  contract::RouteTable route_table() const {
+    std::vector<contract::RunningCapability> running;
+    for (const auto& slot : capabilities_) {
+      if (slot->failed) continue;
+      auto& cap = running.emplace_back(contract::RunningCapability{slot->name, {}});
+      for (const auto& r : slot->routes) cap.routes.push_back({r.method, r.path, r.action_type, r.scope, r.motion, false});
+    }
+    return contract::route_table(running);
   }
 
   // The credential the fake host attaches to every request (Request::credential): opaque to the plugin, as rcand's.
@@ -780,59 +794,58 @@ class FakeHost {
     credential->role = role;
     request.credential = std::move(credential);
 
-    // The kernel's rules, from the same contract (rcand/sdk/contract/requests.hpp).
+    // The kernel's door, from the same contract (rcand/sdk/contract/door.hpp): match, decide, then serve.
     namespace contract = rcand::sdk::contract;
-    CapabilitySlot* slot = nullptr;
-    const Route* route = nullptr;
-    bool custom = false;
-    std::string capability;
-    std::vector<std::string> methods;  // the methods the path has, for a 405
     if (request.path.rfind(contract::kCustomPrefix, 0) == 0) {
       const std::string_view rest = std::string_view(request.path).substr(contract::kCustomPrefix.size());
       const auto slash = rest.find('/');
-      capability = std::string(rest.substr(0, slash));
       request.subpath = slash == std::string_view::npos ? "" : std::string(rest.substr(slash));
-      custom = true;
-    } else if (request.path == contract::kActionPath) {
+    }
+    const std::vector<contract::RouteRow> table = route_table().rows;
+    const auto found = contract::match(table, method, request.path);
+    if (found.row == nullptr) {
+      if (found.allowed.empty()) return Response::error(404, "NOT_FOUND", "no endpoint " + bounded_text(request.path));
+      return contract::method_not_allowed(method, request.path, found.allowed);
+    }
+    const contract::Caller caller{"role " + std::string(role_name(role)), request.scopes};
+    const contract::RouteRow* row = found.row;
+    if (auto verdict = contract::decide(caller, *row, estop_.latched()); !verdict.run) return verdict.refusal;
+    if (row->kind == contract::RowKind::Action) {
       std::vector<std::string> declared_types;
       for (const auto& cap : contract::standard_capabilities())
         if (find_capability(cap.name) != nullptr)
           for (auto type : cap.action_types) declared_types.emplace_back(type);
-      if (!request.body.is_object() || !request.body.contains("type") || !request.body["type"].is_string())
-        return contract::missing_action_type(declared_types);
-      const std::string type = request.body["type"].get<std::string>();
-      const auto* standard = contract::capability_of_action(type);
-      if (standard == nullptr) return contract::unknown_action_type(type, declared_types);
-      capability = std::string(standard->name);
-    } else {
-      for (const auto& cap : contract::standard_capabilities())
-        for (auto mount : cap.mounts)
-          if (mount.ends_with('*') ? request.path.rfind(mount.substr(0, mount.size() - 1), 0) == 0 : request.path == mount)
-            capability = std::string(cap.name);
-      if (capability.empty()) return Response::error(404, "NOT_FOUND", "no endpoint " + bounded_text(request.path));
+      Response refusal;
+      const std::string type = contract::action_type_of(request.body, declared_types, refusal);
+      if (refusal.status != 200) return refusal;
+      row = contract::match(table, "POST", contract::kActionPath, type).row;
     }
-    slot = find_capability(capability);
+    std::string subpath;
+    const std::string capability = contract::unserved_capability(row->capability, request.path, &subpath);
+    const bool custom = request.path.rfind(contract::kCustomPrefix, 0) == 0;
+    if (custom && contract::find_standard(capability) != nullptr)
+      return Response::error(404, "NOT_FOUND",
+                             "'" + bounded_text(capability) + "' is a standard capability; use its standard endpoint");
+    CapabilitySlot* slot = find_capability(capability);
     if (slot == nullptr || slot->custom != custom) {
       std::vector<std::string> declared;
       for (const auto& s : capabilities_) declared.push_back(s->name);
       return contract::not_declared(capability, declared);
     }
+    const Route* route = nullptr;
+    std::vector<std::string> methods;  // the methods the path has, for a 405
     for (const auto& r : slot->routes) {
-      const bool matches = request.path == contract::kActionPath
-                               ? r.path == contract::kActionPath && r.action_type == request.body["type"].get<std::string>()
-                               : r.action_type.empty() && contract::served_path(slot->name, r.path) == request.path;
-      if (!matches) continue;
-      methods.push_back(r.method);
-      if (r.method == method) route = &r;
+      if (row->kind != contract::RowKind::Unserved && r.method == row->method && r.path == row->route_path &&
+          r.action_type == row->action_type)
+        route = &r;
+      if (r.action_type.empty() && r.path == (custom ? subpath : request.path)) methods.push_back(r.method);
     }
-    if (!route) {
-      if (!methods.empty() && request.path != contract::kActionPath)
-        return contract::method_not_allowed(method, request.path, methods);
-      return contract::no_endpoint(slot->name, request.path);
+    if (route == nullptr) {
+      if (!row->action_type.empty()) return contract::no_endpoint(slot->name, request.path);
+      return contract::no_route(slot->name, method, request.path, methods);
     }
-    const Scope scope = contract::route_scope(route->scope, method, custom);
-    if (!request.has_scope(scope)) return contract::insufficient_scope("role " + std::string(role_name(role)), scope);
-    if (route->motion && estop_.latched()) return contract::estop_active();
+    if (!row->action_type.empty())  // an action type's own row, known once the body's type is
+      if (auto verdict = contract::decide(caller, *row, estop_.latched()); !verdict.run) return verdict.refusal;
     // As the kernel (docs/protocol.md §7.16): a throw fails this request only, counted in handler_errors().
     try {
       return contract::normalized(route->handler(request));
