@@ -58,6 +58,7 @@ struct DeadlineCrew::Shared {
   std::deque<Member> members;                 // deque: members never move, their threads hold references
   // watch(): counts start_all()'s requests (kStop: the watcher exits), and what the watcher does with a round.
   std::atomic<std::uint32_t> watched{0};
+  std::atomic<std::uint32_t> watch_started{0};  // the latest request the watcher has turned into a round
   std::chrono::milliseconds watch_within{0};
   std::function<void(std::vector<Outcome>)> report;
 
@@ -66,7 +67,11 @@ struct DeadlineCrew::Shared {
     completions.fetch_add(1, std::memory_order_release);
     futex_wake(completions, INT_MAX);
   }
+  // No member inside a call, and no request the watcher has yet to start: a crew about to be torn down (a plugin
+  // reload right after a stop) must not have a round it still owes.
   bool quiet() const noexcept {
+    const std::uint32_t asked = watched.load(std::memory_order_acquire);
+    if (asked != kStop && watch_started.load(std::memory_order_acquire) != asked) return false;
     return std::all_of(members.begin(), members.end(), [](const Member& m) {
       return m.retired.load() || (!m.busy.load() && reached(m.finished.load(), m.requested.load()));
     });
@@ -241,7 +246,9 @@ void DeadlineCrew::watch_rounds() noexcept {
     }
     if (asked == kStop) return;
     seen = asked;
-    auto outcomes = wait_round(all, start_round(all), Clock::now() + s.watch_within, /*spin=*/false);
+    const std::uint32_t round = start_round(all);
+    s.watch_started.store(asked, std::memory_order_release);
+    auto outcomes = wait_round(all, round, Clock::now() + s.watch_within, /*spin=*/false);
     try {
       s.report(std::move(outcomes));
     } catch (...) {  // a report that fails (no memory) loses only the report

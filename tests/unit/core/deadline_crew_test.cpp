@@ -173,3 +173,20 @@ TEST_CASE("start_all returns before a hung job, and the watcher reports the roun
   CHECK(reports[1][2].state == DeadlineCrew::State::Failed);
   CHECK(quick == 2);
 }
+
+// A plugin reload latches the e-stop (start_all: the watcher owes a round of on_estop() calls), then quiesces the old
+// crew and unloads the plugin. quiesce() must count the round the watcher has not started yet: seen quiet before the
+// watcher woke, the reload unloaded the code its on_estop() then ran in (rcand died in the reload test).
+TEST_CASE("quiesce right after start_all waits for the round the watcher still owes") {
+  for (int attempt = 0; attempt < 50; ++attempt) {
+    std::atomic<int> calls{0};
+    DeadlineCrew crew("owed", {{"slow", [&] {
+                                  std::this_thread::sleep_for(2ms);
+                                  ++calls;
+                                }}});
+    crew.watch(1s, [](std::vector<DeadlineCrew::Outcome>) {});
+    crew.start_all();
+    REQUIRE(crew.quiesce(5s));
+    REQUIRE(calls == 1);  // the owed round ran to its end before quiesce said quiet
+  }
+}
