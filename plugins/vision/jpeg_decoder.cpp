@@ -6,25 +6,13 @@
 
 #include <jpeglib.h>
 
+#include "jpeg_errors.hpp"
+
 namespace rcand::plugins::vision {
 
 struct JpegDecoder::State {
-  // As in the encoder: error_exit longjmps back into the call (a C++ exception must not unwind through libjpeg's C
-  // frames), and warnings (a corrupt but decodable picture) are not printed.
-  struct Errors {
-    jpeg_error_mgr pub;
-    std::jmp_buf jump;
-    char message[JMSG_LENGTH_MAX];
-  };
-  static void fail(j_common_ptr cinfo) {
-    auto* errors = reinterpret_cast<Errors*>(cinfo->err);
-    (*cinfo->err->format_message)(cinfo, errors->message);
-    std::longjmp(errors->jump, 1);
-  }
-  static void quiet(j_common_ptr) {}
-
   jpeg_decompress_struct cinfo{};
-  Errors errors{};
+  JpegErrors errors{};
 
   // Only trivially destructible locals in these two: a libjpeg error longjmps back into their frame.
   bool read_header(std::string_view jpeg, int& width, int& height, int& components) {
@@ -64,9 +52,7 @@ namespace {
 
 JpegDecoder::JpegDecoder() : state_(std::make_unique<State>()) {
   State& s = *state_;
-  s.cinfo.err = jpeg_std_error(&s.errors.pub);
-  s.errors.pub.error_exit = State::fail;
-  s.errors.pub.output_message = State::quiet;
+  s.cinfo.err = s.errors.install();
   if (setjmp(s.errors.jump) != 0) jpeg_decode_failed(s.errors.message);
   jpeg_create_decompress(&s.cinfo);
 }

@@ -10,27 +10,15 @@
 // after jpeglib.h, which it needs
 #include <jerror.h>
 
+#include "jpeg_errors.hpp"
+
 namespace rcand::plugins::vision {
 
 // The output goes into `out`, grown by doubling and kept for the next frame: no allocation per frame once it has
 // seen the largest one.
 struct JpegEncoder::State {
-  // libjpeg reports a fatal error by calling error_exit, which must not return: it longjmps back to compress() (a
-  // C++ exception would unwind through libjpeg's C frames). Warnings are dropped instead of printed to stderr.
-  struct Errors {
-    jpeg_error_mgr pub;
-    std::jmp_buf jump;
-    char message[JMSG_LENGTH_MAX];
-  };
-  static void fail(j_common_ptr cinfo) {
-    auto* errors = reinterpret_cast<Errors*>(cinfo->err);
-    (*cinfo->err->format_message)(cinfo, errors->message);
-    std::longjmp(errors->jump, 1);
-  }
-  static void quiet(j_common_ptr) {}
-
   jpeg_compress_struct cinfo{};
-  Errors errors{};
+  JpegErrors errors{};
   jpeg_destination_mgr destination{};
   std::vector<JOCTET> out;
   std::size_t used = 0;
@@ -84,9 +72,7 @@ struct JpegEncoder::State {
 
 JpegEncoder::JpegEncoder() : state_(std::make_unique<State>()) {
   State& s = *state_;
-  s.cinfo.err = jpeg_std_error(&s.errors.pub);
-  s.errors.pub.error_exit = State::fail;
-  s.errors.pub.output_message = State::quiet;
+  s.cinfo.err = s.errors.install();
   if (setjmp(s.errors.jump) != 0) throw JpegError(std::string("JPEG encoder: ") + s.errors.message);
   jpeg_create_compress(&s.cinfo);
   s.cinfo.client_data = &s;
