@@ -36,24 +36,6 @@ std::uint16_t free_udp_port() {
   return socket.local_endpoint().port();
 }
 
-// Ed25519 keys for a fleet: each robot signs with its own and accepts the others' (role USER). UDP and MQTT never
-// carry the R2R token (issue 13 #10), so robots that talk over them authenticate by signature.
-void sign_fleet(const std::vector<json*>& configs, const TempDir& dir) {
-  std::vector<std::pair<std::string, std::filesystem::path>> public_keys;
-  for (json* config : configs) {
-    const std::string name = (*config)["metadata"]["robot_name"];
-    const auto key = rcand::kernel::r2r::Ed25519Key::generate();
-    (*config)["runtime"]["r2r"]["private_key_file"] = dir.write(name + ".pem", key.private_pem()).string();
-    public_keys.emplace_back(name, dir.write(name + ".pub.pem", key.public_pem()));
-  }
-  for (json* config : configs) {
-    json peers = json::array();
-    for (const auto& [name, file] : public_keys)
-      if (name != (*config)["metadata"]["robot_name"]) peers.push_back({{"name", name}, {"public_key_file", file.string()}, {"role", "USER"}});
-    (*config)["runtime"]["r2r"]["peers"] = std::move(peers);
-  }
-}
-
 }  // namespace
 
 TEST_CASE("r2r fleet (ws): the nearest capable robot wins; when the winner dies mid-auction the task is re-awarded") {

@@ -22,24 +22,6 @@ using rcand::kernel::r2r::MqttTransport;
 
 namespace {
 
-// Each robot signs with a key of its own and accepts the others' (MQTT never carries the R2R token).
-void topics_sign_fleet(const std::vector<json*>& configs, const TempDir& dir) {
-  std::vector<std::pair<std::string, std::filesystem::path>> public_keys;
-  for (json* config : configs) {
-    const std::string name = (*config)["metadata"]["robot_name"];
-    const auto key = rcand::kernel::r2r::Ed25519Key::generate();
-    (*config)["runtime"]["r2r"]["private_key_file"] = dir.write(name + ".pem", key.private_pem()).string();
-    public_keys.emplace_back(name, dir.write(name + ".pub.pem", key.public_pem()));
-  }
-  for (json* config : configs) {
-    json peers = json::array();
-    for (const auto& entry : public_keys)
-      if (entry.first != (*config)["metadata"]["robot_name"])
-        peers.push_back({{"name", entry.first}, {"public_key_file", entry.second.string()}, {"role", "USER"}});
-    (*config)["runtime"]["r2r"]["peers"] = std::move(peers);
-  }
-}
-
 // Every message a plain MQTT client sees, with the topic it came on (recorded on libmosquitto's thread).
 class TopicsWatch {
  public:
@@ -126,7 +108,7 @@ TEST_CASE("r2r topics (mqtt): status on r2r/status/<name>, retained, read only b
   auto alpha_config = topics_with_broker(r2r_robot_config("alpha", token), broker.port(), {{"status_subscriptions", "all"}});
   auto bravo_config = topics_with_broker(r2r_robot_config("bravo", token), broker.port());  // reads no one's status
   auto charlie_config = topics_with_broker(r2r_robot_config("charlie", token), broker.port());
-  topics_sign_fleet({&alpha_config, &bravo_config, &charlie_config}, dir);
+  sign_fleet({&alpha_config, &bravo_config, &charlie_config}, dir);
   auto watch_options = topics_client("watch", broker.port());
   watch_options.extra_subscriptions = {"r2r/#"};
   TopicsWatch watch(watch_options);
@@ -191,7 +173,7 @@ TEST_CASE("r2r topics (mqtt): the example broker ACL keeps each robot to its own
   };
   auto alpha_config = robot("alpha", {{"status_subscriptions", "all"}});
   auto bravo_config = robot("bravo", json::object());
-  topics_sign_fleet({&alpha_config, &bravo_config}, dir);
+  sign_fleet({&alpha_config, &bravo_config}, dir);
   RcandProcess alpha(alpha_config);
   RcandProcess bravo(bravo_config);
 
@@ -268,7 +250,7 @@ TEST_CASE("r2r topics (mqtt): a robot that loses its broker keeps its local safe
   TempDir dir;
   const auto token = dir.write("r2r.token", "owner-token\n");
   auto alpha_config = topics_with_broker(r2r_robot_config("alpha", token), broker.port());
-  topics_sign_fleet({&alpha_config}, dir);
+  sign_fleet({&alpha_config}, dir);
   RcandProcess alpha(alpha_config);
   const auto link_up = [&]() -> std::optional<bool> {
     return alpha.json("GET", "/api/r2r/peers", "owner-token")["transports"]["mqtt"]["connected"].get<bool>();

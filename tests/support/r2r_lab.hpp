@@ -11,8 +11,11 @@
 #include <optional>
 #include <string>
 #include <thread>
+#include <utility>
+#include <vector>
 
 #include "rcand_process.hpp"
+#include "services/r2r/message_auth.hpp"
 #include "ws_client.hpp"
 #include "swarm_lab.hpp"
 
@@ -32,6 +35,25 @@ inline nlohmann::json r2r_robot_config(const std::string& name, const std::files
                               {"status_interval_ms", 300},
                               {"origin", {{"x", x}, {"y", y}}}};
   return config;
+}
+
+// Ed25519 keys for a fleet: each robot signs with its own and accepts the others' (role USER). UDP and MQTT never
+// carry the R2R token (issue 13 #10), so robots that talk over them authenticate by signature.
+inline void sign_fleet(const std::vector<nlohmann::json*>& configs, const TempDir& dir) {
+  std::vector<std::pair<std::string, std::filesystem::path>> public_keys;
+  for (nlohmann::json* config : configs) {
+    const std::string name = (*config)["metadata"]["robot_name"];
+    const auto key = rcand::kernel::r2r::Ed25519Key::generate();
+    (*config)["runtime"]["r2r"]["private_key_file"] = dir.write(name + ".pem", key.private_pem()).string();
+    public_keys.emplace_back(name, dir.write(name + ".pub.pem", key.public_pem()));
+  }
+  for (nlohmann::json* config : configs) {
+    nlohmann::json peers = nlohmann::json::array();
+    for (const auto& entry : public_keys)
+      if (entry.first != (*config)["metadata"]["robot_name"])
+        peers.push_back({{"name", entry.first}, {"public_key_file", entry.second.string()}, {"role", "USER"}});
+    (*config)["runtime"]["r2r"]["peers"] = std::move(peers);
+  }
 }
 
 inline double unix_now() {
