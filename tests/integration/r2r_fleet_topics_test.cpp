@@ -69,8 +69,15 @@ MqttOptions topics_client(const std::string& name, std::uint16_t port) {
   return options;
 }
 
+// A field of a message as seen on the wire, "" when absent (operator[] on a const json with a missing key is undefined:
+// ASan caught it on an intruder's message without the field).
+std::string topics_field(const json& m, const char* pointer) {
+  const json::json_pointer at(pointer);
+  return m.is_object() && m.contains(at) && m.at(at).is_string() ? m.at(at).get<std::string>() : std::string();
+}
+
 bool topics_status_from(const json& m, const std::string& robot) {
-  return m["type"] == "status" && m["header"]["source_id"] == robot;
+  return topics_field(m, "/type") == "status" && topics_field(m, "/header/source_id") == robot;
 }
 
 // The retained message on `topic`, read by mosquitto_sub as a fresh client would (empty when there is none).
@@ -123,10 +130,10 @@ TEST_CASE("r2r topics (mqtt): status on r2r/status/<name>, retained, read only b
     if (watch.count([](const std::string&, const json& m) { return topics_status_from(m, "alpha"); }) >= 3) return true;
     return std::nullopt;
   }));
-  CHECK(watch.count([](const std::string& topic, const json& m) { return m["type"] == "status" && topic == "r2r/broadcast"; }) ==
+  CHECK(watch.count([](const std::string& topic, const json& m) { return topics_field(m, "/type") == "status" && topic == "r2r/broadcast"; }) ==
         0);
   CHECK(watch.count([](const std::string& topic, const json& m) {
-    return m["type"] == "status" && topic != "r2r/status/" + m["header"]["source_id"].get<std::string>();
+    return topics_field(m, "/type") == "status" && topic != "r2r/status/" + topics_field(m, "/header/source_id");
   }) == 0);
   // bravo subscribed to no status: alpha's three statuses reached the broker, bravo received nothing at all.
   CHECK(bravo.json("GET", "/api/r2r/peers", "owner-token")["counters"]["received"] == 0);
@@ -142,7 +149,7 @@ TEST_CASE("r2r topics (mqtt): status on r2r/status/<name>, retained, read only b
   // alpha verifies and shows.
   bravo.kill_hard();
   const auto will = watch.wait_for([](const std::string& topic, const json& m) {
-    return topic == "r2r/status/bravo" && topics_status_from(m, "bravo") && m["payload"]["state"] == "offline";
+    return topic == "r2r/status/bravo" && topics_status_from(m, "bravo") && topics_field(m, "/payload/state") == "offline";
   });
   REQUIRE(will);
   CHECK(will->second["header"].contains("signature"));
@@ -218,10 +225,10 @@ TEST_CASE("r2r topics (mqtt): the example broker ACL keeps each robot to its own
     intruder.transport().send(forged, std::nullopt);
     intruder.transport().send(sentinel, std::nullopt);
     return witness.count([](const std::string& topic, const json& m) {
-      return topic == "r2r/broadcast" && m["payload"]["task_id"] == "acl-sentinel";
+      return topic == "r2r/broadcast" && topics_field(m, "/payload/task_id") == "acl-sentinel";
     }) > 0;
   }));
-  CHECK(witness.count([](const std::string&, const json& m) { return m["payload"]["state"] == "forged"; }) == 0);
+  CHECK(witness.count([](const std::string&, const json& m) { return topics_field(m, "/payload/state") == "forged"; }) == 0);
   CHECK_FALSE(topics_peer_state(alpha, "bravo", "forged"));
 
   // Reading bravo's direct topic is refused: alpha's next command for bravo reaches bravo (its log of commands grows)
@@ -241,7 +248,7 @@ TEST_CASE("r2r topics (mqtt): the example broker ACL keeps each robot to its own
   REQUIRE(witness.transport().send(r2r_message("delta", "negotiation", {{"task_id", "acl-direct"}, {"action", "withdraw"}}),
                                    std::string("charlie")));
   REQUIRE(intruder.wait_for(
-      [](const std::string& topic, const json& m) { return topic == "r2r/charlie" && m["payload"]["task_id"] == "acl-direct"; }));
+      [](const std::string& topic, const json& m) { return topic == "r2r/charlie" && topics_field(m, "/payload/task_id") == "acl-direct"; }));
   CHECK(intruder.count([](const std::string& topic, const json&) { return topic == "r2r/bravo"; }) == 0);
 }
 
