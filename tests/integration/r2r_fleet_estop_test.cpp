@@ -185,7 +185,10 @@ TEST_CASE(
     // The latched status on the wire, long before the 60 s interval.
     const std::string& name = kFleetNames[i];
     CHECK(poll_until<bool>([&]() -> std::optional<bool> {
-      if (wire.count("status", name, [](const json& m) { return m["payload"].value("estopped", false); }) > 0) return true;
+      const auto latched = [](const json& m) {
+        return m.contains("payload") && m["payload"].is_object() && m["payload"].value("estopped", false);
+      };
+      if (wire.count("status", name, latched) > 0) return true;
       return std::nullopt;
     }));
   }
