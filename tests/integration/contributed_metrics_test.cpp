@@ -8,6 +8,7 @@
 
 #include "promtool.hpp"
 #include "rcand_process.hpp"
+#include "sanitized_build.hpp"
 #include "swarm_lab.hpp"
 
 using namespace rcand::test;
@@ -89,7 +90,17 @@ TEST_CASE("contributed metrics: a broadcast stop counts its result and each node
   REQUIRE(answer.status == 200);
   const std::string page = alpha.request("GET", "/metrics", "guest-token").body;
   CHECK(contributed_sample(page, "rcand_swarm_broadcasts_total", {"kind=\"stop\"", "result=\"partial\""}) == 1);
-  CHECK(contributed_sample(page, "rcand_swarm_node_results_total", {"kind=\"stop\"", "outcome=\"ok\""}) == 2);  // alpha, bravo
-  CHECK(contributed_sample(page, "rcand_swarm_node_results_total", {"kind=\"stop\"", "outcome=\"unreachable\""}) == 1);
+  const auto ok = contributed_sample(page, "rcand_swarm_node_results_total", {"kind=\"stop\"", "outcome=\"ok\""});
+  const auto unreachable =
+      contributed_sample(page, "rcand_swarm_node_results_total", {"kind=\"stop\"", "outcome=\"unreachable\""});
+  if (kSanitizedBuild) {
+    // At -O0 with ASan on a loaded machine bravo may miss the stop's 300 ms per-peer deadline (the normal build
+    // holds it): it is then counted unreachable, and every node is still counted once.
+    CHECK(ok >= 1);
+    CHECK(ok + unreachable == 3);
+  } else {
+    CHECK(ok == 2);  // alpha, bravo
+    CHECK(unreachable == 1);
+  }
   rcand::test::check_promtool_clean(page);
 }

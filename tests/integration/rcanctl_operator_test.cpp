@@ -10,6 +10,7 @@
 #include <sstream>
 
 #include "rcand_process.hpp"
+#include "sanitized_build.hpp"
 
 using namespace rcand::test;
 using nlohmann::json;
@@ -38,7 +39,7 @@ TEST_CASE("rcanctl estop shows and clears the latch; clearing needs an owner") {
   auto shown = ctl({"estop"}, "guest-token");
   CHECK(shown.exit_code == 0);
   CHECK(shown.out == "not latched\n");
-  CHECK(ctl({"stop"}, "guest-token").exit_code == 0);
+  CHECK(ctl(with_stop_timeout({"stop"}), "guest-token").exit_code == 0);
   shown = ctl({"estop", "show", "--json"}, "guest-token");
   CHECK(shown.exit_code == 0);
   CHECK(json::parse(shown.out)["estopped"] == true);
@@ -113,8 +114,8 @@ TEST_CASE("rcanctl plugins and audit") {
   CHECK(plugins.out.find("capability:teleop") != std::string::npos);
   CHECK(plugins.out.find("loaded") != std::string::npos);
 
-  CHECK(ctl({"stop"}, "guest-token").exit_code == 0);  // something to audit
-  CHECK(ctl({"stop"}, "guest-token").exit_code == 0);  // a repeat while latched: counted into that entry
+  CHECK(ctl(with_stop_timeout({"stop"}), "guest-token").exit_code == 0);  // something to audit
+  CHECK(ctl(with_stop_timeout({"stop"}), "guest-token").exit_code == 0);  // a repeat while latched: counted into that entry
   const auto audit = ctl({"audit", "--limit", "5"}, "owner-token");
   CHECK(audit.exit_code == 0);
   CHECK(audit.out.rfind("SEQ", 0) == 0);
@@ -289,7 +290,7 @@ TEST_CASE("rcanctl for people: one clear line for a bad value, HOST:PORT, local 
   CHECK(run_tool(rcanctl_binary(), {"estop", "--host", "127.0.0.1:http", "--token", "guest-token"}).exit_code == 2);
 
   // Times in the local zone as ISO 8601; --json keeps the robot's number.
-  CHECK(ctl({"stop"}, "guest-token").exit_code == 0);
+  CHECK(ctl(with_stop_timeout({"stop"}), "guest-token").exit_code == 0);
   const std::regex iso("[0-9]{4}-[0-9]{2}-[0-9]{2}T[0-9]{2}:[0-9]{2}:[0-9]{2}\\.[0-9]{3}[+-][0-9]{2}:[0-9]{2}");
   const auto latched = ctl({"estop"}, "guest-token");
   INFO(latched.out);

@@ -8,6 +8,7 @@
 
 #include <cstdio>
 #include <cstdlib>
+#include <iostream>
 #include <string>
 
 #include "rcand_process.hpp"
@@ -21,6 +22,9 @@ using rcand::test::RcandProcess;
 int run_fake_rcand(const std::string& report) {
   // The child aborts before its RcandProcess can remove its directory: it makes it in one the parent removes.
   const rcand::test::TempDir scratch("rcand-sanitizer-report");
+  // Whatever doctest has buffered would otherwise be written again by the child (a CI log showed it four times).
+  std::cout.flush();
+  std::fflush(nullptr);
   const pid_t pid = fork();
   if (pid == 0) {
     if (!std::freopen("/dev/null", "w", stderr)) _exit(3);  // the expected report would only confuse a CI log

@@ -8,6 +8,7 @@
 
 #include "netns_lab.hpp"
 #include "rcand_process.hpp"
+#include "sanitized_build.hpp"
 #include "swarm_lab.hpp"
 
 using namespace rcand::test;
@@ -306,7 +307,7 @@ TEST_CASE("rcanctl swarm status|stop|command: table or JSON per node, exit codes
   CHECK(ghost["reachable"] == false);
   CHECK(ghost["address"] == "127.0.0.1:" + std::to_string(refused));  // the ip fallback was used
 
-  auto stop = run_tool(ctl, {"swarm", "stop", "--swarm", good.string(), "--node", "bravo"});
+  auto stop = run_tool(ctl, with_stop_timeout({"swarm", "stop", "--swarm", good.string(), "--node", "bravo"}));
   CHECK(stop.exit_code == 0);
   CHECK(stop.out.find("motors stopped") != std::string::npos);
   CHECK(b.json("GET", "/api/estop", "guest-token")["estopped"] == true);
@@ -349,7 +350,7 @@ TEST_CASE("rcanctl status|stop|command against one robot") {
   CHECK(command.exit_code == 1);
   CHECK(command.out.find("CAPABILITY_NOT_FOUND") != std::string::npos);
 
-  auto stop = run_tool(ctl, {"stop", "--port", port, "--token", "guest-token"});
+  auto stop = run_tool(ctl, with_stop_timeout({"stop", "--port", port, "--token", "guest-token"}));
   CHECK(stop.exit_code == 0);
   CHECK(stop.out.find("motors stopped") != std::string::npos);
   CHECK(robot.json("GET", "/api/estop", "guest-token")["estopped"] == true);

@@ -13,9 +13,11 @@
 
 #include <chrono>
 #include <cstdint>
+#include <cstdio>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <iostream>
 #include <random>
 #include <stdexcept>
 #include <string>
@@ -98,6 +100,8 @@ class MosquittoBroker {
 
   void start() {
     if (pid_ > 0) return;
+    std::cout.flush();  // the child must not write the parent's buffered output again
+    std::fflush(nullptr);
     pid_ = ::fork();
     if (pid_ < 0) throw std::runtime_error("fork failed");
     if (pid_ == 0) {
