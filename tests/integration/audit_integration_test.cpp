@@ -57,7 +57,9 @@ TEST_CASE("audit: 300 requests with a 1 MB \"type\" grow neither the audit file,
   for (int i = 0; i < 5; ++i) rcand.request("POST", "/api/nav/waypoint", "user-token", body);
   const long rss_before = resident_kb(rcand.pid());
   const auto stderr_before = audit_test_file_size(rcand.dir().path() / "stderr");
-  for (int i = 0; i < 300; ++i) {
+  // The sanitizer build checks behaviour only (its RSS is ASan's): 30 unbounded entries would still be 30 MB.
+  const int requests = kSanitizedBuild ? 30 : 300;
+  for (int i = 0; i < requests; ++i) {
     const auto response = rcand.request("POST", "/api/nav/waypoint", "user-token", body);
     REQUIRE(response.status == 400);
     if (i == 0) CHECK(response.body.size() < 4096);  // the error body does not echo it either
