@@ -378,6 +378,28 @@ struct R2rNode::Impl {
                        json{{"reason", bounded_text(text, 200)}, {"from", "r2r " + bounded_text(envelope.source_id, 60)}});
     publish_status_now();
   }
+
+  // receive()'s steps, in order (defined below, beside the helpers they use).
+  struct Incoming {
+    const InboundMessage& message;
+    Envelope envelope;
+    Route reply;
+    json clean_ref;  // the `ref` of any answer: the header, minus credentials
+    bool estop;      // a fleet e-stop
+    double now;
+  };
+  // A message that is no R2R message: refused with the fault and, where one was found, its field.
+  void refuse_malformed(const InboundMessage& message, const R2rError& bad, const Route& reply);
+  void refuse_unauthorized(const Incoming& in, const std::string& line, const std::string& why);
+  // Who sent it (token, signature or transport principal), or nullopt once refused.
+  std::optional<Principal> authenticate(const Incoming& in);
+  // False for a signed message that may be a replay: signed before this robot started (refused) or seen (dropped).
+  bool first_time(const Incoming& in, const Principal& principal);
+  // Counts it and notes its sender (and a status); the subscribers of its type. `run_command` for a command.
+  std::vector<Subscriber> record(const Incoming& in, bool& run_command);
+  // The fleet e-stop, or the command through the kernel; false when this robot takes no commands (refused).
+  static bool run_command(const std::shared_ptr<Impl>& self, const Incoming& in, const Principal& principal);
+  void notify(const std::vector<Subscriber>& to_notify, Incoming&& in, const Principal& principal);
 };
 
 namespace {
@@ -393,6 +415,144 @@ bool r2r_offline_left_behind(const InboundMessage& message, const Envelope& enve
   return r2r_status_on_own_topic(message, envelope) && state != envelope.payload.end() && *state == "offline";
 }
 }  // namespace
+
+// receive()'s steps.
+
+void R2rNode::Impl::refuse_malformed(const InboundMessage& message, const R2rError& bad, const Route& reply) {
+  const bool answerable = bad.type != "error" && !(bad.source_id && is_self(*bad.source_id)) && (bad.source_id || reply);
+  refuse(message, bad.source_id.value_or(message.transport + " " + message.peer), answerable,
+         "refused a message from " + message.peer + " via " + message.transport + ": " + bad.message +
+             (bad.field.empty() ? "" : " at " + bad.field),
+         [&] {
+           json extra = json::object();
+           if (!bad.field.empty()) extra["field"] = bad.field;  // rcand extension: where the fault is
+           return error_reply(bad.code, bad.message, bad.ref, bad.source_id, reply, extra);
+         });
+}
+
+void R2rNode::Impl::refuse_unauthorized(const Incoming& in, const std::string& line, const std::string& why) {
+  const std::string& source = in.envelope.source_id;
+  refuse(in.message, source, in.envelope.type != MessageType::Error, line,
+         [&] { return error_reply(ErrorCode::Unauthorized, why, in.clean_ref, source, in.reply); });
+}
+
+std::optional<Principal> R2rNode::Impl::authenticate(const Incoming& in) {
+  const Envelope& envelope = in.envelope;
+  // A fleet e-stop needs what POST /api/stop needs (scope status); any other command, control.
+  auto who = auth.authorize(envelope, envelope.received, in.message.principal,
+                            in.estop ? sdk::Scope::Status : required_scope(envelope.type),
+                            r2r_offline_left_behind(in.message, envelope) ? envelope.timestamp : in.now);
+  // Through a broker or a broadcast address no bearer token authenticates a sender: there a stop must be signed.
+  if (in.estop && !transport_may_carry_secrets(in.message.transport) && std::holds_alternative<Principal>(who) &&
+      std::get<Principal>(who).via != "signature")
+    who = AuthFailure{"a fleet e-stop via " + in.message.transport + " must be signed (header.signature)"};
+  if (const auto* failure = std::get_if<AuthFailure>(&who)) {
+    refuse_unauthorized(in,
+                        "unauthorized " + std::string(in.estop ? "fleet e-stop" : type_name(envelope.type)) + " from '" +
+                            envelope.source_id + "' via " + in.message.transport + ": " + failure->message,
+                        failure->message);
+    return std::nullopt;
+  }
+  return std::move(std::get<Principal>(who));
+}
+
+bool R2rNode::Impl::first_time(const Incoming& in, const Principal& principal) {
+  if (principal.via != "signature") return true;
+  const Envelope& envelope = in.envelope;
+  // Signed before this robot started: its replay memory cannot know whether it was handled before a restart, so it
+  // is refused (103) - nothing signed before a restart is replayable after it.
+  if (envelope.timestamp < started_s && !r2r_status_on_own_topic(in.message, envelope)) {
+    const std::string why =
+        "signed message timestamped before this robot started (" + json(started_s).dump() + "): refused as a possible replay";
+    refuse_unauthorized(in,
+                        "refused a signed " + std::string(type_name(envelope.type)) + " from '" + envelope.source_id + "' via " +
+                            in.message.transport + ": " + why,
+                        why);
+    return false;
+  }
+  // A copy of a signed message already handled: a replay, or the same broadcast over another transport. Keyed on
+  // the canonical signed message, so no other spelling of it counts as new. Dropped without an answer (the
+  // original was answered); a debug line only, as the same broadcast on two transports is no fault.
+  const std::string key = replay_key(envelope.received);
+  std::lock_guard lock(mutex);
+  if (replays.first_time(key, in.now)) return true;
+  ++counters.rejected;
+  log->debug("r2r: dropped a repeated signed {} from '{}'", type_name(envelope.type), envelope.source_id);
+  return false;
+}
+
+std::vector<Subscriber> R2rNode::Impl::record(const Incoming& in, bool& run_command) {
+  const Envelope& envelope = in.envelope;
+  const std::string& source = envelope.source_id;
+  std::vector<Subscriber> to_notify;
+  std::lock_guard lock(mutex);
+  ++counters.accepted;
+  Peer& peer = note_peer_locked(source, in.message.transport, in.reply);
+  const json& p = envelope.payload;
+  // Task requests, negotiations and task responses are the fleet plugin's (it subscribes): the auction runs there.
+  switch (envelope.type) {
+    case MessageType::Status: peer.status = r2r_bounded_peer_status(p); break;
+    case MessageType::Error: {
+      // A peer's own text: logged within its budget (the formatter escapes and bounds it, as every message).
+      const int code = p["code"].get<int>();
+      if (const auto verdict = error_log.admit(bounded_text(source, kSenderNameBytes)); verdict.log)
+        log->info("r2r: error {} ({}) from '{}': {}{}", code, error_code_name(code), source, p["message"].get<std::string>(),
+                  verdict.suppressed ? " (" + std::to_string(verdict.suppressed) + " earlier ones not logged)" : "");
+      break;
+    }
+    case MessageType::Command: run_command = true; break;
+    case MessageType::TaskRequest:
+    case MessageType::TaskResponse:
+    case MessageType::Negotiation: break;
+  }
+  for (const auto& [id, entry] : subscribers)
+    if (entry.first == envelope.type) to_notify.push_back(entry.second);
+  return to_notify;
+}
+
+bool R2rNode::Impl::run_command(const std::shared_ptr<Impl>& self, const Incoming& in, const Principal& principal) {
+  if (in.estop && self->deps.stop_executor) {
+    self->fleet_estop(principal, in.envelope, in.message.transport);
+    return true;
+  }
+  const std::string& source = in.envelope.source_id;
+  if (!self->deps.command_executor) {
+    self->refuse_unauthorized(in, "command from '" + source + "' refused: this robot does not accept R2R commands",
+                              "this robot does not accept R2R commands");
+    return false;
+  }
+  // Refused (405, 423, ...): the sender learns why, unless the command came as a broadcast (§11.12).
+  auto on_refusal = [weak = std::weak_ptr<Impl>(self), clean_ref = in.clean_ref, source, reply = in.reply,
+                     broadcast = in.message.broadcast](int status, json body) {
+    const auto s = weak.lock();
+    if (!s || (status >= 200 && status < 300) || broadcast) return;
+    const std::string why = body.is_object() && body.contains("error") && body["error"].is_string()
+                                ? body["error"].get<std::string>()
+                                : "command failed";
+    const ErrorCode code = status == 423                    ? ErrorCode::EstopActive
+                           : status == 401 || status == 403 ? ErrorCode::Unauthorized
+                                                            : ErrorCode::InvalidFormat;
+    json extra{{"http_status", status}};  // rcand extension: the HTTP-equivalent answer
+    if (body.is_object() && body.contains("code")) extra["http_code"] = body["code"];
+    s->transmit({s->error_reply(code, why, clean_ref, source, reply, extra)});
+  };
+  self->deps.command_executor(principal, in.envelope.payload, std::move(on_refusal));
+  return true;
+}
+
+void R2rNode::Impl::notify(const std::vector<Subscriber>& to_notify, Incoming&& in, const Principal& principal) {
+  if (to_notify.empty()) return;
+  const ReceivedMessage received{std::move(in.envelope), principal.name, in.message.transport};
+  for (const Subscriber& callback : to_notify) {
+    try {
+      callback(received);
+    } catch (const std::exception& e) {
+      log->warn("r2r: a subscriber threw: {}", e.what());
+    } catch (...) {
+      log->warn("r2r: a subscriber threw");
+    }
+  }
+}
 
 R2rNode::R2rNode(R2rNodeDeps deps) : identity_(deps.identity), impl_(std::make_shared<Impl>(std::move(deps))) {
   for (Transport* transport : impl_->deps.transports) add_transport(transport);
@@ -442,148 +602,32 @@ void R2rNode::receive(InboundMessage message) {
     std::lock_guard lock(s.mutex);
     ++s.counters.received;
   }
-
   auto parsed = parse_envelope(message.bytes);
-  if (auto* bad = std::get_if<R2rError>(&parsed)) {
-    const bool answerable = bad->type != "error" && !(bad->source_id && s.is_self(*bad->source_id)) && (bad->source_id || reply);
-    s.refuse(message, bad->source_id.value_or(message.transport + " " + message.peer), answerable,
-             "refused a message from " + message.peer + " via " + message.transport + ": " + bad->message +
-                 (bad->field.empty() ? "" : " at " + bad->field),
-             [&] {
-               json extra = json::object();
-               if (!bad->field.empty()) extra["field"] = bad->field;  // rcand extension: where the fault is
-               return s.error_reply(bad->code, bad->message, bad->ref, bad->source_id, reply, extra);
-             });
-    return;
-  }
+  if (const auto* bad = std::get_if<R2rError>(&parsed)) return s.refuse_malformed(message, *bad, reply);
   Envelope envelope = std::move(std::get<Envelope>(parsed));
   if (s.is_self(envelope.source_id)) return;  // our own broadcast, echoed back by a transport
   if (!reply) reply = Impl::via_relay(impl_, envelope);
-  const std::string& source = envelope.source_id;
-  const bool is_error = envelope.type == MessageType::Error;
-  json clean_ref = envelope.header_extra;  // the `ref` of any answer: the header, minus credentials
+  json clean_ref = envelope.header_extra;
   clean_ref.erase("auth");
   clean_ref.erase("signature");
-  auto refuse_unauthorized = [&](const std::string& line, const std::string& why) {
-    s.refuse(message, source, !is_error, line,
-             [&] { return s.error_reply(ErrorCode::Unauthorized, why, clean_ref, source, reply); });
-  };
-
-  const double now = s.now_s();
-  // A fleet e-stop needs what POST /api/stop needs (scope status); any other command, control.
   const bool estop = is_fleet_estop(envelope.type, envelope.payload);
-  auto who =
-      s.auth.authorize(envelope, envelope.received, message.principal, estop ? sdk::Scope::Status : required_scope(envelope.type),
-                       r2r_offline_left_behind(message, envelope) ? envelope.timestamp : now);
-  // Through a broker or a broadcast address no bearer token authenticates a sender: there a stop must be signed.
-  if (estop && !transport_may_carry_secrets(message.transport) && std::holds_alternative<Principal>(who) &&
-      std::get<Principal>(who).via != "signature")
-    who = AuthFailure{"a fleet e-stop via " + message.transport + " must be signed (header.signature)"};
-  if (auto* failure = std::get_if<AuthFailure>(&who)) {
-    refuse_unauthorized("unauthorized " + std::string(estop ? "fleet e-stop" : type_name(envelope.type)) + " from '" + source +
-                            "' via " + message.transport + ": " + failure->message,
-                        failure->message);
-    return;
-  }
-  const Principal principal = std::move(std::get<Principal>(who));
-  if (principal.via == "signature") {
-    // Signed before this robot started: its replay memory cannot know whether it was handled before a restart, so it
-    // is refused (103) - nothing signed before a restart is replayable after it.
-    if (envelope.timestamp < s.started_s && !r2r_status_on_own_topic(message, envelope)) {
-      const std::string why =
-          "signed message timestamped before this robot started (" + json(s.started_s).dump() + "): refused as a possible replay";
-      refuse_unauthorized("refused a signed " + std::string(type_name(envelope.type)) + " from '" + source + "' via " +
-                              message.transport + ": " + why,
-                          why);
-      return;
-    }
-    // A copy of a signed message already handled: a replay, or the same broadcast over another transport. Keyed on
-    // the canonical signed message, so no other spelling of it counts as new. Dropped without an answer (the
-    // original was answered); a debug line only, as the same broadcast on two transports is no fault.
-    const std::string key = replay_key(envelope.received);
-    std::lock_guard lock(s.mutex);
-    if (!s.replays.first_time(key, now)) {
-      ++s.counters.rejected;
-      s.log->debug("r2r: dropped a repeated signed {} from '{}'", type_name(envelope.type), source);
-      return;
-    }
-  }
+  Impl::Incoming in{message, std::move(envelope), std::move(reply), std::move(clean_ref), estop, s.now_s()};
 
-  if (envelope.target_id && !s.is_self(*envelope.target_id)) {
+  const auto principal = s.authenticate(in);
+  if (!principal || !s.first_time(in, *principal)) return;
+  if (in.envelope.target_id && !s.is_self(*in.envelope.target_id)) {
     {
       std::lock_guard lock(s.mutex);
-      s.note_peer_locked(source, message.transport, reply);  // so the target's answer finds its way back
+      s.note_peer_locked(in.envelope.source_id, message.transport, in.reply);  // so the target's answer finds its way back
     }
-    s.relay_or_refuse(message, envelope, clean_ref, reply);
+    s.relay_or_refuse(message, in.envelope, in.clean_ref, in.reply);
     return;
   }
-
-  std::vector<Subscriber> to_notify;
-  bool run_command = false;
-  {
-    std::lock_guard lock(s.mutex);
-    ++s.counters.accepted;
-    Impl::Peer& peer = s.note_peer_locked(source, message.transport, reply);
-    const json& p = envelope.payload;
-    // Task requests, negotiations and task responses are the fleet plugin's (it subscribes): the auction runs there.
-    switch (envelope.type) {
-      case MessageType::Status: peer.status = r2r_bounded_peer_status(p); break;
-      case MessageType::Error: {
-        // A peer's own text: logged within its budget (the formatter escapes and bounds it, as every message).
-        const int code = p["code"].get<int>();
-        if (const auto verdict = s.error_log.admit(bounded_text(source, kSenderNameBytes)); verdict.log)
-          s.log->info("r2r: error {} ({}) from '{}': {}{}", code, error_code_name(code), source, p["message"].get<std::string>(),
-                      verdict.suppressed ? " (" + std::to_string(verdict.suppressed) + " earlier ones not logged)" : "");
-        break;
-      }
-      case MessageType::Command: run_command = true; break;
-      case MessageType::TaskRequest:
-      case MessageType::TaskResponse:
-      case MessageType::Negotiation: break;
-    }
-    for (const auto& [id, entry] : s.subscribers)
-      if (entry.first == envelope.type) to_notify.push_back(entry.second);
-  }
-
-  if (s.observer) s.observer(false, envelope.type, message.transport);
-  if (run_command && estop && s.deps.stop_executor) {
-    s.fleet_estop(principal, envelope, message.transport);
-  } else if (run_command) {
-    if (!s.deps.command_executor) {
-      refuse_unauthorized("command from '" + source + "' refused: this robot does not accept R2R commands",
-                          "this robot does not accept R2R commands");
-      return;
-    }
-    std::weak_ptr<Impl> weak = impl_;
-    const bool broadcast = message.broadcast;
-    s.deps.command_executor(principal, envelope.payload, [weak, clean_ref, source, reply, broadcast](int status, json body) {
-      const auto self = weak.lock();
-      // Refused (405, 423, ...): the sender learns why, unless the command came as a broadcast (§11.12).
-      if (!self || (status >= 200 && status < 300) || broadcast) return;
-      const std::string why = body.is_object() && body.contains("error") && body["error"].is_string()
-                                  ? body["error"].get<std::string>()
-                                  : "command failed";
-      const ErrorCode code = status == 423                    ? ErrorCode::EstopActive
-                             : status == 401 || status == 403 ? ErrorCode::Unauthorized
-                                                              : ErrorCode::InvalidFormat;
-      json extra{{"http_status", status}};  // rcand extension: the HTTP-equivalent answer
-      if (body.is_object() && body.contains("code")) extra["http_code"] = body["code"];
-      self->transmit({self->error_reply(code, why, clean_ref, source, reply, extra)});
-    });
-  }
-
-  if (!to_notify.empty()) {
-    const ReceivedMessage received{std::move(envelope), principal.name, message.transport};
-    for (const Subscriber& callback : to_notify) {
-      try {
-        callback(received);
-      } catch (const std::exception& e) {
-        s.log->warn("r2r: a subscriber threw: {}", e.what());
-      } catch (...) {
-        s.log->warn("r2r: a subscriber threw");
-      }
-    }
-  }
+  bool command = false;
+  const auto to_notify = s.record(in, command);
+  if (s.observer) s.observer(false, in.envelope.type, message.transport);
+  if (command && !Impl::run_command(impl_, in, *principal)) return;
+  s.notify(to_notify, std::move(in), *principal);
 }
 
 void R2rNode::tick() {

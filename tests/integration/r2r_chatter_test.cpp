@@ -5,15 +5,13 @@
 #include <doctest/doctest.h>
 
 #include <chrono>
-#include <map>
-#include <mutex>
 #include <sstream>
 
 #include "mosquitto_broker.hpp"
+#include "mqtt_watch.hpp"
 #include "r2r_lab.hpp"
 #include "rcand_process.hpp"
 #include "services/r2r/refusal_throttle.hpp"
-#include "services/r2r/transports/mqtt_transport.hpp"
 
 using namespace rcand::test;
 using nlohmann::json;
@@ -21,46 +19,6 @@ using namespace std::chrono_literals;
 using rcand::kernel::r2r::RefusalThrottle;
 
 namespace {
-
-// An MQTT client of the test's on r2r/#: counts every message by type and by sender.
-struct ChatterWatch {
-  rcand::kernel::r2r::MqttTransport client;
-  std::mutex mutex;
-  std::map<std::string, int> statuses_by_sender;
-  std::vector<json> errors;
-
-  explicit ChatterWatch(std::uint16_t port, const std::string& name = "watcher")
-      : client([&] {
-          rcand::kernel::r2r::MqttOptions options;
-          options.robot_name = name;
-          options.host = "127.0.0.1";
-          options.port = port;
-          options.extra_subscriptions = {"r2r/#"};
-          return options;
-        }()) {
-    client.start([this](rcand::kernel::r2r::InboundMessage message) {
-      const json m = json::parse(message.bytes, nullptr, false);
-      if (!m.is_object() || !m["header"].is_object()) return;
-      std::lock_guard lock(mutex);
-      if (m.value("type", "") == "error") errors.push_back(m);
-      if (m.value("type", "") == "status") ++statuses_by_sender[m["header"].value("source_id", "")];
-    });
-    REQUIRE(poll_until<bool>([&]() -> std::optional<bool> {
-      if (client.connected()) return true;
-      return std::nullopt;
-    }));
-  }
-  ~ChatterWatch() { client.stop(); }
-
-  int statuses_of(const std::string& sender) {
-    std::lock_guard lock(mutex);
-    return statuses_by_sender[sender];
-  }
-  std::size_t error_count() {
-    std::lock_guard lock(mutex);
-    return errors.size();
-  }
-};
 
 std::vector<std::string> chatter_lines(const std::string& text) {
   std::vector<std::string> lines;
@@ -81,7 +39,8 @@ TEST_CASE("r2r chatter (mqtt): robots without signing keys never answer each oth
   MosquittoBroker broker;
   TempDir dir;
   const auto token = dir.write("r2r.token", "owner-token\n");
-  ChatterWatch watch(broker.port());
+  MqttWatch watch(mqtt_client("watcher", broker.port(), {"r2r/#"}));  // every message on r2r/#
+  REQUIRE(watch.connected());
   std::vector<std::unique_ptr<RcandProcess>> robots;
   for (const std::string name : {"alpha", "bravo", "charlie"}) {
     auto config = r2r_robot_config(name, token);  // a token, which MQTT never carries, and no signing keys
@@ -94,16 +53,14 @@ TEST_CASE("r2r chatter (mqtt): robots without signing keys never answer each oth
   const auto heard = poll_until<bool>(
       [&]() -> std::optional<bool> {
         for (const std::string name : {"alpha", "bravo", "charlie"})
-          if (watch.statuses_of(name) < 12) return std::nullopt;
+          if (watch.count(r2r_sent("status", name)) < 12) return std::nullopt;
         return true;
       },
       30s);
   REQUIRE(heard);
-  {
-    std::lock_guard lock(watch.mutex);
-    INFO("errors on the broker: " << (watch.errors.empty() ? json() : watch.errors.front()).dump());
-    CHECK(watch.errors.empty());  // was N·(N-1) a second: every status answered "authentication required"
-  }
+  const auto errors = watch.matching(r2r_type("error"));
+  INFO("errors on the broker: " << (errors.empty() ? json() : errors.front()).dump());
+  CHECK(errors.empty());  // was N·(N-1) a second: every status answered "authentication required"
   for (const auto& robot : robots) {
     const std::string log = robot->stderr_text();
     // Refused, and said so - a few times per sender, not once per status.
@@ -122,16 +79,17 @@ TEST_CASE("r2r flood (mqtt): 20,000 unsigned messages from one sender, bounded l
   auto config = r2r_robot_config("alpha", token);
   config["runtime"]["r2r"]["mqtt"] = {{"host", "127.0.0.1"}, {"port", broker.port()}, {"keepalive_s", 5}};
   RcandProcess alpha(config);
-  ChatterWatch flood(broker.port(), "flood-watch");  // sees the answers to "flood" on r2r/flood (through r2r/#)
+  MqttWatch flood(mqtt_client("flood-watch", broker.port(), {"r2r/#"}));  // sees the answers to "flood" on r2r/flood
+  REQUIRE(flood.connected());
   REQUIRE(poll_until<bool>([&]() -> std::optional<bool> {
-    if (flood.statuses_of("alpha") > 0) return true;  // alpha is on the broker
+    if (flood.count(r2r_sent("status", "alpha")) > 0) return true;  // alpha is on the broker
     return std::nullopt;
   }));
   auto received = [&] { return alpha.json("GET", "/api/r2r/peers", "owner-token")["counters"]["received"].get<long>(); };
 
   // Forged lines: a newline and a fake e-stop line, a journald priority, a terminal escape - in the source_id.
   const std::string forged = "x\nerror [kernel.estop] e-stop cleared by owner\n<3>rcand: forged critical\x1b[31m";
-  REQUIRE(flood.client.send(r2r_message(forged, "command", {{"type", "move"}}, std::string("alpha")), std::string("alpha")));
+  REQUIRE(flood.transport().send(r2r_message(forged, "command", {{"type", "move"}}, std::string("alpha")), std::string("alpha")));
   REQUIRE(poll_until<bool>([&]() -> std::optional<bool> {
     if (alpha.stderr_text().find("e-stop cleared by owner") != std::string::npos) return true;
     return std::nullopt;
@@ -151,8 +109,8 @@ TEST_CASE("r2r flood (mqtt): 20,000 unsigned messages from one sender, bounded l
   constexpr int kFlood = 20000, kBatch = 1000;
   for (int sent = 0; sent < kFlood;) {
     for (int i = 0; i < kBatch; ++i, ++sent)
-      REQUIRE(flood.client.send(r2r_message("flood", "command", {{"type", "move"}, {"n", sent}}, std::string("alpha")),
-                                std::string("alpha")));
+      REQUIRE(flood.transport().send(r2r_message("flood", "command", {{"type", "move"}, {"n", sent}}, std::string("alpha")),
+                                     std::string("alpha")));
     REQUIRE(poll_until<bool>(
         [&]() -> std::optional<bool> {
           if (received() - before >= sent) return true;
@@ -171,11 +129,9 @@ TEST_CASE("r2r flood (mqtt): 20,000 unsigned messages from one sender, bounded l
   const std::string log = alpha.stderr_text();
   const auto flood_lines = chatter_lines_with(log, "from 'flood'");
   const auto r2r_lines = chatter_lines_with(log, "r2r:");
-  std::size_t answers = 0;
-  {
-    std::lock_guard lock(flood.mutex);
-    for (const auto& error : flood.errors) answers += error["header"].value("target_id", "") == "flood";
-  }
+  const std::size_t answers = flood.count([](const std::string&, const json& m) {
+    return wire_field(m, "/type") == "error" && wire_field(m, "/header/target_id") == "flood";
+  });
   MESSAGE(kFlood << " messages in " << seconds << " s: " << flood_lines << " log lines about 'flood' (" << r2r_lines
                  << " r2r lines in all), " << answers << " error answers to it");
   // The first few, one a minute after them, and a summary every 10 s.

@@ -7,13 +7,12 @@
 #include <signal.h>
 
 #include <chrono>
-#include <mutex>
 
 #include "mosquitto_broker.hpp"
+#include "mqtt_watch.hpp"
 #include "r2r_lab.hpp"
 #include "rcand_process.hpp"
 #include "services/r2r/message_auth.hpp"
-#include "services/r2r/transports/mqtt_transport.hpp"
 
 using namespace rcand::test;
 using nlohmann::json;
@@ -21,51 +20,6 @@ using namespace std::chrono_literals;
 using rcand::kernel::r2r::Ed25519Key;
 
 namespace {
-
-// Everything on the broker's r2r/#, as the test's own MQTT client sees it.
-struct FleetWire {
-  rcand::kernel::r2r::MqttTransport client;
-  std::mutex mutex;
-  std::vector<json> messages;
-
-  explicit FleetWire(std::uint16_t port)
-      : client([&] {
-          rcand::kernel::r2r::MqttOptions options;
-          options.robot_name = "fleet-wire";
-          options.host = "127.0.0.1";
-          options.port = port;
-          options.extra_subscriptions = {"r2r/#"};
-          return options;
-        }()) {
-    client.start([this](rcand::kernel::r2r::InboundMessage message) {
-      const json m = json::parse(message.bytes, nullptr, false);
-      if (!m.is_object() || !m.contains("header") || !m["header"].is_object()) return;
-      std::lock_guard lock(mutex);
-      messages.push_back(m);
-    });
-    REQUIRE(poll_until<bool>([&]() -> std::optional<bool> {
-      if (client.connected()) return true;
-      return std::nullopt;
-    }));
-  }
-  ~FleetWire() { client.stop(); }
-
-  // Messages of `type` from `source` satisfying `match`.
-  std::size_t count(
-      const std::string& type, const std::string& source,
-      const std::function<bool(const json&)>& match = [](const json&) { return true; }) {
-    std::lock_guard lock(mutex);
-    std::size_t n = 0;
-    for (const auto& m : messages) n += m.value("type", "") == type && m["header"].value("source_id", "") == source && match(m);
-    return n;
-  }
-  std::size_t errors() {
-    std::lock_guard lock(mutex);
-    std::size_t n = 0;
-    for (const auto& m : messages) n += m.value("type", "") == "error";
-    return n;
-  }
-};
 
 const std::vector<std::string> kFleetNames{"alpha", "bravo", "charlie"};
 
@@ -99,14 +53,15 @@ TEST_CASE(
   // The operator's keys, made and enrolled as the README says; "ops" as GUEST: a stop needs scope status only.
   for (const std::string name : {"ops", "stranger"}) REQUIRE(fleet_tool({"keygen", name, "--out", keys}).exit_code == 0);
   REQUIRE(fleet_tool({"enroll", "--peers-file", peers_file, "ops", keys + "/ops.pub", "--role", "guest"}).exit_code == 0);
-  FleetWire wire(broker.port());
+  MqttWatch wire(mqtt_client("fleet-wire", broker.port(), {"r2r/#"}));  // everything on the broker's r2r/#
+  REQUIRE(wire.connected());
   std::vector<std::unique_ptr<RcandProcess>> robots;
   for (const auto& name : kFleetNames)
     robots.push_back(std::make_unique<RcandProcess>(fleet_robot(name, token, broker.port(), peers_file)));
   REQUIRE(poll_until<bool>(
       [&]() -> std::optional<bool> {
         for (const auto& name : kFleetNames)
-          if (wire.count("status", name) == 0) return std::nullopt;
+          if (wire.count(r2r_sent("status", name)) == 0) return std::nullopt;
         return true;
       },
       30s));
@@ -115,11 +70,11 @@ TEST_CASE(
   auto rejected = [](const RcandProcess& robot) {
     return robot.json("GET", "/api/r2r/peers", "owner-token")["counters"]["rejected"].get<int>();
   };
-  REQUIRE(wire.client.send(r2r_message("ops", "command", {{"type", "estop"}, {"reason", "unsigned"}}), std::nullopt));
+  REQUIRE(wire.transport().send(r2r_message("ops", "command", {{"type", "estop"}, {"reason", "unsigned"}}), std::nullopt));
   json forged = json::parse(r2r_message("stranger", "command", {{"type", "estop"}, {"reason", "unenrolled"}}));
   rcand::kernel::r2r::sign_message(forged, "stranger",
                                    Ed25519Key::private_from_file(std::filesystem::path(keys) / "stranger.key"));
-  REQUIRE(wire.client.send(forged.dump(), std::nullopt));
+  REQUIRE(wire.transport().send(forged.dump(), std::nullopt));
   const auto stranger_stop = fleet_tool({"stop", "--mqtt", "127.0.0.1:" + std::to_string(broker.port()), "--key",
                                          keys + "/stranger.key", "--name", "stranger", "--reason", "not yet"});
   CHECK(stranger_stop.exit_code == 0);  // the broker took it; no robot acts on it
@@ -133,7 +88,7 @@ TEST_CASE(
     CHECK(log.find("unauthorized fleet e-stop from 'ops' via mqtt") != std::string::npos);
     CHECK(log.find("unauthorized fleet e-stop from 'stranger' via mqtt: unknown signing key 'stranger'") != std::string::npos);
   }
-  CHECK(wire.errors() == 0);  // a broadcast is never answered
+  CHECK(wire.count(r2r_type("error")) == 0);  // a broadcast is never answered
 
   // A peers file broken on disk: the reload is refused with the file's line, the table in force stays.
   std::filesystem::copy_file(peers_file, peers_file + ".good");
@@ -185,12 +140,13 @@ TEST_CASE(
     // The latched status on the wire, long before the 60 s interval.
     const std::string& name = kFleetNames[i];
     CHECK(poll_until<bool>([&]() -> std::optional<bool> {
-      const auto latched = [](const json& m) {
-        return m.contains("payload") && m["payload"].is_object() && m["payload"].value("estopped", false);
+      const auto latched = [&](const std::string& topic, const json& m) {
+        return r2r_sent("status", name)(topic, m) && m.contains("payload") && m["payload"].is_object() &&
+               m["payload"].value("estopped", false);
       };
-      if (wire.count("status", name, latched) > 0) return true;
+      if (wire.count(latched) > 0) return true;
       return std::nullopt;
     }));
   }
-  CHECK(wire.errors() == 0);
+  CHECK(wire.count(r2r_type("error")) == 0);
 }

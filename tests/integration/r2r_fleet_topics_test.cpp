@@ -4,80 +4,22 @@
 #include <doctest/doctest.h>
 
 #include <cstdio>
-#include <mutex>
 
 #include "eventually.hpp"
 #include "mosquitto_broker.hpp"
+#include "mqtt_watch.hpp"
 #include "r2r_lab.hpp"
 #include "rcand_process.hpp"
 #include "services/r2r/message_auth.hpp"
-#include "services/r2r/transports/mqtt_transport.hpp"
 
 using namespace rcand::test;
 using nlohmann::json;
 using namespace std::chrono_literals;
-using rcand::kernel::r2r::InboundMessage;
-using rcand::kernel::r2r::MqttOptions;
-using rcand::kernel::r2r::MqttTransport;
 
 namespace {
 
-// Every message a plain MQTT client sees, with the topic it came on (recorded on libmosquitto's thread).
-class TopicsWatch {
- public:
-  TopicsWatch(MqttOptions options) : transport_(std::move(options)) {
-    transport_.start([this](InboundMessage message) {
-      std::lock_guard lock(mutex_);
-      seen_.push_back({message.peer, json::parse(message.bytes, nullptr, false)});
-    });
-  }
-  ~TopicsWatch() { transport_.stop(); }
-  MqttTransport& transport() { return transport_; }
-
-  // The first message (topic, message) matching, within the deadline.
-  std::optional<std::pair<std::string, json>> wait_for(const std::function<bool(const std::string&, const json&)>& match,
-                                                       std::chrono::milliseconds timeout = 10s) {
-    return poll_until<std::pair<std::string, json>>(
-        [&]() -> std::optional<std::pair<std::string, json>> {
-          std::lock_guard lock(mutex_);
-          for (const auto& entry : seen_)
-            if (entry.second.is_object() && match(entry.first, entry.second)) return entry;
-          return std::nullopt;
-        },
-        timeout);
-  }
-  std::size_t count(const std::function<bool(const std::string&, const json&)>& match) {
-    std::lock_guard lock(mutex_);
-    std::size_t n = 0;
-    for (const auto& entry : seen_)
-      if (entry.second.is_object() && match(entry.first, entry.second)) ++n;
-    return n;
-  }
-
- private:
-  std::mutex mutex_;
-  std::vector<std::pair<std::string, json>> seen_;
-  MqttTransport transport_;
-};
-
-MqttOptions topics_client(const std::string& name, std::uint16_t port) {
-  MqttOptions options;
-  options.robot_name = name;
-  options.host = "127.0.0.1";
-  options.port = port;
-  options.keepalive_s = 5;
-  return options;
-}
-
-// A field of a message as seen on the wire, "" when absent (operator[] on a const json with a missing key is undefined:
-// ASan caught it on an intruder's message without the field).
-std::string topics_field(const json& m, const char* pointer) {
-  const json::json_pointer at(pointer);
-  return m.is_object() && m.contains(at) && m.at(at).is_string() ? m.at(at).get<std::string>() : std::string();
-}
-
 bool topics_status_from(const json& m, const std::string& robot) {
-  return topics_field(m, "/type") == "status" && topics_field(m, "/header/source_id") == robot;
+  return wire_field(m, "/type") == "status" && wire_field(m, "/header/source_id") == robot;
 }
 
 // The retained message on `topic`, read by mosquitto_sub as a fresh client would (empty when there is none).
@@ -116,9 +58,9 @@ TEST_CASE("r2r topics (mqtt): status on r2r/status/<name>, retained, read only b
   auto bravo_config = topics_with_broker(r2r_robot_config("bravo", token), broker.port());  // reads no one's status
   auto charlie_config = topics_with_broker(r2r_robot_config("charlie", token), broker.port());
   sign_fleet({&alpha_config, &bravo_config, &charlie_config}, dir);
-  auto watch_options = topics_client("watch", broker.port());
+  auto watch_options = mqtt_client("watch", broker.port());
   watch_options.extra_subscriptions = {"r2r/#"};
-  TopicsWatch watch(watch_options);
+  MqttWatch watch(watch_options);
   RcandProcess alpha(alpha_config);
   RcandProcess bravo(bravo_config);
   RcandProcess charlie(charlie_config);
@@ -130,10 +72,11 @@ TEST_CASE("r2r topics (mqtt): status on r2r/status/<name>, retained, read only b
     if (watch.count([](const std::string&, const json& m) { return topics_status_from(m, "alpha"); }) >= 3) return true;
     return std::nullopt;
   }));
-  CHECK(watch.count([](const std::string& topic, const json& m) { return topics_field(m, "/type") == "status" && topic == "r2r/broadcast"; }) ==
-        0);
   CHECK(watch.count([](const std::string& topic, const json& m) {
-    return topics_field(m, "/type") == "status" && topic != "r2r/status/" + topics_field(m, "/header/source_id");
+    return wire_field(m, "/type") == "status" && topic == "r2r/broadcast";
+  }) == 0);
+  CHECK(watch.count([](const std::string& topic, const json& m) {
+    return wire_field(m, "/type") == "status" && topic != "r2r/status/" + wire_field(m, "/header/source_id");
   }) == 0);
   // bravo subscribed to no status: alpha's three statuses reached the broker, bravo received nothing at all.
   CHECK(bravo.json("GET", "/api/r2r/peers", "owner-token")["counters"]["received"] == 0);
@@ -149,7 +92,7 @@ TEST_CASE("r2r topics (mqtt): status on r2r/status/<name>, retained, read only b
   // alpha verifies and shows.
   bravo.kill_hard();
   const auto will = watch.wait_for([](const std::string& topic, const json& m) {
-    return topic == "r2r/status/bravo" && topics_status_from(m, "bravo") && topics_field(m, "/payload/state") == "offline";
+    return topic == "r2r/status/bravo" && topics_status_from(m, "bravo") && wire_field(m, "/payload/state") == "offline";
   });
   REQUIRE(will);
   CHECK(will->second["header"].contains("signature"));
@@ -203,18 +146,18 @@ TEST_CASE("r2r topics (mqtt): the example broker ACL keeps each robot to its own
   REQUIRE(moved);
 
   // delta, a third robot reading every status (and the broadcasts), is the witness.
-  auto witness_options = topics_client("delta", broker.port());
+  auto witness_options = mqtt_client("delta", broker.port());
   witness_options.username = "delta";
   witness_options.password_file = dir.write("delta.mqtt-password", "pw-delta\n");
   witness_options.status_of_all = true;
-  TopicsWatch witness(witness_options);
+  MqttWatch witness(witness_options);
   // charlie, logged in as itself, poses as bravo: its status goes to r2r/status/bravo, its own topic is r2r/bravo, its
   // client id is bravo's (rcand-bravo; use_username_as_clientid keeps it from taking over bravo's session).
-  auto intruder_options = topics_client("bravo", broker.port());
+  auto intruder_options = mqtt_client("bravo", broker.port());
   intruder_options.username = "charlie";
   intruder_options.password_file = dir.write("charlie.mqtt-password", "pw-charlie\n");
   intruder_options.extra_subscriptions = {"r2r/charlie"};  // its own direct topic: allowed
-  TopicsWatch intruder(intruder_options);
+  MqttWatch intruder(intruder_options);
   REQUIRE(eventually([&] { return witness.transport().connected() && intruder.transport().connected(); }));
   REQUIRE(witness.wait_for([](const std::string&, const json& m) { return topics_status_from(m, "bravo"); }));
 
@@ -225,10 +168,10 @@ TEST_CASE("r2r topics (mqtt): the example broker ACL keeps each robot to its own
     intruder.transport().send(forged, std::nullopt);
     intruder.transport().send(sentinel, std::nullopt);
     return witness.count([](const std::string& topic, const json& m) {
-      return topic == "r2r/broadcast" && topics_field(m, "/payload/task_id") == "acl-sentinel";
+      return topic == "r2r/broadcast" && wire_field(m, "/payload/task_id") == "acl-sentinel";
     }) > 0;
   }));
-  CHECK(witness.count([](const std::string&, const json& m) { return topics_field(m, "/payload/state") == "forged"; }) == 0);
+  CHECK(witness.count([](const std::string&, const json& m) { return wire_field(m, "/payload/state") == "forged"; }) == 0);
   CHECK_FALSE(topics_peer_state(alpha, "bravo", "forged"));
 
   // Reading bravo's direct topic is refused: alpha's next command for bravo reaches bravo (its log of commands grows)
@@ -247,8 +190,9 @@ TEST_CASE("r2r topics (mqtt): the example broker ACL keeps each robot to its own
   }));
   REQUIRE(witness.transport().send(r2r_message("delta", "negotiation", {{"task_id", "acl-direct"}, {"action", "withdraw"}}),
                                    std::string("charlie")));
-  REQUIRE(intruder.wait_for(
-      [](const std::string& topic, const json& m) { return topic == "r2r/charlie" && topics_field(m, "/payload/task_id") == "acl-direct"; }));
+  REQUIRE(intruder.wait_for([](const std::string& topic, const json& m) {
+    return topic == "r2r/charlie" && wire_field(m, "/payload/task_id") == "acl-direct";
+  }));
   CHECK(intruder.count([](const std::string& topic, const json&) { return topic == "r2r/bravo"; }) == 0);
 }
 
