@@ -1,4 +1,5 @@
 #include "command_input.hpp"
+#include "trimmed.hpp"
 
 namespace rcand::plugins::chat {
 namespace {
@@ -28,12 +29,6 @@ bool has_controls(const std::string& s) {
     }
   }
   return false;
-}
-
-std::string trimmed(const std::string& s) {
-  const auto first = s.find_first_not_of(" \t\r\n");
-  if (first == std::string::npos) return "";
-  return s.substr(first, s.find_last_not_of(" \t\r\n") - first + 1);
 }
 
 bool is_base64(const std::string& s) {

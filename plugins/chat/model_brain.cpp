@@ -1,4 +1,5 @@
 #include "model_brain.hpp"
+#include "trimmed.hpp"
 
 #include <rcand/sdk/request_body.hpp>
 
@@ -37,12 +38,6 @@ std::string read_string(const Json& block, const std::string& where, const char*
   if (it == block.end()) return {};
   if (!it->is_string() || it->get<std::string>().empty()) throw ConfigError(where + "." + key + ": expected a non-empty string");
   return it->get<std::string>();
-}
-
-std::string trimmed(std::string text) {
-  const auto first = text.find_first_not_of(" \t\r\n");
-  if (first == std::string::npos) return {};
-  return text.substr(first, text.find_last_not_of(" \t\r\n") - first + 1);
 }
 
 // The server's own error message, short and printable (OpenAI {"error": {"message"}}, Ollama {"error": "..."}).

@@ -62,7 +62,7 @@ struct Poll {
   }
 };
 
-struct Rig {
+struct BoardRig {
   sdk::testing::ManualClock clock;
   ActuatorTable actuators;
   Estop estop{clock, actuators};
@@ -77,7 +77,7 @@ struct Rig {
   std::unique_ptr<StatusBoard> board;
 
   // `with_pose`: nav offers its PoseSource, as it does in rcand once started.
-  explicit Rig(bool with_pose = true) {
+  explicit BoardRig(bool with_pose = true) {
     clock.set_us(5'000'000);
     if (with_pose) REQUIRE(sdk::offer<sdk::PoseSource>(nav, pose));
     nav_poll.set(json{{"running", false}, {"pose", {{"x_m", 0.0}, {"y_m", 0.0}, {"heading_deg", 0.0}}}});
@@ -121,7 +121,7 @@ std::set<std::string> keys_of(const json& object) {
 }  // namespace
 
 TEST_CASE("the document has exactly the keys GET /api/status always had, and asks every instance once at start") {
-  Rig rig;
+  BoardRig rig;
   rig.board->start();
   CHECK(rig.nav_poll.calls == 1);
   CHECK(rig.teleop_poll.calls == 1);
@@ -155,7 +155,7 @@ TEST_CASE("the document has exactly the keys GET /api/status always had, and ask
 }
 
 TEST_CASE("a published status is served without any status() call; nav's running and pose come from its PoseSource") {
-  Rig rig;
+  BoardRig rig;
   rig.board->start();
   const int asked = rig.polls();
   const json pose{{"x_m", 1.5}, {"y_m", -0.25}, {"heading_deg", 30.0}};
@@ -188,7 +188,7 @@ TEST_CASE("a published status is served without any status() call; nav's running
 }
 
 TEST_CASE("the pose is read from the PoseSource at each rebuild, never per request") {
-  Rig rig;
+  BoardRig rig;
   rig.board->start();
   rig.board->stop();  // no rebuilds from here on (no tick either)
   const int reads = rig.pose.reads;
@@ -201,7 +201,7 @@ TEST_CASE("the pose is read from the PoseSource at each rebuild, never per reque
 }
 
 TEST_CASE("nav's status JSON is not read for the top level; a failed nav's PoseSource is not found") {
-  Rig rig;
+  BoardRig rig;
   rig.board->start();
   const int reads = rig.pose.reads;
   // A status that says otherwise changes nothing at the top level: only the service counts.
@@ -222,7 +222,7 @@ TEST_CASE("nav's status JSON is not read for the top level; a failed nav's PoseS
 }
 
 TEST_CASE("without a PoseSource (no nav) the document has no pose and is never running") {
-  Rig rig(false);
+  BoardRig rig(false);
   rig.board->start();
   rig.nav.publish_status({{"running", true}, {"pose", {{"x_m", 1.0}, {"y_m", 0.0}, {"heading_deg", 0.0}}}});
   const json doc = rig.current();
@@ -243,7 +243,7 @@ TEST_CASE("without a PoseSource (no nav) the document has no pose and is never r
 }
 
 TEST_CASE("a silent instance is asked once a second on the status thread, not per read") {
-  Rig rig;
+  BoardRig rig;
   rig.board->start();
   CHECK(rig.teleop_poll.calls == 1);
   for (int i = 0; i < 1000; ++i) (void)rig.board->body();
@@ -260,7 +260,7 @@ TEST_CASE("a silent instance is asked once a second on the status thread, not pe
 }
 
 TEST_CASE("an instance that neither publishes nor answers is stale with its age; one that stops publishing too") {
-  Rig rig;
+  BoardRig rig;
   rig.board->start();
   rig.nav.publish_status({{"running", false}, {"mark", "last words"}});
   (void)rig.current();
@@ -293,7 +293,7 @@ TEST_CASE("an instance that neither publishes nor answers is stale with its age;
 }
 
 TEST_CASE("the e-stop flips estopped and state in body() at once, with no rebuild in between") {
-  Rig rig;
+  BoardRig rig;
   rig.board->start();
   rig.board->stop();  // no status thread any more: only the variant choice can change what body() says
   CHECK(rig.body()["estopped"] == false);
@@ -317,7 +317,7 @@ TEST_CASE("the e-stop flips estopped and state in body() at once, with no rebuil
 }
 
 TEST_CASE("an instance marked failed shows at the next read through when_current, with no notify") {
-  Rig rig;
+  BoardRig rig;
   rig.board->start();
   rig.teleop_health.mark_failed("handler threw: boom");
   const json doc = rig.current();
@@ -340,7 +340,7 @@ TEST_CASE("an instance marked failed shows at the next read through when_current
 }
 
 TEST_CASE("a status reporting a fault makes its item and the robot error, with the fault made safe, until it clears") {
-  Rig rig;
+  BoardRig rig;
   rig.board->start();
   rig.nav.publish_status({{"running", false}, {"fault", "camera device /dev/video3 does not exist\n\xe2\x80\xae"}});
   json doc = rig.current();
@@ -365,7 +365,7 @@ TEST_CASE("a status reporting a fault makes its item and the robot error, with t
 }
 
 TEST_CASE("publishes coalesce; a driver's published status keeps it fresh without being listed") {
-  Rig rig;
+  BoardRig rig;
   rig.board->start();
   for (int i = 0; i < 500; ++i) rig.drive_context.publish_status({{"moving", true}, {"n", i}});
   const json doc = rig.current();
@@ -379,7 +379,7 @@ TEST_CASE("publishes coalesce; a driver's published status keeps it fresh withou
 }
 
 TEST_CASE("after a plugin reload the new context's publishes feed the same entry, never polled while they come") {
-  Rig rig;
+  BoardRig rig;
   rig.board->start();
   const int asked = rig.nav_poll.calls;
   // The reload destroyed nav's context and made another over the same instance (the same health).
@@ -396,7 +396,7 @@ TEST_CASE("after a plugin reload the new context's publishes feed the same entry
 }
 
 TEST_CASE("stop is idempotent; afterwards publishes are dropped and when_current answers at once") {
-  Rig rig;
+  BoardRig rig;
   rig.board->start();
   const std::string before = *rig.board->body();
   rig.board->stop();
