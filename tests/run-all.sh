@@ -15,10 +15,10 @@ end_stage() {
 }
 stage() { end_stage; current=$1 current_at=$SECONDS; echo "== run-all: $1 (at ${SECONDS} s)"; }
 
-# Two builds run in the background while a test run leaves the CPU mostly idle: the sanitizer build during the
-# normal test run, the arm64 cross build during the sanitizer test run. At nice 19 they take only what the tests
-# leave (a nice-0 task that wakes preempts them), so the tests' timing is the same as alone; the 2-core budget is
-# what they save. Each runs in a session of its own (to be stopped as one on a failure), which the scheduler's
+# Two builds run in the background, taking the CPU the foreground leaves: the arm64 packages from the start (their
+# build root is mostly downloads), the sanitizer build from the normal tests on. At nice 19 they take only what the
+# tests leave (a nice-0 task that wakes preempts them), so the tests' timing is the same as alone; the 2-core budget
+# is what they save. Each runs in a session of its own (to be stopped as one on a failure), which the scheduler's
 # autogroups would weigh as much as this one whatever its nice value (measured: half of both cores): the session's
 # autogroup is set to nice 19 too. Each logs to a file; a failure prints its tail.
 declare -A background_pid background_log
