@@ -395,8 +395,8 @@ struct R2rNode::Impl {
   std::optional<Principal> authenticate(const Incoming& in);
   // False for a signed message that may be a replay: signed before this robot started (refused) or seen (dropped).
   bool first_time(const Incoming& in, const Principal& principal);
-  // Counts it and notes its sender (and a status); the subscribers of its type. `run_command` for a command.
-  std::vector<Subscriber> record(const Incoming& in, bool& run_command);
+  // Counts it and notes its sender (and a status); the subscribers of its type. `is_command` for a command.
+  std::vector<Subscriber> record(const Incoming& in, bool& is_command);
   // The fleet e-stop, or the command through the kernel; false when this robot takes no commands (refused).
   static bool run_command(const std::shared_ptr<Impl>& self, const Incoming& in, const Principal& principal);
   void notify(const std::vector<Subscriber>& to_notify, Incoming&& in, const Principal& principal);
@@ -481,7 +481,7 @@ bool R2rNode::Impl::first_time(const Incoming& in, const Principal& principal) {
   return false;
 }
 
-std::vector<Subscriber> R2rNode::Impl::record(const Incoming& in, bool& run_command) {
+std::vector<Subscriber> R2rNode::Impl::record(const Incoming& in, bool& is_command) {
   const Envelope& envelope = in.envelope;
   const std::string& source = envelope.source_id;
   std::vector<Subscriber> to_notify;
@@ -500,7 +500,7 @@ std::vector<Subscriber> R2rNode::Impl::record(const Incoming& in, bool& run_comm
                   verdict.suppressed ? " (" + std::to_string(verdict.suppressed) + " earlier ones not logged)" : "");
       break;
     }
-    case MessageType::Command: run_command = true; break;
+    case MessageType::Command: is_command = true; break;
     case MessageType::TaskRequest:
     case MessageType::TaskResponse:
     case MessageType::Negotiation: break;
