@@ -20,7 +20,9 @@ target_options() {
     driver_settings) echo "-dict=$here/dict/drivers.dict" ;;
   esac
   case "$1" in
-    http_request | json_bodies | action_bodies | model_answer) printf '%s\n' -detect_leaks=0 -entropic=0 ;;
-    ws_frames) echo "-detect_leaks=0" ;;
+    http_request | json_bodies | action_bodies | ws_frames | model_answer) echo "-detect_leaks=0" ;;
+  esac
+  case "$1" in
+    http_request | json_bodies | action_bodies | model_answer) echo "-entropic=0" ;;
   esac
 }

@@ -1,7 +1,8 @@
-// A test's own MQTT client on a real broker (the MqttTransport robots use): keeps every message it receives, with
-// its topic, for the test to wait on and count. What the R2R tests over mosquitto see on the wire.
+// A test's own MQTT client on a real broker (the MqttTransport robots use): keeps every JSON object it receives,
+// with its topic, for the test to wait on and count. What the R2R tests over mosquitto see on the wire.
 #pragma once
 
+#include <algorithm>
 #include <chrono>
 #include <cstddef>
 #include <cstdint>
@@ -45,8 +46,10 @@ class MqttWatch {
 
   explicit MqttWatch(kernel::r2r::MqttOptions options) : transport_(std::move(options)) {
     transport_.start([this](kernel::r2r::InboundMessage message) {
+      auto parsed = nlohmann::json::parse(message.bytes, nullptr, false);
+      if (!parsed.is_object()) return;  // no R2R message: nothing a test matches
       std::lock_guard lock(mutex_);
-      seen_.emplace_back(message.peer, nlohmann::json::parse(message.bytes, nullptr, false));
+      seen_.emplace_back(message.peer, std::move(parsed));
     });
   }
   ~MqttWatch() { transport_.stop(); }
@@ -63,10 +66,14 @@ class MqttWatch {
     std::lock_guard lock(mutex_);
     std::vector<nlohmann::json> found;
     for (const auto& [topic, message] : seen_)
-      if (message.is_object() && match(topic, message)) found.push_back(message);
+      if (match(topic, message)) found.push_back(message);
     return found;
   }
-  std::size_t count(const Match& match) { return matching(match).size(); }
+  std::size_t count(const Match& match) {
+    std::lock_guard lock(mutex_);
+    return static_cast<std::size_t>(
+        std::count_if(seen_.begin(), seen_.end(), [&](const auto& entry) { return match(entry.first, entry.second); }));
+  }
 
   // The first message (topic, message) that matches, within the timeout.
   std::optional<std::pair<std::string, nlohmann::json>> wait_for(const Match& match,
@@ -75,7 +82,7 @@ class MqttWatch {
         [&]() -> std::optional<std::pair<std::string, nlohmann::json>> {
           std::lock_guard lock(mutex_);
           for (const auto& entry : seen_)
-            if (entry.second.is_object() && match(entry.first, entry.second)) return entry;
+            if (match(entry.first, entry.second)) return entry;
           return std::nullopt;
         },
         timeout);
