@@ -66,8 +66,9 @@ background "arm64 packages" build-arm64/build.log packaging/build-arm64.sh build
 # Beast, Asio, JSON and doctest are parsed and instantiated once per batch instead of once per file. Developers' own
 # builds stay per-file (fast incremental rebuilds); this keeps the code unity-clean.
 stage "normal build"
+# Of the benchmarks only the soak (its smoke run below): RCAND_BENCH_IN_ALL, bench/CMakeLists.txt.
 cmake -S . -B build -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo -DCMAKE_UNITY_BUILD=ON -DRCAND_BUILD_TESTS=ON \
-      -DRCAND_BUILD_BENCH=ON > /dev/null
+      -DRCAND_BUILD_BENCH=ON -DRCAND_BENCH_IN_ALL=OFF > /dev/null
 cmake --build build
 # Style on the last commit's changed lines (clang-format) and files (clang-tidy). clang-tidy reads the per-file
 # compile commands of a configure-only, non-unity tree (the unity build's merge the sources).
@@ -98,10 +99,10 @@ stage "sanitizer build: tests"
 export ASAN_OPTIONS="detect_leaks=1:abort_on_error=1" UBSAN_OPTIONS="print_stacktrace=1:halt_on_error=1"
 ctest --test-dir build-sanitize --output-on-failure --timeout 600
 
-# Every libFuzzer target of that build for a bounded time (RCAND_FUZZ_SECONDS each: 13 targets x 15 s, two at a
+# Every libFuzzer target of that build for a bounded time (RCAND_FUZZ_SECONDS each: 13 targets x 10 s, two at a
 # time). The long campaign is tests/fuzz/campaign.sh, outside CI.
 stage "fuzzing"
-tests/fuzz/run.sh "${RCAND_FUZZ_SECONDS:-15}" build-sanitize
+tests/fuzz/run.sh "${RCAND_FUZZ_SECONDS:-10}" build-sanitize
 stage "arm64 packages (the rest of them)"
 join "arm64 packages"
 grep '^== build-arm64' "${background_log[arm64 packages]}"

@@ -23,6 +23,6 @@ target_options() {
     http_request | json_bodies | action_bodies | ws_frames | model_answer) echo "-detect_leaks=0" ;;
   esac
   case "$1" in
-    http_request | json_bodies | action_bodies | model_answer) echo "-entropic=0" ;;
+    http_request | json_bodies | action_bodies | ws_frames | model_answer) echo "-entropic=0" ;;
   esac
 }

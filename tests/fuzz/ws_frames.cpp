@@ -6,7 +6,7 @@
 //  - telemetry: every message gets exactly one answer, {"type":"stopped",...} for {"cmd":"stop"} (the owner may
 //    stop) and {"type":"error","code","error"} otherwise; frames in between are {"type":"telemetry"};
 //  - R2R: everything the robot sends back is an R2R message that parses (parse_envelope) from this robot, and an
-//    error reply carries a code 100..105; a marker message sent after each input is answered (the connection still
+//    error reply carries a code 100..105; a marker command sent after each input is answered (the connection still
 //    works, and the input was handled first);
 //  - a connection closes only for a message over its limit (telemetry 4 KiB, R2R 64 KiB) or a text message that
 //    is not UTF-8 (RFC 6455 1009 and 1007); it is then opened again.
@@ -196,10 +196,21 @@ void check_r2r_frame(const std::string& text) {
 void r2r_message(const std::string& message, bool binary, std::size_t fragment) {
   static std::uint64_t sync = 0;
   for (int attempt = 0; attempt < 2; ++attempt) {
-    // After the input, a message refused with an error quoting the marker (header.version) back: once it comes,
-    // the input was handled (one connection's messages are handled in order).
+    // After the input, a command the robot refuses (an action type it has none of) with the marker in its header:
+    // once the error quoting the marker back (ref) comes, the input was handled (one connection's messages are
+    // handled in order). A refused command of an authenticated sender is always answered, where the refusals of
+    // malformed or unauthenticated messages are rate-limited (docs/protocol.md §11.12) and would stall the run.
     const std::string marker = "fuzz-sync-" + std::to_string(++sync);
-    const std::string probe = json{{"header", {{"version", marker}}}}.dump();
+    const double now_s = std::chrono::duration<double>(std::chrono::system_clock::now().time_since_epoch()).count();
+    const std::string probe = json{{"header",
+                                    {{"version", "1.0"},
+                                     {"timestamp", now_s},
+                                     {"source_id", "fuzz-sync"},
+                                     {"target_id", "fuzz-rover"},
+                                     {"sync", marker}}},
+                                   {"type", "command"},
+                                   {"payload", {{"type", "fuzz_sync"}}}}
+                                  .dump();
     if (!r2r().send(message, binary, fragment) || !r2r().send(probe, false, 0)) {
       if (may_close(message, binary, kR2rMaxMessage)) return;  // closed while the message was still going out
       continue;
@@ -210,12 +221,7 @@ void r2r_message(const std::string& message, bool binary, std::size_t fragment) 
       check_r2r_frame(*text);
       const json doc = json::parse(*text);
       const json ref = doc["payload"].value("ref", json::object());
-      if (doc["type"] == "error" && ref.is_object() && ref.value("version", json()) == marker) {
-        // A connection's error answers are rate-limited (10, then 1 a second: docs/protocol.md, R2R refusals), so
-        // the next input gets a connection of its own, whose probe is answered.
-        r2r().drop();
-        return;
-      }
+      if (doc["type"] == "error" && ref.is_object() && ref.value("sync", json()) == marker) return;
     }
     if (may_close(message, binary, kR2rMaxMessage)) return;
   }
