@@ -293,9 +293,9 @@ std::shared_ptr<detail::RecordingRegistrar> PluginHost::run_register(PluginRecor
 bool PluginHost::accept(PluginRecord& record, detail::RecordingRegistrar& registrar) {
   const PluginManifest& manifest = *record.manifest;
   std::vector<ProvidedItem> registered;
-  for (const auto& c : registrar.capabilities) registered.push_back({"capability", c.info.name, c.info.actuates, "", "", {}});
+  for (const auto& c : registrar.capabilities) registered.push_back({"capability", c.info.name, c.info.actuates, "", "", {}, {}});
   for (const auto& dr : registrar.drivers)
-    registered.push_back({"driver", dr.info.protocol, dr.info.actuates, dr.info.interface, "", {}});
+    registered.push_back({"driver", dr.info.protocol, dr.info.actuates, dr.info.interface, "", {}, {}});
   if (const auto differences = provides_differences(manifest.provides, registered); !differences.empty())
     return set_state(record, PluginState::ManifestMismatch, join(differences, "; "),
                      "make " + manifest.file.filename().string() +
