@@ -20,6 +20,7 @@
 #include "kernel/plugins/descriptor_check.hpp"
 #include "kernel/plugins/guarded.hpp"
 #include "kernel/plugins/recording_registrar.hpp"
+#include "libs/base/string_list.hpp"
 
 namespace rcand::kernel {
 namespace {
@@ -65,12 +66,6 @@ std::vector<std::string> provides_differences(const std::vector<ProvidedItem>& m
   for (const auto& item : manifest)
     if (std::none_of(registered.begin(), registered.end(), same_name(item)))
       out.push_back("manifest provides " + item.kind + " '" + item.name + "' but the plugin did not register it");
-  return out;
-}
-
-std::string join(const std::vector<std::string>& parts, std::string_view separator) {
-  std::string out;
-  for (const auto& part : parts) out += (out.empty() ? "" : std::string(separator)) + part;
   return out;
 }
 

@@ -1,5 +1,6 @@
 #include "kernel/registry/capability_registry.hpp"
 
+#include "libs/base/string_list.hpp"
 #include "libs/config/config_schema.hpp"
 
 #include <algorithm>
@@ -18,25 +19,7 @@ std::vector<std::string> standard_names() {
 }
 
 [[noreturn]] void fail(const RobotConfig& config, const std::string& path, std::string message) {
-  ConfigDiagnostic diagnostic;
-  diagnostic.severity = ConfigDiagnostic::Severity::Error;
-  diagnostic.mark = config.mark_of(path);
-  diagnostic.key_path = path;
-  diagnostic.message = std::move(message);
-  throw ConfigError({std::move(diagnostic)});
-}
-
-std::string join(const std::vector<std::string>& items, std::string_view separator) {
-  std::string out;
-  for (const auto& item : items) {
-    if (!out.empty()) out += separator;
-    out += item;
-  }
-  return out;
-}
-
-void add_unique(std::vector<std::string>& names, std::string name) {
-  if (std::find(names.begin(), names.end(), name) == names.end()) names.push_back(std::move(name));
+  throw ConfigError({ConfigDiagnostic{ConfigDiagnostic::Severity::Error, config.mark_of(path), path, std::move(message)}});
 }
 
 // The capabilities the configured drivers imply, each driver as its manifest says ("implies": a Dynamixel bus is an
@@ -88,26 +71,13 @@ std::vector<std::string> auto_detect(const RobotConfig& config, const ProviderLo
   return found;
 }
 
-bool config_flag_set(const nlohmann::json& doc, std::string_view dotted) {
-  const nlohmann::json* node = &doc;
-  for (std::size_t at = 0; at <= dotted.size();) {
-    const std::size_t dot = std::min(dotted.find('.', at), dotted.size());
-    if (!node->is_object()) return false;
-    const auto it = node->find(std::string(dotted.substr(at, dot - at)));
-    if (it == node->end()) return false;
-    node = &*it;
-    at = dot + 1;
-  }
-  return node->is_boolean() && node->get<bool>();
-}
-
 // Plugins that declare a capability by themselves (a manifest's "declared_when": the fleet plugin on robots with
 // runtime.r2r.enabled) join an auto-detected list. Beside a written list that does not name them they run without
 // being advertised: what a robot advertises is what its file declares (§9.5), and one that wants to offer it lists it.
 void add_declared_when(const RobotConfig& config, const ProviderLookup& lookup, CapabilityPlan& plan) {
   if (!lookup.declared_when) return;
   for (const auto& [name, key] : lookup.declared_when()) {
-    if (!config_flag_set(config.doc, key) || std::find(plan.names.begin(), plan.names.end(), name) != plan.names.end() ||
+    if (!config.is_true(key) || std::find(plan.names.begin(), plan.names.end(), name) != plan.names.end() ||
         std::find(plan.unadvertised.begin(), plan.unadvertised.end(), name) != plan.unadvertised.end())
       continue;
     (plan.auto_detected ? plan.names : plan.unadvertised).push_back(name);

@@ -253,6 +253,11 @@ bool RobotConfig::is_set(std::string_view dotted) const {
   return value != nullptr && !value->is_null() && *value != false && !(value->is_array() && value->empty());
 }
 
+bool RobotConfig::is_true(std::string_view dotted) const {
+  const json* value = find(doc, dotted);
+  return value != nullptr && value->is_boolean() && value->get<bool>();
+}
+
 void set_default_load_options(LoadOptions options) noexcept { default_strict.store(options.strict); }
 LoadOptions default_load_options() noexcept { return LoadOptions{default_strict.load()}; }
 

@@ -107,6 +107,8 @@ struct RobotConfig {
   // A dotted key is set: present, not null, not false, not an empty list (a driver manifest's "implies" conditions).
   // physics.kinematics answers has_kinematics, so a config built in code reads the same.
   bool is_set(std::string_view dotted) const;
+  // Whether the dotted key holds the boolean true (a manifest's "declared_when").
+  bool is_true(std::string_view dotted) const;
 };
 
 struct LoadedConfig {
