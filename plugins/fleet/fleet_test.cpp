@@ -201,9 +201,8 @@ TEST_CASE("fleet: an auction is decided at its deadline though the plugin ticks 
   host.load(RCAND_ENTRY_FUNCTION, fleet_manifest());
   host.add_capability("org.rcand.fleet");
   const FleetAuctions& auctions = *rcand::sdk::find<FleetAuctions>(host);
-  host.advance(100ms);  // mid-way between two idle ticks
-  std::vector<Response> answers;
-  auctions.open(Json{{"task_id", "Q1"}, {"timeout_ms", 5000}}, [&](Response r) { answers.push_back(std::move(r)); });
+  host.advance(100ms);                                                              // mid-way between two idle ticks
+  auctions.open(Json{{"task_id", "Q1"}, {"wait", false}}, [](const Response&) {});  // the opening alone wakes the tick
   host.deliver_r2r(
       message("negotiation", {{"task_id", "Q1"}, {"action", "bid"}, {"cost", 1.0}, {"capabilities", Json::array()}}));
   host.advance(101ms);
