@@ -23,8 +23,8 @@ void Fleet::start() {
       .log = &ctx_.log(),
       .due_changed = [this] { tick_sooner(); },
   });
+  next_tick_ = worker_->schedule(kIdleTickPeriod, [this] { tick(); });  // before any message can ask for a sooner one
   auctions_->subscribe();
-  next_tick_ = worker_->schedule(kIdleTickPeriod, [this] { tick(); });
   if (!sdk::offer<sdk::FleetAuctions>(ctx_, auctions_->service()))
     ctx_.log().warn("another plugin already offers fleet auctions; /api/r2r/auction is served by that one");
 }
