@@ -8,6 +8,7 @@
 #include <sys/socket.h>
 #include <unistd.h>
 
+#include <cerrno>
 #include <chrono>
 #include <vector>
 
@@ -49,8 +50,10 @@ TEST_CASE("rcanctl fleet stop: a broker that never completes the TCP handshake f
   std::vector<Fd> queued;
   for (int i = 0; i < 2; ++i) {
     queued.emplace_back(::socket(AF_INET, SOCK_STREAM | SOCK_CLOEXEC | SOCK_NONBLOCK, 0));
+    REQUIRE(queued.back().fd >= 0);
     sockaddr_in to = loopback(port);
-    ::connect(queued.back().fd, reinterpret_cast<sockaddr*>(&to), sizeof to);
+    const int rc = ::connect(queued.back().fd, reinterpret_cast<sockaddr*>(&to), sizeof to);
+    CHECK((rc == 0 || errno == EINPROGRESS));  // non-blocking: the handshake completes (or is dropped) later
   }
 
   rcand::rcanctl::MqttPublishOptions options;
