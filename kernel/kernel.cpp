@@ -105,14 +105,13 @@ ProviderLookup installed_providers(const PluginHost& host) {
   ProviderLookup lookup;
   lookup.driver_interface = [&host](std::string_view protocol) -> std::optional<std::string> {
     for (const auto* plugin : host.providers_of_driver(protocol))
-      for (const auto& item : plugin->manifest->provides)
-        if (item.kind == "driver" && item.name == protocol && !item.interface.empty()) return item.interface;
+      if (const auto* item = find_provided(*plugin->manifest, "driver", protocol); item && !item->interface.empty())
+        return item->interface;
     return std::nullopt;
   };
   lookup.driver_implies = [&host](std::string_view protocol) {
     for (const auto* plugin : host.providers_of_driver(protocol))
-      for (const auto& item : plugin->manifest->provides)
-        if (item.kind == "driver" && item.name == protocol) return item.implies;
+      if (const auto* item = find_provided(*plugin->manifest, "driver", protocol)) return item->implies;
     return std::vector<DriverImplication>{};
   };
   lookup.providers = [&host](std::string_view capability) {

@@ -193,9 +193,14 @@ PluginManifest parse_manifest(const json& doc, const std::filesystem::path& file
 }
 
 json settings_schema_of(const PluginManifest& m, std::string_view kind, std::string_view name) {
+  const ProvidedItem* item = find_provided(m, kind, name);
+  return item != nullptr && item->entry.contains("config") ? item->entry["config"] : m.config_schema;
+}
+
+const ProvidedItem* find_provided(const PluginManifest& m, std::string_view kind, std::string_view name) noexcept {
   for (const auto& item : m.provides)
-    if (item.kind == kind && item.name == name && item.entry.contains("config")) return item.entry["config"];
-  return m.config_schema;
+    if (item.kind == kind && item.name == name) return &item;
+  return nullptr;
 }
 
 PluginManifest load_manifest(const std::filesystem::path& file) {

@@ -59,6 +59,8 @@ struct PluginManifest {
 // The settings schema of what `m` provides as `kind` "driver" or "capability" named `name`: the item's own "config",
 // else the manifest's (rcand/sdk/contract/settings.hpp).
 nlohmann::json settings_schema_of(const PluginManifest& m, std::string_view kind, std::string_view name);
+// What `m` provides as `kind` ("driver" or "capability") named `name`; null when it provides no such item.
+const ProvidedItem* find_provided(const PluginManifest& m, std::string_view kind, std::string_view name) noexcept;
 
 // The message names the file and the field at fault: "<file>: abi.major: expected integer, found string".
 class ManifestError : public std::runtime_error {

@@ -27,8 +27,7 @@ std::function<std::vector<DriverImplication>(std::string_view)> implications_in(
   for (const auto& file : files) manifests.push_back(rcand::load_manifest(std::filesystem::path(RCAND_SOURCE_DIR) / file));
   return [manifests](std::string_view protocol) {
     for (const auto& manifest : manifests)
-      for (const auto& item : manifest.provides)
-        if (item.kind == "driver" && item.name == protocol) return item.implies;
+      if (const auto* item = rcand::find_provided(manifest, "driver", protocol)) return item->implies;
     return std::vector<DriverImplication>{};
   };
 }
