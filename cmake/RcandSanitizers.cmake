@@ -1,7 +1,7 @@
 # Sanitizer and fuzzing builds.
 #
 # RCAND_SANITIZE=ON   ASan + UBSan on every target (g++ or clang). Any report aborts the process, so a test fails.
-# RCAND_FUZZ=ON       (clang only, implies RCAND_SANITIZE) also instruments everything for libFuzzer
+# RCAND_FUZZ=ON       (clang only, implies RCAND_SANITIZE) also instruments the product's code for libFuzzer
 #                     (-fsanitize=fuzzer-no-link) and builds tests/fuzz: ONE build serves the sanitizer test run
 #                     and the fuzz targets, which is what keeps CI inside its time budget.
 #
@@ -40,10 +40,31 @@ if(RCAND_SANITIZE)
   endif()
 endif()
 
+# rcand_without_fuzz_coverage([TARGETS <target>...]): no libFuzzer coverage for these targets (or, without TARGETS,
+# for what this directory and its subdirectories define from here on). For code no fuzz target runs - tests,
+# rcanctl, benchmarks: its comparison hooks made those compile a third slower and run slower under ASan, for nothing.
+function(rcand_without_fuzz_coverage)
+  if(NOT RCAND_FUZZ)
+    return()
+  endif()
+  cmake_parse_arguments(C "" "" "TARGETS" ${ARGN})
+  if(NOT C_TARGETS)
+    get_directory_property(_options COMPILE_OPTIONS)
+    list(REMOVE_ITEM _options -fsanitize=fuzzer-no-link)
+    set_directory_properties(PROPERTIES COMPILE_OPTIONS "${_options}")
+  endif()
+  foreach(_target IN LISTS C_TARGETS)
+    get_target_property(_options ${_target} COMPILE_OPTIONS)
+    list(REMOVE_ITEM _options -fsanitize=fuzzer-no-link)
+    set_target_properties(${_target} PROPERTIES COMPILE_OPTIONS "${_options}")
+  endforeach()
+endfunction()
+
 if(RCAND_FUZZ)
-  # Coverage feedback from every library the targets reach. The fuzz executables link libFuzzer (the driver) as a
-  # plain archive rather than with -fsanitize=fuzzer, which would put libstdc++ before the shared ASan runtime in
-  # the executable's library list (ASan refuses to start then).
+  # Coverage feedback from every library the targets reach (not from tests, rcanctl or the benchmarks:
+  # rcand_without_fuzz_coverage). The fuzz executables link libFuzzer (the driver) as a plain archive rather than
+  # with -fsanitize=fuzzer, which would put libstdc++ before the shared ASan runtime in the executable's library
+  # list (ASan refuses to start then).
   add_compile_options(-fsanitize=fuzzer-no-link)
   execute_process(COMMAND ${CMAKE_CXX_COMPILER} -print-file-name=libclang_rt.fuzzer-${CMAKE_SYSTEM_PROCESSOR}.a
                   OUTPUT_VARIABLE RCAND_LIBFUZZER OUTPUT_STRIP_TRAILING_WHITESPACE)

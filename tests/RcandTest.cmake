@@ -14,5 +14,6 @@ function(rcand_unit_test name)
     RCAND_SOURCE_DIR="${PROJECT_SOURCE_DIR}" RCAND_BINARY_DIR="${PROJECT_BINARY_DIR}"
     RCAND_PLUGIN_DIR="${RCAND_PLUGIN_OUTPUT_DIR}" RCAND_TEST_PLUGIN_DIR="${RCAND_TEST_PLUGIN_DIR}")
   rcand_strict(${name})
+  rcand_without_fuzz_coverage(TARGETS ${name})  # plugins' tests live in their folders, among fuzzed code
   add_test(NAME ${name} COMMAND ${name})
 endfunction()

@@ -29,9 +29,10 @@ json arm_config(const std::string& port, int joints = 6) {
   json servos = json::array();
   for (int i = 1; i <= joints; ++i)
     servos.push_back({{"id", i}, {"joint", "j" + std::to_string(i)}, {"min_deg", -150}, {"max_deg", 150}});
-  // 50 ms for an answer: the emulator is a thread of this test, and a loaded machine (CI's sanitizer build) delays it.
+  // 50 ms for an answer and a 1 s Bus Watchdog: the emulator is a thread of this test, and a loaded machine (CI's
+  // sanitizer build) delays it; at 100 ms a stall stopped the servos mid-move (watchdog_test.cpp tests the trip).
   return {{"port", port},   {"baud_rate", 1000000},   {"servos", servos},
-          {"poll_hz", 100}, {"reply_timeout_ms", 50}, {"watchdog_ms", 100}};
+          {"poll_hz", 100}, {"reply_timeout_ms", 50}, {"watchdog_ms", 1000}};
 }
 
 struct Rig {
@@ -86,7 +87,7 @@ TEST_CASE("start: each servo held where it is, torque on, position mode, watchdo
     const auto s = rig.emulator.servo(id);
     CHECK(s.u8(kTableX.torque_enable) == 1);
     CHECK(s.u8(kTableX.operating_mode) == kModePosition);
-    CHECK(s.u8(kTableX.bus_watchdog) == 5);  // 100 ms in 20 ms units
+    CHECK(s.u8(kTableX.bus_watchdog) == 50);  // 1000 ms in 20 ms units
   }
   CHECK(rig.emulator.servo(3).i32(kTableX.goal_position) == 3000);  // no jump when the torque came on
   CHECK(rig.driver->interface_name() == "joint_arm");
@@ -97,8 +98,8 @@ TEST_CASE("start: each servo held where it is, torque on, position mode, watchdo
   CHECK(states[2].torque_on);
   const auto status = rig.driver->status();
   CHECK(status["servos"][0]["model"] == "XM430-W350");
-  CHECK(status["fail_safe"].get<std::string>().find("Bus Watchdog 100 ms on every servo") != std::string::npos);
-  CHECK(rig.logged("fail-safe: Bus Watchdog 100 ms"));
+  CHECK(status["fail_safe"].get<std::string>().find("Bus Watchdog 1000 ms on every servo") != std::string::npos);
+  CHECK(rig.logged("fail-safe: Bus Watchdog 1000 ms"));
 }
 
 TEST_CASE("joint targets: one sync write; an unknown joint or a position out of range applies nothing") {
@@ -231,7 +232,7 @@ TEST_CASE("hardware error: a named fault at start, or a reboot with reboot_on_er
   rig.driver->reboot_servo(2);
   CHECK(rig.emulator.servo(2).reboots == 1);
   CHECK(rig.emulator.servo(2).u8(kTableX.torque_enable) == 1);
-  CHECK(rig.emulator.servo(2).u8(kTableX.bus_watchdog) == 5);
+  CHECK(rig.emulator.servo(2).u8(kTableX.bus_watchdog) == 50);
   CHECK(rig.driver->status()["servos"][1]["hardware_error"].is_null());
   CHECK_THROWS_AS(rig.driver->reboot_servo(9), std::invalid_argument);
 }
