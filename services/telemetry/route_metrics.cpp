@@ -10,7 +10,8 @@ void RouteMetrics::instrument(kernel::Router& router) {
   // Collected first: wrapping a row while walking the table would match against rows being changed.
   std::vector<std::pair<std::string, std::string>> targets;
   std::set<std::pair<const kernel::Route*, std::string>> seen;
-  for (const auto& route : router.routes()) {
+  const auto table = router.routes();  // rows a capability adds once it is up are not counted here
+  for (const auto& route : table->routes) {
     const auto& spec = route.spec;
     std::vector<std::string> methods;
     if (spec.method == "*") methods = {"GET", "POST", "PUT", "PATCH", "DELETE"};
