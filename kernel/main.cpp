@@ -50,7 +50,9 @@ constexpr const char* kUsage = R"(usage: rcand [--config FILE] [--plugin-path DI
                        nav without its physics, another RCAN version), at start, --check-config and reload
 
 On start, rcand prints one line "rcand: listening on http://ADDRESS:PORT" on stdout once it serves; with
-runtime.listen.tls, "rcand: listening on https://ADDRESS:PORT" and then the plain loopback port's line.
+runtime.listen.tls, "rcand: listening on https://ADDRESS:PORT" and then the plain loopback port's line. Capabilities
+start once it serves (each answers 503 STARTING until it is up); "rcand: capabilities started" follows when every one
+is up or failed.
 )";
 
 constexpr std::chrono::seconds kShutdownGrace{5};
@@ -79,6 +81,7 @@ KernelOptions kernel_options(const Options& options) {
   result.services = linked_services();  // the optional services linked into rcand (services/)
   if (!options.plugin_paths.empty()) result.plugin_paths = options.plugin_paths;
   result.port = options.port;
+  result.on_capabilities_up = [] { std::cout << "rcand: capabilities started" << std::endl; };
   return result;
 }
 
