@@ -36,6 +36,7 @@ for i in $(seq "$runs"); do
     sleep 0.002
   done
   echo "run $i: exec -> /health 200 in $(($(date +%s%3N) - t0)) ms"
-  kill "$pid" && wait "$pid" 2> /dev/null || true
+  kill "$pid"
+  wait "$pid" 2> /dev/null || true
   pid=
 done

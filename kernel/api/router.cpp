@@ -8,9 +8,9 @@
 namespace rcand::kernel {
 namespace {
 
-sdk::contract::RowKey row_key(const Route& r) { return {r.spec.method, r.spec.path, {}}; }
+sdk::contract::RowKey route_row_key(const Route& r) { return {r.spec.method, r.spec.path, {}}; }
 
-void add_row(std::vector<Route>& rows, Route row) {
+void add_route_row(std::vector<Route>& rows, Route row) {
   for (const auto& route : rows)
     if (route.spec.method == row.spec.method && route.spec.path == row.spec.path)
       throw std::logic_error("route " + row.spec.method + " " + row.spec.path + " added twice");
@@ -23,7 +23,7 @@ Router::Router() : table_(std::make_shared<const RouteTable>()) {}
 
 void Router::add(RouteSpec spec, RouteHandler handler, std::string group) {
   std::lock_guard lock(writers_);
-  add_row(rows_, {std::move(spec), std::move(handler), {}, std::move(group)});
+  add_route_row(rows_, {std::move(spec), std::move(handler), {}, std::move(group)});
   publish();
 }
 
@@ -32,7 +32,7 @@ void Router::replace_group(const std::string& group, std::vector<std::pair<Route
   std::vector<Route> next;
   for (const auto& route : rows_)
     if (route.group != group) next.push_back(route);
-  for (auto& [spec, handler] : rows) add_row(next, {std::move(spec), std::move(handler), {}, group});
+  for (auto& [spec, handler] : rows) add_route_row(next, {std::move(spec), std::move(handler), {}, group});
   rows_ = std::move(next);
   publish();
 }
@@ -47,7 +47,7 @@ void Router::wrap(std::string_view method, std::string_view path, Decorator deco
 }
 
 void Router::apply(std::vector<Route>& routes, const Wrapping& wrapping) const {
-  const Route* found = sdk::contract::match_rows(routes, row_key, wrapping.method, wrapping.path).row;
+  const Route* found = sdk::contract::match_rows(routes, route_row_key, wrapping.method, wrapping.path).row;
   if (found == nullptr) throw std::logic_error("no route " + wrapping.method + " " + wrapping.path + " to wrap");
   Route& route = routes[static_cast<std::size_t>(found - routes.data())];
   Decorator inner = route.decorator
@@ -65,7 +65,7 @@ void Router::apply(std::vector<Route>& routes, const Wrapping& wrapping) const {
 void Router::publish() {
   std::vector<Route> routes = rows_;
   for (const auto& wrapping : wrappings_) {
-    if (sdk::contract::match_rows(routes, row_key, wrapping.method, wrapping.path).row == nullptr) continue;
+    if (sdk::contract::match_rows(routes, route_row_key, wrapping.method, wrapping.path).row == nullptr) continue;
     apply(routes, wrapping);
   }
   table_.store(std::make_shared<const RouteTable>(RouteTable{std::move(routes)}));
@@ -74,7 +74,7 @@ void Router::publish() {
 Router::Match Router::match(std::string_view method, std::string_view path) const {
   // The contract's matching (rcand/sdk/contract/route_match.hpp), as the fake host's.
   auto table = table_.load();
-  auto found = sdk::contract::match_rows(table->routes, row_key, method, path);
+  auto found = sdk::contract::match_rows(table->routes, route_row_key, method, path);
   return {std::move(table), found.row, std::move(found.allowed)};
 }
 
