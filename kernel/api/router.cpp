@@ -28,13 +28,23 @@ void Router::add(RouteSpec spec, RouteHandler handler, std::string group) {
 }
 
 void Router::replace_group(const std::string& group, std::vector<std::pair<RouteSpec, RouteHandler>> rows) {
+  std::vector<std::function<void()>> listeners;
+  {
+    std::lock_guard lock(writers_);
+    std::vector<Route> next;
+    for (const auto& route : rows_)
+      if (route.group != group) next.push_back(route);
+    for (auto& [spec, handler] : rows) add_route_row(next, {std::move(spec), std::move(handler), {}, group});
+    rows_ = std::move(next);
+    publish();
+    listeners = group_listeners_;
+  }
+  for (const auto& listener : listeners) listener();
+}
+
+void Router::on_group_replaced(std::function<void()> listener) {
   std::lock_guard lock(writers_);
-  std::vector<Route> next;
-  for (const auto& route : rows_)
-    if (route.group != group) next.push_back(route);
-  for (auto& [spec, handler] : rows) add_route_row(next, {std::move(spec), std::move(handler), {}, group});
-  rows_ = std::move(next);
-  publish();
+  group_listeners_.push_back(std::move(listener));
 }
 
 void Router::wrap(std::string_view method, std::string_view path, Decorator decorator) {

@@ -87,6 +87,8 @@ class Router {
   // endpoint this way (the swarm broadcast wraps POST /api/stop: its own audit entry, then the local stop through
   // `next`, then the fan-out). The row must exist.
   void wrap(std::string_view method, std::string_view path, Decorator decorator);
+  // Any thread: `listener` runs after each replace_group(), outside the writers' lock (it may wrap the new rows).
+  void on_group_replaced(std::function<void()> listener);
 
   struct Match {
     std::shared_ptr<const RouteTable> table;  // holds `route` alive while the request runs
@@ -108,6 +110,7 @@ class Router {
   std::mutex writers_;
   std::vector<Route> rows_;  // every row undecorated; under writers_
   std::vector<Wrapping> wrappings_;
+  std::vector<std::function<void()>> group_listeners_;  // under writers_
   std::atomic<std::shared_ptr<const RouteTable>> table_;
 };
 

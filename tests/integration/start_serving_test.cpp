@@ -85,6 +85,12 @@ TEST_CASE("rcand serves /health and the stop while a capability starts; the capa
   CHECK(rcand.json("GET", kGatedOk, "owner-token").value("ok", false));
   CHECK(gated_status(rcand).value("state", "") == "ok");  // read back at once: the status follows the route
   CHECK_FALSE(gated_status(rcand)["routes"].empty());
+  // Its rows, installed once it was up, are counted like every other route's.
+  const auto scrape = rcand.request("GET", "/metrics", "guest-token");
+  REQUIRE(scrape.status == 200);
+  CHECK_MESSAGE(
+      scrape.body.find("rcand_http_requests_total{method=\"GET\",route=\"" + kGatedOk + "\",code=\"200\"}") != std::string::npos,
+      scrape.body);
 }
 
 TEST_CASE("a restart after a crash is latched from the first request it serves, capabilities still starting") {
