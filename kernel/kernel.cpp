@@ -102,6 +102,37 @@ std::optional<http::TlsSettings> tls_settings(const RobotConfig& config) {
   return http::TlsSettings{tls->cert_file, tls->key_file, tls->client_ca_file};
 }
 
+// What the capability registry plans with: the installed plugins' manifests (none is opened yet).
+ProviderLookup installed_providers(const PluginHost& host) {
+  ProviderLookup lookup;
+  lookup.driver_interface = [&host](std::string_view protocol) -> std::optional<std::string> {
+    for (const auto* plugin : host.providers_of_driver(protocol))
+      if (const auto* item = find_provided(*plugin->manifest, "driver", protocol); item && !item->interface.empty())
+        return item->interface;
+    return std::nullopt;
+  };
+  lookup.driver_implies = [&host](std::string_view protocol) {
+    for (const auto* plugin : host.providers_of_driver(protocol))
+      if (const auto* item = find_provided(*plugin->manifest, "driver", protocol)) return item->implies;
+    return std::vector<DriverImplication>{};
+  };
+  lookup.providers = [&host](std::string_view capability) {
+    std::vector<std::string> found;
+    for (const auto* plugin : host.providers_of_capability(capability)) found.push_back(plugin->id);
+    return found;
+  };
+  lookup.declared_when = [&host] {
+    std::vector<std::pair<std::string, std::string>> found;
+    for (const auto& record : host.records())
+      if (record->manifest)
+        for (const auto& declared : record->manifest->declared_when)
+          if (!host.providers_of_capability(declared.capability).empty())
+            found.emplace_back(declared.capability, declared.config_key);
+    return found;
+  };
+  return lookup;
+}
+
 }  // namespace
 
 std::vector<std::filesystem::path> default_plugin_paths() { return {"/usr/local/lib/rcand/plugins", RCAND_DEFAULT_PLUGIN_DIR}; }
@@ -180,28 +211,7 @@ void Kernel::State::load_plugins(const KernelOptions& options) {
                 driver.written_protocol, host.providers_of_driver(driver.written_protocol).front()->id, driver.protocol);
       driver.settings["protocol"] = driver.protocol = driver.written_protocol;
     }
-  ProviderLookup lookup;
-  lookup.driver_interface = [this](std::string_view protocol) -> std::optional<std::string> {
-    for (const auto* plugin : host.providers_of_driver(protocol))
-      for (const auto& item : plugin->manifest->provides)
-        if (item.kind == "driver" && item.name == protocol && !item.interface.empty()) return item.interface;
-    return std::nullopt;
-  };
-  lookup.providers = [this](std::string_view capability) {
-    std::vector<std::string> found;
-    for (const auto* plugin : host.providers_of_capability(capability)) found.push_back(plugin->id);
-    return found;
-  };
-  lookup.declared_when = [this] {
-    std::vector<std::pair<std::string, std::string>> found;
-    for (const auto& record : host.records())
-      if (record->manifest)
-        for (const auto& declared : record->manifest->declared_when)
-          if (!host.providers_of_capability(declared.capability).empty())
-            found.emplace_back(declared.capability, declared.config_key);
-    return found;
-  };
-  CapabilityPlan plan = plan_capabilities(config, lookup);
+  CapabilityPlan plan = plan_capabilities(config, installed_providers(host));
   for (const auto& note : plan.notes) log->info("{}", note);
 
   std::set<std::string> capabilities(plan.names.begin(), plan.names.end());

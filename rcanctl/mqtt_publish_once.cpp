@@ -84,7 +84,9 @@ MqttPublishResult mqtt_publish_once(const MqttPublishOptions& o, const std::stri
     if (mid == p.mid) p.acknowledged = true;
   });
   const std::string where = o.host + ":" + std::to_string(o.port);
-  if (const int rc = mosquitto_connect(client, o.host.c_str(), o.port, 30); rc != MOSQ_ERR_SUCCESS)
+  // Asynchronous: a blocking connect to a host that drops the SYN (a full backlog, a firewall) waits for the kernel's
+  // SYN retries, two minutes, whatever --timeout says; this one goes on in mosquitto_loop, within the deadline.
+  if (const int rc = mosquitto_connect_async(client, o.host.c_str(), o.port, 30); rc != MOSQ_ERR_SUCCESS)
     return finish("cannot reach the broker " + where + ": " + publish_error_text(rc));
   auto loop_until = [&](const bool& done) {
     while (!done && !progress.refused && std::chrono::steady_clock::now() < deadline)

@@ -22,7 +22,8 @@ meta = json.load(open(os.path.join(root, "manifests", "manifest.schema.json")))
 jsonschema.Draft202012Validator.check_schema(meta)
 manifest_validator = jsonschema.Draft202012Validator(meta)
 files = sorted(glob.glob(os.path.join(root, "manifests", "*.json"))) + [
-    os.path.join(root, "plugins", "acme_gripper", "com.acme.gripper.json")]
+    os.path.join(root, "plugins", "acme_gripper", "com.acme.gripper.json"),
+    os.path.join(root, "tests", "unit", "core", "fixtures", "com.acme.tracks.json")]
 failures = []
 for path in files:
     if path.endswith("manifest.schema.json"):

@@ -20,6 +20,7 @@
 #include "kernel/plugins/guarded.hpp"
 #include "kernel/plugins/recording_registrar.hpp"
 #include "libs/base/bounded_call.hpp"
+#include "libs/base/string_list.hpp"
 
 namespace rcand::kernel {
 namespace {
@@ -65,12 +66,6 @@ std::vector<std::string> provides_differences(const std::vector<ProvidedItem>& m
   for (const auto& item : manifest)
     if (std::none_of(registered.begin(), registered.end(), same_name(item)))
       out.push_back("manifest provides " + item.kind + " '" + item.name + "' but the plugin did not register it");
-  return out;
-}
-
-std::string join(const std::vector<std::string>& parts, std::string_view separator) {
-  std::string out;
-  for (const auto& part : parts) out += (out.empty() ? "" : std::string(separator)) + part;
   return out;
 }
 
@@ -293,9 +288,9 @@ std::shared_ptr<detail::RecordingRegistrar> PluginHost::run_register(PluginRecor
 bool PluginHost::accept(PluginRecord& record, detail::RecordingRegistrar& registrar) {
   const PluginManifest& manifest = *record.manifest;
   std::vector<ProvidedItem> registered;
-  for (const auto& c : registrar.capabilities) registered.push_back({"capability", c.info.name, c.info.actuates, "", "", {}});
+  for (const auto& c : registrar.capabilities) registered.push_back({"capability", c.info.name, c.info.actuates, "", "", {}, {}});
   for (const auto& dr : registrar.drivers)
-    registered.push_back({"driver", dr.info.protocol, dr.info.actuates, dr.info.interface, "", {}});
+    registered.push_back({"driver", dr.info.protocol, dr.info.actuates, dr.info.interface, "", {}, {}});
   if (const auto differences = provides_differences(manifest.provides, registered); !differences.empty())
     return set_state(record, PluginState::ManifestMismatch, join(differences, "; "),
                      "make " + manifest.file.filename().string() +

@@ -1,5 +1,6 @@
 #include "kernel/registry/capability_registry.hpp"
 
+#include "libs/base/string_list.hpp"
 #include "libs/config/config_schema.hpp"
 
 #include <algorithm>
@@ -18,69 +19,56 @@ std::vector<std::string> standard_names() {
 }
 
 [[noreturn]] void fail(const RobotConfig& config, const std::string& path, std::string message) {
-  ConfigDiagnostic diagnostic;
-  diagnostic.severity = ConfigDiagnostic::Severity::Error;
-  diagnostic.mark = config.mark_of(path);
-  diagnostic.key_path = path;
-  diagnostic.message = std::move(message);
-  throw ConfigError({std::move(diagnostic)});
+  throw ConfigError({ConfigDiagnostic{ConfigDiagnostic::Severity::Error, config.mark_of(path), path, std::move(message)}});
 }
 
-std::string join(const std::vector<std::string>& items, std::string_view separator) {
-  std::string out;
-  for (const auto& item : items) {
-    if (!out.empty()) out += separator;
-    out += item;
-  }
-  return out;
-}
-
-void add_unique(std::vector<std::string>& names, std::string name) {
-  if (std::find(names.begin(), names.end(), name) == names.end()) names.push_back(std::move(name));
-}
-
-// §9.3 (with the names other runtimes write for the same hardware), plus: any driver implementing differential_drive
-// implies teleop (and nav when physics allows), any implementing joint_arm implies arm. One reading of the table:
-// with physics.kinematics, dynamixel drivers are the arm's servos and imply arm only - an arm advertising teleop
-// would answer every drive with 503 (a robot that also drives on Dynamixel wheels lists its capabilities).
-std::vector<std::string> auto_detect(const RobotConfig& config, const ProviderLookup& lookup, std::vector<std::string>& notes) {
-  std::vector<std::string> found{"status"};
-  bool drive = false, arm = false;
+// The capabilities the configured drivers imply, each driver as its manifest says ("implies": a Dynamixel bus is an
+// arm's servos with physics.kinematics, a drive without), plus: any driver implementing differential_drive implies
+// nav and teleop, any implementing joint_arm arm. An implication its "unless" key turns off that nothing else gives
+// is named in a note beside the one that applies instead.
+std::vector<std::string> implied_by_drivers(const RobotConfig& config, const ProviderLookup& lookup,
+                                            std::vector<std::string>& notes) {
+  std::vector<std::string> implied, off;
+  std::vector<std::pair<std::string, DriverImplication>> read_as;  // protocol, an implication with a note
   for (const auto& driver : config.drivers) {
-    const std::string& p = driver.protocol;
-    const bool dynamixel = p == "dynamixel" || p == "dynamixel_v2";
-    const auto interface = lookup.driver_interface ? lookup.driver_interface(p) : std::nullopt;
-    if ((dynamixel && !config.has_kinematics) || p == "pca9685" || p == "pca9685_i2c" || interface == "differential_drive")
-      drive = true;
-    if ((dynamixel && config.has_kinematics) || interface == "joint_arm") arm = true;
+    const auto interface = lookup.driver_interface ? lookup.driver_interface(driver.protocol) : std::nullopt;
+    if (interface == "differential_drive")
+      implied.insert(implied.end(), {std::string(kNavCapability), std::string(kTeleopCapability)});
+    if (interface == "joint_arm") implied.emplace_back(kArmCapability);
+    for (auto& implication : lookup.driver_implies ? lookup.driver_implies(driver.protocol) : std::vector<DriverImplication>{}) {
+      const bool applies = (implication.when.empty() || config.is_set(implication.when)) &&
+                           (implication.unless.empty() || !config.is_set(implication.unless));
+      auto& into = applies ? implied : off;
+      into.insert(into.end(), implication.capabilities.begin(), implication.capabilities.end());
+      if (applies && !implication.reads_as.empty()) read_as.emplace_back(driver.protocol, std::move(implication));
+    }
   }
-  if (arm && !drive && config.has_kinematics)
-    notes.emplace_back(
-        "dynamixel drivers with physics.kinematics read as an arm: arm, not teleop or nav (list "
-        "rcan_protocol.capabilities for a robot that also drives on them)");
-  if (drive) {
-    if (has_nav_physics(config)) add_unique(found, std::string(kNavCapability));
-    else
-      notes.emplace_back("nav not declared: physics.wheel_circumference_m and physics.turn_time_per_deg_s are required (§10.2)");
-    add_unique(found, std::string(kTeleopCapability));
-  }
-  if (config.has_camera) add_unique(found, std::string(kVisionCapability));
-  if (config.has_agent) add_unique(found, std::string(kChatCapability));
-  if (arm) add_unique(found, std::string(kArmCapability));
-  return found;
+  std::erase_if(off, [&](const std::string& name) { return std::find(implied.begin(), implied.end(), name) != implied.end(); });
+  for (const auto& [protocol, implication] : read_as)
+    if (!off.empty())
+      add_unique(notes, protocol + " drivers" + (implication.when.empty() ? "" : " with " + implication.when) + " read as " +
+                            implication.reads_as + ": " + join(implication.capabilities, ", ") + ", not " + join(off, " or ") +
+                            " (list rcan_protocol.capabilities for a robot that also has those)");
+  return implied;
 }
 
-bool config_flag_set(const nlohmann::json& doc, std::string_view dotted) {
-  const nlohmann::json* node = &doc;
-  for (std::size_t at = 0; at <= dotted.size();) {
-    const std::size_t dot = std::min(dotted.find('.', at), dotted.size());
-    if (!node->is_object()) return false;
-    const auto it = node->find(std::string(dotted.substr(at, dot - at)));
-    if (it == node->end()) return false;
-    node = &*it;
-    at = dot + 1;
+// §9.3: status always; what the drivers imply (nav only with the §10.2 physics); vision with a camera, chat with an
+// agent. Standard capabilities in the table's order, then custom ones as implied.
+std::vector<std::string> auto_detect(const RobotConfig& config, const ProviderLookup& lookup, std::vector<std::string>& notes) {
+  auto implied = implied_by_drivers(config, lookup, notes);
+  if (config.has_camera) implied.emplace_back(kVisionCapability);
+  if (config.has_agent) implied.emplace_back(kChatCapability);
+  const auto is_implied = [&](std::string_view name) { return std::find(implied.begin(), implied.end(), name) != implied.end(); };
+  if (is_implied(kNavCapability) && !has_nav_physics(config)) {
+    std::erase(implied, std::string(kNavCapability));
+    notes.emplace_back("nav not declared: physics.wheel_circumference_m and physics.turn_time_per_deg_s are required (§10.2)");
   }
-  return node->is_boolean() && node->get<bool>();
+  std::vector<std::string> found{std::string(kStatusCapability)};
+  for (const auto& cap : standard_capabilities())
+    if (is_implied(cap.name)) add_unique(found, std::string(cap.name));
+  for (auto& name : implied)
+    if (find_standard_capability(name) == nullptr) add_unique(found, std::move(name));
+  return found;
 }
 
 // Plugins that declare a capability by themselves (a manifest's "declared_when": the fleet plugin on robots with
@@ -89,7 +77,7 @@ bool config_flag_set(const nlohmann::json& doc, std::string_view dotted) {
 void add_declared_when(const RobotConfig& config, const ProviderLookup& lookup, CapabilityPlan& plan) {
   if (!lookup.declared_when) return;
   for (const auto& [name, key] : lookup.declared_when()) {
-    if (!config_flag_set(config.doc, key) || std::find(plan.names.begin(), plan.names.end(), name) != plan.names.end() ||
+    if (!config.is_true(key) || std::find(plan.names.begin(), plan.names.end(), name) != plan.names.end() ||
         std::find(plan.unadvertised.begin(), plan.unadvertised.end(), name) != plan.unadvertised.end())
       continue;
     (plan.auto_detected ? plan.names : plan.unadvertised).push_back(name);
@@ -147,7 +135,9 @@ CapabilityPlan plan_capabilities(const RobotConfig& config, const ProviderLookup
       if (name != "status" && providers(name).empty()) {
         const auto provider = first_party_provider(name);
         plan.notes.push_back("auto-detected '" + name + "' dropped: no installed plugin provides it (install " +
-                             std::string(provider.plugin) + " from " + std::string(provider.package) + ")");
+                             (provider.plugin.empty() ? std::string("the plugin that provides it")
+                                                      : std::string(provider.plugin) + " from " + std::string(provider.package)) +
+                             ")");
         continue;
       }
       plan.names.push_back(std::move(name));

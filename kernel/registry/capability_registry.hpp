@@ -15,6 +15,7 @@
 
 #include "kernel/registry/standard_capabilities.hpp"
 #include "libs/config/robot_config.hpp"
+#include "libs/manifest/manifest.hpp"
 #include "rcand/sdk/scope.hpp"
 
 namespace rcand::kernel {
@@ -31,6 +32,8 @@ bool has_nav_physics(const RobotConfig& config) noexcept;
 struct ProviderLookup {
   // The actuator interface a driver protocol provides ("differential_drive"), if an installed plugin provides it.
   std::function<std::optional<std::string>(std::string_view protocol)> driver_interface;
+  // What the presence of a driver of this protocol implies, as its installed plugin's manifest says ("implies").
+  std::function<std::vector<DriverImplication>(std::string_view protocol)> driver_implies;
   // Installed plugins that provide a capability, as "id (state)" for messages; empty when none.
   std::function<std::vector<std::string>(std::string_view capability)> providers;
   // Capabilities installed plugins declare by themselves when a config key is true (their manifests' "declared_when"):
@@ -50,8 +53,9 @@ struct CapabilityPlan {
 
 // Explicit list: every name must be standard or reverse-domain and have an installed provider ("status" is the
 // kernel's own), and nav needs the §10.2 physics fields; violations throw ConfigError with file:line:column.
-// Absent list: §9.3 auto-detection, extended so any driver implementing differential_drive implies teleop (and nav
-// with physics); auto-detected capabilities without an installed provider are dropped with a note.
+// Absent list: §9.3 auto-detection as the drivers' manifests say it ("implies"), extended so any driver implementing
+// differential_drive implies teleop (and nav with physics) and any implementing joint_arm arm; auto-detected
+// capabilities without an installed provider are dropped with a note.
 // A capability an installed plugin declares by itself when its config key is true joins an auto-detected list, and
 // runs unadvertised beside a written one that does not name it.
 CapabilityPlan plan_capabilities(const RobotConfig& config, const ProviderLookup& lookup);

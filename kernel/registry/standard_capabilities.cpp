@@ -5,6 +5,12 @@
 
 namespace rcand::kernel {
 
+// The kernel's names are the contract table's, in its order: one table, not two (issue 33).
+static_assert(standard_capabilities().size() == 6 && standard_capabilities()[0].name == kStatusCapability &&
+              standard_capabilities()[1].name == kNavCapability && standard_capabilities()[2].name == kTeleopCapability &&
+              standard_capabilities()[3].name == kVisionCapability && standard_capabilities()[4].name == kChatCapability &&
+              standard_capabilities()[5].name == kArmCapability);
+
 FirstPartyProvider first_party_provider(std::string_view capability) noexcept {
   static constexpr std::array<std::pair<std::string_view, FirstPartyProvider>, 6> kProviders{{
       {kStatusCapability, {"", "rcand"}},

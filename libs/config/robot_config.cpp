@@ -247,6 +247,17 @@ SourceMark RobotConfig::mark_of(std::string_view key_path) const {
   return yaml::nearest_mark(marks, source_file.string(), std::string(key_path));
 }
 
+bool RobotConfig::is_set(std::string_view dotted) const {
+  if (dotted == "physics.kinematics") return has_kinematics;  // the loader's own reading of it
+  const json* value = find(doc, dotted);
+  return value != nullptr && !value->is_null() && *value != false && !(value->is_array() && value->empty());
+}
+
+bool RobotConfig::is_true(std::string_view dotted) const {
+  const json* value = find(doc, dotted);
+  return value != nullptr && value->is_boolean() && value->get<bool>();
+}
+
 void set_default_load_options(LoadOptions options) noexcept { default_strict.store(options.strict); }
 LoadOptions default_load_options() noexcept { return LoadOptions{default_strict.load()}; }
 

@@ -104,6 +104,11 @@ struct RobotConfig {
   std::uint16_t listen_port() const { return runtime.listen_port.value_or(rcan_port); }
   // Where `key_path` was written, or the nearest written ancestor's mark.
   SourceMark mark_of(std::string_view key_path) const;
+  // A dotted key is set: present, not null, not false, not an empty list (a driver manifest's "implies" conditions).
+  // physics.kinematics answers has_kinematics, so a config built in code reads the same.
+  bool is_set(std::string_view dotted) const;
+  // Whether the dotted key holds the boolean true (a manifest's "declared_when").
+  bool is_true(std::string_view dotted) const;
 };
 
 struct LoadedConfig {

@@ -6,8 +6,8 @@
 #include <sstream>
 #include <utility>
 
-#include "rcand/sdk/contract/settings.hpp"
 #include "rcand/sdk/contract/plan.hpp"
+#include "rcand/sdk/contract/settings.hpp"
 
 namespace rcand {
 namespace {
@@ -62,6 +62,40 @@ bool is_identifier(const std::string& text) {
   return !text.empty();
 }
 
+bool is_dotted_key(const std::string& key) {
+  return is_identifier(key) && key.front() != '.' && key.back() != '.' && key.find("..") == std::string::npos;
+}
+
+// A driver's "implies": [{capabilities, when?, unless?, reads_as?}], what its presence implies when the robot's file
+// lists no capabilities.
+std::vector<DriverImplication> parse_implies(const Fields& f, const json& list, const ProvidedItem& item,
+                                             const std::string& field) {
+  if (item.kind != "driver") f.fail(field, "only a driver's presence implies capabilities");
+  if (!list.is_array()) f.fail(field, std::string("expected array, found ") + list.type_name());
+  std::vector<DriverImplication> implies;
+  for (std::size_t i = 0; i < list.size(); ++i) {
+    const std::string at = field + "[" + std::to_string(i) + "]";
+    if (!list[i].is_object()) f.fail(at, std::string("expected object, found ") + list[i].type_name());
+    for (const auto& [key, value] : list[i].items())
+      if (key != "capabilities" && key != "when" && key != "unless" && key != "reads_as")
+        f.fail(at + "." + key, "unknown key (expected capabilities, when, unless, reads_as)");
+    DriverImplication implication;
+    const json& names = f.require(list[i], "capabilities", at + ".capabilities");
+    if (!names.is_array() || names.empty()) f.fail(at + ".capabilities", "expected a non-empty array of capability names");
+    for (std::size_t n = 0; n < names.size(); ++n) {
+      const std::string name_field = at + ".capabilities[" + std::to_string(n) + "]";
+      implication.capabilities.push_back(f.string(names[n], name_field));
+      if (!is_identifier(implication.capabilities.back())) f.fail(name_field, "not a capability name");
+    }
+    for (auto [key, into] : {std::pair{"when", &implication.when}, std::pair{"unless", &implication.unless}})
+      if (const auto it = list[i].find(key); it != list[i].end() && !is_dotted_key(*into = f.string(*it, at + "." + key)))
+        f.fail(at + "." + key, "expected a dotted config key such as \"physics.kinematics\", found '" + *into + "'");
+    if (const auto it = list[i].find("reads_as"); it != list[i].end()) implication.reads_as = f.string(*it, at + ".reads_as");
+    implies.push_back(std::move(implication));
+  }
+  return implies;
+}
+
 // One "provides" entry: a capability, or a driver (an actuating one names the interface it implements).
 ProvidedItem parse_provided(const Fields& f, const json& entry, const std::string& field) {
   if (!entry.is_object()) f.fail(field, std::string("expected object, found ") + entry.type_name());
@@ -81,6 +115,7 @@ ProvidedItem parse_provided(const Fields& f, const json& entry, const std::strin
     f.fail(field + ".interface", "required for an actuating driver (for example \"differential_drive\")");
   }
   if (const auto it = entry.find("fail_safe"); it != entry.end()) item.fail_safe = f.string(*it, field + ".fail_safe");
+  if (const auto it = entry.find("implies"); it != entry.end()) item.implies = parse_implies(f, *it, item, field + ".implies");
   try {
     sdk::contract::check_provided_item(entry, field);
   } catch (const sdk::contract::SettingsError& e) {
@@ -97,7 +132,7 @@ std::optional<DeclaredWhen> parse_declared_when(const Fields& f, const json& ent
   if (it == entry.end()) return std::nullopt;
   const std::string key = f.string(*it, field + ".declared_when");
   if (item.kind != "capability") f.fail(field + ".declared_when", "only a capability is declared by a config key");
-  if (!is_identifier(key) || key.front() == '.' || key.back() == '.' || key.find("..") != std::string::npos)
+  if (!is_dotted_key(key))
     f.fail(field + ".declared_when", "expected a dotted config key such as \"runtime.r2r.enabled\", found '" + key + "'");
   return DeclaredWhen{item.name, key};
 }
@@ -158,9 +193,14 @@ PluginManifest parse_manifest(const json& doc, const std::filesystem::path& file
 }
 
 json settings_schema_of(const PluginManifest& m, std::string_view kind, std::string_view name) {
+  const ProvidedItem* item = find_provided(m, kind, name);
+  return item != nullptr && item->entry.contains("config") ? item->entry["config"] : m.config_schema;
+}
+
+const ProvidedItem* find_provided(const PluginManifest& m, std::string_view kind, std::string_view name) noexcept {
   for (const auto& item : m.provides)
-    if (item.kind == kind && item.name == name && item.entry.contains("config")) return item.entry["config"];
-  return m.config_schema;
+    if (item.kind == kind && item.name == name) return &item;
+  return nullptr;
 }
 
 PluginManifest load_manifest(const std::filesystem::path& file) {

@@ -11,15 +11,27 @@
 
 namespace rcand {
 
+// What a configured driver implies when the robot's file lists no capabilities (a driver entry's "implies", §9.3 as
+// the driver's manifest says it): a Dynamixel bus is an arm's servos with physics.kinematics, a drive without. The
+// registry reads these; the kernel names no driver protocol.
+struct DriverImplication {
+  std::vector<std::string> capabilities;
+  std::string when, unless;  // dotted config keys that must be set / unset (RobotConfig::is_set); empty: always
+  std::string reads_as;      // for the startup note when this one applies ("an arm"); empty: no note
+  bool operator==(const DriverImplication&) const = default;
+};
+
 // One entry of the manifest's "provides": a capability name or a driver protocol.
 struct ProvidedItem {
   std::string kind;  // "capability" or "driver"
   std::string name;  // capability name, or driver protocol
   bool actuates = false;
-  std::string interface;  // actuating drivers only: the ActuatorDriver interface they implement
-  std::string fail_safe;  // drivers: what the hardware does by itself when rcand stops or dies ("fail_safe")
-  nlohmann::json entry;   // the "provides" entry as written: its own settings schema, the blocks it reads, needs, offers
-  // What a plugin registers must equal its manifest; the fail-safe statement is the manifest's alone.
+  std::string interface;                   // actuating drivers only: the ActuatorDriver interface they implement
+  std::string fail_safe;                   // drivers: what the hardware does by itself when rcand stops or dies ("fail_safe")
+  std::vector<DriverImplication> implies;  // drivers: capabilities their presence implies ("implies")
+  nlohmann::json entry;  // the "provides" entry as written: its own settings schema, the blocks it reads, needs, offers
+  // What a plugin registers must equal its manifest; the fail-safe statement and the implications are the manifest's
+  // alone.
   bool operator==(const ProvidedItem& o) const {
     return kind == o.kind && name == o.name && actuates == o.actuates && interface == o.interface;
   }
@@ -47,6 +59,8 @@ struct PluginManifest {
 // The settings schema of what `m` provides as `kind` "driver" or "capability" named `name`: the item's own "config",
 // else the manifest's (rcand/sdk/contract/settings.hpp).
 nlohmann::json settings_schema_of(const PluginManifest& m, std::string_view kind, std::string_view name);
+// What `m` provides as `kind` ("driver" or "capability") named `name`; null when it provides no such item.
+const ProvidedItem* find_provided(const PluginManifest& m, std::string_view kind, std::string_view name) noexcept;
 
 // The message names the file and the field at fault: "<file>: abi.major: expected integer, found string".
 class ManifestError : public std::runtime_error {

@@ -3,14 +3,12 @@
 #include <algorithm>
 #include <set>
 
+#include "libs/base/string_list.hpp"
+
 namespace rcand::swarm {
 namespace {
 
-std::string join_names(const std::vector<std::string>& items) {
-  std::string text;
-  for (const auto& item : items) text += (text.empty() ? "" : ", ") + item;
-  return text.empty() ? "(none)" : text;
-}
+std::string join_names(const std::vector<std::string>& items) { return items.empty() ? "(none)" : join(items, ", "); }
 
 }  // namespace
 

@@ -161,6 +161,16 @@ std::vector<Outgoing> Auctioneer::tick(double now_s) {
   return out;
 }
 
+std::optional<double> Auctioneer::next_deadline() const noexcept {
+  std::optional<double> next;
+  for (const auto& [task_id, a] : auctions_) {
+    const bool pending = a.state == State::Bidding || a.state == State::Awarded;
+    const double at = a.state == State::Bidding ? a.bid_deadline : a.award_deadline;
+    if (pending && (!next || at < *next)) next = at;
+  }
+  return next;
+}
+
 std::optional<json> Auctioneer::result(const std::string& task_id) const {
   const auto it = auctions_.find(task_id);
   if (it == auctions_.end()) return std::nullopt;

@@ -72,6 +72,9 @@ class Auctioneer {
 
   bool knows(const std::string& task_id) const { return auctions_.contains(task_id); }
   std::size_t size() const noexcept { return auctions_.size(); }
+  // When tick() next has something to do: the earliest bid deadline of an auction still bidding or award deadline of
+  // one awarded (wall seconds); nullopt when every auction is decided.
+  std::optional<double> next_deadline() const noexcept;
   // {"task_id","state","round","bid_deadline","winner","estimated_time","excluded":[],"bids":[{bidder,cost,...}]}
   std::optional<Json> result(const std::string& task_id) const;
   Json results() const;

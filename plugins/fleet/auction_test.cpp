@@ -28,6 +28,20 @@ Bid bid(const std::string& who, double cost, std::vector<std::string> caps = {"n
 
 }  // namespace
 
+TEST_CASE("auctioneer: the next deadline is the earliest bid deadline, then the award's, none once decided") {
+  Auctioneer auctioneer;
+  CHECK_FALSE(auctioneer.next_deadline());
+  auctioneer.open(fetch_task(), 1.0, 100.0);
+  REQUIRE(auctioneer.next_deadline());
+  CHECK(*auctioneer.next_deadline() == 101.0);
+  auctioneer.on_bid("T1", bid("bob", 5.0));
+  REQUIRE(auctioneer.tick(101.0).size() == 1);  // awarded to bob: the winner's grace runs
+  REQUIRE(auctioneer.next_deadline());
+  CHECK(*auctioneer.next_deadline() == doctest::Approx(101.0 + kWinnerGraceS));
+  CHECK(auctioneer.on_task_response("bob", "T1", true, 5.0, 101.2).empty());
+  CHECK_FALSE(auctioneer.next_deadline());  // assigned: nothing left to tick for
+}
+
 TEST_CASE("auctioneer: the lowest capable bid wins at bid_deadline; ties go to the lowest name") {
   Auctioneer auctioneer;
   const auto opened = auctioneer.open(fetch_task(), 1.0, 100.0);

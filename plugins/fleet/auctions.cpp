@@ -175,6 +175,7 @@ void Auctions::on_task_response(const sdk::R2rMessage& message) {
   }
   send(out);
   answer_decided();
+  due_changed();  // an award answered or declined: the next award's deadline
 }
 
 // 102 from an awardee is a decline; 104 from a requester withdraws the award (rcand logs every error it receives).
@@ -191,6 +192,7 @@ void Auctions::on_error(const sdk::R2rMessage& message) {
   }
   send(out);
   answer_decided();
+  due_changed();  // an award answered or declined: the next award's deadline
 }
 
 void Auctions::tick() {
@@ -203,6 +205,19 @@ void Auctions::tick() {
   }
   send(out);
   answer_decided();
+}
+
+std::chrono::microseconds Auctions::until_due(std::chrono::microseconds idle) const {
+  std::lock_guard lock(mutex_);
+  double due_us = static_cast<double>(idle.count());
+  if (const auto deadline = auctioneer_.next_deadline()) due_us = std::min(due_us, (*deadline - now_s()) * 1e6);
+  const std::int64_t now = deps_.clock.now_us();
+  for (const Waiter& waiter : waiters_) due_us = std::min(due_us, static_cast<double>(waiter.deadline_us - now));
+  return std::chrono::microseconds(static_cast<std::int64_t>(std::max(due_us, 0.0)));
+}
+
+void Auctions::due_changed() const {
+  if (deps_.due_changed) deps_.due_changed();
 }
 
 void Auctions::send(const std::vector<Outgoing>& messages) {
@@ -227,6 +242,7 @@ std::variant<std::string, sdk::R2rSendResult> Auctions::open_auction(TaskSpec ta
     sdk::R2rSendResult sent = deps_.link.send(message.type, message.payload, message.target);
     if (!sent.ok) return sent;  // a field the seed's rules refuse ("/payload/required_capabilities/0")
   }
+  due_changed();
   return task.task_id;
 }
 
@@ -292,7 +308,8 @@ void Auctions::wait_for(const std::string& task_id, std::chrono::milliseconds ti
       answer = nullptr;
     }
   }
-  if (answer) answer(sdk::Response::error(503, "UNAVAILABLE", "rcand is shutting down"));
+  if (answer) return answer(sdk::Response::error(503, "UNAVAILABLE", "rcand is shutting down"));
+  due_changed();
 }
 
 void Auctions::answer_decided() {

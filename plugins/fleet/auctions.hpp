@@ -4,8 +4,8 @@
 // the link's messages and the wall clock and sends what it returns.
 //
 // Threads: the link's callbacks run on the link's worker ("r2r"), tick() wherever its owner calls it (the plugin: that
-// same worker, every 20 ms), the service methods on any thread (rcand's HTTP and R2R threads). One mutex guards the
-// state, held briefly and never while sending: R2rLink::send may hand the message to a transport at once.
+// same worker, at the next deadline, until_due()), the service methods on any thread (rcand's HTTP and R2R threads). One mutex
+// guards the state, held briefly and never while sending: R2rLink::send may hand the message to a transport at once.
 #pragma once
 
 #include <rcand/sdk/clock.hpp>
@@ -37,6 +37,9 @@ class Auctions {
     std::function<std::optional<FleetPose>()> position;  // the robot in the fleet frame; empty or nullopt: unknown
     TripEstimatorLookup trips;                           // what the default price times trips with
     sdk::Logger* log = nullptr;                          // null: silent
+    // Called (any thread, never under the lock) when a deadline may have come nearer than the next tick: an auction
+    // opened, a request waiting, an award answered. Empty: the owner ticks on its own schedule.
+    std::function<void()> due_changed;
   };
   static constexpr std::chrono::milliseconds kDefaultWait{30'000};  // POST /api/r2r/auction's timeout_ms
   static constexpr std::chrono::milliseconds kMaxWait{120'000};
@@ -51,6 +54,9 @@ class Auctions {
   void unsubscribe() noexcept;
   // Award at bid deadlines, 104 to silent winners, forget expired bids and held tasks, answer decided requests.
   void tick();
+  // How long until tick() next has a deadline to meet (an auction's bid or award deadline, a waiting request's
+  // timeout); `idle` when there is none sooner.
+  std::chrono::microseconds until_due(std::chrono::microseconds idle) const;
   // Shutdown: every request still waiting for its auction is answered 503 (rcand is shutting down).
   void abandon_waiting() noexcept;
 
@@ -97,6 +103,7 @@ class Auctions {
   void open_for_request(const Json& body, const sdk::FleetAuctions::Answer& answer);
   void wait_for(const std::string& task_id, std::chrono::milliseconds timeout, sdk::FleetAuctions::Answer answer);
   void answer_decided();
+  void due_changed() const;
   void send(const std::vector<Outgoing>& messages);
   Bidder::Context bid_context(const std::optional<FleetPose>& position) const;  // requires mutex_
   double now_s() const { return static_cast<double>(deps_.clock.wall_ms()) / 1000.0; }

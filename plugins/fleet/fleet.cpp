@@ -13,6 +13,7 @@ void Fleet::start() {
     return;
   }
   settings_ = read_fleet_settings(ctx_.robot_config());
+  worker_ = &ctx_.worker("r2r");  // the link's callbacks run here too: ticks and messages never overlap
   auctions_ = std::make_unique<Auctions>(Auctions::Deps{
       .link = *link,
       .clock = ctx_.clock(),
@@ -20,10 +21,10 @@ void Fleet::start() {
       .position = [this] { return position(); },
       .trips = [this] { return sdk::find<sdk::TripEstimator>(ctx_); },
       .log = &ctx_.log(),
+      .due_changed = [this] { tick_sooner(); },
   });
+  next_tick_ = worker_->schedule(kIdleTickPeriod, [this] { tick(); });  // before any message can ask for a sooner one
   auctions_->subscribe();
-  worker_ = &ctx_.worker("r2r");  // the link's callbacks run here too: ticks and messages never overlap
-  worker_->schedule(kTickPeriod, [this] { tick(); });
   if (!sdk::offer<sdk::FleetAuctions>(ctx_, auctions_->service()))
     ctx_.log().warn("another plugin already offers fleet auctions; /api/r2r/auction is served by that one");
 }
@@ -36,7 +37,17 @@ void Fleet::tick() {
     ctx_.publish_status(now);
     published_ = std::move(now);
   }
-  worker_->schedule(kTickPeriod, [this] { tick(); });
+  // At least a millisecond: a deadline is met once it has passed.
+  const auto delay = std::max<std::chrono::microseconds>(auctions_->until_due(kIdleTickPeriod), std::chrono::milliseconds(1));
+  next_tick_ = worker_->schedule(delay, [this] { tick(); });
+}
+
+// The pending tick, cancelled, runs now and schedules the next one by the new deadlines; one that could not be
+// cancelled has fired and will do so itself. On the worker, so next_tick_ is never read while it is written.
+void Fleet::tick_sooner() {
+  worker_->post([this] {
+    if (!stopping_ && worker_->cancel(next_tick_)) tick();
+  });
 }
 
 std::optional<FleetPose> Fleet::position() const {

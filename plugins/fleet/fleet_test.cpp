@@ -192,6 +192,27 @@ TEST_CASE("fleet: POST /api/r2r/auction through the service: 400 naming the fiel
   CHECK(answers[0].body["state"] == "bidding");
 }
 
+TEST_CASE("fleet: an auction is decided at its deadline though the plugin ticks only every 250 ms at rest") {
+  // A bid window shorter than the idle tick: opening the auction brings the tick forward to its deadline.
+  Json config = robot_config();
+  config["runtime"]["r2r"]["bid_window_ms"] = 100;
+  FakeHost host{config};
+  host.enable_r2r();
+  host.load(RCAND_ENTRY_FUNCTION, fleet_manifest());
+  host.add_capability("org.rcand.fleet");
+  const FleetAuctions& auctions = *rcand::sdk::find<FleetAuctions>(host);
+  host.advance(100ms);                                                              // mid-way between two idle ticks
+  auctions.open(Json{{"task_id", "Q1"}, {"wait", false}}, [](const Response&) {});  // the opening alone wakes the tick
+  host.deliver_r2r(
+      message("negotiation", {{"task_id", "Q1"}, {"action", "bid"}, {"cost", 1.0}, {"capabilities", Json::array()}}));
+  host.advance(101ms);
+  std::vector<Json> awards;
+  for (const auto& s : host.r2r_sent())
+    if (s.type == "negotiation" && s.payload.value("action", "") == "award") awards.push_back(s.payload);
+  REQUIRE(awards.size() == 1);  // at 100 ms, not at the next idle tick (250 ms)
+  CHECK(awards[0]["task_id"] == "Q1");
+}
+
 TEST_CASE("fleet: a price handed on from R2rLink::set_cost_function replaces the default until cleared") {
   Plugin plugin;
   const FleetAuctions& auctions = *plugin.auctions();

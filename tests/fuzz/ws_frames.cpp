@@ -16,6 +16,7 @@
 #include <boost/asio/ip/tcp.hpp>
 #include <boost/beast/websocket.hpp>
 
+#include <algorithm>
 #include <chrono>
 #include <cstddef>
 #include <cstdint>
@@ -194,23 +195,19 @@ void check_r2r_frame(const std::string& text) {
 }
 
 void r2r_message(const std::string& message, bool binary, std::size_t fragment) {
-  static std::uint64_t sync = 0;
+  static double last_marker = 0;
   for (int attempt = 0; attempt < 2; ++attempt) {
-    // After the input, a command the robot refuses (an action type it has none of) with the marker in its header:
-    // once the error quoting the marker back (ref) comes, the input was handled (one connection's messages are
+    // After the input, a command the robot refuses (an action type it has none of), told apart by its timestamp,
+    // which the error quotes back (ref): once that comes, the input was handled (one connection's messages are
     // handled in order). A refused command of an authenticated sender is always answered, where the refusals of
     // malformed or unauthenticated messages are rate-limited (docs/protocol.md §11.12) and would stall the run.
-    const std::string marker = "fuzz-sync-" + std::to_string(++sync);
     const double now_s = std::chrono::duration<double>(std::chrono::system_clock::now().time_since_epoch()).count();
-    const std::string probe = json{{"header",
-                                    {{"version", "1.0"},
-                                     {"timestamp", now_s},
-                                     {"source_id", "fuzz-sync"},
-                                     {"target_id", "fuzz-rover"},
-                                     {"sync", marker}}},
-                                   {"type", "command"},
-                                   {"payload", {{"type", "fuzz_sync"}}}}
-                                  .dump();
+    const double marker = last_marker = std::max(now_s, last_marker + 1e-6);
+    const std::string probe = json{
+        {"header", {{"version", "1.0"}, {"timestamp", marker}, {"source_id", "fuzz-sync"}, {"target_id", "fuzz-rover"}}},
+        {"type", "command"},
+        {"payload",
+         {{"type", "fuzz_sync"}}}}.dump();
     if (!r2r().send(message, binary, fragment) || !r2r().send(probe, false, 0)) {
       if (may_close(message, binary, kR2rMaxMessage)) return;  // closed while the message was still going out
       continue;
@@ -221,7 +218,7 @@ void r2r_message(const std::string& message, bool binary, std::size_t fragment) 
       check_r2r_frame(*text);
       const json doc = json::parse(*text);
       const json ref = doc["payload"].value("ref", json::object());
-      if (doc["type"] == "error" && ref.is_object() && ref.value("sync", json()) == marker) return;
+      if (doc["type"] == "error" && ref.is_object() && ref.value("timestamp", json()) == marker) return;
     }
     if (may_close(message, binary, kR2rMaxMessage)) return;
   }

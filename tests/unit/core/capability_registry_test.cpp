@@ -1,6 +1,7 @@
 #include <doctest/doctest.h>
 
 #include <algorithm>
+#include <filesystem>
 #include <random>
 
 #include "kernel/registry/capability_registry.hpp"
@@ -20,9 +21,22 @@ RobotConfig base_config() {
   return config;
 }
 
-// Installed plugins for these tests: every standard capability, one custom one, a drive and a dynamixel.
+// What the drivers of these manifests (paths in the source tree) imply, read with the kernel's manifest parser.
+std::function<std::vector<DriverImplication>(std::string_view)> implications_in(const std::vector<std::string>& files) {
+  std::vector<rcand::PluginManifest> manifests;
+  for (const auto& file : files) manifests.push_back(rcand::load_manifest(std::filesystem::path(RCAND_SOURCE_DIR) / file));
+  return [manifests](std::string_view protocol) {
+    for (const auto& manifest : manifests)
+      if (const auto* item = rcand::find_provided(manifest, "driver", protocol)) return item->implies;
+    return std::vector<DriverImplication>{};
+  };
+}
+
+// Installed plugins for these tests: every standard capability, one custom one, a drive and a dynamixel (whose
+// implications are the shipped manifests').
 ProviderLookup installed_everything() {
   ProviderLookup lookup;
+  lookup.driver_implies = implications_in({"manifests/dynamixel.json", "manifests/pca9685.json"});
   lookup.driver_interface = [](std::string_view protocol) -> std::optional<std::string> {
     if (protocol == "sim_diff_drive") return std::string("differential_drive");
     if (protocol == "sim_arm") return std::string("joint_arm");
@@ -149,6 +163,53 @@ TEST_CASE("auto-detection follows §9.3 only when the list is omitted") {
   SUBCASE("an explicit empty list declares status only") {
     config.capabilities = std::vector<std::string>{};
     CHECK(plan_capabilities(config, installed_everything()).names == std::vector<std::string>{"status"});
+  }
+}
+
+TEST_CASE("a third-party driver's manifest says what its presence implies: auto-detected with no kernel change") {
+  auto config = base_config();
+  config.drivers = {{"t0", "acme_tracks", {}}};
+  ProviderLookup lookup = installed_everything();
+  lookup.driver_implies = implications_in({"tests/unit/core/fixtures/com.acme.tracks.json"});
+  SUBCASE("without physics: its custom capability and teleop; nav named in a note") {
+    const auto plan = plan_capabilities(config, lookup);
+    CHECK(plan.names == std::vector<std::string>{"status", "teleop", "com.acme.tracks"});
+    CHECK(std::any_of(plan.notes.begin(), plan.notes.end(),
+                      [](const std::string& n) { return n.find("nav not declared") != std::string::npos; }));
+  }
+  SUBCASE("with §10.2 physics: nav too, standard names in §9's order") {
+    config.wheel_circumference_m = 0.2;
+    config.turn_time_per_deg_s = 0.01;
+    CHECK(plan_capabilities(config, lookup).names == std::vector<std::string>{"status", "nav", "teleop", "com.acme.tracks"});
+  }
+  SUBCASE("its \"when\" key set: what it reads as instead, the others named in a note") {
+    config.doc = {{"acme", {{"crane", {{"boom_m", 2.5}}}}}};
+    const auto plan = plan_capabilities(config, lookup);
+    CHECK(plan.names == std::vector<std::string>{"status", "com.acme.crane"});
+    CHECK(std::find(plan.notes.begin(), plan.notes.end(),
+                    "acme_tracks drivers with acme.crane read as a crane: com.acme.crane, not com.acme.tracks or teleop or nav "
+                    "(list rcan_protocol.capabilities for a robot that also has those)") != plan.notes.end());
+  }
+  SUBCASE("the key false or an empty list is unset") {
+    for (const auto& crane : {nlohmann::json(false), nlohmann::json::array(), nlohmann::json()}) {
+      config.doc = {{"acme", {{"crane", crane}}}};
+      CHECK(plan_capabilities(config, lookup).names == std::vector<std::string>{"status", "teleop", "com.acme.tracks"});
+    }
+  }
+  SUBCASE("an implied custom capability no installed plugin provides is dropped with a note") {
+    lookup.providers = [](std::string_view capability) -> std::vector<std::string> {
+      if (capability == "com.acme.tracks") return {};
+      return {"org.test." + std::string(capability)};
+    };
+    const auto plan = plan_capabilities(config, lookup);
+    CHECK(plan.names == std::vector<std::string>{"status", "teleop"});
+    CHECK(std::find(plan.notes.begin(), plan.notes.end(),
+                    "auto-detected 'com.acme.tracks' dropped: no installed plugin provides it (install the plugin that "
+                    "provides it)") != plan.notes.end());
+  }
+  SUBCASE("without its manifest the driver implies nothing: the kernel knows no protocol") {
+    lookup.driver_implies = nullptr;
+    CHECK(plan_capabilities(config, lookup).names == std::vector<std::string>{"status"});
   }
 }
 

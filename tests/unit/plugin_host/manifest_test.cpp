@@ -53,8 +53,8 @@ TEST_CASE("parse_manifest reads every field of a valid manifest") {
   CHECK(m.abi_major == 1);
   CHECK(m.abi_minor == 0);
   REQUIRE(m.provides.size() == 2);
-  CHECK(m.provides[0] == ProvidedItem{"capability", "teleop", true, "", "", {}});
-  CHECK(m.provides[1] == ProvidedItem{"driver", "sim_diff_drive", true, "differential_drive", "", {}});
+  CHECK(m.provides[0] == ProvidedItem{"capability", "teleop", true, "", "", {}, {}});
+  CHECK(m.provides[1] == ProvidedItem{"driver", "sim_diff_drive", true, "differential_drive", "", {}, {}});
   CHECK(m.provides[1].fail_safe == "wheels stop");  // the manifest's own: a registration never carries it
   CHECK(m.requires_ == std::vector<std::string>{"differential_drive"});
   CHECK(m.config_schema["watchdog_ms"]["default"] == 500);
@@ -80,7 +80,8 @@ TEST_CASE("parse_manifest: a capability declared by a config key (\"declared_whe
   const auto m = parse_manifest(doc, "fleet.json");
   REQUIRE(m.declared_when.size() == 1);
   CHECK(m.declared_when[0] == rcand::DeclaredWhen{"org.rcand.fleet", "runtime.r2r.enabled"});
-  CHECK(m.provides[0] == ProvidedItem{"capability", "org.rcand.fleet", false, "", "", {}});  // registration compares as before
+  CHECK(m.provides[0] ==
+        ProvidedItem{"capability", "org.rcand.fleet", false, "", "", {}, {}});  // registration compares as before
   CHECK(parse_manifest(teleop_manifest(), "teleop.json").declared_when.empty());
 
   doc["provides"][0]["declared_when"] = "runtime..r2r";
@@ -89,6 +90,36 @@ TEST_CASE("parse_manifest: a capability declared by a config key (\"declared_whe
   CHECK(manifest_error_of(doc).find("provides[0].declared_when: expected string") != std::string::npos);
   doc["provides"] = json::parse(R"([{"kind": "driver", "name": "d", "declared_when": "runtime.r2r.enabled"}])");
   CHECK(manifest_error_of(doc).find("only a capability is declared by a config key") != std::string::npos);
+}
+
+TEST_CASE("parse_manifest: what a driver's presence implies (\"implies\")") {
+  json doc = teleop_manifest();
+  doc["provides"][1]["implies"] = json::parse(R"([{"capabilities": ["arm"], "when": "physics.kinematics", "reads_as": "an arm"},
+                                                  {"capabilities": ["teleop", "nav"], "unless": "physics.kinematics"}])");
+  const auto m = parse_manifest(doc, "drive.json");
+  CHECK(m.provides[1].implies == std::vector<rcand::DriverImplication>{{{"arm"}, "physics.kinematics", "", "an arm"},
+                                                                       {{"teleop", "nav"}, "", "physics.kinematics", ""}});
+  CHECK(m.provides[1] == ProvidedItem{"driver", "sim_diff_drive", true, "differential_drive", "", {}, {}});  // not registered
+  CHECK(parse_manifest(teleop_manifest(), "teleop.json").provides[1].implies.empty());
+
+  const auto error_with = [&](const char* implies) {
+    doc["provides"][1]["implies"] = json::parse(implies);
+    return manifest_error_of(doc);
+  };
+  CHECK(error_with(R"({"capabilities": ["arm"]})").find("provides[1].implies: expected array, found object") !=
+        std::string::npos);
+  CHECK(error_with(R"([{"when": "physics.kinematics"}])").find("provides[1].implies[0].capabilities: required") !=
+        std::string::npos);
+  CHECK(error_with(R"([{"capabilities": []}])").find("implies[0].capabilities: expected a non-empty array") != std::string::npos);
+  CHECK(error_with(R"([{"capabilities": ["a b"]}])").find("implies[0].capabilities[0]: not a capability name") !=
+        std::string::npos);
+  CHECK(error_with(R"([{"capabilities": ["arm"], "unless": "physics..kinematics"}])")
+            .find("provides[1].implies[0].unless: expected a dotted config key") != std::string::npos);
+  CHECK(error_with(R"([{"capabilities": ["arm"], "whne": "physics.kinematics"}])")
+            .find("provides[1].implies[0].whne: unknown key") != std::string::npos);
+  doc["provides"][1].erase("implies");
+  doc["provides"][0]["implies"] = json::parse(R"([{"capabilities": ["arm"]}])");
+  CHECK(manifest_error_of(doc).find("provides[0].implies: only a driver's presence implies capabilities") != std::string::npos);
 }
 
 TEST_CASE("parse_manifest errors name the file and the field") {

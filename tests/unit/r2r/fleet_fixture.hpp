@@ -124,7 +124,8 @@ class Fleet {
                                                           return rcand::sdk::compose(origin, *r.status.pose);
                                                         },
                                                         .trips = [] { return &trips(); },
-                                                        .log = nullptr});
+                                                        .log = nullptr,
+                                                        .due_changed = {}});  // the fixture ticks by hand
     r.fleet->subscribe();
     r.bridge->sync_cost();
     robots_[name] = std::move(robot);
