@@ -191,6 +191,7 @@ struct Kernel::State {
   void create_services(const KernelOptions& options);
   void start_plugins();
   void start_capabilities();
+  void capability_up();
   void add_routes();
   void restore_latch();
   bool reload_tls(const RobotConfig& next);
@@ -323,8 +324,16 @@ void Kernel::State::reload_plugin(const std::string& id, const std::string& prin
       body.update({{"state", to_string(record->state)}, {"version", record->version}, {"build_info", record->build_info}});
     body["instances"] = result.instances;
     if (result.status != 200) body.update({{"code", result.code}, {"error", result.error}});
+    capability_up();
     done(result.status, std::move(body));
   });
+}
+
+// A capability came up (started or reloaded): the status shows it before anyone is told, and the services re-read
+// what plugins offer.
+void Kernel::State::capability_up() {
+  status_board->refresh();
+  for (auto& service : optional_services) service->capabilities_changed();
 }
 
 // Off the thread that serves, in the order they are declared: each capability's routes installed and the status told
@@ -340,7 +349,7 @@ void Kernel::State::start_capabilities() {
           } catch (const std::exception& e) {  // a row clashing with another group's: a programming error, named
             logger("kernel.api")->error("capability routes: {}", e.what());
           }
-          status_board->notify();
+          capability_up();
         });
     capabilities_up = true;
     capabilities_up.notify_all();
