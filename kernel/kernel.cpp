@@ -1,10 +1,12 @@
 #include "kernel/kernel.hpp"
 
+#include <pthread.h>
 #include <sys/resource.h>
 #include <boost/asio/ip/address.hpp>
 
 #include <algorithm>
 #include <atomic>
+#include <thread>
 
 #include "kernel/api/api.hpp"
 #include "kernel/api/capability_routes.hpp"
@@ -19,10 +21,10 @@
 #include "kernel/safety/state_dir.hpp"
 #include "kernel/service.hpp"
 #include "kernel/status/status_board.hpp"
-#include "kernel/steady_clock.hpp"
 #include "libs/base/bounded_text.hpp"
 #include "libs/base/keep_forever.hpp"
 #include "libs/base/logging.hpp"
+#include "libs/base/steady_clock.hpp"
 #include "libs/base/stop_path_priority.hpp"
 #include "libs/http/server.hpp"
 #include "libs/http/tls_context.hpp"
@@ -164,6 +166,11 @@ struct Kernel::State {
   std::unique_ptr<WorkerThread> timers;
   std::unique_ptr<WorkerThread> reloader;   // "plugin.reload", only with runtime.plugins.allow_reload: one reload at a time
   std::atomic<bool> reloads_closed{false};  // set by shutdown(): a queued reload answers 503
+  // The capabilities start on this thread once rcand serves (start()); `capabilities_up` is set when every one is up
+  // or failed (reloads wait for it), `stop_starting` by shutdown() (the rest fail without starting).
+  std::thread starter;
+  std::atomic<bool> capabilities_up{false}, stop_starting{false};
+  std::function<void()> on_capabilities_up;
   std::unique_ptr<KernelRouteDeps> kernel_routes;
   std::unique_ptr<CapabilityRouteDeps> capability_routes;
   std::unique_ptr<SlotTable> stream_slots;                 // streamed answers held at once (runtime.max_streams_per_*)
@@ -183,6 +190,8 @@ struct Kernel::State {
   void load_swarm();
   void create_services(const KernelOptions& options);
   void start_plugins();
+  void start_capabilities();
+  void capability_up();
   void add_routes();
   void restore_latch();
   bool reload_tls(const RobotConfig& next);
@@ -259,7 +268,11 @@ void Kernel::State::start_plugins() {
   halt_crew = std::make_unique<DeadlineCrew>(
       "estop.halt", std::move(halts), [priority = config.runtime.stop_path_priority] { enter_stop_path_priority(priority); });
   estop.use_halt_crew(halt_crew.get());
-  runtime->start_capabilities(registry->served(), config);
+  runtime->declare_capabilities(registry->served(), config);  // started by start_capabilities(), or below when embedded
+  if (!server) {
+    runtime->start_declared(config, [] { return true; }, {});
+    capabilities_up = true;
+  }
   estop.on_latched([runtime = runtime.get()] { runtime->notify_estop(); });
   // The latch record in runtime.state_dir follows every latch and clear (written off the stop path).
   estop.on_latched([this] {
@@ -285,7 +298,7 @@ void Kernel::State::add_routes() {
   capability_routes.reset(new CapabilityRouteDeps{*registry, *runtime, audit, estop, *timers,
                                                   std::chrono::milliseconds(config.runtime.handler_timeout_ms), *stream_slots,
                                                   *auth});
-  add_capability_routes(api->router(), *capability_routes);
+  install_capability_routes(api->router(), *capability_routes);
   for (auto& service : optional_services) service->add_routes(api->router());
 }
 
@@ -299,6 +312,7 @@ void Kernel::State::reload_plugin(const std::string& id, const std::string& prin
                 {{"code", "RELOAD_DISABLED"},
                  {"error", "plugin reload is off on this robot; development robots set runtime.plugins.allow_reload: true"}});
   reloader->post([this, id, principal, done = std::move(done)] {
+    capabilities_up.wait(false);  // a reload never runs while capabilities start
     if (reloads_closed) return done(503, {{"code", "UNAVAILABLE"}, {"error", "rcand is shutting down"}});
     nlohmann::json body{{"plugin", bounded_text(id)}, {"estopped", false}};  // the id is the caller's, from the path
     const ReloadResult result = runtime->reload(id, config, [&] {
@@ -310,13 +324,43 @@ void Kernel::State::reload_plugin(const std::string& id, const std::string& prin
       body.update({{"state", to_string(record->state)}, {"version", record->version}, {"build_info", record->build_info}});
     body["instances"] = result.instances;
     if (result.status != 200) body.update({{"code", result.code}, {"error", result.error}});
+    capability_up();
     done(result.status, std::move(body));
+  });
+}
+
+// A capability came up (started or reloaded): the status shows it before anyone is told, and the services re-read
+// what plugins offer.
+void Kernel::State::capability_up() {
+  status_board->refresh();
+  for (auto& service : optional_services) service->capabilities_changed();
+}
+
+// Off the thread that serves, in the order they are declared: each capability's routes installed and the status told
+// as it comes up (or fails).
+void Kernel::State::start_capabilities() {
+  starter = std::thread([this] {
+    pthread_setname_np(pthread_self(), "kernel.starter");
+    runtime->start_declared(
+        config, [this] { return !stop_starting.load(); },
+        [this](CapabilityInstance&) {
+          try {
+            install_capability_routes(api->router(), *capability_routes);
+          } catch (const std::exception& e) {  // a row clashing with another group's: a programming error, named
+            logger("kernel.api")->error("capability routes: {}", e.what());
+          }
+          capability_up();
+        });
+    capabilities_up = true;
+    capabilities_up.notify_all();
+    if (on_capabilities_up && !stop_starting.load()) on_capabilities_up();
   });
 }
 
 Kernel::Kernel(RobotConfig config, KernelOptions options) : state_(std::make_unique<State>()) {
   auto& s = *state_;
   s.config = std::move(config);
+  s.on_capabilities_up = std::move(options.on_capabilities_up);
   const auto& cfg = s.config;
   s.address = cfg.runtime.listen_address;
   s.port = options.port.value_or(cfg.listen_port());
@@ -473,7 +517,8 @@ std::uint16_t Kernel::start() {
     throw StartupError(e.what());
   }
   s.bound_port = s.port;
-  for (auto& service : s.optional_services) service->start(s.port);  // throws StartupError naming the setting
+  for (auto& service : s.optional_services) service->start(s.port);                // throws StartupError naming the setting
+  if (!s.starter.joinable() && !s.capabilities_up.load()) s.start_capabilities();  // the latch is restored: serving
   if (s.mdns_publisher) {
     // docs/protocol.md §5: instance metadata.robot_name, the port bound, the TXT record of the one registry function (§9.5).
     s.mdns_publisher->start({.name = s.config.robot_name, .type = std::string(kServiceType), .port = s.port, .txt = [&s] {
@@ -501,6 +546,13 @@ void Kernel::shutdown() noexcept {
     s.estop.latch("rcand shutting down", "kernel", {{}, "shutdown", {}, {}});  // motors stop first, whatever else happens
     // Then the services, in reverse: no R2R message is handled or sent, no broadcast goes out.
     for (auto it = s.optional_services.rbegin(); it != s.optional_services.rend(); ++it) (*it)->stop();
+    // A capability still starting is abandoned (its plugin thread left running, as at plugin_start_timeout_ms); the
+    // rest never start.
+    s.stop_starting = true;
+    if (!s.capabilities_up.load() && s.runtime) s.runtime->give_up_starting();
+    if (s.starter.joinable()) s.starter.join();
+    s.capabilities_up = true;
+    s.capabilities_up.notify_all();
     s.reloads_closed = true;
     if (s.reloader) s.reloader->join();              // a reload under way ends first; queued ones answer 503
     if (s.mdns_publisher) s.mdns_publisher->stop();  // withdrawn (goodbye sent) while HTTP still answers

@@ -36,6 +36,9 @@ struct KernelOptions {
   // A kernel that never serves (tests and fuzzers that embed it and call its Api directly): it claims neither the
   // state dir nor a port, and start() refuses.
   bool embedded = false;
+  // Called on the starter thread once every capability is up or failed (rcand's main announces it on stdout); not
+  // when shut down first. An embedded kernel starts them before its constructor returns.
+  std::function<void()> on_capabilities_up;
 };
 inline KernelOptions embedded_kernel_options() {
   KernelOptions options;
@@ -52,8 +55,9 @@ class Kernel {
  public:
   // Claims the robot first - runtime.state_dir's lock (one rcand per robot) and the listening port(s), bound but
   // not yet listening - so that a second rcand is refused before any plugin instance exists: it opens no device
-  // and writes nothing (not with KernelOptions::embedded). Then loads plugins, plans capabilities and starts every
-  // driver and capability. Throws ConfigError (with file:line:column) or StartupError.
+  // and writes nothing (not with KernelOptions::embedded). Then loads plugins, plans capabilities, starts every
+  // driver and declares every capability (an embedded kernel starts them too; a serving one once start() serves).
+  // Throws ConfigError (with file:line:column) or StartupError.
   Kernel(RobotConfig config, KernelOptions options = {});
   ~Kernel();  // shutdown()
   Kernel(const Kernel&) = delete;
@@ -69,8 +73,9 @@ class Kernel {
   };
   static CheckReport check(RobotConfig config, const KernelOptions& options);
 
-  // Restores the e-stop latch from the state dir, then serves on the port claimed; returns it. std::logic_error for
-  // an embedded kernel.
+  // Restores the e-stop latch from the state dir, then serves on the port claimed and starts the capabilities on a
+  // thread of their own (each answers 503 STARTING until it is up); returns the port. std::logic_error for an
+  // embedded kernel.
   std::uint16_t start();
   // With runtime.listen.tls: the plain HTTP port on 127.0.0.1 (after start); else 0.
   std::uint16_t plain_loopback_port() const;

@@ -18,7 +18,7 @@
 #include "libs/base/logging.hpp"
 #include "libs/base/service_watchdog.hpp"
 #include "libs/base/systemd_notify.hpp"
-#include "libs/base/user_access.hpp"
+#include "libs/config/config_access.hpp"
 #include "libs/config/driver_protocols.hpp"
 #include "libs/config/robot_config.hpp"
 #include "libs/plugin_docs/plugin_docs.hpp"
@@ -50,7 +50,9 @@ constexpr const char* kUsage = R"(usage: rcand [--config FILE] [--plugin-path DI
                        nav without its physics, another RCAN version), at start, --check-config and reload
 
 On start, rcand prints one line "rcand: listening on http://ADDRESS:PORT" on stdout once it serves; with
-runtime.listen.tls, "rcand: listening on https://ADDRESS:PORT" and then the plain loopback port's line.
+runtime.listen.tls, "rcand: listening on https://ADDRESS:PORT" and then the plain loopback port's line. Capabilities
+start once it serves (each answers 503 STARTING until it is up); "rcand: capabilities started" follows when every one
+is up or failed.
 )";
 
 constexpr std::chrono::seconds kShutdownGrace{5};
@@ -79,6 +81,7 @@ KernelOptions kernel_options(const Options& options) {
   result.services = linked_services();  // the optional services linked into rcand (services/)
   if (!options.plugin_paths.empty()) result.plugin_paths = options.plugin_paths;
   result.port = options.port;
+  result.on_capabilities_up = [] { std::cout << "rcand: capabilities started" << std::endl; };
   return result;
 }
 
@@ -187,36 +190,6 @@ std::optional<int> parse_arguments(const std::vector<std::string>& args, Options
   return std::nullopt;
 }
 
-// --as-user: what `user` could not open of what the config names (the service runs as `rcand`, not as the admin).
-std::vector<std::string> access_problems(const RobotConfig& config, const Options& options, const UserIdentity& user) {
-  std::vector<std::pair<std::filesystem::path, Access>> needed{{options.config, Access::Read},
-                                                               {config.runtime.state_dir, Access::Write}};
-  for (const auto& fragment : config.fragment_files) needed.emplace_back(fragment, Access::Read);
-  if (config.runtime.auth.jwt_secret_file) needed.emplace_back(*config.runtime.auth.jwt_secret_file, Access::Read);
-  if (config.runtime.audit_file) needed.emplace_back(*config.runtime.audit_file, Access::Write);
-  if (const auto& tls = config.runtime.listen_tls) {
-    needed.insert(needed.end(), {{tls->cert_file, Access::Read}, {tls->key_file, Access::Read}});
-    if (tls->client_ca_file) needed.emplace_back(*tls->client_ca_file, Access::Read);
-  }
-  if (std::filesystem::exists(config.runtime.swarm_file)) needed.emplace_back(config.runtime.swarm_file, Access::Read);
-  auto plugin_paths = options.plugin_paths.empty() ? config.runtime.plugin_paths : options.plugin_paths;
-  for (const auto& dir : plugin_paths.empty() ? default_plugin_paths() : plugin_paths)
-    if (std::filesystem::exists(dir)) needed.emplace_back(dir, Access::Read);
-  // Devices: any driver setting or camera key that names one.
-  std::vector<nlohmann::json> holders;
-  for (const auto& driver : config.drivers) holders.push_back(driver.settings);
-  if (config.doc.contains("camera")) holders.push_back(config.doc["camera"]);
-  for (const auto& holder : holders)
-    if (holder.is_object())
-      for (const auto& [key, value] : holder.items())
-        if (value.is_string() && value.get<std::string>().starts_with("/dev/"))
-          needed.emplace_back(value.get<std::string>(), Access::ReadWrite);
-  std::vector<std::string> problems;
-  for (const auto& [path, access] : needed)
-    if (auto problem = access_problem(user, path, access); !problem.empty()) problems.push_back(std::move(problem));
-  return problems;
-}
-
 int serve(const Options& options, LoadedConfig loaded, sigset_t& signals) {
   const std::string address = loaded.config.runtime.listen_address;
   Kernel kernel(std::move(loaded.config), kernel_options(options));
@@ -287,7 +260,9 @@ int main(int argc, char** argv) {
     for (const auto& fragment : fragments) logger("kernel")->info("config: merged the conf.d fragment {}", fragment.string());
     if (!options.check_config) return serve(options, std::move(loaded), signals);
     if (user) {
-      const auto problems = access_problems(loaded.config, options, *user);
+      auto plugin_paths = options.plugin_paths.empty() ? loaded.config.runtime.plugin_paths : options.plugin_paths;
+      if (plugin_paths.empty()) plugin_paths = default_plugin_paths();
+      const auto problems = config_access_problems(loaded.config, options.config, plugin_paths, *user);
       for (const auto& problem : problems) std::cerr << "rcand: --as-user " << options.as_user << ": " << problem << "\n";
       if (!problems.empty()) return 1;
     }

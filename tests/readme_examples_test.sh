@@ -53,12 +53,14 @@ cd "$work" || exit 1
 
 build/kernel/rcand --config config/sim-rover.rcan.yaml >"$work/rcand.out" 2>"$work/rcand.err" &
 rcand_pid=$!
+# rcand serves once it listens; its capabilities answer 503 STARTING until "capabilities started" (docs/protocol.md
+# §7.18): the examples below use them, so wait for both lines.
 for _ in $(seq 1 300); do
-  grep -q "listening on http://127.0.0.1:8000" "$work/rcand.out" && break
+  grep -q "capabilities started" "$work/rcand.out" && break
   kill -0 "$rcand_pid" 2>/dev/null || break
   sleep 0.1
 done
-if ! grep -q "listening on http://127.0.0.1:8000" "$work/rcand.out"; then
+if ! grep -q "listening on http://127.0.0.1:8000" "$work/rcand.out" || ! grep -q "capabilities started" "$work/rcand.out"; then
   echo "readme_examples_test: rcand did not start as README.md says:" >&2
   cat "$work/rcand.err" >&2
   exit 1

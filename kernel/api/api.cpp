@@ -167,8 +167,9 @@ void Api::serve(http::Request&& request, const Principal* authenticated, http::R
   if (!authenticate(call, authenticated, spec.scope, reply)) return;
   if (limited && !admit_principal(call, reply)) return;
   if (match.route->decorator) {
-    match.route->decorator(call, std::move(reply),
-                           [this, route = match.route](Call& c, Reply r) { dispatch(*route, c, std::move(r)); });
+    match.route->decorator(call, std::move(reply), [this, table = match.table, route = match.route](Call& c, Reply r) {
+      dispatch(*route, c, std::move(r));
+    });
     return;
   }
   dispatch(*match.route, call, std::move(reply));

@@ -89,6 +89,10 @@ class CapabilityRoutes {
       return nullptr;
     }
     CapabilityInstance* instance = d_.runtime.capability(name);
+    if (instance != nullptr && instance->starting.load()) {  // nothing of it may be read until it is up
+      refuse(call, reply, answer(contract::starting(name)), "error", "starting");
+      return nullptr;
+    }
     if (instance != nullptr && !(pass = instance->gate->enter())) {
       refuse(call, reply, answer(contract::out_of_service(name, "its plugin is being reloaded")), "error", "plugin reloading");
       return nullptr;
@@ -323,10 +327,10 @@ json served_routes(const CapabilityInstance& instance) {
   return list;
 }
 
-void add_capability_routes(Router& router, const CapabilityRouteDeps& deps) {
+void install_capability_routes(Router& router, const CapabilityRouteDeps& deps) {
   std::vector<contract::RunningCapability> running;
   for (const auto& instance : deps.runtime.capabilities()) {
-    if (!instance.object || instance.health.failed()) continue;
+    if (instance.starting.load() || !instance.object || instance.health.failed()) continue;
     auto& cap = running.emplace_back(contract::RunningCapability{instance.name, {}});
     for (const auto& r : instance.routes) cap.routes.push_back({r.method, r.path, r.action_type, r.scope, r.motion, false});
     for (const auto& r : instance.stream_routes) cap.routes.push_back({r.method, r.path, "", r.scope, false, true});
@@ -335,6 +339,7 @@ void add_capability_routes(Router& router, const CapabilityRouteDeps& deps) {
   for (const auto& refused : table.refused) logger("kernel.api")->warn("{}", refused);
   auto routes = std::make_shared<CapabilityRoutes>(deps);
   routes->table_ = std::move(table.rows);
+  std::vector<std::pair<RouteSpec, RouteHandler>> rows;
   for (const auto& row : routes->table_) {
     if (!row.action_type.empty()) continue;  // an action type's row: POST /api/action picks it by the body's type
     RouteHandler handler = [routes = std::shared_ptr<const CapabilityRoutes>(routes), row](Call& call, Reply reply) {
@@ -346,8 +351,9 @@ void add_capability_routes(Router& router, const CapabilityRouteDeps& deps) {
       }
     };
     const bool audited = row.kind != contract::RowKind::Action && !is_read(row.method);
-    router.add({row.method, row.path, row.scope, audited, row.motion}, std::move(handler));
+    rows.emplace_back(RouteSpec{row.method, row.path, row.scope, audited, row.motion}, std::move(handler));
   }
+  router.replace_group("capabilities", std::move(rows));
 }
 
 }  // namespace rcand::kernel

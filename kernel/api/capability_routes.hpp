@@ -1,4 +1,4 @@
-// The capabilities' endpoints (RCAN §9, docs/protocol.md §7): at startup, the SDK contract's route table
+// The capabilities' endpoints (RCAN §9, docs/protocol.md §7): as each capability comes up, the SDK contract's route table
 // (rcand/sdk/contract/door.hpp, the one the fake host serves): one row per route a running capability registered
 // (standard ones at their mounts, custom ones under /api/cap/<name>, each /api/action type its own), and fallback
 // rows that answer for a capability that is not declared (404 CAPABILITY_NOT_FOUND), out of service (503) or has no
@@ -32,8 +32,10 @@ struct CapabilityRouteDeps {
   const Authenticator& auth;  // whether auth mode is open
 };
 
-// Startup, after the capabilities started. The dependencies outlive the router's use of them.
-void add_capability_routes(Router& router, const CapabilityRouteDeps& deps);
+// The capabilities' rows (the router's group "capabilities") for the capabilities up now, replacing the ones before:
+// at startup, and again as each capability comes up. A capability still starting has only its fallback rows, which
+// answer 503 STARTING. The dependencies outlive the router's use of them.
+void install_capability_routes(Router& router, const CapabilityRouteDeps& deps);
 
 // The rows add_capability_routes serves for `instance`, for GET /api/status (docs/protocol.md §7.2):
 // [{"method", "path", "scope", "type"? (POST /api/action rows), "motion"?, "stream"?}].

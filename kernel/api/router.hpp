@@ -1,12 +1,17 @@
 // The route table: every HTTP endpoint rcand serves is one row (method, path, scope, audited, motion) and one named
-// handler. Rows are added at startup only (kernel routes, each declared capability's routes, each service's routes)
-// and never change while serving, so matching takes no lock. The middleware that runs before every handler
-// (message id, rate limits, authentication, the audit entry, the e-stop pre-check) lives in Api, once.
+// handler. Rows are added at startup (kernel routes, the capabilities' rows, each service's routes); a group of rows
+// (the capabilities') is replaced while serving as each capability comes up. The table is an immutable snapshot,
+// swapped whole: matching loads it atomically and takes no lock, and a request keeps the snapshot it matched in for
+// as long as it runs. The middleware that runs before every handler (message id, rate limits, authentication, the
+// audit entry, the e-stop pre-check) lives in Api, once.
 #pragma once
 
 #include <algorithm>
+#include <atomic>
 #include <cstdint>
 #include <functional>
+#include <memory>
+#include <mutex>
 #include <optional>
 #include <string>
 #include <string_view>
@@ -60,28 +65,53 @@ struct Route {
   RouteSpec spec;
   RouteHandler handler;
   Decorator decorator;  // empty: none
+  std::string group;    // replace_group()'s key; empty: a row for good
+};
+
+// One snapshot of the table: never changed once published.
+struct RouteTable {
+  std::vector<Route> routes;
 };
 
 class Router {
  public:
-  // Startup only. A second row with the same method and path is a programming error (std::logic_error).
-  void add(RouteSpec spec, RouteHandler handler);
-  // Startup only: `decorator` runs for `method` requests the row at `path` serves, after authentication and
+  Router();
+  // A second row with the same method and path is a programming error (std::logic_error). Writers (add, wrap,
+  // replace_group) are serialized; each publishes a new snapshot.
+  void add(RouteSpec spec, RouteHandler handler, std::string group = {});
+  // Any thread: every row of `group` replaced by `rows` in one swap (a row that clashes with another group's is a
+  // std::logic_error, and nothing changes). The wraps made so far apply to the new rows as to the old.
+  void replace_group(const std::string& group, std::vector<std::pair<RouteSpec, RouteHandler>> rows);
+  // `decorator` runs for `method` requests the row at `path` serves, after authentication and
   // before the audit entry and the e-stop pre-check; `next` runs those and the row's handler. A service extends an
   // endpoint this way (the swarm broadcast wraps POST /api/stop: its own audit entry, then the local stop through
   // `next`, then the fan-out). The row must exist.
   void wrap(std::string_view method, std::string_view path, Decorator decorator);
+  // Any thread: `listener` runs after each replace_group(), outside the writers' lock (it may wrap the new rows).
+  void on_group_replaced(std::function<void()> listener);
 
   struct Match {
-    const Route* route = nullptr;      // null: no row for this method
-    std::vector<std::string> allowed;  // the methods the path has, when route is null (empty: 404)
+    std::shared_ptr<const RouteTable> table;  // holds `route` alive while the request runs
+    const Route* route = nullptr;             // null: no row for this method
+    std::vector<std::string> allowed;         // the methods the path has, when route is null (empty: 404)
   };
-  // Any thread, lock-free (the table is immutable while serving).
+  // Any thread, no lock: one atomic load of the current snapshot.
   Match match(std::string_view method, std::string_view path) const;
-  const std::vector<Route>& routes() const noexcept { return routes_; }
+  std::shared_ptr<const RouteTable> routes() const { return table_.load(); }
 
  private:
-  std::vector<Route> routes_;
+  struct Wrapping {
+    std::string method, path;
+    Decorator decorator;
+  };
+  void apply(std::vector<Route>& routes, const Wrapping& wrapping) const;  // throws when no row serves it
+  void publish();                                                          // under writers_
+
+  std::mutex writers_;
+  std::vector<Route> rows_;  // every row undecorated; under writers_
+  std::vector<Wrapping> wrappings_;
+  std::vector<std::function<void()>> group_listeners_;  // under writers_
+  std::atomic<std::shared_ptr<const RouteTable>> table_;
 };
 
 }  // namespace rcand::kernel

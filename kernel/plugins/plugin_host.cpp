@@ -16,10 +16,10 @@
 #include <map>
 #include <sstream>
 
-#include "kernel/plugins/bounded_call.hpp"
 #include "kernel/plugins/descriptor_check.hpp"
 #include "kernel/plugins/guarded.hpp"
 #include "kernel/plugins/recording_registrar.hpp"
+#include "libs/base/bounded_call.hpp"
 #include "libs/base/string_list.hpp"
 
 namespace rcand::kernel {

@@ -4,9 +4,9 @@
 #include <mutex>
 #include <set>
 
-#include "kernel/plugins/bounded_call.hpp"
 #include "kernel/plugins/guarded.hpp"
 #include "kernel/plugins/settings_schema.hpp"
+#include "libs/base/bounded_call.hpp"
 #include "libs/base/bounded_text.hpp"
 #include "libs/base/closest_match.hpp"
 #include "libs/base/keep_forever.hpp"
@@ -58,6 +58,22 @@ template <class Object> void offer_obstacle_source(InstanceContext& context, con
   if (source != nullptr && sdk::find<sdk::ObstacleSource>(context) != source) sdk::offer<sdk::ObstacleSource>(context, *source);
 }
 
+template <class T> void never_destroy(std::shared_ptr<T> shared) {
+  if (!shared) return;
+  auto holder = std::make_unique<std::shared_ptr<T>>(std::move(shared));
+  keep_forever(holder);
+}
+
+// Crews start_crews() replaced: false, and never destroyed, when a call into plugin code still runs on them.
+bool retire_crews(std::pair<std::shared_ptr<DeadlineCrew>, std::shared_ptr<StatusReader>> old) {
+  auto& [crew, reader] = old;
+  if ((!crew || crew->quiesce(std::chrono::milliseconds(500))) && (!reader || reader->quiesce(std::chrono::milliseconds(250))))
+    return true;
+  never_destroy(std::move(crew));
+  never_destroy(std::move(reader));
+  return false;
+}
+
 // The plugin's factory, then start(), then `more` (a capability's routes()), all through the trampoline, on a thread
 // of their own, waited for up to `timeout`: a plugin that hangs at startup fails its instance instead of keeping the
 // robot from ever serving. The object is kept when only start() failed (the instance is marked failed, and
@@ -67,7 +83,8 @@ template <class Object>
 std::unique_ptr<Object> create_and_start(const std::string& who,
                                          const std::function<std::unique_ptr<Object>(sdk::PluginContext&)>& factory,
                                          InstanceContext& context, InstanceHealth& health, std::chrono::milliseconds timeout,
-                                         bool& abandoned, std::function<void(Object&)> more = {}) {
+                                         bool& abandoned, std::function<void(Object&)> more = {},
+                                         std::shared_ptr<CallWaiter> waiter = std::make_shared<CallWaiter>()) {
   struct Startup {
     std::mutex mutex;
     bool abandoned = false;
@@ -75,31 +92,35 @@ std::unique_ptr<Object> create_and_start(const std::string& who,
     Fault failure;  // no reason: everything returned normally
   };
   auto startup = std::make_shared<Startup>();
-  const bool finished = bounded_call("plugin.start", timeout, [startup, who, &factory, &context, more = std::move(more)] {
-    Fault failure;
-    std::unique_ptr<Object> made;
-    if (auto object = guarded_result(who, "factory", failure, [&] { return factory(context); }); object && *object) {
-      made = std::move(*object);
-      if (guarded_call(who, "start", failure, [&] { made->start(); }) && more)
-        guarded_call(who, "routes", failure, [&] { more(*made); });
-    } else if (failure.reason.empty()) {
-      failure.reason = "factory returned nothing";
-    }
-    std::lock_guard lock(startup->mutex);
-    if (startup->abandoned) {
-      keep_forever(made);  // too late: the kernel gave up on it; never destroyed, like its context
-      return;
-    }
-    startup->object = std::move(made);
-    startup->failure = std::move(failure);
-  });
+  const bool finished = bounded_call(
+      "plugin.start", timeout,
+      [startup, who, &factory, &context, more = std::move(more)] {
+        Fault failure;
+        std::unique_ptr<Object> made;
+        if (auto object = guarded_result(who, "factory", failure, [&] { return factory(context); }); object && *object) {
+          made = std::move(*object);
+          if (guarded_call(who, "start", failure, [&] { made->start(); }) && more)
+            guarded_call(who, "routes", failure, [&] { more(*made); });
+        } else if (failure.reason.empty()) {
+          failure.reason = "factory returned nothing";
+        }
+        std::lock_guard lock(startup->mutex);
+        if (startup->abandoned) {
+          keep_forever(made);  // too late: the kernel gave up on it; never destroyed, like its context
+          return;
+        }
+        startup->object = std::move(made);
+        startup->failure = std::move(failure);
+      },
+      waiter);
 
   std::lock_guard lock(startup->mutex);
   if (!finished) {
     startup->abandoned = abandoned = true;
     keep_forever(startup->object);  // finished right after the timeout: given up on all the same, never destroyed
-    health.mark_failed("did not finish starting within " + std::to_string(timeout.count()) +
-                       " ms (runtime.plugin_start_timeout_ms)");
+    health.mark_failed(waiter->given_up ? "rcand shut down before it finished starting"
+                                        : "did not finish starting within " + std::to_string(timeout.count()) +
+                                              " ms (runtime.plugin_start_timeout_ms)");
     logger("kernel.plugins")->error("{}: {}", who, health.reason());
     return nullptr;
   }
@@ -208,70 +229,100 @@ void PluginRuntime::start_driver(DriverInstance& instance, std::size_t index, co
             instance.health.failed() ? "failed: " + instance.health.reason() : "started");
 }
 
-void PluginRuntime::start_capabilities(const std::vector<std::string>& names, const RobotConfig& config) {
+void PluginRuntime::declare_capabilities(const std::vector<std::string>& names, const RobotConfig& config) {
   for (const auto& name : names) {
     if (name == kStatusCapability) continue;  // the kernel's own
     auto& instance = capabilities_.emplace_back();
     instance.name = name;
-    start_capability(instance, config);
+    instance.registered = prepare_capability(instance, config);
+    instance.starting = instance.registered != nullptr;
   }
-  start_crews();
+  start_crews();  // the drivers' status readers, and an on_estop() crew from the start
+}
+
+void PluginRuntime::start_declared(const RobotConfig& config, const std::function<bool()>& go_on,
+                                   const std::function<void(CapabilityInstance&)>& up) {
+  for (auto& instance : capabilities_) {
+    if (!instance.starting.load()) continue;
+    if (go_on()) {
+      launch_capability(instance, *instance.registered, config);
+      retire_crews(start_crews());  // its on_estop() and status() from now on
+    } else {
+      instance.health.mark_failed("rcand shut down before it started");
+    }
+    instance.starting.store(false);  // after its fields: a request that sees it up reads them whole
+    if (up) up(instance);
+  }
 }
 
 void PluginRuntime::start_capability(CapabilityInstance& instance, const RobotConfig& config) {
+  if (const RegisteredCapability* registered = prepare_capability(instance, config))
+    launch_capability(instance, *registered, config);
+}
+
+// Its plugin found, its requirements and settings checked (a ConfigError throws), its context and worker made: no
+// plugin code runs. Null when it failed (named in its health).
+const RegisteredCapability* PluginRuntime::prepare_capability(CapabilityInstance& instance, const RobotConfig& config) {
   auto log = logger("kernel.plugins");
   const std::string& name = instance.name;
-  {
-    auto [registered, plugin] = find_loaded(host_, host_.providers_of_capability(name), &PluginRecord::capabilities, name);
-    if (registered == nullptr) {
-      instance.health.mark_failed(plugin == nullptr ? "no installed plugin provides it"
-                                                    : "plugin " + plugin->id + " is " + std::string(to_string(plugin->state)) +
-                                                          ": " + plugin->reason);
-      log->error("capability {}: {}", name, instance.health.reason());
-      return;
-    }
-    instance.plugin_id = plugin->id;
-    instance.actuates = registered->info.actuates;
-    if (plugin->manifest) instance.needs = plugin->manifest->requires_;
-    if (const auto missing = missing_requirement(*plugin)) {
-      instance.health.mark_failed("requires a " + *missing + " actuator, and no configured driver provides one");
-      log->error("capability {}: {}", name, instance.health.reason());
-      return;
-    }
-    const nlohmann::json raw =
-        config.runtime.capabilities.contains(name) ? config.runtime.capabilities.at(name) : nlohmann::json::object();
-    auto settings = validated_settings(config, *plugin, "capability", name, raw, "runtime.capabilities." + name);
-    instance.context = std::make_unique<InstanceContext>(plugin->id, name, services_, std::move(settings), instance.health);
-    instance.handler_worker = std::make_unique<WorkerThread>(
-        "cap." + name, [&health = instance.health](const std::string& why) { health.mark_failed(why); });
-
-    instance.who = "plugin " + plugin->id + " capability " + name;
-    bool abandoned = false;
-    std::vector<sdk::Route> routes;
-    std::vector<sdk::StreamRoute> streams;
-    instance.object =
-        create_and_start<sdk::Capability>(instance.who, registered->factory, *instance.context, instance.health,
-                                          std::chrono::milliseconds(config.runtime.plugin_start_timeout_ms), abandoned,
-                                          [&routes, &streams, minor = plugin->abi_minor](sdk::Capability& object) {
-                                            routes = object.routes();
-                                            if (minor >= 2) streams = object.stream_routes();  // older: no such virtual
-                                          });
-    if (abandoned) keep_forever(instance.context);  // still in use by the plugin thread that never returned
-    if (!instance.object) return;
-    if (!instance.health.failed()) {
-      if (auto problem = route_problem(routes)) instance.health.mark_failed("routes() returned an unusable route: " + *problem);
-      else if (auto bad = route_problem(streams))
-        instance.health.mark_failed("stream_routes() returned an unusable route: " + *bad);
-      else {
-        instance.routes = std::move(routes);
-        instance.stream_routes = std::move(streams);
-      }
-    }
-    if (!instance.health.failed()) offer_obstacle_source(*instance.context, instance.object.get());
-    log->info("capability {} ({}) {}, {} routes", name, plugin->id,
-              instance.health.failed() ? "failed: " + instance.health.reason() : "started",
-              instance.routes.size() + instance.stream_routes.size());
+  auto [registered, plugin] = find_loaded(host_, host_.providers_of_capability(name), &PluginRecord::capabilities, name);
+  if (registered == nullptr) {
+    instance.health.mark_failed(plugin == nullptr ? "no installed plugin provides it"
+                                                  : "plugin " + plugin->id + " is " + std::string(to_string(plugin->state)) +
+                                                        ": " + plugin->reason);
+    log->error("capability {}: {}", name, instance.health.reason());
+    return nullptr;
   }
+  instance.plugin_id = plugin->id;
+  instance.actuates = registered->info.actuates;
+  if (plugin->manifest) instance.needs = plugin->manifest->requires_;
+  if (const auto missing = missing_requirement(*plugin)) {
+    instance.health.mark_failed("requires a " + *missing + " actuator, and no configured driver provides one");
+    log->error("capability {}: {}", name, instance.health.reason());
+    return nullptr;
+  }
+  const nlohmann::json raw =
+      config.runtime.capabilities.contains(name) ? config.runtime.capabilities.at(name) : nlohmann::json::object();
+  auto settings = validated_settings(config, *plugin, "capability", name, raw, "runtime.capabilities." + name);
+  instance.context = std::make_unique<InstanceContext>(plugin->id, name, services_, std::move(settings), instance.health);
+  instance.handler_worker = std::make_unique<WorkerThread>(
+      "cap." + name, [&health = instance.health](const std::string& why) { health.mark_failed(why); });
+  instance.who = "plugin " + plugin->id + " capability " + name;
+  return registered;
+}
+
+// Its factory, start() and routes(), bounded by runtime.plugin_start_timeout_ms.
+void PluginRuntime::launch_capability(CapabilityInstance& instance, const RegisteredCapability& registered,
+                                      const RobotConfig& config) {
+  const PluginRecord* plugin = host_.find(instance.plugin_id);
+  bool abandoned = false;
+  // Shared with the plugin thread: one that was given up on may still write them after this returns.
+  auto routes = std::make_shared<std::pair<std::vector<sdk::Route>, std::vector<sdk::StreamRoute>>>();
+  instance.object = create_and_start<sdk::Capability>(
+      instance.who, registered.factory, *instance.context, instance.health,
+      std::chrono::milliseconds(config.runtime.plugin_start_timeout_ms), abandoned,
+      [routes, minor = plugin->abi_minor](sdk::Capability& object) {
+        routes->first = object.routes();
+        if (minor >= 2) routes->second = object.stream_routes();  // older: no such virtual
+      },
+      start_waiter_);
+  if (abandoned) keep_forever(instance.context);  // still in use by the plugin thread that never returned
+  if (!instance.object) return;
+  if (!instance.health.failed()) {
+    if (auto problem = route_problem(routes->first))
+      instance.health.mark_failed("routes() returned an unusable route: " + *problem);
+    else if (auto bad = route_problem(routes->second))
+      instance.health.mark_failed("stream_routes() returned an unusable route: " + *bad);
+    else {
+      instance.routes = std::move(routes->first);
+      instance.stream_routes = std::move(routes->second);
+    }
+  }
+  if (!instance.health.failed()) offer_obstacle_source(*instance.context, instance.object.get());
+  logger("kernel.plugins")
+      ->info("capability {} ({}) {}, {} routes", instance.name, plugin->id,
+             instance.health.failed() ? "failed: " + instance.health.reason() : "started",
+             instance.routes.size() + instance.stream_routes.size());
 }
 
 std::optional<nlohmann::json> PluginRuntime::status_at(const std::size_t& status_index) {
@@ -553,25 +604,11 @@ std::vector<CapabilityInstance*> PluginRuntime::instances_of(const std::string& 
   return out;
 }
 
-namespace {
-template <class T> void never_destroy(std::shared_ptr<T> shared) {
-  if (!shared) return;
-  auto holder = std::make_unique<std::shared_ptr<T>>(std::move(shared));
-  keep_forever(holder);
-}
-}  // namespace
-
 bool PluginRuntime::stop_capabilities(const std::vector<CapabilityInstance*>& members, const std::string& id,
                                       std::chrono::milliseconds drain) {
   bool drained = true;
   for (auto* instance : members) drained = instance->gate->close_and_drain(drain) && drained;  // in-flight calls finish
-  auto [old_crew, old_reader] = start_crews(id);  // no on_estop() or status() reaches them from here on
-  const bool crews_quiet = (!old_crew || old_crew->quiesce(std::chrono::milliseconds(500))) &&
-                           (!old_reader || old_reader->quiesce(std::chrono::milliseconds(250)));
-  if (!crews_quiet) {
-    never_destroy(std::move(old_crew));
-    never_destroy(std::move(old_reader));
-  }
+  const bool crews_quiet = retire_crews(start_crews(id));  // no on_estop() or status() reaches them from here on
   if (drained)
     for (auto* instance : members)
       if (instance->handler_worker) instance->handler_worker->join();

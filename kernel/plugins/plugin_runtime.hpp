@@ -6,6 +6,7 @@
 // unloaded, so code outlives every object it made.
 #pragma once
 
+#include <atomic>
 #include <deque>
 #include <functional>
 #include <memory>
@@ -16,10 +17,11 @@
 
 #include "kernel/plugins/instance_context.hpp"
 #include "kernel/plugins/plugin_host.hpp"
-#include "kernel/plugins/reload_gate.hpp"
 #include "kernel/plugins/status_reader.hpp"
 #include "kernel/safety/actuator_table.hpp"
+#include "libs/base/bounded_call.hpp"
 #include "libs/base/deadline_crew.hpp"
+#include "libs/base/reload_gate.hpp"
 #include "libs/config/robot_config.hpp"
 
 namespace rcand::kernel {
@@ -50,6 +52,10 @@ struct CapabilityInstance {
   std::unique_ptr<WorkerThread> handler_worker;                       // "cap.<name>": handlers run here, one at a time
   std::size_t status_index = kNoStatus;                               // its source in the status reader
   std::shared_ptr<ReloadGate> gate = std::make_shared<ReloadGate>();  // closed while its plugin is reloaded
+  // Declared and not up yet (its start() runs on the kernel's starter thread): requests answer 503 STARTING. Cleared
+  // after every field above is set, so a thread that reads it false reads them whole.
+  std::atomic<bool> starting{false};
+  const RegisteredCapability* registered = nullptr;  // what declare_capabilities() found, for start_declared()
 };
 
 // What PluginRuntime::reload did: `error` empty when every instance of the plugin runs its new code again.
@@ -68,7 +74,19 @@ class PluginRuntime {
   // Main thread, at startup. Plugin settings that fail the manifest's config schema throw ConfigError (with the
   // config file's line and column); plugin code that throws marks only that instance failed.
   void start_drivers(const RobotConfig& config);
-  void start_capabilities(const std::vector<std::string>& names, const RobotConfig& config);
+  void start_capabilities(const std::vector<std::string>& names, const RobotConfig& config) {
+    declare_capabilities(names, config);
+    start_declared(config, [] { return true; }, {});
+  }
+  // The same in two steps, so that rcand serves while capabilities start. Main thread, before serving: every capability
+  // declared (its plugin found, its settings checked, a ConfigError thrown) and `starting`, no plugin code run. Then,
+  // on one other thread, not concurrently with reload() or shutdown(): each one's factory, start() and routes() in
+  // order, `up` called as each is up or failed; once `go_on` answers false the rest fail without starting.
+  void declare_capabilities(const std::vector<std::string>& names, const RobotConfig& config);
+  void start_declared(const RobotConfig& config, const std::function<bool()>& go_on,
+                      const std::function<void(CapabilityInstance&)>& up);
+  // Any thread, at shutdown: a capability's start() still running is abandoned now (as at plugin_start_timeout_ms).
+  void give_up_starting() { start_waiter_->give_up(); }
   // rcand --check-config: what the two above would refuse or fail, found without creating any instance (no plugin
   // factory runs, no device is opened): a driver protocol or capability no loaded plugin serves (with a did-you-mean
   // over the installed ones), settings that fail the manifest's schema, an actuator interface a capability requires
@@ -118,6 +136,8 @@ class PluginRuntime {
   // returns the ones they replace (still running what they were asked).
   std::pair<std::shared_ptr<DeadlineCrew>, std::shared_ptr<StatusReader>> start_crews(std::string_view skip = {});
   void start_capability(CapabilityInstance& instance, const RobotConfig& config);
+  const RegisteredCapability* prepare_capability(CapabilityInstance& instance, const RobotConfig& config);
+  void launch_capability(CapabilityInstance& instance, const RegisteredCapability& registered, const RobotConfig& config);
   // Creates and starts `instance` for config.drivers[index]; its actuator goes in the table at startup, or back in
   // its slot after a reload (one that became an actuator, or changed interface, fails: the table is fixed).
   void start_driver(DriverInstance& instance, std::size_t index, const RobotConfig& config);
@@ -151,6 +171,7 @@ class PluginRuntime {
   // destroyed under it.
   bool abandon_capabilities_ = false;
   bool abandon_drivers_ = false;
+  std::shared_ptr<CallWaiter> start_waiter_ = std::make_shared<CallWaiter>();  // capabilities' starts wait on it
   // Replaced by a reload while other threads use them: read and swapped under crews_mutex_ (which also guards every
   // instance's status_index).
   mutable std::mutex crews_mutex_;

@@ -101,6 +101,7 @@ class StatusBoard::Impl final : public StatusSink, public std::enable_shared_fro
     std::uint64_t changes = 0;  // changes_ when the round that built it began
     std::size_t failed = 0;     // instances marked failed when it was built
     std::size_t faults = 0;     // instances whose status reported a fault (sdk/capability.hpp, "fault")
+    std::size_t starting = 0;   // capabilities still starting when it was built
   };
 
   Impl(std::vector<Source> sources, KernelServices& services, json fixed, std::int64_t started_us)
@@ -144,7 +145,8 @@ class StatusBoard::Impl final : public StatusSink, public std::enable_shared_fro
 
   void when_current(std::function<void(std::shared_ptr<const std::string>)> answer) {
     auto snapshot = current_.load();
-    if (snapshot->failed != failed_now()) {  // marked failed since: nobody announces that, so it counts as a change
+    // marked failed or up since: nobody announces that, so it counts as a change
+    if (snapshot->failed != failed_now() || snapshot->starting != starting_now()) {
       changes_.fetch_add(1);
       request_round();
     }
@@ -231,6 +233,7 @@ class StatusBoard::Impl final : public StatusSink, public std::enable_shared_fro
     std::optional<json> last;
     std::int64_t last_us = 0;  // when `last` was published or answered
     std::optional<std::int64_t> asked_us;
+    mutable std::optional<json> up_item;  // item_when_up()'s fields, taken once it is up (status thread)
   };
   struct Waiter {
     std::uint64_t need;
@@ -240,6 +243,12 @@ class StatusBoard::Impl final : public StatusSink, public std::enable_shared_fro
   std::shared_ptr<const std::string> body_of(std::shared_ptr<const Snapshot> snapshot) const noexcept {
     const std::string* body = &snapshot->body[services_.estop.latched() ? 1 : 0];
     return std::shared_ptr<const std::string>(std::move(snapshot), body);
+  }
+
+  std::size_t starting_now() const noexcept {
+    return static_cast<std::size_t>(std::count_if(entries_.begin(), entries_.end(), [](const auto& entry) {
+      return entry->source.starting != nullptr && entry->source.starting->load();
+    }));
   }
 
   std::size_t failed_now() const noexcept {
@@ -297,6 +306,7 @@ class StatusBoard::Impl final : public StatusSink, public std::enable_shared_fro
     for (auto& entry : entries_) {
       const auto& source = entry->source;
       if (!source.poll || (source.health != nullptr && source.health->failed())) continue;
+      if (source.starting != nullptr && source.starting->load()) continue;
       const std::int64_t now = services_.clock.now_us();
       const std::int64_t poll_after = std::chrono::microseconds(kPollAfter).count();
       if (entry->last && now - entry->last_us < poll_after) continue;
@@ -312,7 +322,14 @@ class StatusBoard::Impl final : public StatusSink, public std::enable_shared_fro
   // One instance's item: "failed" with its fault; a capability's state following the drivers it needs; "stale".
   json item_of(const Entry& entry, const std::vector<board::DriverView>& drivers, std::int64_t now) const {
     const auto& source = entry.source;
+    if (source.starting != nullptr && source.starting->load()) {
+      json item = source.item;
+      item["state"] = "starting";
+      return item;
+    }
+    if (source.item_when_up && !entry.up_item) entry.up_item = source.item_when_up();  // once: the routes it serves
     json item = source.item;
+    if (entry.up_item) item.update(*entry.up_item);
     if (source.health != nullptr && source.health->handler_errors() > 0)
       item["handler_errors"] = source.health->handler_errors();  // requests answered 500: the handler threw
     if (source.health != nullptr && source.health->failed()) {
@@ -340,6 +357,7 @@ class StatusBoard::Impl final : public StatusSink, public std::enable_shared_fro
   std::shared_ptr<const Snapshot> build(std::uint64_t changes) const {
     auto snapshot = std::make_shared<Snapshot>();
     snapshot->changes = changes;
+    snapshot->starting = starting_now();  // before reading them: a capability up meanwhile makes the next one
     const std::int64_t now = services_.clock.now_us();
     json doc = fixed_;
     json capabilities = json::object();
@@ -440,13 +458,17 @@ std::vector<StatusBoard::Source> StatusBoard::sources_of(PluginRuntime& runtime)
   // Polled through the runtime even without an object now: a reload may start one (status_of answers nullopt until).
   const auto poll = [&runtime](const auto& instance) { return [&runtime, &instance] { return runtime.status_of(instance); }; };
   std::vector<Source> sources;
-  for (const auto& instance : runtime.capabilities())  // the routes as served from startup (rows never change)
+  for (const auto& instance : runtime.capabilities())  // the routes it serves, once it is up
     sources.push_back({instance.name,
                        false,
-                       {{"plugin", instance.plugin_id}, {"routes", served_routes(instance)}},
+                       {{"plugin", instance.plugin_id}, {"routes", json::array()}},
                        &instance.health,
                        poll(instance),
-                       instance.needs});
+                       instance.needs,
+                       &instance.starting,
+                       [&instance] {
+                         return json{{"routes", served_routes(instance)}};
+                       }});
   for (const auto& instance : runtime.drivers()) {
     nlohmann::json item{
         {"id", instance.id}, {"protocol", instance.protocol}, {"plugin", instance.plugin_id}, {"actuates", instance.actuates}};

@@ -22,6 +22,7 @@
 // read on the status thread at each rebuild - never per request.
 #pragma once
 
+#include <atomic>
 #include <chrono>
 #include <cstdint>
 #include <functional>
@@ -65,6 +66,10 @@ class StatusBoard {
     // A capability: the actuator interfaces it needs (its manifest's `requires`). Its state follows the drivers whose
     // item names that "interface": "error" when every one of them failed, "degraded" when some did.
     std::vector<std::string> needs = {};
+    // A capability that may still be starting: "state": "starting" while this is true (never polled), and once it is
+    // false, item_when_up()'s fields join the item (its routes).
+    const std::atomic<bool>* starting = nullptr;
+    std::function<nlohmann::json()> item_when_up = {};
   };
 
   static constexpr std::size_t kFaultTextBytes = 600;

@@ -121,7 +121,7 @@ void PluginBridge::set_cost(const Link* owner, sdk::R2rCostFunction cost) {
   sync_cost();
 }
 
-void PluginBridge::sync_cost() noexcept {
+void PluginBridge::sync_cost(bool again) noexcept {
   try {
     std::lock_guard sync(sync_mutex_);
     const sdk::FleetAuctions* fleet = fleet_ ? fleet_() : nullptr;
@@ -133,7 +133,7 @@ void PluginBridge::sync_cost() noexcept {
       cost = cost_;
       generation = cost_generation_;
     }
-    if (fleet == synced_fleet_ && generation == synced_generation_) return;
+    if (!again && fleet == synced_fleet_ && generation == synced_generation_) return;
     fleet->set_cost_override(std::move(cost));
     synced_fleet_ = fleet;
     synced_generation_ = generation;

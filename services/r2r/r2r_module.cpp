@@ -46,9 +46,11 @@ class R2rModule final : public Service {
   http::UpgradeHandler upgrade() override { return service_ ? service_->upgrade_handler() : http::UpgradeHandler{}; }
   void start(std::uint16_t http_port) override {
     if (!service_) return;
-    bridge_.sync_cost();         // every plugin started: a price set before the fleet plugin offered reaches it now
+    bridge_.sync_cost();         // capabilities already up (an embedded kernel starts them first)
     service_->start(http_port);  // throws StartupError naming the runtime.r2r setting at fault
   }
+  // A price set before the fleet plugin offered its service (or before it was reloaded) reaches it now.
+  void capabilities_changed() noexcept override { bridge_.sync_cost(true); }
   void stop() noexcept override {
     if (service_) service_->stop();  // no R2R message is handled or sent after this
     bridge_.detach();                // plugins' links no longer reach the node

@@ -7,10 +7,17 @@
 namespace rcand::services::telemetry {
 
 void RouteMetrics::instrument(kernel::Router& router) {
+  instrument_new_rows(router);
+  router.on_group_replaced([this, &router] { instrument_new_rows(router); });
+}
+
+void RouteMetrics::instrument_new_rows(kernel::Router& router) {
   // Collected first: wrapping a row while walking the table would match against rows being changed.
   std::vector<std::pair<std::string, std::string>> targets;
   std::set<std::pair<const kernel::Route*, std::string>> seen;
-  for (const auto& route : router.routes()) {
+  const auto table = router.routes();
+  std::lock_guard lock(mutex_);
+  for (const auto& route : table->routes) {
     const auto& spec = route.spec;
     std::vector<std::string> methods;
     if (spec.method == "*") methods = {"GET", "POST", "PUT", "PATCH", "DELETE"};
@@ -19,7 +26,7 @@ void RouteMetrics::instrument(kernel::Router& router) {
       // A "*" row's method may be served by a more specific row of the same path: wrap each row once per method.
       const kernel::Route* serving = router.match(method, spec.path).route;
       if (serving != &route || !seen.emplace(serving, method).second) continue;
-      targets.emplace_back(std::move(method), spec.path);
+      if (instrumented_.emplace(method, spec.path).second) targets.emplace_back(std::move(method), spec.path);
     }
   }
   for (auto& [method, path] : targets) {
@@ -37,6 +44,7 @@ void RouteMetrics::instrument(kernel::Router& router) {
 }
 
 void RouteMetrics::write(MetricsText& out) const {
+  std::lock_guard lock(mutex_);
   out.family("rcand_http_requests_total", "counter",
              "HTTP requests answered by each route (after authentication and rate limits), by status code");
   for (const Row& row : rows_)
@@ -49,6 +57,7 @@ void RouteMetrics::write(MetricsText& out) const {
 }
 
 std::uint64_t RouteMetrics::successes(std::string_view method, std::string_view path) const {
+  std::lock_guard lock(mutex_);
   std::uint64_t total = 0;
   for (const Row& row : rows_)
     if (row.method == method && row.path == path)

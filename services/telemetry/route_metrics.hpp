@@ -9,6 +9,8 @@
 #include <atomic>
 #include <cstdint>
 #include <deque>
+#include <mutex>
+#include <set>
 #include <string>
 #include <string_view>
 
@@ -20,8 +22,9 @@ namespace rcand::services::telemetry {
 
 class RouteMetrics {
  public:
-  // Startup only, before serving: wraps each row present now (a "*" row once per common method). Rows added
-  // afterwards would not be: telemetry is last in linked_services() so that every service's rows are in.
+  // Wraps each row present now (a "*" row once per common method), and each row a capability installs once it is up
+  // (Router::on_group_replaced). Telemetry is last in linked_services() so that every service's rows are in. The
+  // router must outlive this object's use by it (the kernel stops its capability starter before services go).
   void instrument(kernel::Router& router);
   // rcand_http_requests_total and rcand_http_request_duration_seconds.
   void write(MetricsText& out) const;
@@ -35,7 +38,11 @@ class RouteMetrics {
     LatencyHistogram latency{kRequestBounds};
     std::array<std::atomic<std::uint64_t>, 500> by_status{};  // index: status - 100
   };
-  std::deque<Row> rows_;  // never moves an element: decorators hold their row's address
+  void instrument_new_rows(kernel::Router& router);
+
+  mutable std::mutex mutex_;  // rows_ and instrumented_ (appended to while serving, as capabilities come up)
+  std::deque<Row> rows_;      // never moves an element: decorators hold their row's address
+  std::set<std::pair<std::string, std::string>> instrumented_;  // (method, path) wrapped already: wraps outlive swaps
 };
 
 }  // namespace rcand::services::telemetry

@@ -122,3 +122,27 @@ TEST_CASE("fleet plugin: a vendor's R2rLink::set_cost_function prices this robot
     return std::nullopt;
   }));
 }
+
+TEST_CASE("fleet plugin: a reloaded fleet plugin still prices bids with the vendor's cost function") {
+  TempDir dir;
+  const auto token = dir.write("r2r.token", "owner-token\n");
+  auto config = r2r_robot_config("alpha", token);
+  config["rcan_protocol"]["capabilities"].push_back("org.rcand.test.pricing");
+  config["runtime"]["plugins"] = {{"allow_reload", true}};
+  RcandProcess robot(config, {plugin_dir(), test_plugin_dir() / "pricing"});
+  int status = 0;
+  robot.json("POST", std::string("/api/plugins/") + kFleet + "/reload", "owner-token", {}, &status);
+  REQUIRE(status == 200);
+  robot.json("POST", "/api/estop/clear", "owner-token", "", &status);  // a reload latches the e-stop
+  REQUIRE(status == 200);
+  WsClient peer;
+  REQUIRE(peer.connect(robot.port(), "user-token") == 101);
+  peer.send(r2r_message("req-2", "task_request",
+                        {{"task_id", "P2"},
+                         {"required_capabilities", {"teleop"}},
+                         {"location", {{"x", 9.0}, {"y", 9.0}}},
+                         {"bid_deadline", unix_now() + 10}}));
+  const auto bid = read_until(peer, [](const json& m) { return m.value("type", "") == "negotiation"; });
+  REQUIRE(bid);
+  CHECK((*bid)["payload"]["cost"] == 12.5);  // the default would be the trip time to (9, 9)
+}

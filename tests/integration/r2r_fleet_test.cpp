@@ -129,7 +129,7 @@ TEST_CASE("r2r fleet (mqtt): status, auction, command and errors round-trip thro
   };
 
   // status: each robot reads the other's on r2r/status/<name> (status_subscriptions: all).
-  const auto heard = poll_until<json>([&] { return peer_status(alpha, "bravo"); });
+  const auto heard = poll_until<json>([&] { return peer_status_placed(alpha, "bravo"); });
   REQUIRE(heard);
   CHECK((*heard)["transport"] == "mqtt");
   CHECK((*heard)["status"]["position"]["x"] == doctest::Approx(2.0));
@@ -204,7 +204,7 @@ TEST_CASE("r2r fleet (udp): status datagrams reach the robots listed; garbage da
   RcandProcess bravo(bravo_config);
   RcandProcess alpha(alpha_config);
 
-  const auto heard = poll_until<json>([&] { return peer_status(bravo, "alpha"); });
+  const auto heard = poll_until<json>([&] { return peer_status_placed(bravo, "alpha"); });
   REQUIRE(heard);
   CHECK((*heard)["transport"] == "udp");
   CHECK((*heard)["status"]["position"]["x"] == doctest::Approx(-3.0));

@@ -33,7 +33,8 @@ int run_fake_rcand(const std::string& report) {
     {
       // The report is written before the "listening" line, so it is on stderr before the harness can stop us.
       const std::string script = "trap 'exit 0' TERM; printf '%s\\n' '" + report +
-                                 "' >&2; echo 'rcand: listening on http://127.0.0.1:1'; while :; do sleep 0.05; done";
+                                 "' >&2; echo 'rcand: listening on http://127.0.0.1:1'; echo 'rcand: capabilities started'; "
+                                 "while :; do sleep 0.05; done";
       RcandProcess fake(rcand::test::sim_config(), {"/bin/sh", "-c", script, "fake-rcand"}, "127.0.0.1");
     }
     _exit(0);
@@ -46,9 +47,9 @@ int run_fake_rcand(const std::string& report) {
 }  // namespace
 
 TEST_CASE("a sanitizer report in an rcand child fails the test that started it") {
-  for (const std::string report : {"==42==ERROR: AddressSanitizer: heap-use-after-free on address 0x602",
-                                   "==42==ERROR: LeakSanitizer: detected memory leaks",
-                                   "src/x.cpp:3:5: runtime error: signed integer overflow"}) {
+  for (const std::string report :
+       {"==42==ERROR: AddressSanitizer: heap-use-after-free on address 0x602",
+        "==42==ERROR: LeakSanitizer: detected memory leaks", "src/x.cpp:3:5: runtime error: signed integer overflow"}) {
     CAPTURE(report);
     const int status = run_fake_rcand(report);
     CHECK(WIFSIGNALED(status));

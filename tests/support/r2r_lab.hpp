@@ -89,6 +89,14 @@ inline std::optional<nlohmann::json> peer_status(const RcandProcess& robot, cons
   return std::nullopt;
 }
 
+// peer_status() once that status gives a position: a robot serves (and sends its status) before its nav is up, and
+// sends it again when the position is known.
+inline std::optional<nlohmann::json> peer_status_placed(const RcandProcess& robot, const std::string& name) {
+  auto peer = peer_status(robot, name);
+  if (peer && (*peer)["status"].value("position", nlohmann::json()).is_object()) return peer;
+  return std::nullopt;
+}
+
 // Frames until one satisfies `match` (status broadcasts and the like are skipped), or nullopt at the deadline.
 inline std::optional<nlohmann::json> read_until(WsClient& client, const std::function<bool(const nlohmann::json&)>& match,
                                                 std::chrono::milliseconds timeout = std::chrono::seconds(8)) {

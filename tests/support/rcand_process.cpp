@@ -11,8 +11,8 @@
 #include <array>
 #include <cstdlib>
 #include <cstring>
-#include <iostream>
 #include <fstream>
+#include <iostream>
 #include <sstream>
 #include <stdexcept>
 
@@ -43,7 +43,8 @@ nlohmann::json sim_config() {
         {"manufacturer", "rcand"},
         {"model", "sim-rover"}}},
       {"physics", {{"wheel_circumference_m", 0.21}, {"turn_time_per_deg_s", 0.008}, {"max_wheel_rps", 1.0}}},
-      {"drivers", json::array({{{"id", "drive0"}, {"protocol", "sim_diff_drive"}}, {{"id", "gripper0"}, {"protocol", "acme_gripper_sim"}}})},
+      {"drivers",
+       json::array({{{"id", "drive0"}, {"protocol", "sim_diff_drive"}}, {{"id", "gripper0"}, {"protocol", "acme_gripper_sim"}}})},
       {"rcan_protocol", {{"port", 8000}, {"capabilities", {"status", "teleop", "com.acme.gripper"}}}},
       {"safety", {{"watchdog_ms", 500}}},
       {"runtime",
@@ -120,8 +121,8 @@ std::string slurp(const fs::path& file) {
 // In a sanitizer build (ASan/UBSan options inherited through environ) a child's report must fail the test even when
 // the test never looks at the child's exit status (a leak reported at exit, say): print it and abort the test.
 void abort_on_sanitizer_report(const std::string& who, const std::string& err) {
-  for (const char* marker : {"ERROR: AddressSanitizer", "ERROR: LeakSanitizer", "SUMMARY: UndefinedBehaviorSanitizer",
-                             ": runtime error: "}) {
+  for (const char* marker :
+       {"ERROR: AddressSanitizer", "ERROR: LeakSanitizer", "SUMMARY: UndefinedBehaviorSanitizer", ": runtime error: "}) {
     if (err.find(marker) == std::string::npos) continue;
     std::cerr << "\n==== " << who << " reported a sanitizer error; its stderr:\n" << err << "\n==== failing the test\n";
     std::abort();
@@ -171,8 +172,8 @@ ProcessResult run_tool(const std::string& binary, const std::vector<std::string>
   return result;
 }
 
-RcandProcess::RcandProcess(const nlohmann::json& config, std::vector<fs::path> plugin_paths) {
-  launch(config, std::move(plugin_paths), {});
+RcandProcess::RcandProcess(const nlohmann::json& config, std::vector<fs::path> plugin_paths, Ready ready) {
+  launch(config, std::move(plugin_paths), {}, ready);
 }
 
 RcandProcess::RcandProcess(const nlohmann::json& config, std::vector<std::string> launcher, std::string host)
@@ -180,7 +181,8 @@ RcandProcess::RcandProcess(const nlohmann::json& config, std::vector<std::string
   launch(config, {}, launcher);
 }
 
-void RcandProcess::launch(const nlohmann::json& config, std::vector<fs::path> plugin_paths, const std::vector<std::string>& launcher) {
+void RcandProcess::launch(const nlohmann::json& config, std::vector<fs::path> plugin_paths,
+                          const std::vector<std::string>& launcher, Ready wanted) {
   dir_.write("jwt.secret", kJwtSecret);
   // Hermetic: a state dir of this process's own (inside its temp dir) unless the test names one (to share it
   // between two processes in turn, say); never the system's /var/lib/rcand.
@@ -206,12 +208,15 @@ void RcandProcess::launch(const nlohmann::json& config, std::vector<fs::path> pl
   pid_ = child.pid;
   stdout_fd_ = child.stdout_fd;
 
-  // Wait for the ready line: an event on the pipe, with a generous deadline only against a hung start.
+  // Wait for the ready line (and the capabilities' one: it may come first): an event on the pipe, with a generous
+  // deadline only against a hung start.
   constexpr std::string_view kReady = "rcand: listening on http://";
+  constexpr std::string_view kCapabilitiesStarted = "rcand: capabilities started\n";
   std::string text;
   std::size_t ready = std::string::npos;
   const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(30);
-  while ((ready = text.find(kReady)) == std::string::npos || text.find('\n', ready) == std::string::npos) {
+  while ((ready = text.find(kReady)) == std::string::npos || text.find('\n', ready) == std::string::npos ||
+         (wanted == Ready::CapabilitiesStarted && text.find(kCapabilitiesStarted) == std::string::npos)) {
     const auto left = std::chrono::duration_cast<std::chrono::milliseconds>(deadline - std::chrono::steady_clock::now());
     pollfd fd{stdout_fd_, POLLIN, 0};
     if (left.count() <= 0 || poll(&fd, 1, static_cast<int>(left.count())) <= 0) break;

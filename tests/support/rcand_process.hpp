@@ -3,8 +3,8 @@
 // no sleeping); it is stopped with SIGTERM (SIGKILL if it does not exit) and always reaped.
 #pragma once
 
-#include <nlohmann/json.hpp>
 #include <sys/types.h>
+#include <nlohmann/json.hpp>
 
 #include <chrono>
 #include <filesystem>
@@ -45,8 +45,12 @@ class RcandProcess {
   // Writes `config` to <tmp>/robot.rcan.yaml (plus the JWT secret file) and starts rcand on port 0 loading plugins
   // only from `plugin_paths` (default: the build tree's). Without runtime.state_dir in `config`, the state dir is
   // <tmp>/state (hermetic); set it to a directory of the test's to share it between processes run in turn.
-  // Throws std::runtime_error with rcand's stderr when it does not come up.
-  explicit RcandProcess(const nlohmann::json& config, std::vector<std::filesystem::path> plugin_paths = {});
+  // Throws std::runtime_error with rcand's stderr when it does not come up. Returns once every capability is up or
+  // failed ("rcand: capabilities started"), or with Ready::Serving as soon as rcand serves (capabilities may still be
+  // starting then: 503 STARTING).
+  enum class Ready { CapabilitiesStarted, Serving };
+  explicit RcandProcess(const nlohmann::json& config, std::vector<std::filesystem::path> plugin_paths = {},
+                        Ready ready = Ready::CapabilitiesStarted);
   // The same started through `launcher` (e.g. {"ip", "netns", "exec", "ns1"}: rcand inside a network namespace),
   // reached at `host` (the config's runtime.listen.address there).
   RcandProcess(const nlohmann::json& config, std::vector<std::string> launcher, std::string host);
@@ -80,7 +84,8 @@ class RcandProcess {
   std::uint16_t port_ = 0;
   std::uint16_t tls_port_ = 0;
   std::string host_ = "127.0.0.1";
-  void launch(const nlohmann::json& config, std::vector<std::filesystem::path> plugin_paths, const std::vector<std::string>& launcher);
+  void launch(const nlohmann::json& config, std::vector<std::filesystem::path> plugin_paths,
+              const std::vector<std::string>& launcher, Ready ready = Ready::CapabilitiesStarted);
 };
 
 // The resident memory of `pid` in kB (VmRSS), -1 when it cannot be read.

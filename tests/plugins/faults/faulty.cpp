@@ -4,6 +4,10 @@
 //   hang    - never returns
 //   slow    - returns after slow_ms
 //   garbage - returns nonsense the kernel must refuse cleanly (null object, broken routes, invalid status/body)
+//   gate    - returns once the test writes a byte to the FIFO its "gate" setting names (or closes it)
+#include <fcntl.h>
+#include <unistd.h>
+
 #include <chrono>
 #include <limits>
 #include <stdexcept>
@@ -20,7 +24,7 @@ using rcand::sdk::Response;
 using rcand::sdk::Route;
 
 struct Fault {
-  std::string hook = "none", kind = "throw";
+  std::string hook = "none", kind = "throw", gate;
   int slow_ms = 2000;
 
   explicit Fault(rcand::sdk::PluginContext& context) {
@@ -28,6 +32,7 @@ struct Fault {
     hook = settings.get_or<std::string>("hook", "none");
     kind = settings.get_or<std::string>("fault", "throw");
     slow_ms = settings.get_or<int>("slow_ms", 2000);
+    gate = settings.get_or<std::string>("gate", "");
   }
   bool in(std::string_view name) const { return hook == name; }
   bool garbage(std::string_view name) const { return in(name) && kind == "garbage"; }
@@ -38,6 +43,13 @@ struct Fault {
     if (kind == "hang")
       for (;;) std::this_thread::sleep_for(std::chrono::hours(1));
     if (kind == "slow") std::this_thread::sleep_for(std::chrono::milliseconds(slow_ms));
+    if (kind == "gate") {  // blocks in open() until the test opens the FIFO for writing, then in read() until it writes
+      const int fd = ::open(gate.c_str(), O_RDONLY | O_CLOEXEC);
+      if (fd < 0) throw std::runtime_error("fault drill: cannot open the gate " + gate);
+      char byte = 0;
+      [[maybe_unused]] const ssize_t n = ::read(fd, &byte, 1);
+      ::close(fd);
+    }
   }
 };
 

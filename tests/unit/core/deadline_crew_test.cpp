@@ -10,8 +10,8 @@
 #include <vector>
 
 #include "kernel/safety/estop.hpp"
-#include "kernel/steady_clock.hpp"
 #include "libs/base/deadline_crew.hpp"
+#include "libs/base/steady_clock.hpp"
 
 using namespace rcand;
 using namespace rcand::kernel;

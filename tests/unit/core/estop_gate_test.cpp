@@ -5,7 +5,7 @@
 
 #include "kernel/safety/estop.hpp"
 #include "kernel/safety/kernel_motion_gate.hpp"
-#include "kernel/steady_clock.hpp"
+#include "libs/base/steady_clock.hpp"
 
 using namespace rcand;
 using namespace rcand::kernel;

@@ -9,10 +9,10 @@
 #include <thread>
 #include <vector>
 
-#include "libs/base/deadline_crew.hpp"
 #include "kernel/safety/estop.hpp"
 #include "kernel/safety/kernel_motion_gate.hpp"
-#include "kernel/steady_clock.hpp"
+#include "libs/base/deadline_crew.hpp"
+#include "libs/base/steady_clock.hpp"
 
 using namespace rcand;
 using namespace rcand::kernel;
@@ -143,7 +143,8 @@ TEST_CASE("a command that never leaves the gate is named in the stop report at t
 
   drive.block_next = true;
   auto entered = drive.entered.get_future();
-  std::thread commander([&] { gate.actuate_as<rcand::sdk::DifferentialDrive>("drive0", [](auto& d) { d.set_wheel_speeds(0.8, 0.8); }); });
+  std::thread commander(
+      [&] { gate.actuate_as<rcand::sdk::DifferentialDrive>("drive0", [](auto& d) { d.set_wheel_speeds(0.8, 0.8); }); });
   entered.wait();
   const auto started = std::chrono::steady_clock::now();
   const auto report = estop.latch("stuck command", "unit");

@@ -6,7 +6,7 @@
 
 #include "kernel/api/api.hpp"
 #include "kernel/api/router.hpp"
-#include "kernel/steady_clock.hpp"
+#include "libs/base/steady_clock.hpp"
 #include "libs/rcan/crypto.hpp"
 
 using namespace rcand;
@@ -82,6 +82,41 @@ TEST_CASE("router: a wrap runs for its method only, before the row's handler, an
   }
   CHECK(seen == std::vector<std::string>{"wrap POST"});
   CHECK_THROWS_AS(router.wrap("GET", "/api/none", {}), std::logic_error);
+}
+
+TEST_CASE("router: a group's rows are swapped in one snapshot; wraps survive the swap; a match keeps its snapshot") {
+  Router router;
+  router.add({"POST", "/api/stop"}, named("stop"));
+  router.add({"*", "/api/cap/*"}, named("starting"), "capabilities");
+  int wrapped = 0;
+  router.wrap("POST", "/api/stop", [&](Call& call, Reply reply, const RouteHandler& next) {
+    ++wrapped;
+    next(call, std::move(reply));
+  });
+  const auto before = router.match("GET", "/api/cap/gripper/state");  // a request in flight across the swap
+  REQUIRE(before.route != nullptr);
+
+  router.replace_group("capabilities", {{RouteSpec{"GET", "/api/cap/gripper/state"}, named("gripper state")},
+                                        {RouteSpec{"*", "/api/cap/*"}, named("fallback")}});
+  CHECK(serve(router, "GET", "/api/cap/gripper/state") == "gripper state");
+  CHECK(serve(router, "POST", "/api/cap/other/x") == "fallback");
+  CHECK(serve(router, "POST", "/api/stop") == "stop");
+  Call call;
+  call.request.method = "POST";
+  Answer answer;
+  const auto stop = router.match("POST", "/api/stop");
+  REQUIRE(stop.route->decorator);  // the service's wrap is on the new snapshot's row too
+  stop.route->decorator(call, answer.reply(), stop.route->handler);
+  CHECK(wrapped == 1);
+  CHECK(answer.response->body == "stop");
+  // The old snapshot is still whole for the request that matched in it.
+  Answer old;
+  before.route->handler(call, old.reply());
+  CHECK(old.response->body == "starting");
+  CHECK(before.table != router.routes());
+  // A clash with another group's row changes nothing.
+  CHECK_THROWS_AS(router.replace_group("capabilities", {{RouteSpec{"POST", "/api/stop"}, named("clash")}}), std::logic_error);
+  CHECK(serve(router, "GET", "/api/cap/gripper/state") == "gripper state");
 }
 
 namespace {

@@ -14,7 +14,7 @@
 
 #include "kernel/plugins/guarded.hpp"
 #include "kernel/plugins/plugin_host.hpp"
-#include "kernel/plugins/reload_gate.hpp"
+#include "libs/base/reload_gate.hpp"
 #include "stub_context.hpp"
 #include "temp_dir.hpp"
 
@@ -22,9 +22,9 @@ namespace {
 
 namespace fs = std::filesystem;
 using nlohmann::json;
+using rcand::ReloadGate;
 using rcand::kernel::PluginHost;
 using rcand::kernel::PluginState;
-using rcand::kernel::ReloadGate;
 
 constexpr const char* kReloadFixture = "org.rcand.test.reload";
 

@@ -2,7 +2,8 @@
 // capability route table both build from the routes the running capabilities registered (route_table), the row a
 // request matches (match), and whether it may run (decide), in the kernel's order (docs/protocol.md §7): the row's
 // scope (403) first, then the e-stop (423) for motion rows; a fallback row (Unserved) then answers for a capability
-// that is not declared (404), out of service (503, the kernel only) or has no such route (405/404). Pure and
+// that is not declared (404), still starting or out of service (503 STARTING / UNAVAILABLE, the kernel only: the fake
+// host starts a capability before it serves) or has no such route (405/404). Pure and
 // header-only; tests/unit/contract runs every row of the table through both hosts.
 #pragma once
 

@@ -114,6 +114,12 @@ inline Response out_of_service(const std::string& capability, const std::string&
   return Response::error(503, "UNAVAILABLE", "capability '" + capability + "' is out of service: " + why,
                          Json{{"capability", capability}});
 }
+// The capability is declared and its plugin's start() has not returned yet (rcand serves while capabilities start):
+// ask again shortly. Only the robot answers it (the fake host starts a capability before it serves).
+inline Response starting(const std::string& capability) {
+  return Response::error(503, "STARTING", "capability '" + capability + "' is starting; ask again shortly",
+                         Json{{"capability", capability}, {"state", "starting"}});
+}
 // A request handler threw (docs/protocol.md §7.16): this request fails; the capability stays in service.
 inline Response handler_threw(const std::string& capability) {
   return Response::error(500, "INTERNAL", "capability '" + capability + "' failed while handling this request (logged)");

@@ -8,7 +8,7 @@
 #include <memory>
 #include <mutex>
 
-namespace rcand::kernel {
+namespace rcand {
 
 class ReloadGate : public std::enable_shared_from_this<ReloadGate> {
  public:
@@ -44,4 +44,4 @@ class ReloadGate : public std::enable_shared_from_this<ReloadGate> {
   bool closed_ = false;
 };
 
-}  // namespace rcand::kernel
+}  // namespace rcand

@@ -1,9 +1,11 @@
 // The kernel's sdk::Clock: std::chrono::steady_clock for durations, system_clock for timestamps.
 #pragma once
 
+#include <chrono>
+
 #include "rcand/sdk/clock.hpp"
 
-namespace rcand::kernel {
+namespace rcand {
 
 class SteadyClock final : public sdk::Clock {
  public:
@@ -17,4 +19,8 @@ class SteadyClock final : public sdk::Clock {
   }
 };
 
-}  // namespace rcand::kernel
+namespace kernel {
+using rcand::SteadyClock;  // the kernel's clock
+}  // namespace kernel
+
+}  // namespace rcand

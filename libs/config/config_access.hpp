@@ -1,0 +1,21 @@
+// rcand --check-config --as-user: what a user could not open of the files and devices a config names (the service
+// runs as `rcand`, not as the admin who edits the config).
+#pragma once
+
+#include <filesystem>
+#include <string>
+#include <vector>
+
+#include "libs/base/user_access.hpp"
+#include "libs/config/robot_config.hpp"
+
+namespace rcand::kernel {
+
+// One line per path `user` lacks the access it needs to: the config file, its conf.d fragments, the state dir, the
+// secrets, TLS files, swarm file and audit log it names, the plugin directories, and every /dev/ path a driver
+// setting or the camera names.
+std::vector<std::string> config_access_problems(const RobotConfig& config, const std::filesystem::path& config_file,
+                                                const std::vector<std::filesystem::path>& plugin_paths,
+                                                const UserIdentity& user);
+
+}  // namespace rcand::kernel
