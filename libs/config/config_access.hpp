@@ -15,7 +15,6 @@ namespace rcand::kernel {
 // secrets, TLS files, swarm file and audit log it names, the plugin directories, and every /dev/ path a driver
 // setting or the camera names.
 std::vector<std::string> config_access_problems(const RobotConfig& config, const std::filesystem::path& config_file,
-                                                const std::vector<std::filesystem::path>& plugin_paths,
-                                                const UserIdentity& user);
+                                                const std::vector<std::filesystem::path>& plugin_paths, const UserIdentity& user);
 
 }  // namespace rcand::kernel
