@@ -191,7 +191,7 @@ struct Kernel::State {
   void create_services(const KernelOptions& options);
   void start_plugins();
   void start_capabilities();
-  void capability_up();
+  void tell_services();
   void add_routes();
   void restore_latch();
   bool reload_tls(const RobotConfig& next);
@@ -271,6 +271,7 @@ void Kernel::State::start_plugins() {
   runtime->declare_capabilities(registry->served(), config);  // started by start_capabilities(), or below when embedded
   if (!server) {
     runtime->start_declared(config, [] { return true; }, {});
+    tell_services();
     capabilities_up = true;
   }
   estop.on_latched([runtime = runtime.get()] { runtime->notify_estop(); });
@@ -324,15 +325,14 @@ void Kernel::State::reload_plugin(const std::string& id, const std::string& prin
       body.update({{"state", to_string(record->state)}, {"version", record->version}, {"build_info", record->build_info}});
     body["instances"] = result.instances;
     if (result.status != 200) body.update({{"code", result.code}, {"error", result.error}});
-    capability_up();
+    status_board->refresh();  // the answer's reader sees the reloaded instances
+    tell_services();
     done(result.status, std::move(body));
   });
 }
 
-// A capability came up (started or reloaded): the status shows it before anyone is told, and the services re-read
-// what plugins offer.
-void Kernel::State::capability_up() {
-  status_board->refresh();
+// Plugin instances started or were reloaded: the services re-read what plugins offer.
+void Kernel::State::tell_services() {
   for (auto& service : optional_services) service->capabilities_changed();
 }
 
@@ -349,8 +349,10 @@ void Kernel::State::start_capabilities() {
           } catch (const std::exception& e) {  // a row clashing with another group's: a programming error, named
             logger("kernel.api")->error("capability routes: {}", e.what());
           }
-          capability_up();
+          status_board->notify();
+          tell_services();
         });
+    status_board->refresh();  // read after "capabilities started", the status shows each as it ended up
     capabilities_up = true;
     capabilities_up.notify_all();
     if (on_capabilities_up && !stop_starting.load()) on_capabilities_up();

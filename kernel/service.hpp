@@ -62,8 +62,8 @@ class Service {
   virtual http::UpgradeHandler upgrade() { return {}; }
   // After the HTTP server bound its port. Throws StartupError naming the setting at fault.
   virtual void start(std::uint16_t /*http_port*/) {}
-  // A capability came up (started after serving began, or reloaded); the services plugins offer may have changed.
-  // One call at a time, off the serving threads.
+  // Plugin instances started (each capability as it comes up; all of them at once in an embedded kernel) or were
+  // reloaded: the services plugins offer may have changed. One call at a time, off the serving threads.
   virtual void capabilities_changed() noexcept {}
   // Shutdown, after the e-stop latch: nothing of this service runs or sends afterwards. Idempotent.
   virtual void stop() noexcept {}

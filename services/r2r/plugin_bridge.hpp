@@ -37,9 +37,9 @@ class PluginBridge {
   // destroyed before the bridge (the kernel destroys plugin instances first).
   std::unique_ptr<sdk::R2rLink> make_link(sdk::Worker& worker, std::string owner);
   // Hands the price a plugin set (or none) to the fleet plugin, unless that one has it already. Also done at every
-  // set_cost_function and when the link that set it goes; the R2R service calls it as it starts, after every plugin
-  // started, for a price set before the fleet plugin offered its service. `again`: even to the object that has it
-  // (a reloaded fleet plugin may sit where the old one did). Any thread.
+  // set_cost_function and when the link that set it goes; the R2R service calls it whenever plugin instances start
+  // or are reloaded (Service::capabilities_changed), for a price set before the fleet plugin offered its service.
+  // `again`: even to the object that has it (a reloaded fleet plugin may sit where the old one did). Any thread.
   void sync_cost(bool again = false) noexcept;
 
  private:

@@ -46,7 +46,6 @@ class R2rModule final : public Service {
   http::UpgradeHandler upgrade() override { return service_ ? service_->upgrade_handler() : http::UpgradeHandler{}; }
   void start(std::uint16_t http_port) override {
     if (!service_) return;
-    bridge_.sync_cost();         // capabilities already up (an embedded kernel starts them first)
     service_->start(http_port);  // throws StartupError naming the runtime.r2r setting at fault
   }
   // A price set before the fleet plugin offered its service (or before it was reloaded) reaches it now.

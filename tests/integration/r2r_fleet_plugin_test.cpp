@@ -6,6 +6,8 @@
 
 #include <algorithm>
 #include <filesystem>
+#include <optional>
+#include <string>
 
 #include "r2r_lab.hpp"
 #include "rcand_process.hpp"
@@ -32,6 +34,16 @@ std::filesystem::path plugins_without_fleet(const TempDir& dir) {
     std::filesystem::create_symlink(entry.path(), folder / name);
   }
   return folder;
+}
+
+// A task at (9, 9) for a robot with teleop, sent by `peer`: this robot's bid, or nullopt.
+std::optional<json> bid_on(WsClient& peer, const std::string& message_id, const std::string& task_id) {
+  peer.send(r2r_message(message_id, "task_request",
+                        {{"task_id", task_id},
+                         {"required_capabilities", {"teleop"}},
+                         {"location", {{"x", 9.0}, {"y", 9.0}}},
+                         {"bid_deadline", unix_now() + 10}}));
+  return read_until(peer, [](const json& m) { return m.value("type", "") == "negotiation"; });
 }
 
 }  // namespace
@@ -107,12 +119,7 @@ TEST_CASE("fleet plugin: a vendor's R2rLink::set_cost_function prices this robot
   RcandProcess robot(config, {plugin_dir(), test_plugin_dir() / "pricing"});
   WsClient peer;
   REQUIRE(peer.connect(robot.port(), "user-token") == 101);
-  peer.send(r2r_message("req-1", "task_request",
-                        {{"task_id", "P1"},
-                         {"required_capabilities", {"teleop"}},
-                         {"location", {{"x", 9.0}, {"y", 9.0}}},
-                         {"bid_deadline", unix_now() + 10}}));
-  const auto bid = read_until(peer, [](const json& m) { return m.value("type", "") == "negotiation"; });
+  const auto bid = bid_on(peer, "req-1", "P1");
   REQUIRE(bid);
   CHECK((*bid)["payload"]["cost"] == 12.5);
   // The fleet plugin publishes what it holds (GET /api/status); nothing yet: the requester has not awarded.
@@ -137,12 +144,7 @@ TEST_CASE("fleet plugin: a reloaded fleet plugin still prices bids with the vend
   REQUIRE(status == 200);
   WsClient peer;
   REQUIRE(peer.connect(robot.port(), "user-token") == 101);
-  peer.send(r2r_message("req-2", "task_request",
-                        {{"task_id", "P2"},
-                         {"required_capabilities", {"teleop"}},
-                         {"location", {{"x", 9.0}, {"y", 9.0}}},
-                         {"bid_deadline", unix_now() + 10}}));
-  const auto bid = read_until(peer, [](const json& m) { return m.value("type", "") == "negotiation"; });
+  const auto bid = bid_on(peer, "req-2", "P2");
   REQUIRE(bid);
   CHECK((*bid)["payload"]["cost"] == 12.5);  // the default would be the trip time to (9, 9)
 }
