@@ -35,7 +35,10 @@ void stop(const KernelRouteDeps& d, Call& call, const Reply& reply) {
     origin.kind = "swarm";
     origin.from = bounded_text(std::string(*peer), 200);
   }
-  const auto report = d.estop.latch(origin.note.empty() ? "POST /api/stop" : origin.note, call.principal, origin);
+  // The on-latch listeners and the log line run after the answer was sent (when `latched` goes out of scope).
+  const Estop::Announcement latched{
+      d.estop, d.estop.latch_unannounced(origin.note.empty() ? "POST /api/stop" : origin.note, call.principal, origin)};
+  const auto& report = latched.report;
   json drivers = json::array();
   bool all_halted = true;
   for (const auto& halt : report.drivers) {

@@ -21,6 +21,10 @@ bool Estop::sleep_unless_latched(std::chrono::microseconds duration) const {
 void Estop::request_estop(const std::string& reason) noexcept { latch(reason, "plugin", {{}, "plugin", "a plugin", reason}); }
 
 Estop::StopReport Estop::latch(const std::string& reason, const std::string& source, const Origin& origin) noexcept {
+  return Announcement{*this, latch_unannounced(reason, source, origin)}.report;  // copied, then announced
+}
+
+Estop::StopReport Estop::latch_unannounced(const std::string& reason, const std::string& source, const Origin& origin) noexcept {
   StopReport report;
   const auto start = clock_.now_us();
   const auto deadline = std::chrono::steady_clock::now() + kHaltDeadline;
@@ -34,14 +38,15 @@ Estop::StopReport Estop::latch(const std::string& reason, const std::string& sou
   try {
     // Made safe here, after the halt, for everything that shows them: the log, GET /api/estop, /api/status,
     // telemetry, the dashboard and the state dir's latch record (a reason may be any caller's or plugin's text).
-    const std::string shown_reason = bounded_text(reason, kShownReasonBytes), shown_source = bounded_text(source);
+    report.shown_reason = bounded_text(reason, kShownReasonBytes);
+    report.shown_source = bounded_text(source);
     if (report.newly_latched) {
       std::lock_guard lock(info_mutex_);
       info_ = {
           true,
           clock_.wall_ms(),
-          shown_reason,
-          shown_source,
+          report.shown_reason,
+          report.shown_source,
           {bounded_text(origin.principal), origin.kind, bounded_text(origin.from), bounded_text(origin.note, kShownReasonBytes)}};
     }
     for (const auto& id : report.commands_in_flight) {
@@ -63,14 +68,20 @@ Estop::StopReport Estop::latch(const std::string& reason, const std::string& sou
       std::lock_guard lock(sleep_mutex_);  // pairs with the predicate check in sleep_unless_latched
     }
     sleepers_.notify_all();
-    for (auto& listener : listeners_) listener();
-    if (report.newly_latched)
-      logger("kernel.estop")
-          ->warn("e-stop latched by {}: {} ({} actuators halted in {} us)", shown_source, shown_reason, report.drivers.size(),
-                 report.latency_us);
   } catch (...) {  // bookkeeping must never undo a stop that already happened
   }
   return report;
+}
+
+void Estop::announce(const StopReport& report) noexcept {
+  try {
+    for (auto& listener : listeners_) listener();
+    if (report.newly_latched)
+      logger("kernel.estop")
+          ->warn("e-stop latched by {}: {} ({} actuators halted in {} us)", report.shown_source, report.shown_reason,
+                 report.drivers.size(), report.latency_us);
+  } catch (...) {  // bookkeeping must never undo a stop that already happened
+  }
 }
 
 std::vector<HaltReport> Estop::halt_everything(std::chrono::steady_clock::time_point deadline) noexcept {

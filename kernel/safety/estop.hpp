@@ -32,6 +32,13 @@ class Estop final : public sdk::EstopView {
     // Actuators with a command that got into the motion gate before the latch and had not left it by the deadline
     // (their entry in `drivers` says so too: not halted, state "command_in_flight").
     std::vector<std::string> commands_in_flight;
+    std::string shown_reason, shown_source;  // as recorded (bounded): announce()'s log line
+  };
+  // Runs announce() when it goes out of scope, whatever the caller's answer did in between (threw, say).
+  struct Announcement {
+    Estop& estop;
+    StopReport report;
+    ~Announcement() { estop.announce(report); }
   };
   using Origin = StopOrigin;  // who stopped the robot and how (docs/protocol.md §6.7)
   struct Snapshot {
@@ -63,13 +70,20 @@ class Estop final : public sdk::EstopView {
   // latch is cleared while latch() waits, the wait ends (the gate still halts every command older than the stop).
   // `origin` is recorded with the reason (copied after the halt, like the reason).
   StopReport latch(const std::string& reason, const std::string& source, const Origin& origin = {}) noexcept;
+  // latch() in two steps, for a caller that answers in between (POST /api/stop): latch_unannounced() latches, halts,
+  // waits for commands in flight and records the reason, as latch() does; announce() then runs the on-latch listeners
+  // and logs a new latch. The answer then waits for no listener's wake-up (each one a cross-CPU wake-up that the
+  // answer paid for before). announce() must follow: hold the report in an Announcement.
+  StopReport latch_unannounced(const std::string& reason, const std::string& source, const Origin& origin = {}) noexcept;
+  void announce(const StopReport& report) noexcept;
   // Returns true when it was latched.
   bool clear();
   // Startup only, while latched: replaces the reason and source shown (rcand starts latched for several causes);
   // the origin becomes "startup".
   void restate(std::string reason, std::string source);
   Snapshot snapshot() const;
-  // Startup only. Listeners run on the stop path after the halt (they cancel jobs) and must not block.
+  // Startup only. Listeners run on the stop path after the halt (they cancel jobs; after the answer for POST
+  // /api/stop) and must not block.
   void on_latched(std::function<void()> listener);
   // Startup only. Run by clear() after the latch was released (the state dir's record follows it).
   void on_cleared(std::function<void()> listener);

@@ -1,6 +1,7 @@
 #include <doctest/doctest.h>
 
 #include <atomic>
+#include <stdexcept>
 #include <thread>
 
 #include "kernel/safety/estop.hpp"
@@ -125,6 +126,25 @@ TEST_CASE("listeners run on the stop path after the halt") {
   rig.estop.on_latched([&] { speed_seen = rig.drive.speed; });
   rig.estop.latch("x", "unit");
   CHECK(speed_seen == 0.0);
+}
+
+TEST_CASE("POST /api/stop's two steps: halted and recorded before its answer, the listeners after it, once") {
+  Rig rig;
+  int listened = 0;
+  rig.go(0.9);
+  rig.estop.on_latched([&] { ++listened; });
+  try {
+    const Estop::Announcement latched{rig.estop, rig.estop.latch_unannounced("answered first", "unit")};
+    CHECK(rig.drive.speed == 0.0);  // every actuator halted before the answer is built
+    CHECK(latched.report.newly_latched);
+    CHECK(rig.estop.snapshot().reason == "answered first");  // GET /api/estop right after the answer shows it
+    CHECK(listened == 0);
+    throw std::runtime_error("building the answer failed");
+  } catch (const std::runtime_error&) {
+  }
+  CHECK(listened == 1);  // announced all the same: the latch record and telemetry follow every latch
+  rig.estop.latch("again", "unit");
+  CHECK(listened == 2);
 }
 
 TEST_CASE("a command overtaken by a stop that was already cleared is still halted") {
