@@ -4,11 +4,13 @@
 #   1. the C++ client (bench_stop_latency ... health), with the stop's excess over /health against the targets;
 #   2. the Python stdlib client (bench/stop_vs_health.py), the same client the reference runtime is measured with.
 # With --reference DIR (a checkout of craigm26/OpenCastor, or its bare mirror: then archived into a temp dir), the
-# Python client runs against its API gateway too (castor.api with config/examples/minimal.rcan.yaml, no hardware: its mock driver; it needs fastapi and uvicorn
-# importable: the script says which import fails when they are not).
+# Python client runs against its API gateway too: castor.api with its config/examples/minimal.rcan.yaml (a `mock`
+# driver, which v3.0.1 does not know: it runs without one, so its stop halts nothing), started by
+# bench/reference_gateway.py on Debian 12's FastAPI and uvicorn (it says which gaps to a pip install it bridges).
 #   bench/run-stop-path.sh [--build DIR] [--samples N] [--reference DIR]
 set -euo pipefail
 cd "$(dirname "$0")/.."
+root=$PWD
 build=build samples=1000 reference=""
 while [ $# -gt 0 ]; do
   case $1 in
@@ -48,19 +50,29 @@ if [ ! -e "$reference/castor/api.py" ]; then  # a bare mirror: its HEAD into a t
   mkdir -p "$src"
   git --git-dir="$reference" archive HEAD | tar -x -C "$src"
 fi
-if ! missing=$(cd "$src" && python3 -c 'import castor.api' 2>&1); then
-  echo "cannot run the reference runtime here: 'python3 -c \"import castor.api\"' in $src fails with:"
-  echo "$missing" | tail -n 1
-  echo "(its gateway needs the packages of its pyproject.toml: pip install -e $src, which needs network access)"
+# Its server runs on the first Python with FastAPI and uvicorn (Debian 12: python3-fastapi python3-uvicorn
+# python3-uvloop python3-httptools, and the gateway's other imports); the client stays the same python3 as above.
+server_python=""
+for candidate in python3 /usr/bin/python3; do
+  if "$candidate" -c 'import fastapi, uvicorn' 2>/dev/null; then server_python=$candidate; break; fi
+done
+if [ -z "$server_python" ]; then
+  echo "cannot run the reference runtime here: no Python with fastapi and uvicorn (apt-get install python3-fastapi"
+  echo "python3-uvicorn python3-uvloop python3-httptools python3-numpy python3-jwt python3-dotenv python3-httpx"
+  echo "python3-multipart python3-cryptography python3-requests python3-serial, or pip install -e $src)"
   exit 0
 fi
 rport=$(free_port)
 ref_token=bench-reference-token
 (cd "$src" && OPENCASTOR_API_TOKEN=$ref_token OPENCASTOR_CONFIG=config/examples/minimal.rcan.yaml \
-  python3 -m uvicorn castor.api:app --host 127.0.0.1 --port "$rport" --log-level warning) >"$work/ref.out" 2>&1 &
+  ANTHROPIC_API_KEY=${ANTHROPIC_API_KEY:-unused-by-this-bench} OPENCASTOR_MEMORY_DIR="$work/reference-memory" \
+  "$server_python" "$root/bench/reference_gateway.py" "$src" "$rport") >"$work/ref.out" 2>&1 &
 pids+=($!)
-for _ in $(seq 200); do
+for _ in $(seq 300); do
   python3 -c "import http.client,sys; c=http.client.HTTPConnection('127.0.0.1',$rport,timeout=1); c.request('GET','/health'); sys.exit(c.getresponse().status!=200)" 2>/dev/null && break
+  kill -0 "${pids[-1]}" 2>/dev/null || { echo "the reference gateway exited:"; tail -n 20 "$work/ref.out"; exit 1; }
   sleep 0.1
 done
+grep '^reference_gateway:' "$work/ref.out" || true
+grep -m1 'driver protocol' "$work/ref.out" || true
 python3 bench/stop_vs_health.py "$rport" "$ref_token" "$samples"
