@@ -9,7 +9,7 @@
 
 namespace rcand::rcanctl {
 
-std::shared_ptr<swarm::HostResolver> local_name_resolver() {
+std::shared_ptr<HostResolver> local_name_resolver() {
   auto resolver = std::make_shared<mdns::AvahiHostResolver>(logger("rcanctl.mdns"));
   resolver->start();
   return resolver;

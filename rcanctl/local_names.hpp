@@ -6,12 +6,12 @@
 #include <memory>
 #include <string>
 
-#include "libs/swarm/host_resolver.hpp"
+#include "libs/base/host_resolver.hpp"
 
 namespace rcand::rcanctl {
 
 // The resolver the swarm fan-out takes for "*.local" hosts (started; stops when the last user lets go).
-std::shared_ptr<swarm::HostResolver> local_name_resolver();
+std::shared_ptr<HostResolver> local_name_resolver();
 
 // `host` itself when it is not an mDNS name, else its first address. Throws std::runtime_error saying why not
 // ("alex.local: no mDNS answer in time", "alex.local: mDNS unavailable ...").

@@ -16,8 +16,8 @@
 #include <string>
 #include <vector>
 
+#include "libs/base/host_resolver.hpp"
 #include "libs/mdns/avahi_connection.hpp"
-#include "libs/swarm/host_resolver.hpp"
 
 struct AvahiHostNameResolver;
 struct AvahiWatch;
@@ -33,7 +33,7 @@ struct HostResolverOptions {
 // "*.local" (any case, optional trailing dot).
 bool is_mdns_host(std::string_view host) noexcept;
 
-class AvahiHostResolver final : public swarm::HostResolver {
+class AvahiHostResolver final : public HostResolver {
  public:
   explicit AvahiHostResolver(std::shared_ptr<spdlog::logger> log, HostResolverOptions options = {});
   ~AvahiHostResolver() override;  // stop()

@@ -16,8 +16,8 @@
 #include <utility>
 #include <vector>
 
+#include "libs/base/host_resolver.hpp"
 #include "libs/http/tls_settings.hpp"
-#include "libs/swarm/host_resolver.hpp"
 #include "libs/swarm/swarm_registry.hpp"
 
 namespace rcand::swarm {

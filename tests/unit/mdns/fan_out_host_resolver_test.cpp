@@ -18,7 +18,7 @@ namespace {
 
 // Knows "known.local" (answering from a thread of its own, as avahi's does), fails "absent.local", and never
 // answers "silent.local".
-class FakeResolver final : public swarm::HostResolver {
+class FakeResolver final : public HostResolver {
  public:
   bool handles(std::string_view host) const override { return host.ends_with(".local"); }
   void resolve(const std::string& host, Done done) override {

@@ -1,6 +1,7 @@
-// A pluggable name resolver for swarm peers: the fan-out asks it for the hosts it handles (mDNS "*.local" names,
-// resolved through avahi-daemon) instead of getaddrinfo. It must never block the caller: the fan-out runs every
-// peer of a broadcast on one event loop, and a stop has 300 ms per peer.
+// A pluggable name resolver: the swarm's fan-out asks it for the hosts it handles (mDNS "*.local" names, resolved
+// through avahi-daemon by libs/mdns) instead of getaddrinfo. It must never block the caller: the fan-out runs every
+// peer of a broadcast on one event loop, and a stop has 300 ms per peer. In libs/base so that the resolver's
+// implementation (libs/mdns) and its user (libs/swarm) need not know each other.
 #pragma once
 
 #include <functional>
@@ -8,7 +9,7 @@
 #include <string_view>
 #include <vector>
 
-namespace rcand::swarm {
+namespace rcand {
 
 class HostResolver {
  public:
@@ -22,4 +23,4 @@ class HostResolver {
   virtual void resolve(const std::string& host, Done done) = 0;
 };
 
-}  // namespace rcand::swarm
+}  // namespace rcand
