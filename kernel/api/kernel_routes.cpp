@@ -38,10 +38,9 @@ void stop(const KernelRouteDeps& d, Call& call, const Reply& reply) {
   // The on-latch listeners and the log line run after the answer was sent (when `latched` goes out of scope).
   const Estop::Announcement latched{
       d.estop, d.estop.latch_unannounced(origin.note.empty() ? "POST /api/stop" : origin.note, call.principal, origin)};
-  const auto& report = latched.report;
   json drivers = json::array();
   bool all_halted = true;
-  for (const auto& halt : report.drivers) {
+  for (const auto& halt : latched.report.drivers) {
     json entry{{"id", halt.id}, {"halted", halt.halted}, {"latency_us", halt.latency_us}, {"state", halt.state}};
     if (!halt.error.empty()) entry["error"] = halt.error;  // the slow or failing driver, named
     drivers.push_back(std::move(entry));
@@ -52,7 +51,7 @@ void stop(const KernelRouteDeps& d, Call& call, const Reply& reply) {
                             {"estopped", true},
                             {"motors_stopped", all_halted},
                             {"drivers", drivers},
-                            {"latency_us", report.latency_us},
+                            {"latency_us", latched.report.latency_us},
                             {"received_us", received_us}}));
 }
 

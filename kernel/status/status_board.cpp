@@ -430,7 +430,8 @@ class StatusBoard::Impl final : public StatusSink, public std::enable_shared_fro
   std::mutex waiters_mutex_;
   std::vector<Waiter> waiters_;
   WorkerThread worker_{"kernel.status",
-                       [](const std::string& why) { logger("kernel.status")->error("status thread task failed: {}", why); }};
+                       [](const std::string& why) { logger("kernel.status")->error("status thread task failed: {}", why); },
+                       WorkerThread::Priority::Background};
 };
 
 // ---- StatusBoard ------------------------------------------------------------------------------------------------

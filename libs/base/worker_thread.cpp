@@ -4,12 +4,16 @@
 #include <boost/asio/post.hpp>
 
 #include "libs/base/logging.hpp"
+#include "libs/base/stop_path_priority.hpp"
 
 namespace rcand {
 
-WorkerThread::WorkerThread(std::string name, std::function<void(const std::string&)> on_error)
+WorkerThread::WorkerThread(std::string name, std::function<void(const std::string&)> on_error, Priority priority)
     : name_(std::move(name)), on_error_(std::move(on_error)), work_(io_.get_executor()) {
-  thread_ = std::thread([this] { run(); });
+  thread_ = std::thread([this, priority] {
+    if (priority == Priority::Background) enter_background_policy();
+    run();
+  });
 }
 
 WorkerThread::~WorkerThread() { join(); }

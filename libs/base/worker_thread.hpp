@@ -22,7 +22,10 @@ class WorkerThread final : public sdk::Worker {
   // Starts the thread, named `name` (Linux keeps the first 15 characters). `on_error` runs on this thread when a
   // task or an I/O handler throws, after the throw is logged (the kernel marks the owning instance failed); the
   // loop goes on either way, so one bad task or message never silences the thread.
-  WorkerThread(std::string name, std::function<void(const std::string&)> on_error);
+  // Background: SCHED_BATCH at nice 10 (enter_background_policy), for follow-up work that must not compete with stops
+  // on saturated cores (the status board, the R2R clock).
+  enum class Priority { Normal, Background };
+  WorkerThread(std::string name, std::function<void(const std::string&)> on_error, Priority priority = Priority::Normal);
   ~WorkerThread() override;  // join()
   WorkerThread(const WorkerThread&) = delete;
   WorkerThread& operator=(const WorkerThread&) = delete;

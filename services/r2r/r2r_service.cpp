@@ -268,7 +268,7 @@ void R2rService::start(std::uint16_t http_port) {
     std::lock_guard lock(s.mutex);
     s.started = true;
   }
-  s.ticker = std::make_unique<WorkerThread>("r2r.clock", nullptr);
+  s.ticker = std::make_unique<WorkerThread>("r2r.clock", nullptr, WorkerThread::Priority::Background);
   s.ticker->post([&s] { s.tick(); });
   s.log->info("r2r: {} speaks R2R on ws://{}:{}{}{}{}", cfg.robot_name, cfg.runtime.listen_address, http_port,
               r2r::kWebSocketPath, s.udp ? ", udp " + std::to_string(s.udp->bound_port()) : std::string(),
