@@ -30,14 +30,9 @@ Estop::StopReport Estop::latch_unannounced(const std::string& reason, const std:
   const auto deadline = std::chrono::steady_clock::now() + kHaltDeadline;
   epoch_.fetch_add(1);
   report.newly_latched = !latched_.exchange(true);
-  report.drivers = halt_everything(deadline);
-  // Commands that passed the gate's latch check before the flag was set: wait (bounded) until they left the gate,
-  // which they do only after the gate halted their actuator again (see the ordering guarantee in estop.hpp).
-  report.commands_in_flight = actuators_.wait_for_commands(deadline, latched_);
-  report.latency_us = clock_.now_us() - start;
   try {
-    // Made safe here, after the halt, for everything that shows them: the log, GET /api/estop, /api/status,
-    // telemetry, the dashboard and the state dir's latch record (a reason may be any caller's or plugin's text).
+    // Recorded before the halt (bounded copies, a few microseconds), so whoever sees a motor stop also sees why in
+    // GET /api/estop, /api/status, telemetry and the latch record (a reason may be any caller's or plugin's text).
     report.shown_reason = bounded_text(reason, kShownReasonBytes);
     report.shown_source = bounded_text(source);
     if (report.newly_latched) {
@@ -49,6 +44,14 @@ Estop::StopReport Estop::latch_unannounced(const std::string& reason, const std:
           report.shown_source,
           {bounded_text(origin.principal), origin.kind, bounded_text(origin.from), bounded_text(origin.note, kShownReasonBytes)}};
     }
+  } catch (...) {  // no memory for the texts: the halt goes on regardless
+  }
+  report.drivers = halt_everything(deadline);
+  // Commands that passed the gate's latch check before the flag was set: wait (bounded) until they left the gate,
+  // which they do only after the gate halted their actuator again (see the ordering guarantee in estop.hpp).
+  report.commands_in_flight = actuators_.wait_for_commands(deadline, latched_);
+  report.latency_us = clock_.now_us() - start;
+  try {
     for (const auto& id : report.commands_in_flight) {
       const std::string why = "a command that entered the motion gate before the latch was still running at the " +
                               std::to_string(kHaltDeadline.count()) + " ms deadline; the gate halts " + id + " when it returns";
@@ -56,12 +59,8 @@ Estop::StopReport Estop::latch_unannounced(const std::string& reason, const std:
       for (auto& driver : report.drivers) {
         if (driver.id != id) continue;
         driver.halted = false;
-        if (driver.state == "halted") {
-          driver.state = "command_in_flight";
-          driver.error = why;
-        } else {
-          driver.error += "; " + why;
-        }
+        driver.error = driver.state == "halted" ? why : driver.error + "; " + why;
+        if (driver.state == "halted") driver.state = "command_in_flight";
       }
     }
     {

@@ -68,7 +68,7 @@ class Estop final : public sdk::EstopView {
   // entry is "command_in_flight"): for it the guarantee is only that the gate halts the actuator when it returns.
   // A stop requested from inside a command (request_estop) does not wait for the command it is called from. If the
   // latch is cleared while latch() waits, the wait ends (the gate still halts every command older than the stop).
-  // `origin` is recorded with the reason (copied after the halt, like the reason).
+  // `origin` is recorded with the reason, before the halt (so anyone who sees a motor stop can read why).
   StopReport latch(const std::string& reason, const std::string& source, const Origin& origin = {}) noexcept;
   // latch() in two steps, for a caller that answers in between (POST /api/stop): latch_unannounced() latches, halts,
   // waits for commands in flight and records the reason, as latch() does; announce() then runs the on-latch listeners
