@@ -33,9 +33,9 @@ Estop::StopReport Estop::latch_unannounced(const std::string& reason, const std:
   try {
     // Recorded before the halt (bounded copies, a few microseconds), so whoever sees a motor stop also sees why in
     // GET /api/estop, /api/status, telemetry and the latch record (a reason may be any caller's or plugin's text).
-    report.shown_reason = bounded_text(reason, kShownReasonBytes);
-    report.shown_source = bounded_text(source);
-    if (report.newly_latched) {
+    if (report.newly_latched) {  // a repeated stop keeps the first reason: nothing to copy
+      report.shown_reason = bounded_text(reason, kShownReasonBytes);
+      report.shown_source = bounded_text(source);
       std::lock_guard lock(info_mutex_);
       info_ = {
           true,

@@ -32,7 +32,7 @@ class Estop final : public sdk::EstopView {
     // Actuators with a command that got into the motion gate before the latch and had not left it by the deadline
     // (their entry in `drivers` says so too: not halted, state "command_in_flight").
     std::vector<std::string> commands_in_flight;
-    std::string shown_reason, shown_source;  // as recorded (bounded): announce()'s log line
+    std::string shown_reason, shown_source;  // a new latch's, as recorded (bounded): announce()'s log line
   };
   // Runs announce() when it goes out of scope, whatever the caller's answer did in between (threw, say).
   struct Announcement {
