@@ -32,7 +32,6 @@
 #include "libs/rcan/loopback.hpp"
 #include "libs/rcan/ruri.hpp"
 #include "libs/rcan/secret_file.hpp"
-#include "libs/swarm/swarm_registry.hpp"
 #include "libs/yaml/config_diff.hpp"
 
 namespace rcand::kernel {
@@ -153,9 +152,6 @@ struct Kernel::State {
   PluginHost host;
   std::unique_ptr<Authenticator> auth;
   std::unique_ptr<CapabilityRegistry> registry;
-  swarm::SwarmRegistry swarm;
-  std::vector<std::unique_ptr<swarm::SwarmRegistry>> retired_swarms;  // reloaded ones; never freed while serving
-  std::atomic<const swarm::SwarmRegistry*> swarm_now{&swarm};
   std::unique_ptr<Api> api;
   std::unique_ptr<KernelRequestDispatcher> dispatcher;  // offered to plugins: requests on a caller's behalf
   std::unique_ptr<ServiceHost> service_host;
@@ -187,7 +183,6 @@ struct Kernel::State {
   void claim_robot();
   http::ServerOptions server_options();
   void load_plugins(const KernelOptions& options);
-  void load_swarm();
   void create_services(const KernelOptions& options);
   void start_plugins();
   void start_capabilities();
@@ -235,27 +230,10 @@ void Kernel::State::load_plugins(const KernelOptions& options) {
   robot_config_view = sdk::ConfigView(std::move(visible));
 }
 
-// §15: the swarm peers. No file means no peers (broadcasts reach this robot only); a malformed one stops startup.
-void Kernel::State::load_swarm() {
-  auto log = logger("kernel");
-  if (std::error_code ec; !std::filesystem::exists(config.runtime.swarm_file, ec)) {
-    log->info("swarm: no swarm file at {}; broadcasts reach this robot only", config.runtime.swarm_file.string());
-    return;
-  }
-  try {
-    swarm = swarm::load_swarm_file(config.runtime.swarm_file);
-  } catch (const swarm::SwarmError& e) {
-    throw StartupError(std::string("runtime.swarm_file: ") + e.what());
-  }
-  for (const auto& warning : swarm.warnings) log->warn("{}", warning);
-  log->info("swarm: {} peer(s) from {}", swarm.nodes.size(), config.runtime.swarm_file.string());
-}
-
 void Kernel::State::create_services(const KernelOptions& options) {
   service_host.reset(new ServiceHost{config, *auth, estop, audit, clock, *registry, *api,
-                                     std::chrono::milliseconds(config.runtime.handler_timeout_ms), swarm,
-                                     [this] { return swarm_now.load(); }, [this] { return status_board->document(); }, bound_port,
-                                     [this](R2rLinkFactory* links) { services.r2r = links; }, services.directory});
+                                     std::chrono::milliseconds(config.runtime.handler_timeout_ms),
+                                     [this] { return status_board->document(); }, bound_port, services.directory});
   for (const auto& make : options.services)
     if (auto service = make(*service_host)) optional_services.push_back(std::move(service));
 }
@@ -385,7 +363,6 @@ Kernel::Kernel(RobotConfig config, KernelOptions options) : state_(std::make_uni
   s.dispatcher = std::make_unique<KernelRequestDispatcher>(*s.api);
   s.services.directory.offer_service(sdk::RequestDispatcher::kServiceId,
                                      static_cast<const sdk::RequestDispatcher*>(s.dispatcher.get()), nullptr, "rcand", nullptr);
-  s.load_swarm();
   s.create_services(options);  // before the plugins: R2R offers them links
   if (auto problems = s.runtime->plan_problems(cfg, s.registry->served()); !problems.empty())
     throw ConfigError(std::move(problems));
@@ -413,7 +390,8 @@ Kernel::CheckReport Kernel::check(RobotConfig config, const KernelOptions& optio
   s.config = std::move(config);
   s.services.ruri = robot_ruri(s.config.ruri, s.config.manufacturer, s.config.model, s.config.robot_uuid);
   s.auth = std::make_unique<Authenticator>(auth_settings(s.config, s.services.ruri, s.config.runtime.listen_address));
-  s.load_swarm();  // reads the secret and swarm files as serving would: a file rcand cannot read fails here too
+  // The secret and the services' files (the swarm file) are read as at startup: one rcand cannot read fails here too.
+  for (const auto& check_files : options.service_checks) check_files(s.config);
   try {
     if (const auto tls = tls_settings(s.config)) http::make_server_tls_context(*tls);
   } catch (const http::TlsError& e) {
@@ -590,7 +568,7 @@ bool Kernel::State::reload_tls(const RobotConfig& next) {
 }
 
 Kernel::ReloadReport Kernel::reload(const std::filesystem::path& file) noexcept {
-  static const std::vector<std::string> kLiveKeys{"runtime.auth", "runtime.logging", "runtime.swarm_file"};
+  std::vector<std::string> live_keys{"runtime.auth", "runtime.logging"};
   auto& s = *state_;
   ReloadReport report;
   auto log = logger("kernel");
@@ -600,22 +578,18 @@ Kernel::ReloadReport Kernel::reload(const std::filesystem::path& file) noexcept 
     LoadedConfig loaded = load_robot_config(file);
     const RobotConfig& next = loaded.config;
     AuthSettings auth = auth_settings(next, s.services.ruri, s.address);
-    auto swarm = std::make_unique<swarm::SwarmRegistry>();
-    if (std::error_code ec; std::filesystem::exists(next.runtime.swarm_file, ec)) {
-      try {
-        *swarm = swarm::load_swarm_file(next.runtime.swarm_file);
-      } catch (const swarm::SwarmError& e) {
-        throw StartupError(std::string("runtime.swarm_file: ") + e.what());
-      }
-    }
+    std::vector<ServiceReload> service_reloads;
+    for (auto& service : s.optional_services) service_reloads.push_back(service->prepare_reload(next));
     const bool tls_live = s.reload_tls(next);
     s.auth->replace(std::move(auth));
     new_log_level = next.runtime.log_level;  // applied after this reload's own log line
-    s.swarm_now = swarm.get();
-    s.retired_swarms.push_back(std::move(swarm));  // requests in flight may still read the ones before
+    for (auto& service : service_reloads) {
+      if (service.apply) service.apply();
+      live_keys.insert(live_keys.end(), service.live_keys.begin(), service.live_keys.end());
+    }
     for (const auto& warning : loaded.warnings) log->warn("{}", warning.format());
     for (auto& key : changed_keys(s.config.doc, next.doc)) {
-      const bool live = std::any_of(kLiveKeys.begin(), kLiveKeys.end(), [&](const auto& p) { return key_is_under(key, p); }) ||
+      const bool live = std::any_of(live_keys.begin(), live_keys.end(), [&](const auto& p) { return key_is_under(key, p); }) ||
                         (tls_live && key_is_under(key, "runtime.listen.tls"));
       (live ? report.applied : report.needs_restart).push_back(std::move(key));
     }

@@ -33,6 +33,8 @@ struct KernelOptions {
   std::optional<std::uint16_t> port;                               // replaces the configured port
   // The optional services to run (kernel/service.hpp), in start order; rcand's main passes linked_services().
   std::vector<std::function<std::unique_ptr<Service>(ServiceHost&)>> services;
+  // What the services read besides config keys, checked by check() as at startup; rcand's main passes linked_service_checks().
+  std::vector<std::function<void(const RobotConfig&)>> service_checks;
   // A kernel that never serves (tests and fuzzers that embed it and call its Api directly): it claims neither the
   // state dir nor a port, and start() refuses.
   bool embedded = false;
@@ -84,10 +86,11 @@ class Kernel {
   // Whether the thread that reads and handles the e-stop answers within `within` (the service watchdog's check).
   bool stop_path_responsive(std::chrono::milliseconds within) const;
 
-  // Config reload (SIGHUP): re-reads `file`. Invalid (a config error with file:line:column, an unreadable JWT secret
-  // or swarm file): logged, nothing changes. Valid: applies what can change while serving - runtime.auth (tokens, JWT
-  // secret), runtime.logging.level, runtime.swarm_file and the swarm file's peers - and names every other changed
-  // key as needing a restart. Logged and recorded in the audit log either way. Main thread; never throws.
+  // Config reload (SIGHUP): re-reads `file`. Invalid (a config error with file:line:column, an unreadable JWT secret,
+  // a file a service refuses - Service::prepare_reload): logged, nothing changes. Valid: applies what can change while
+  // serving - runtime.auth (tokens, JWT secret), runtime.logging.level and what the services take (the swarm file, the
+  // R2R peers file) - and names every other changed key as needing a restart. Logged and recorded in the audit log either way.
+  // Main thread; never throws.
   struct ReloadReport {
     bool ok = false;
     std::vector<std::string> errors;         // what made it invalid

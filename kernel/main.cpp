@@ -79,6 +79,7 @@ void print_warnings(const LoadedConfig& loaded) {
 KernelOptions kernel_options(const Options& options) {
   KernelOptions result;
   result.services = linked_services();  // the optional services linked into rcand (services/)
+  result.service_checks = linked_service_checks();
   if (!options.plugin_paths.empty()) result.plugin_paths = options.plugin_paths;
   result.port = options.port;
   result.on_capabilities_up = [] { std::cout << "rcand: capabilities started" << std::endl; };

@@ -19,13 +19,11 @@
 #include "kernel/api/router.hpp"
 #include "kernel/audit/audit_log.hpp"
 #include "kernel/auth/authenticator.hpp"
-#include "kernel/plugins/r2r_link_factory.hpp"
 #include "kernel/plugins/service_directory.hpp"
 #include "kernel/registry/capability_registry.hpp"
 #include "kernel/safety/estop.hpp"
 #include "libs/config/robot_config.hpp"
 #include "libs/http/server_options.hpp"
-#include "libs/swarm/swarm_registry.hpp"
 
 namespace rcand::kernel {
 
@@ -39,17 +37,19 @@ struct ServiceHost {
   const CapabilityRegistry& registry;
   Api& api;  // execute_action(): a command through the same middleware as HTTP
   std::chrono::milliseconds handler_timeout;
-  // The swarm peers (§15) as loaded at startup, and as now (a SIGHUP reload swaps them; never freed while serving).
-  const swarm::SwarmRegistry& swarm_at_start;
-  std::function<const swarm::SwarmRegistry*()> swarm_now;
   std::function<nlohmann::json()> status_document;  // GET /api/status as a document, from the status snapshot
   const std::atomic<std::uint16_t>& port;           // the bound HTTP port (0 until start)
-  // Set by a service before the plugins start, so their contexts can hand out R2R links.
-  std::function<void(R2rLinkFactory*)> offer_r2r_links;
   // The services plugin instances offer (rcand/sdk/services.hpp): sdk::find<T>(plugin_services) at use time, any
   // thread, never blocks; null while nothing offers T (the plugins start after the services are made). A service
-  // may offer one too (telemetry offers sdk::Metrics), with itself as the owner, withdrawn when it is destroyed.
+  // may offer one too (telemetry offers sdk::Metrics, R2R sdk::R2rLinks), with itself as the owner, withdrawn when
+  // it is destroyed.
   ServiceDirectory& plugin_services;
+};
+
+// What a service takes from a config reloaded by SIGHUP (Kernel::reload).
+struct ServiceReload {
+  std::function<void()> apply;         // run once every part of the reload was checked; must not throw
+  std::vector<std::string> live_keys;  // the config keys it applies while serving (and the keys under them)
 };
 
 class Service {
@@ -65,6 +65,9 @@ class Service {
   // Plugin instances started (each capability as it comes up; all of them at once in an embedded kernel) or were
   // reloaded: the services plugins offer may have changed. One call at a time, off the serving threads.
   virtual void capabilities_changed() noexcept {}
+  // SIGHUP: reads and checks what this service takes from `next` (files it names) before anything changes. Throws
+  // StartupError naming the key at fault: then nothing of the reload is applied.
+  virtual ServiceReload prepare_reload(const RobotConfig& /*next*/) { return {}; }
   // Shutdown, after the e-stop latch: nothing of this service runs or sends afterwards. Idempotent.
   virtual void stop() noexcept {}
 };
@@ -72,7 +75,9 @@ class Service {
 // nullptr: the service is not enabled by this config. Throws StartupError naming the key at fault.
 using ServiceFactory = std::function<std::unique_ptr<Service>(ServiceHost&)>;
 
-// Defined by the binary that links the services (services/linked_services.cpp), not by the kernel.
+// Defined by the binary that links the services (services/linked_services.cpp), not by the kernel. Checks: what
+// the services read besides config keys (files), each read as at startup; a problem throws StartupError (--check-config).
 std::vector<ServiceFactory> linked_services();
+std::vector<std::function<void(const RobotConfig&)>> linked_service_checks();
 
 }  // namespace rcand::kernel

@@ -18,25 +18,24 @@
 
 #include "command_line.hpp"
 #include "exit_codes.hpp"
+#include "libs/r2r_wire/envelope.hpp"
+#include "libs/r2r_wire/message_signature.hpp"
+#include "libs/r2r_wire/peers_file.hpp"
 #include "mqtt_publish_once.hpp"
 #include "rcand/sdk/scope.hpp"
-#include "services/r2r/envelope.hpp"
-#include "services/r2r/message_auth.hpp"
-#include "services/r2r/peers_file.hpp"
 
 namespace rcand::rcanctl {
 namespace {
 
 using nlohmann::json;
-namespace r2r = kernel::r2r;
 
 struct FleetKeysOptions {
   std::string sub;
   bool as_json = false;
   // stop
-  std::string broker, key_file, sender, reason;
-  MqttPublishOptions mqtt;
-  std::string username, password_file, token_file, ca_file, cert_file, tls_key_file;
+  std::string key_file, sender, reason;
+  MqttBrokerOptions mqtt;
+  MqttBrokerFlags broker_flags;
   int timeout_s = 10;
   // keygen, enroll, revoke, list
   std::string name, out_dir = ".", peers_file, public_key, role = "USER";
@@ -53,41 +52,6 @@ std::string fleet_bad_name(const std::string& name) {
   return "";
 }
 
-// "HOST[:PORT]" (an IPv6 address in brackets: "[::1]:1883"); the port is 1883, or 8883 with TLS, when absent.
-std::optional<std::string> fleet_split_broker(const std::string& text, MqttPublishOptions& mqtt) {
-  std::string host = text;
-  std::optional<std::string> port;
-  if (!host.empty() && host.front() == '[') {
-    const auto close = host.find(']');
-    if (close == std::string::npos) return "--mqtt: an IPv6 address needs its closing ']'";
-    if (close + 1 < host.size()) {
-      if (host[close + 1] != ':') return "--mqtt: expected HOST[:PORT]";
-      port = host.substr(close + 2);
-    }
-    host = host.substr(1, close - 1);
-  } else if (const auto colon = host.rfind(':'); colon != std::string::npos && host.find(':') == colon) {
-    port = host.substr(colon + 1);
-    host = host.substr(0, colon);
-  }
-  if (host.empty()) return "--mqtt: the broker host is empty";
-  mqtt.host = host;
-  if (port) {
-    int value = 0;
-    try {
-      std::size_t used = 0;
-      value = std::stoi(*port, &used);
-      if (used != port->size()) value = 0;
-    } catch (...) {
-      value = 0;
-    }
-    if (value < 1 || value > 65535) return "--mqtt: the port must be 1-65535, got '" + *port + "'";
-    mqtt.port = static_cast<std::uint16_t>(value);
-  } else if (mqtt.ca_file) {
-    mqtt.port = 8883;
-  }
-  return std::nullopt;
-}
-
 std::optional<int> fleet_parse(std::span<const std::string> args, FleetKeysOptions& o, std::ostream& out, std::ostream& err) {
   const auto app =
       make_command_app("rcanctl fleet", "A fleet's keys and its e-stop over MQTT (README \"A fleet of ten robots\").",
@@ -97,19 +61,11 @@ std::optional<int> fleet_parse(std::span<const std::string> args, FleetKeysOptio
       "stop",
       "sign a fleet e-stop (R2R command {\"type\":\"estop\"}) and publish it on r2r/broadcast; exit 0 once the "
       "broker acknowledged it (QoS 1). Every robot that has --name enrolled latches.");
-  stop->add_option("--mqtt", o.broker, "HOST[:PORT]: the broker (port 1883, 8883 with --tls-ca-file)")->required();
+  o.broker_flags.add_to(*stop, "HOST[:PORT]: the broker (port 1883, 8883 with --tls-ca-file)", true);
   stop->add_option("--key", o.key_file, "the sender's Ed25519 private key (PEM, from rcanctl fleet keygen)")->required();
   stop->add_option("--name", o.sender, "the sender's name: source_id and signature key_id, as enrolled in the peers file")
       ->required();
   stop->add_option("--reason", o.reason, "why: shown in every robot's e-stop reason and audit log");
-  stop->add_option("--username", o.username, "broker user name (runtime.r2r.mqtt.username)");
-  stop->add_option("--password-file", o.password_file, "file holding the broker password (runtime.r2r.mqtt.password_file)");
-  stop->add_option("--token-file", o.token_file,
-                   "file holding a token sent as the broker password (runtime.r2r.mqtt.token_file)");
-  stop->add_option("--tls-ca-file", o.ca_file,
-                   "TLS to the broker: the CA its certificate chains to (runtime.r2r.mqtt.tls.ca_file)");
-  stop->add_option("--tls-cert-file", o.cert_file, "mutual TLS: client certificate (runtime.r2r.mqtt.tls.cert_file)");
-  stop->add_option("--tls-key-file", o.tls_key_file, "mutual TLS: client key (runtime.r2r.mqtt.tls.key_file)");
   stop->add_option("--timeout", o.timeout_s, "seconds to wait for the broker (default 10)")->check(CLI::Range(1, 600));
   stop->add_flag("--json", o.as_json, "one JSON object");
   CLI::App* keygen = app->add_subcommand(
@@ -134,20 +90,9 @@ std::optional<int> fleet_parse(std::span<const std::string> args, FleetKeysOptio
   if (auto done = parse_command_line(*app, args, out, err)) return done;
   o.sub = app->get_subcommands().front()->get_name();
   if (o.sub == "stop") {
-    if (!o.password_file.empty() && !o.token_file.empty())
-      return usage_error(*app, "give --password-file or --token-file, not both", err);
-    if (o.cert_file.empty() != o.tls_key_file.empty())
-      return usage_error(*app, "--tls-cert-file and --tls-key-file go together", err);
-    if (!o.cert_file.empty() && o.ca_file.empty()) return usage_error(*app, "mutual TLS needs --tls-ca-file too", err);
-    if (!o.username.empty()) o.mqtt.username = o.username;
-    if (!o.password_file.empty()) o.mqtt.password_file = o.password_file;
-    if (!o.token_file.empty()) o.mqtt.token_file = o.token_file;
-    if (!o.ca_file.empty()) o.mqtt.ca_file = o.ca_file;
-    if (!o.cert_file.empty()) o.mqtt.cert_file = o.cert_file;
-    if (!o.tls_key_file.empty()) o.mqtt.key_file = o.tls_key_file;
+    if (auto bad = o.broker_flags.apply(o.mqtt)) return usage_error(*app, *bad, err);
     o.mqtt.timeout = std::chrono::seconds(o.timeout_s);
     o.mqtt.client_id = "rcanctl-fleet-stop-" + std::to_string(::getpid());
-    if (auto bad = fleet_split_broker(o.broker, o.mqtt)) return usage_error(*app, *bad, err);
   }
   if (o.sub == "keygen" || o.sub == "enroll" || o.sub == "revoke")
     if (const auto bad = fleet_bad_name(o.name); !bad.empty()) return usage_error(*app, bad, err);
@@ -192,7 +137,7 @@ int run_keygen(const FleetKeysOptions& o, std::ostream& out, std::ostream& err) 
       return kExitFailure;
     }
   std::filesystem::create_directories(dir, ec);
-  const r2r::Ed25519Key key = r2r::Ed25519Key::generate();
+  const r2r_wire::Ed25519Key key = r2r_wire::Ed25519Key::generate();
   if (!fleet_write_new(private_file, key.private_pem(), 0600)) {
     err << "rcanctl fleet keygen: cannot write " << private_file.string() << ": " << std::strerror(errno) << "\n";
     return kExitFailure;
@@ -240,10 +185,10 @@ class PeersFileLock {
 // The base64 public key of a peers-file entry (public_key, or public_key_file relative to the peers file).
 std::string fleet_entry_key(const json& entry, const std::filesystem::path& peers_file) {
   if (entry.contains("public_key"))
-    return r2r::Ed25519Key::public_from_text(entry["public_key"].get<std::string>()).public_base64();
+    return r2r_wire::Ed25519Key::public_from_text(entry["public_key"].get<std::string>()).public_base64();
   std::filesystem::path file = entry["public_key_file"].get<std::string>();
   if (file.is_relative()) file = peers_file.parent_path() / file;
-  return r2r::Ed25519Key::public_from_file(file).public_base64();
+  return r2r_wire::Ed25519Key::public_from_file(file).public_base64();
 }
 
 int run_enroll(const FleetKeysOptions& o, std::ostream& out, std::ostream& err) {
@@ -251,15 +196,15 @@ int run_enroll(const FleetKeysOptions& o, std::ostream& out, std::ostream& err) 
   try {
     std::error_code ec;
     key_base64 = std::filesystem::is_regular_file(o.public_key, ec)
-                     ? r2r::Ed25519Key::public_from_file(o.public_key).public_base64()
-                     : r2r::Ed25519Key::public_from_text(o.public_key).public_base64();
+                     ? r2r_wire::Ed25519Key::public_from_file(o.public_key).public_base64()
+                     : r2r_wire::Ed25519Key::public_from_text(o.public_key).public_base64();
   } catch (const std::exception& e) {
     err << "rcanctl fleet enroll: PUBLIC_KEY: " << e.what() << "\n";
     return kExitUsage;
   }
   try {
     PeersFileLock lock(o.peers_file);
-    json doc = r2r::read_peers_document(o.peers_file, true);
+    json doc = r2r_wire::read_peers_document(o.peers_file, true);
     json& peers = doc["peers"];
     const json entry{{"name", o.name}, {"public_key", key_base64}, {"role", o.role}};
     std::string action = "enrolled";
@@ -282,7 +227,7 @@ int run_enroll(const FleetKeysOptions& o, std::ostream& out, std::ostream& err) 
     } else {
       peers.push_back(entry);
     }
-    if (action != "already enrolled") r2r::write_peers_document(o.peers_file, doc);
+    if (action != "already enrolled") r2r_wire::write_peers_document(o.peers_file, doc);
     if (o.as_json)
       out << json{{"name", o.name},   {"role", o.role},       {"public_key", key_base64}, {"peers_file", o.peers_file},
                   {"action", action}, {"peers", peers.size()}}
@@ -301,7 +246,7 @@ int run_enroll(const FleetKeysOptions& o, std::ostream& out, std::ostream& err) 
 int run_revoke(const FleetKeysOptions& o, std::ostream& out, std::ostream& err) {
   try {
     PeersFileLock lock(o.peers_file);
-    json doc = r2r::read_peers_document(o.peers_file, false);
+    json doc = r2r_wire::read_peers_document(o.peers_file, false);
     json& peers = doc["peers"];
     const auto before = peers.size();
     peers.erase(std::remove_if(peers.begin(), peers.end(), [&](const json& e) { return e["name"] == o.name; }), peers.end());
@@ -309,7 +254,7 @@ int run_revoke(const FleetKeysOptions& o, std::ostream& out, std::ostream& err) 
       err << "rcanctl fleet revoke: '" << o.name << "' is not enrolled in " << o.peers_file << "\n";
       return kExitFailure;
     }
-    r2r::write_peers_document(o.peers_file, doc);
+    r2r_wire::write_peers_document(o.peers_file, doc);
     if (o.as_json)
       out << json{{"name", o.name}, {"peers_file", o.peers_file}, {"action", "revoked"}, {"peers", peers.size()}}.dump()
           << std::endl;
@@ -326,7 +271,7 @@ int run_revoke(const FleetKeysOptions& o, std::ostream& out, std::ostream& err) 
 int run_list(const FleetKeysOptions& o, std::ostream& out, std::ostream& err) {
   json rows = json::array();
   try {
-    const json doc = r2r::read_peers_document(o.peers_file, false);
+    const json doc = r2r_wire::read_peers_document(o.peers_file, false);
     for (const auto& entry : doc["peers"])
       rows.push_back(
           {{"name", entry["name"]},
@@ -350,9 +295,9 @@ int run_list(const FleetKeysOptions& o, std::ostream& out, std::ostream& err) {
 }
 
 int run_stop_over_mqtt(const FleetKeysOptions& o, std::ostream& out, std::ostream& err) {
-  std::optional<r2r::Ed25519Key> key;
+  std::optional<r2r_wire::Ed25519Key> key;
   try {
-    key.emplace(r2r::Ed25519Key::private_from_file(o.key_file));
+    key.emplace(r2r_wire::Ed25519Key::private_from_file(o.key_file));
   } catch (const std::exception& e) {
     err << "rcanctl fleet stop: --key " << o.key_file << ": " << e.what() << "\n";
     return kExitUsage;
@@ -360,10 +305,10 @@ int run_stop_over_mqtt(const FleetKeysOptions& o, std::ostream& out, std::ostrea
   const double now = std::chrono::duration<double>(std::chrono::system_clock::now().time_since_epoch()).count();
   json payload{{"type", "estop"}};
   if (!o.reason.empty()) payload["reason"] = o.reason;
-  json message{{"header", {{"version", std::string(r2r::kProtocolVersion)}, {"timestamp", now}, {"source_id", o.sender}}},
+  json message{{"header", {{"version", std::string(r2r_wire::kProtocolVersion)}, {"timestamp", now}, {"source_id", o.sender}}},
                {"type", "command"},
                {"payload", payload}};
-  r2r::sign_message(message, o.sender, *key);
+  r2r_wire::sign_message(message, o.sender, *key);
   const std::string topic = "r2r/broadcast";
   const MqttPublishResult result = mqtt_publish_once(o.mqtt, topic, message.dump());
   if (o.as_json) {

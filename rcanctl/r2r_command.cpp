@@ -7,10 +7,9 @@
 #include <boost/beast/websocket.hpp>
 #include <nlohmann/json.hpp>
 
-#include <spdlog/logger.h>
-
 #include <unistd.h>
 #include <chrono>
+#include <condition_variable>
 #include <csignal>
 #include <cstdlib>
 #include <fstream>
@@ -25,7 +24,7 @@
 #include "command_line.hpp"
 #include "exit_codes.hpp"
 #include "libs/http/client.hpp"
-#include "services/r2r/transports/mqtt_transport.hpp"
+#include "mqtt_subscription.hpp"
 
 namespace rcand::rcanctl {
 namespace {
@@ -47,20 +46,11 @@ struct Options {
   json payload = json::object();
   std::chrono::milliseconds wait{2000};
   std::optional<std::chrono::milliseconds> timeout;
-  std::optional<std::string> mqtt;
+  std::optional<long> count;
+  MqttBrokerFlags broker_flags;
+  std::optional<MqttBrokerOptions> mqtt;
   json task = json::object();
 };
-
-std::optional<long> number(const std::string& text) {
-  try {
-    std::size_t used = 0;
-    const long value = std::stol(text, &used);
-    if (used != text.size()) return std::nullopt;
-    return value;
-  } catch (...) {
-    return std::nullopt;
-  }
-}
 
 // The robot options of one r2r action (its own copy of the flags: each action lists them in its --help).
 void add_r2r_robot_options(CLI::App& action, Options& o, std::string& token_file) {
@@ -97,8 +87,12 @@ std::optional<int> parse(std::span<const std::string> args, Options& o, std::ost
       ->add_option_function<int>(
           "--timeout", [&o](const int& seconds) { o.timeout = std::chrono::seconds(seconds); }, "stop after S seconds")
       ->check(CLI::Range(1, 86400));
-  watch->add_option_function<std::string>(
-      "--mqtt", [&o](const std::string& broker) { o.mqtt = broker; }, "HOST[:PORT]: every message on the broker's r2r/#");
+  watch
+      ->add_option_function<long>(
+          "--count", [&o](const long& n) { o.count = n; }, "exit after N messages")
+      ->check(CLI::Range(1L, 1000000000L));
+  o.broker_flags.add_to(*watch, "HOST[:PORT]: every message on the broker's r2r/# instead of the robot's WebSocket", false,
+                        false);
   CLI::App* auction = app->add_subcommand("auction", "the robot runs an auction; print the bids and the winner");
   auction->add_option_function<std::string>(
       "--task-id", [&o](const std::string& id) { o.task["task_id"] = id; }, "the task's id");
@@ -131,6 +125,10 @@ std::optional<int> parse(std::span<const std::string> args, Options& o, std::ost
   }
   if (o.token.empty())
     if (const char* env = std::getenv("RCAND_TOKEN")) o.token = env;
+  MqttBrokerOptions broker;
+  broker.client_id = "rcanctl-watch-" + std::to_string(::getpid());
+  if (auto bad = o.broker_flags.apply(broker)) return usage_error(*app, *bad, err);
+  if (o.broker_flags.given()) o.mqtt = std::move(broker);
   if (o.token.empty() && !o.mqtt)
     return usage_error(*app, "a token is required: --token TOKEN, --token-file FILE or $RCAND_TOKEN", err);
   return std::nullopt;
@@ -170,21 +168,23 @@ class Link {
     if (result) throw std::runtime_error("send failed: " + result.message());
   }
   // Calls `on_frame` for every frame until `until` (or the connection ends, or Ctrl-C). False when it ended early.
-  bool receive_until(std::chrono::steady_clock::time_point until, const std::function<void(const std::string&)>& on_frame) {
-    bool ended = false;
+  // Calls on_frame with each message until `until`, Ctrl-C or on_frame returns false; false when the robot hung up.
+  bool receive_until(std::chrono::steady_clock::time_point until, const std::function<bool(const std::string&)>& on_frame) {
+    bool ended = false, enough = false;
     std::function<void()> next = [&] {
       ws_.async_read(buffer_, [&](beast::error_code ec, std::size_t) {
         if (ec) {
           ended = true;
           return;
         }
-        on_frame(beast::buffers_to_string(buffer_.data()));
+        enough = !on_frame(beast::buffers_to_string(buffer_.data()));
         buffer_.consume(buffer_.size());
-        next();
+        if (!enough) next();
       });
     };
     next();
-    while (!ended && !interrupted && std::chrono::steady_clock::now() < until) ioc_.run_for(std::chrono::milliseconds(100));
+    while (!ended && !enough && !interrupted && std::chrono::steady_clock::now() < until)
+      ioc_.run_for(std::chrono::milliseconds(100));
     return !ended;
   }
 
@@ -229,9 +229,10 @@ int run_send(const Options& o, std::ostream& out, std::ostream& err) {
     link.receive_until(std::chrono::steady_clock::now() + o.wait, [&](const std::string& frame) {
       const json answer = json::parse(frame, nullptr, false);
       // The robot's periodic status is not an answer to us.
-      if (answer.is_object() && answer.value("type", "") == "status" && !answer["header"].contains("target_id")) return;
+      if (answer.is_object() && answer.value("type", "") == "status" && !answer["header"].contains("target_id")) return true;
       if (answer.is_object() && answer.value("type", "") == "error") refused = true;
       print_message(frame, o.as_json, out);
+      return true;
     });
   } catch (const std::exception& e) {
     err << "rcanctl r2r send: " << e.what() << "\n";
@@ -243,41 +244,37 @@ int run_send(const Options& o, std::ostream& out, std::ostream& err) {
 int run_watch(const Options& o, std::ostream& out, std::ostream& err) {
   std::signal(SIGINT, [](int) { interrupted = 1; });
   const auto until = o.timeout ? std::chrono::steady_clock::now() + *o.timeout : std::chrono::steady_clock::time_point::max();
+  long printed = 0;
+  auto enough = [&] { return o.count && printed >= *o.count; };
   if (o.mqtt) {
-    kernel::r2r::MqttOptions options;
-    const auto colon = o.mqtt->rfind(':');
-    options.host = colon == std::string::npos ? *o.mqtt : o.mqtt->substr(0, colon);
-    if (colon != std::string::npos) {
-      const auto port = number(o.mqtt->substr(colon + 1));
-      if (!port || *port < 1 || *port > 65535) {
-        err << "rcanctl r2r watch: --mqtt HOST[:PORT] has a bad port\n";
-        return kExitUsage;
-      }
-      options.port = static_cast<std::uint16_t>(*port);
-    }
-    options.robot_name = "rcanctl-watch";
-    options.client_id = "rcanctl-watch-" + std::to_string(::getpid());
-    options.extra_subscriptions = {"r2r/#"};
-    options.log = std::make_shared<spdlog::logger>("rcanctl");  // no sinks: the watcher prints only traffic
-    std::mutex out_mutex;
-    kernel::r2r::MqttTransport watcher(options);
+    std::mutex mutex;
+    std::condition_variable counted;
     try {
-      watcher.start([&](kernel::r2r::InboundMessage message) {
-        std::lock_guard lock(out_mutex);
-        if (!o.as_json) out << message.peer << "  ";
-        print_message(message.bytes, o.as_json, out);
+      MqttSubscription watcher(*o.mqtt, "r2r/#", [&](std::string_view topic, std::string_view payload) {
+        std::lock_guard lock(mutex);
+        if (enough()) return;
+        if (!o.as_json) out << topic << "  ";
+        print_message(std::string(payload), o.as_json, out);
+        ++printed;
+        counted.notify_all();
       });
+      std::unique_lock lock(mutex);
+      while (!interrupted && !enough() && std::chrono::steady_clock::now() < until)
+        counted.wait_for(lock, std::chrono::milliseconds(100));  // a short wait: Ctrl-C only sets a flag
     } catch (const std::exception& e) {
       err << "rcanctl r2r watch: " << e.what() << "\n";
       return kExitFailure;
     }
-    while (!interrupted && std::chrono::steady_clock::now() < until) std::this_thread::sleep_for(std::chrono::milliseconds(100));
-    watcher.stop();
     return kExitOk;
   }
   try {
     Link link(o);
-    if (!link.receive_until(until, [&](const std::string& frame) { print_message(frame, o.as_json, out); })) {
+    const bool open = link.receive_until(until, [&](const std::string& frame) {
+      print_message(frame, o.as_json, out);
+      ++printed;
+      return !enough();
+    });
+    if (!open) {
       err << "rcanctl r2r watch: the robot closed the connection\n";
       return kExitFailure;
     }

@@ -9,7 +9,14 @@
 namespace rcand::kernel {
 
 std::vector<ServiceFactory> linked_services() {
-  return {services::make_r2r, services::make_swarm_broadcast, services::make_dashboard, services::make_telemetry};
+  // swarm.yaml, one per kernel: loaded and reloaded by the swarm broadcast, read by it and by R2R (made first, but
+  // reading it only once it serves).
+  auto swarm = std::make_shared<swarm::LiveRegistry>();
+  return {[swarm](ServiceHost& host) { return services::make_r2r(host, swarm); },
+          [swarm](ServiceHost& host) { return services::make_swarm_broadcast(host, swarm); }, services::make_dashboard,
+          services::make_telemetry};
 }
+
+std::vector<std::function<void(const RobotConfig&)>> linked_service_checks() { return {services::check_swarm_file}; }
 
 }  // namespace rcand::kernel

@@ -15,7 +15,7 @@ function(rcand_unit_test name)
   cmake_parse_arguments(T "" "" "SOURCES;LIBS" ${ARGN})
   add_executable(${name} ${T_SOURCES})
   target_link_libraries(${name} PRIVATE rcand_doctest_main ${T_LIBS})
-  target_include_directories(${name} PRIVATE ${PROJECT_SOURCE_DIR}/tests/support)
+  target_include_directories(${name} PRIVATE ${PROJECT_SOURCE_DIR} ${PROJECT_SOURCE_DIR}/tests/support)  # the whole tree
   target_compile_definitions(${name} PRIVATE
     RCAND_SOURCE_DIR="${PROJECT_SOURCE_DIR}" RCAND_BINARY_DIR="${PROJECT_BINARY_DIR}"
     RCAND_PLUGIN_DIR="${RCAND_PLUGIN_OUTPUT_DIR}" RCAND_TEST_PLUGIN_DIR="${RCAND_TEST_PLUGIN_DIR}")

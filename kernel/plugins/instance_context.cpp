@@ -2,6 +2,9 @@
 
 #include <thread>
 
+#include "rcand/sdk/r2r.hpp"
+#include "rcand/sdk/services.hpp"
+
 namespace rcand::kernel {
 
 // inside_ is raised before sink_ is read and lowered after the sink returned (all seq_cst): once detach() stored
@@ -71,17 +74,12 @@ sdk::Worker& InstanceContext::worker(std::string_view name) {
       full, [this, full](const std::string& why) { health_.mark_failed("worker " + full + ": " + why); }));
 }
 
+// Deprecated (sdk/context.hpp): one link per instance, from the R2R service's sdk::R2rLinks when R2R runs here.
 sdk::R2rLink* InstanceContext::r2r() noexcept {
-  if (services_.r2r == nullptr) return nullptr;
+  const auto* links = sdk::find<sdk::R2rLinks>(services_.directory);
+  if (links == nullptr) return nullptr;
   std::lock_guard lock(r2r_mutex_);
-  if (!r2r_link_) {
-    try {
-      r2r_link_ = services_.r2r->make_link(worker("r2r"), plugin_id_ + " (" + instance_id_ + ")");
-    } catch (const std::exception& e) {
-      logger("kernel.r2r")->error("no R2R link for {} ({}): {}", plugin_id_, instance_id_, e.what());
-      return nullptr;
-    }
-  }
+  if (!r2r_link_) r2r_link_ = links->make_link(worker("r2r"), plugin_id_ + " (" + instance_id_ + ")");
   return r2r_link_.get();
 }
 

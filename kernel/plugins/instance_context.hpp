@@ -8,7 +8,6 @@
 #include <string>
 
 #include "kernel/audit/audit_log.hpp"
-#include "kernel/plugins/r2r_link_factory.hpp"
 #include "kernel/plugins/service_directory.hpp"
 #include "kernel/safety/estop.hpp"
 #include "kernel/safety/instance_health.hpp"
@@ -55,8 +54,6 @@ struct KernelServices {
   const sdk::ConfigView& robot_config;
   AuditLog* audit = nullptr;  // plugin-requested e-stops are audited (docs/protocol.md §6.3); null in tests without one
   std::string ruri;           // the robot's RURI, for those audit entries
-  // Plugins' R2R links (docs/protocol.md §11) when runtime.r2r.enabled, set before any plugin starts; null: no R2R here.
-  R2rLinkFactory* r2r = nullptr;
   // PluginContext::publish_status() goes here (the status board attaches itself when it starts). The braces let an
   // aggregate initialization leave it out without -Wmissing-field-initializers.
   StatusSinkSlot status_sink{};

@@ -7,15 +7,15 @@ namespace rcand::plugins::fleet {
 Fleet::~Fleet() { shutdown(); }
 
 void Fleet::start() {
-  sdk::R2rLink* link = ctx_.r2r();
-  if (link == nullptr) {
+  if (const auto* links = sdk::find<sdk::R2rLinks>(ctx_)) link_ = links->make_link(ctx_.worker("r2r"), "org.rcand.fleet");
+  if (link_ == nullptr) {
     ctx_.log().info("no R2R on this robot (runtime.r2r.enabled is off): no auctions");
     return;
   }
   settings_ = read_fleet_settings(ctx_.robot_config());
   worker_ = &ctx_.worker("r2r");  // the link's callbacks run here too: ticks and messages never overlap
   auctions_ = std::make_unique<Auctions>(Auctions::Deps{
-      .link = *link,
+      .link = *link_,
       .clock = ctx_.clock(),
       .settings = settings_,
       .position = [this] { return position(); },

@@ -42,6 +42,7 @@ class Fleet final : public sdk::Capability {
 
   sdk::PluginContext& ctx_;
   FleetSettings settings_;
+  std::unique_ptr<sdk::R2rLink> link_;  // from sdk::R2rLinks; null while the robot has no R2R. Outlives auctions_
   std::unique_ptr<Auctions> auctions_;  // null while the robot has no R2R
   sdk::Worker* worker_ = nullptr;
   sdk::TimerId next_tick_ = 0;  // worker "r2r" only

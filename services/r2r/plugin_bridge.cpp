@@ -7,8 +7,9 @@
 
 namespace rcand::kernel::r2r {
 
-constexpr MessageType kAllTypes[] = {MessageType::Status,  MessageType::TaskRequest, MessageType::TaskResponse,
-                                     MessageType::Command, MessageType::Negotiation, MessageType::Error};
+constexpr r2r_wire::MessageType kAllTypes[] = {r2r_wire::MessageType::Status,       r2r_wire::MessageType::TaskRequest,
+                                               r2r_wire::MessageType::TaskResponse, r2r_wire::MessageType::Command,
+                                               r2r_wire::MessageType::Negotiation,  r2r_wire::MessageType::Error};
 
 class PluginBridge::Link final : public sdk::R2rLink {
  public:
@@ -37,7 +38,8 @@ PluginBridge::~PluginBridge() { detach(); }
 void PluginBridge::attach(R2rNode& node) {
   detach();
   std::vector<std::uint64_t> ids;
-  for (MessageType type : kAllTypes) ids.push_back(node.subscribe(type, [this](const ReceivedMessage& m) { deliver(m); }));
+  for (r2r_wire::MessageType type : kAllTypes)
+    ids.push_back(node.subscribe(type, [this](const ReceivedMessage& m) { deliver(m); }));
   std::lock_guard lock(mutex_);
   node_ = &node;
   node_subscriptions_ = std::move(ids);
@@ -76,7 +78,7 @@ void PluginBridge::deliver(const ReceivedMessage& m) {
 }
 
 sdk::R2rSendResult PluginBridge::send(std::string_view type, const sdk::Json& payload, const std::optional<std::string>& target) {
-  const auto parsed = parse_message_type(type);
+  const auto parsed = r2r_wire::parse_message_type(type);
   if (!parsed) return {false, "unknown R2R message type '" + std::string(type) + "'", "/type"};
   R2rNode* node = nullptr;
   {
@@ -87,13 +89,13 @@ sdk::R2rSendResult PluginBridge::send(std::string_view type, const sdk::Json& pa
   // plugin worker (the kernel joins them before destroying it), so the pointer stays good for this call.
   if (node == nullptr) return {false, "R2R is not running on this robot", ""};
   auto sent = node->send(*parsed, payload, target);
-  if (auto* error = std::get_if<R2rError>(&sent)) return {false, error->message, error->field};
+  if (auto* error = std::get_if<r2r_wire::R2rError>(&sent)) return {false, error->message, error->field};
   return {true, "", ""};
 }
 
 std::uint64_t PluginBridge::subscribe(const Link* owner, std::string_view type, sdk::R2rLink::Callback callback,
                                       sdk::Worker& worker) {
-  const auto parsed = parse_message_type(type);
+  const auto parsed = r2r_wire::parse_message_type(type);
   if (!parsed) throw std::invalid_argument("unknown R2R message type '" + std::string(type) + "'");
   if (!callback) throw std::invalid_argument("R2R subscribe needs a callback");
   std::lock_guard lock(mutex_);

@@ -45,7 +45,7 @@ class PluginBridge {
  private:
   class Link;
   struct Subscription {
-    MessageType type;
+    r2r_wire::MessageType type;
     sdk::Worker* worker;
     sdk::R2rLink::Callback callback;
     std::shared_ptr<bool> live;  // false once unsubscribed: queued deliveries then do nothing

@@ -16,7 +16,7 @@ constexpr sdk::MetricFamily kMessages{"rcand_r2r_messages_total", sdk::MetricTyp
 
 R2rNode::MessageObserver message_metrics(const ServiceDirectory& directory) {
   if (const auto* metrics = sdk::find<sdk::Metrics>(directory)) metrics->declare(kMessages);
-  return [&directory](bool sent, MessageType type, const std::string& transport) {
+  return [&directory](bool sent, r2r_wire::MessageType type, const std::string& transport) {
     if (const auto* metrics = sdk::find<sdk::Metrics>(directory))
       metrics->add(kMessages, {sent ? "sent" : "received", type_name(type), transport});
   };

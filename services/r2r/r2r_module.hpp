@@ -6,9 +6,11 @@
 #include <memory>
 
 #include "kernel/service.hpp"
+#include "libs/swarm/live_registry.hpp"
 
 namespace rcand::services {
 
-std::unique_ptr<kernel::Service> make_r2r(kernel::ServiceHost& host);
+// `swarm`: swarm.yaml as now (the swarm-broadcast service loads it), the robots a relay or a WebSocket dial reaches.
+std::unique_ptr<kernel::Service> make_r2r(kernel::ServiceHost& host, std::shared_ptr<const swarm::LiveRegistry> swarm);
 
 }  // namespace rcand::services

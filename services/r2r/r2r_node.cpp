@@ -7,8 +7,9 @@
 
 #include "libs/base/bounded_text.hpp"
 #include "libs/base/logging.hpp"
+#include "libs/r2r_wire/message_signature.hpp"
+#include "libs/r2r_wire/payload_schema.hpp"
 #include "libs/rcan/ruri.hpp"
-#include "services/r2r/payload_schema.hpp"
 #include "services/r2r/refusal_throttle.hpp"
 #include "services/r2r/replay_guard.hpp"
 
@@ -31,8 +32,8 @@ struct Wire {
   std::string bytes;
   std::string open_bytes;
   std::optional<std::string> target;
-  Route reply;                        // preferred route for a direct answer (same connection), may be empty
-  std::optional<MessageType> type{};  // for the message observer; unset for bytes passed on as received
+  Route reply;                                  // preferred route for a direct answer (same connection), may be empty
+  std::optional<r2r_wire::MessageType> type{};  // for the message observer; unset for bytes passed on as received
 };
 
 }  // namespace node_detail
@@ -111,7 +112,7 @@ struct R2rNode::Impl {
   R2rNode::MessageObserver observer;  // set before start(), read without a lock
   mutable std::mutex mutex;           // everything below
   ReplayGuard replays{deps.settings.auth.replay_window_s + deps.settings.auth.future_skew_s};
-  std::map<std::uint64_t, std::pair<MessageType, Subscriber>> subscribers;
+  std::map<std::uint64_t, std::pair<r2r_wire::MessageType, Subscriber>> subscribers;
   std::uint64_t next_subscriber = 1;
   struct Peer {
     std::int64_t last_seen_ms = 0;
@@ -140,17 +141,18 @@ struct R2rNode::Impl {
   }
 
   // The signed (and, with `with_token`, tokened) bytes of a message from this robot.
-  std::string build(MessageType type, json payload, const std::optional<std::string>& target, double timestamp,
+  std::string build(r2r_wire::MessageType type, json payload, const std::optional<std::string>& target, double timestamp,
                     bool with_token) const {
-    json header{{"version", std::string(kProtocolVersion)}, {"timestamp", timestamp}, {"source_id", deps.identity.name}};
+    json header{
+        {"version", std::string(r2r_wire::kProtocolVersion)}, {"timestamp", timestamp}, {"source_id", deps.identity.name}};
     if (target) header["target_id"] = *target;
     json message{{"header", std::move(header)}, {"type", std::string(type_name(type))}, {"payload", std::move(payload)}};
-    if (with_token && deps.settings.outbound_token) add_token(message, *deps.settings.outbound_token);
-    if (deps.settings.private_key) sign_message(message, deps.identity.name, *deps.settings.private_key);
+    if (with_token && deps.settings.outbound_token) r2r_wire::add_token(message, *deps.settings.outbound_token);
+    if (deps.settings.private_key) r2r_wire::sign_message(message, deps.identity.name, *deps.settings.private_key);
     return message.dump(-1, ' ', false, json::error_handler_t::replace);
   }
 
-  Wire wire(MessageType type, const json& payload, const std::optional<std::string>& target, Route reply = {}) const {
+  Wire wire(r2r_wire::MessageType type, const json& payload, const std::optional<std::string>& target, Route reply = {}) const {
     const double timestamp = now_s();
     std::string open = build(type, payload, target, timestamp, false);
     std::string full = deps.settings.outbound_token ? build(type, payload, target, timestamp, true) : open;
@@ -219,11 +221,11 @@ struct R2rNode::Impl {
 
   // An `error` answering a message from `source` (never to an `error`, never to ourselves).
   // `source` is nullopt when the message was too broken to say who sent it (then only `reply` can carry the answer).
-  Wire error_reply(ErrorCode code, std::string message, const std::optional<json>& ref, const std::optional<std::string>& source,
-                   const Route& reply, std::optional<json> extra = std::nullopt) const {
-    json payload = make_error_payload(code, std::move(message), ref);
+  Wire error_reply(r2r_wire::ErrorCode code, std::string message, const std::optional<json>& ref,
+                   const std::optional<std::string>& source, const Route& reply, std::optional<json> extra = std::nullopt) const {
+    json payload = r2r_wire::make_error_payload(code, std::move(message), ref);
     if (extra) payload.update(*extra);
-    return wire(MessageType::Error, payload, source, reply);
+    return wire(r2r_wire::MessageType::Error, payload, source, reply);
   }
 
   // Whether a message for `id` can be passed on: a robot of the fleet (swarm.yaml) or one heard from.
@@ -277,10 +279,11 @@ struct R2rNode::Impl {
   // signature still verifies, the marker being outside what it covers; a token travels only where this robot's own
   // would); the relay adds no authority of its own. Otherwise - a relayed message, an unknown target, no transport
   // reaching it - the sender gets 101 (never for an `error`).
-  void relay_or_refuse(const InboundMessage& message, const Envelope& envelope, const json& clean_ref, const Route& reply) {
+  void relay_or_refuse(const InboundMessage& message, const r2r_wire::Envelope& envelope, const json& clean_ref,
+                       const Route& reply) {
     const std::string& target = *envelope.target_id;
     std::string why;
-    if (envelope.header_extra.contains(kRelayMarker)) {
+    if (envelope.header_extra.contains(r2r_wire::kRelayMarker)) {
       why = "target robot '" + target + "' is not '" + deps.identity.name +
             "', and the message was relayed already: a relayed message is never relayed again";
     } else if (!knows(target)) {
@@ -288,11 +291,11 @@ struct R2rNode::Impl {
             "' has neither it in its fleet (swarm.yaml) nor heard from it";
     } else {
       json message = envelope.received;
-      message["header"][kRelayMarker] = deps.identity.name;
+      message["header"][r2r_wire::kRelayMarker] = deps.identity.name;
       std::string full = message.dump(-1, ' ', false, json::error_handler_t::replace);
       message["header"].erase("auth");
       std::string open = message.dump(-1, ' ', false, json::error_handler_t::replace);
-      if (full.size() > kMaxMessageBytes) {
+      if (full.size() > r2r_wire::kMaxMessageBytes) {
         why = "target robot '" + target + "' is known, but the message is too large to relay with the hop marker";
       } else if (!transmit({Wire{std::move(full), std::move(open), target, {}}}).front().empty()) {
         std::lock_guard lock(mutex);
@@ -303,15 +306,15 @@ struct R2rNode::Impl {
         why = "target robot '" + target + "' is known, but no transport reaches it now";
       }
     }
-    refuse(message, envelope.source_id, envelope.type != MessageType::Error,
+    refuse(message, envelope.source_id, envelope.type != r2r_wire::MessageType::Error,
            std::string(type_name(envelope.type)) + " from '" + envelope.source_id + "' not relayed: " + why,
-           [&] { return error_reply(ErrorCode::UnknownTarget, why, clean_ref, envelope.source_id, reply); });
+           [&] { return error_reply(r2r_wire::ErrorCode::UnknownTarget, why, clean_ref, envelope.source_id, reply); });
   }
 
   // The way back to the sender of a relayed message that came without one (MQTT): through the robot that relayed it,
   // which passes the answer on like any message for a robot it knows. Only for a relay this robot knows itself.
-  static Route via_relay(const std::shared_ptr<Impl>& self, const Envelope& envelope) {
-    const auto marker = envelope.header_extra.find(kRelayMarker);
+  static Route via_relay(const std::shared_ptr<Impl>& self, const r2r_wire::Envelope& envelope) {
+    const auto marker = envelope.header_extra.find(r2r_wire::kRelayMarker);
     if (marker == envelope.header_extra.end() || !marker->is_string()) return {};
     const std::string relay = marker->get<std::string>();
     if (relay.empty() || self->is_self(relay) || !self->knows(relay)) return {};
@@ -349,7 +352,7 @@ struct R2rNode::Impl {
     }
     payload["state"] = "offline";
     payload["task_progress"] = nullptr;
-    return wire(MessageType::Status, payload, std::nullopt).open_bytes;
+    return wire(r2r_wire::MessageType::Status, payload, std::nullopt).open_bytes;
   }
 
   // This robot's status now, sent at once whatever the interval (a fleet e-stop's latch: the fleet sees it now).
@@ -359,7 +362,7 @@ struct R2rNode::Impl {
     {
       std::lock_guard lock(mutex);
       json status = status_payload_locked(local);
-      out.push_back(wire(MessageType::Status, status, std::nullopt));
+      out.push_back(wire(r2r_wire::MessageType::Status, status, std::nullopt));
       last_status = std::move(status);
       last_status_us = deps.clock.now_us();
       status_sent = true;
@@ -369,7 +372,7 @@ struct R2rNode::Impl {
 
   // The fleet e-stop (docs/protocol.md §11.15): POST /api/stop's latch as the sender, on this (transport) thread, then
   // the latched status at once. The latch's reason names the sender and its reason.
-  void fleet_estop(const Principal& principal, const Envelope& envelope, const std::string& transport) {
+  void fleet_estop(const Principal& principal, const r2r_wire::Envelope& envelope, const std::string& transport) {
     const auto it = envelope.payload.find("reason");
     const std::string reason = it != envelope.payload.end() && it->is_string() ? it->get<std::string>() : std::string();
     const std::string text = "fleet e-stop from '" + envelope.source_id + "'" + (reason.empty() ? "" : ": " + reason);
@@ -382,14 +385,14 @@ struct R2rNode::Impl {
   // receive()'s steps, in order (defined below, beside the helpers they use).
   struct Incoming {
     const InboundMessage& message;
-    Envelope envelope;
+    r2r_wire::Envelope envelope;
     Route reply;
     json clean_ref;  // the `ref` of any answer: the header, minus credentials
     bool estop;      // a fleet e-stop
     double now;
   };
   // A message that is no R2R message: refused with the fault and, where one was found, its field.
-  void refuse_malformed(const InboundMessage& message, const R2rError& bad, const Route& reply);
+  void refuse_malformed(const InboundMessage& message, const r2r_wire::R2rError& bad, const Route& reply);
   void refuse_unauthorized(const Incoming& in, const std::string& line, const std::string& why);
   // Who sent it (token, signature or transport principal), or nullopt once refused.
   std::optional<Principal> authenticate(const Incoming& in);
@@ -405,12 +408,13 @@ struct R2rNode::Impl {
 namespace {
 // A status on its sender's own status topic (MQTT r2r/status/<name>, docs/protocol.md §11.13) may be a retained copy
 // set before this robot started: a status is no action, so that is no replay to refuse.
-bool r2r_status_on_own_topic(const InboundMessage& message, const Envelope& envelope) {
-  return message.status_topic && envelope.type == MessageType::Status && message.peer.ends_with("/status/" + envelope.source_id);
+bool r2r_status_on_own_topic(const InboundMessage& message, const r2r_wire::Envelope& envelope) {
+  return message.status_topic && envelope.type == r2r_wire::MessageType::Status &&
+         message.peer.ends_with("/status/" + envelope.source_id);
 }
 // The `offline` status left there (the last will, or published at a clean stop) was signed when it was set, possibly
 // long ago: its signature is checked as of its own timestamp, and all it can ever do is mark that robot offline.
-bool r2r_offline_left_behind(const InboundMessage& message, const Envelope& envelope) {
+bool r2r_offline_left_behind(const InboundMessage& message, const r2r_wire::Envelope& envelope) {
   const auto state = envelope.payload.find("state");
   return r2r_status_on_own_topic(message, envelope) && state != envelope.payload.end() && *state == "offline";
 }
@@ -418,7 +422,7 @@ bool r2r_offline_left_behind(const InboundMessage& message, const Envelope& enve
 
 // receive()'s steps.
 
-void R2rNode::Impl::refuse_malformed(const InboundMessage& message, const R2rError& bad, const Route& reply) {
+void R2rNode::Impl::refuse_malformed(const InboundMessage& message, const r2r_wire::R2rError& bad, const Route& reply) {
   const bool answerable = bad.type != "error" && !(bad.source_id && is_self(*bad.source_id)) && (bad.source_id || reply);
   refuse(message, bad.source_id.value_or(message.transport + " " + message.peer), answerable,
          "refused a message from " + message.peer + " via " + message.transport + ": " + bad.message +
@@ -432,12 +436,12 @@ void R2rNode::Impl::refuse_malformed(const InboundMessage& message, const R2rErr
 
 void R2rNode::Impl::refuse_unauthorized(const Incoming& in, const std::string& line, const std::string& why) {
   const std::string& source = in.envelope.source_id;
-  refuse(in.message, source, in.envelope.type != MessageType::Error, line,
-         [&] { return error_reply(ErrorCode::Unauthorized, why, in.clean_ref, source, in.reply); });
+  refuse(in.message, source, in.envelope.type != r2r_wire::MessageType::Error, line,
+         [&] { return error_reply(r2r_wire::ErrorCode::Unauthorized, why, in.clean_ref, source, in.reply); });
 }
 
 std::optional<Principal> R2rNode::Impl::authenticate(const Incoming& in) {
-  const Envelope& envelope = in.envelope;
+  const r2r_wire::Envelope& envelope = in.envelope;
   // A fleet e-stop needs what POST /api/stop needs (scope status); any other command, control.
   auto who = auth.authorize(envelope, envelope.received, in.message.principal,
                             in.estop ? sdk::Scope::Status : required_scope(envelope.type),
@@ -458,7 +462,7 @@ std::optional<Principal> R2rNode::Impl::authenticate(const Incoming& in) {
 
 bool R2rNode::Impl::first_time(const Incoming& in, const Principal& principal) {
   if (principal.via != "signature") return true;
-  const Envelope& envelope = in.envelope;
+  const r2r_wire::Envelope& envelope = in.envelope;
   // Signed before this robot started: its replay memory cannot know whether it was handled before a restart, so it
   // is refused (103) - nothing signed before a restart is replayable after it.
   if (envelope.timestamp < started_s && !r2r_status_on_own_topic(in.message, envelope)) {
@@ -482,7 +486,7 @@ bool R2rNode::Impl::first_time(const Incoming& in, const Principal& principal) {
 }
 
 std::vector<Subscriber> R2rNode::Impl::record(const Incoming& in, bool& is_command) {
-  const Envelope& envelope = in.envelope;
+  const r2r_wire::Envelope& envelope = in.envelope;
   const std::string& source = envelope.source_id;
   std::vector<Subscriber> to_notify;
   std::lock_guard lock(mutex);
@@ -491,19 +495,20 @@ std::vector<Subscriber> R2rNode::Impl::record(const Incoming& in, bool& is_comma
   const json& p = envelope.payload;
   // Task requests, negotiations and task responses are the fleet plugin's (it subscribes): the auction runs there.
   switch (envelope.type) {
-    case MessageType::Status: peer.status = r2r_bounded_peer_status(p); break;
-    case MessageType::Error: {
+    case r2r_wire::MessageType::Status: peer.status = r2r_bounded_peer_status(p); break;
+    case r2r_wire::MessageType::Error: {
       // A peer's own text: logged within its budget (the formatter escapes and bounds it, as every message).
       const int code = p["code"].get<int>();
       if (const auto verdict = error_log.admit(bounded_text(source, kSenderNameBytes)); verdict.log)
-        log->info("r2r: error {} ({}) from '{}': {}{}", code, error_code_name(code), source, p["message"].get<std::string>(),
+        log->info("r2r: error {} ({}) from '{}': {}{}", code, r2r_wire::error_code_name(code), source,
+                  p["message"].get<std::string>(),
                   verdict.suppressed ? " (" + std::to_string(verdict.suppressed) + " earlier ones not logged)" : "");
       break;
     }
-    case MessageType::Command: is_command = true; break;
-    case MessageType::TaskRequest:
-    case MessageType::TaskResponse:
-    case MessageType::Negotiation: break;
+    case r2r_wire::MessageType::Command: is_command = true; break;
+    case r2r_wire::MessageType::TaskRequest:
+    case r2r_wire::MessageType::TaskResponse:
+    case r2r_wire::MessageType::Negotiation: break;
   }
   for (const auto& [id, entry] : subscribers)
     if (entry.first == envelope.type) to_notify.push_back(entry.second);
@@ -529,9 +534,9 @@ bool R2rNode::Impl::run_command(const std::shared_ptr<Impl>& self, const Incomin
     const std::string why = body.is_object() && body.contains("error") && body["error"].is_string()
                                 ? body["error"].get<std::string>()
                                 : "command failed";
-    const ErrorCode code = status == 423                    ? ErrorCode::EstopActive
-                           : status == 401 || status == 403 ? ErrorCode::Unauthorized
-                                                            : ErrorCode::InvalidFormat;
+    const r2r_wire::ErrorCode code = status == 423                    ? r2r_wire::ErrorCode::EstopActive
+                                     : status == 401 || status == 403 ? r2r_wire::ErrorCode::Unauthorized
+                                                                      : r2r_wire::ErrorCode::InvalidFormat;
     json extra{{"http_status", status}};  // rcand extension: the HTTP-equivalent answer
     if (body.is_object() && body.contains("code")) extra["http_code"] = body["code"];
     s->transmit({s->error_reply(code, why, clean_ref, source, reply, extra)});
@@ -602,9 +607,9 @@ void R2rNode::receive(InboundMessage message) {
     std::lock_guard lock(s.mutex);
     ++s.counters.received;
   }
-  auto parsed = parse_envelope(message.bytes);
-  if (const auto* bad = std::get_if<R2rError>(&parsed)) return s.refuse_malformed(message, *bad, reply);
-  Envelope envelope = std::move(std::get<Envelope>(parsed));
+  auto parsed = r2r_wire::parse_envelope(message.bytes);
+  if (const auto* bad = std::get_if<r2r_wire::R2rError>(&parsed)) return s.refuse_malformed(message, *bad, reply);
+  r2r_wire::Envelope envelope = std::move(std::get<r2r_wire::Envelope>(parsed));
   if (s.is_self(envelope.source_id)) return;  // our own broadcast, echoed back by a transport
   if (!reply) reply = Impl::via_relay(impl_, envelope);
   json clean_ref = envelope.header_extra;
@@ -642,7 +647,7 @@ void R2rNode::tick() {
     const bool due = !s.status_sent || since >= std::chrono::microseconds(s.deps.settings.status_interval).count();
     const bool changed = s.status_sent && status != s.last_status && since >= kMinStatusGapUs;
     if (due || changed) {
-      out.push_back(s.wire(MessageType::Status, status, std::nullopt));
+      out.push_back(s.wire(r2r_wire::MessageType::Status, status, std::nullopt));
       s.last_status = std::move(status);
       s.last_status_us = now_us;
       s.status_sent = true;
@@ -653,16 +658,17 @@ void R2rNode::tick() {
   if (const auto summary = s.refusals.summary(now_us)) s.log->info("{}", *summary);
 }
 
-std::variant<std::string, R2rError> R2rNode::send(MessageType type, json payload, const std::optional<std::string>& target) {
+std::variant<std::string, r2r_wire::R2rError> R2rNode::send(r2r_wire::MessageType type, json payload,
+                                                            const std::optional<std::string>& target) {
   auto outcome = send_message(type, std::move(payload), target);
-  if (auto* error = std::get_if<R2rError>(&outcome)) return std::move(*error);
+  if (auto* error = std::get_if<r2r_wire::R2rError>(&outcome)) return std::move(*error);
   return std::move(std::get<SendOutcome>(outcome).bytes);
 }
 
-std::variant<SendOutcome, R2rError> R2rNode::send_message(MessageType type, json payload,
-                                                          const std::optional<std::string>& target) {
+std::variant<SendOutcome, r2r_wire::R2rError> R2rNode::send_message(r2r_wire::MessageType type, json payload,
+                                                                    const std::optional<std::string>& target) {
   auto invalid = [](std::string field, std::string message) {
-    R2rError error;
+    r2r_wire::R2rError error;
     error.field = std::move(field);
     error.message = std::move(message);
     return error;
@@ -672,9 +678,9 @@ std::variant<SendOutcome, R2rError> R2rNode::send_message(MessageType type, json
   if (target && target->empty()) return invalid("/header/target_id", "target_id must not be empty");
   Wire w = impl_->wire(type, payload, target);
   const std::size_t size = std::max(w.bytes.size(), w.open_bytes.size());
-  if (size > kMaxMessageBytes)
-    return invalid(
-        "", "message is " + std::to_string(size) + " bytes, more than the " + std::to_string(kMaxMessageBytes) + " allowed");
+  if (size > r2r_wire::kMaxMessageBytes)
+    return invalid("", "message is " + std::to_string(size) + " bytes, more than the " +
+                           std::to_string(r2r_wire::kMaxMessageBytes) + " allowed");
   SendOutcome outcome;
   outcome.bytes = w.open_bytes;
   outcome.queued_on = std::move(impl_->transmit({std::move(w)}).front());
@@ -683,7 +689,7 @@ std::variant<SendOutcome, R2rError> R2rNode::send_message(MessageType type, json
 
 void R2rNode::observe_messages(MessageObserver observer) { impl_->observer = std::move(observer); }
 
-std::uint64_t R2rNode::subscribe(MessageType type, Subscriber callback) {
+std::uint64_t R2rNode::subscribe(r2r_wire::MessageType type, Subscriber callback) {
   std::lock_guard lock(impl_->mutex);
   const std::uint64_t id = impl_->next_subscriber++;
   impl_->subscribers.emplace(id, std::make_pair(type, std::move(callback)));
@@ -709,7 +715,7 @@ json R2rNode::status_payload() const {
   return impl_->status_payload_locked(local);
 }
 
-void R2rNode::replace_peers(std::vector<PeerKey> peers) { impl_->auth.replace_peers(std::move(peers)); }
+void R2rNode::replace_peers(std::vector<r2r_wire::PeerKey> peers) { impl_->auth.replace_peers(std::move(peers)); }
 
 NodeCounters R2rNode::counters() const {
   std::lock_guard lock(impl_->mutex);

@@ -24,9 +24,9 @@
 #include <spdlog/logger.h>
 
 #include "kernel/auth/authenticator.hpp"
+#include "libs/r2r_wire/envelope.hpp"
 #include "rcand/sdk/clock.hpp"
 #include "rcand/sdk/pose_source.hpp"
-#include "services/r2r/envelope.hpp"
 #include "services/r2r/message_auth.hpp"
 #include "services/r2r/r2r_settings.hpp"
 #include "services/r2r/transport.hpp"
@@ -63,7 +63,7 @@ using StopExecutor = std::function<void(const Principal& principal, nlohmann::js
 
 // A validated inbound message as subscribers see it.
 struct ReceivedMessage {
-  Envelope envelope;
+  r2r_wire::Envelope envelope;
   std::string principal;  // who it authenticated as
   std::string transport;  // "ws" | "udp" | "mqtt" | "local"
 };
@@ -120,17 +120,18 @@ class R2rNode {
   // Sends a message of `type` with `payload` to `target` (nullopt: broadcast) on every transport that accepts it,
   // signed/tokened per settings. Returns the bytes sent, or an R2rError (code 100) when the payload is invalid for the
   // type. True delivery is not confirmed (UDP, MQTT QoS 0).
-  std::variant<std::string, R2rError> send(MessageType type, nlohmann::json payload, const std::optional<std::string>& target);
+  std::variant<std::string, r2r_wire::R2rError> send(r2r_wire::MessageType type, nlohmann::json payload,
+                                                     const std::optional<std::string>& target);
   // The same, saying which transports took it.
-  std::variant<SendOutcome, R2rError> send_message(MessageType type, nlohmann::json payload,
-                                                   const std::optional<std::string>& target);
+  std::variant<SendOutcome, r2r_wire::R2rError> send_message(r2r_wire::MessageType type, nlohmann::json payload,
+                                                             const std::optional<std::string>& target);
 
   // Subscribers get every validated, authorized message of `type` (any transport). The callback runs on the
   // thread that delivered the message: wrap it to post elsewhere (the plugin link posts to the plugin's worker).
-  std::uint64_t subscribe(MessageType type, Subscriber callback);
+  std::uint64_t subscribe(r2r_wire::MessageType type, Subscriber callback);
   // Told of each message accepted from a transport (sent: false) and each one a transport took (sent: true; "reply"
   // and "route" name the way back to a peer). Any thread; must not block. Before start() only (metrics).
-  using MessageObserver = std::function<void(bool sent, MessageType type, const std::string& transport)>;
+  using MessageObserver = std::function<void(bool sent, r2r_wire::MessageType type, const std::string& transport)>;
   void observe_messages(MessageObserver observer);
   void unsubscribe(std::uint64_t id);
 
@@ -142,7 +143,7 @@ class R2rNode {
   NodeCounters counters() const;
   const NodeIdentity& identity() const noexcept { return identity_; }
   // The peers whose signatures are accepted from now on, all at once (a SIGHUP reload of runtime.r2r.peers_file).
-  void replace_peers(std::vector<PeerKey> peers);
+  void replace_peers(std::vector<r2r_wire::PeerKey> peers);
 
  private:
   struct Impl;

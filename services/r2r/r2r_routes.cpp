@@ -82,7 +82,7 @@ void handle(R2rService* service, AuditLog& audit, Call& call, const Reply& respo
                             "command, negotiation, error)",
                             "type"),
                     "no type");
-    const auto type = r2r::parse_message_type(b["type"].get<std::string>());
+    const auto type = r2r_wire::parse_message_type(b["type"].get<std::string>());
     if (!type)
       return refuse(failure(400, "BAD_REQUEST",
                             "unknown R2R message type '" + bounded_text(b["type"].get<std::string>(), 64) + "'", "type"),
@@ -95,7 +95,7 @@ void handle(R2rService* service, AuditLog& audit, Call& call, const Reply& respo
     }
     const json payload = b.contains("payload") ? b["payload"] : json::object();
     auto sent = service->node().send_message(*type, payload, target);
-    if (auto* error = std::get_if<r2r::R2rError>(&sent)) {
+    if (auto* error = std::get_if<r2r_wire::R2rError>(&sent)) {
       return refuse(failure(400, "BAD_REQUEST", error->message, error->field.empty() ? "payload" : error->field),
                     "invalid message");
     }

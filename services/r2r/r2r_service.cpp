@@ -74,10 +74,7 @@ struct R2rService::Impl {
   std::string udp_bind;
   std::vector<r2r::UdpDestination> udp_destinations;
   std::unique_ptr<r2r::R2rNode> node;
-  // runtime.r2r.peers_file and the inline peers, for a reload; and the swarm registry as last seen: a successful
-  // SIGHUP reload swaps it (service.hpp), which is this service's sign that the config was reloaded.
-  r2r::R2rSettings peers_source;
-  const swarm::SwarmRegistry* swarm_seen = nullptr;
+  r2r::R2rSettings peers_source;  // runtime.r2r.peers_file and the inline peers, for a reload
 
   std::mutex status_mutex;
   r2r::LocalStatus cached_status;
@@ -119,27 +116,9 @@ struct R2rService::Impl {
     return status;
   }
 
-  // After a SIGHUP reload: the peers file read again and swapped in whole; a file that does not load keeps the table
-  // in force, and the error (with its file:line:column) is logged.
-  void reload_peers_after_sighup() {
-    if (!peers_source.peers_file || !deps.swarm) return;
-    const swarm::SwarmRegistry* now = deps.swarm();
-    if (now == swarm_seen) return;
-    swarm_seen = now;
-    try {
-      auto peers = r2r::reload_peers(peers_source);
-      const std::size_t count = peers.size();
-      node->replace_peers(std::move(peers));
-      log->info("r2r: peers file {} reloaded: {} peers accepted", peers_source.peers_file->string(), count);
-    } catch (const std::exception& e) {
-      log->error("r2r: peers file not reloaded, the previous peers stay in force: {}", e.what());
-    }
-  }
-
   // One tick, then the next one kTickPeriod later, until stop().
   void tick() {
     try {
-      reload_peers_after_sighup();
       node->tick();
     } catch (const std::exception& e) {
       log->error("r2r clock: {}", e.what());
@@ -167,7 +146,6 @@ std::unique_ptr<R2rService> R2rService::from_config(R2rServiceDeps deps) {
   }
   for (const auto& warning : settings.warnings) s.log->warn("{}", warning);
   s.peers_source = settings;
-  if (s.deps.swarm) s.swarm_seen = s.deps.swarm();
 
   const bool has_mqtt = r2r_block.contains("mqtt") && r2r_block["mqtt"].is_object();
   const bool ws_dial = r2r_block.contains("ws_dial") ? r2r_block["ws_dial"] == true : !has_mqtt;
@@ -295,6 +273,19 @@ void R2rService::stop() noexcept {
 }
 
 r2r::R2rNode& R2rService::node() noexcept { return *impl_->node; }
+
+void R2rService::reload_peers() noexcept {
+  Impl& s = *impl_;
+  if (!s.peers_source.peers_file) return;
+  try {
+    auto peers = r2r::reload_peers(s.peers_source);
+    const std::size_t count = peers.size();
+    s.node->replace_peers(std::move(peers));
+    s.log->info("r2r: peers file {} reloaded: {} peers accepted", s.peers_source.peers_file->string(), count);
+  } catch (const std::exception& e) {
+    s.log->error("r2r: peers file not reloaded, the previous peers stay in force: {}", e.what());
+  }
+}
 
 const sdk::FleetAuctions* R2rService::fleet() const { return impl_->deps.fleet ? impl_->deps.fleet() : nullptr; }
 

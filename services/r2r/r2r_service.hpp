@@ -59,6 +59,9 @@ class R2rService {
   void stop() noexcept;
 
   r2r::R2rNode& node() noexcept;
+  // After a SIGHUP reload: runtime.r2r.peers_file (as named at startup) read again and swapped in whole. A file that
+  // does not load keeps the table in force; the error, with its file:line:column, is logged.
+  void reload_peers() noexcept;
   // The fleet plugin's auctions now, or null.
   const sdk::FleetAuctions* fleet() const;
   // {"name","peers":[...],"transports":{...},"counters":{...},"held_tasks":[...]}: GET /api/r2r/peers.

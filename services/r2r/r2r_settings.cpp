@@ -5,8 +5,8 @@
 
 #include "libs/base/file_exposure.hpp"
 #include "libs/config/config_schema.hpp"
+#include "libs/r2r_wire/peers_file.hpp"
 #include "libs/rcan/secret_file.hpp"
-#include "services/r2r/peers_file.hpp"
 
 namespace rcand::kernel::r2r {
 namespace {
@@ -155,11 +155,11 @@ std::string read_token_file(const std::filesystem::path& file, const std::string
 }
 
 // The peers whose signatures this robot accepts; their keys are read from files or parsed here.
-std::vector<PeerKey> read_peers(const json& peers, const std::filesystem::path& base_dir) {
-  std::vector<PeerKey> out;
+std::vector<r2r_wire::PeerKey> read_peers(const json& peers, const std::filesystem::path& base_dir) {
+  std::vector<r2r_wire::PeerKey> out;
   for (std::size_t i = 0; peers.is_array() && i < peers.size(); ++i) {
     const json& entry = peers[i];
-    PeerKey peer;
+    r2r_wire::PeerKey peer;
     peer.name = entry["name"].get<std::string>();
     const json role = entry.contains("role") && !entry["role"].is_null()
                           ? entry["role"]
@@ -168,9 +168,9 @@ std::vector<PeerKey> read_peers(const json& peers, const std::filesystem::path& 
     const bool has_file = entry.contains("public_key_file");
     const std::string key = has_file ? "public_key_file" : "public_key";
     try {
-      peer.key = std::make_shared<const Ed25519Key>(
-          has_file ? Ed25519Key::public_from_file(resolve(base_dir, entry[key].get<std::string>()))
-                   : Ed25519Key::public_from_text(entry[key].get<std::string>()));
+      peer.key = std::make_shared<const r2r_wire::Ed25519Key>(
+          has_file ? r2r_wire::Ed25519Key::public_from_file(resolve(base_dir, entry[key].get<std::string>()))
+                   : r2r_wire::Ed25519Key::public_from_text(entry[key].get<std::string>()));
     } catch (const std::exception& e) {
       bad("peers[" + std::to_string(i) + "]." + key, e.what());
     }
@@ -185,7 +185,7 @@ std::vector<std::pair<std::string, std::string>> check_r2r_files(const json& blo
   const auto file = block.find("peers_file");
   if (file == block.end() || !file->is_string()) return {};
   try {
-    const LoadedPeers loaded = load_peers_file(resolve(base_dir, file->get<std::string>()));
+    const r2r_wire::LoadedPeers loaded = r2r_wire::load_peers_file(resolve(base_dir, file->get<std::string>()));
     const json peers = block.contains("peers") ? block["peers"] : json::array();
     for (std::size_t i = 0; peers.is_array() && i < peers.size(); ++i)
       for (std::size_t j = 0; j < loaded.peers.size(); ++j)
@@ -200,9 +200,9 @@ std::vector<std::pair<std::string, std::string>> check_r2r_files(const json& blo
 
 }  // namespace
 
-std::vector<PeerKey> reload_peers(const R2rSettings& settings) {
+std::vector<r2r_wire::PeerKey> reload_peers(const R2rSettings& settings) {
   if (!settings.peers_file) return settings.inline_peers;
-  return merge_peers(settings.inline_peers, settings.inline_where, load_peers_file(*settings.peers_file));
+  return r2r_wire::merge_peers(settings.inline_peers, settings.inline_where, r2r_wire::load_peers_file(*settings.peers_file));
 }
 
 R2rSettings load_r2r_settings(const json& r2r, const std::filesystem::path& base_dir) {
@@ -221,7 +221,7 @@ R2rSettings load_r2r_settings(const json& r2r, const std::filesystem::path& base
   if (const json file = read(r2r, "private_key_file"); file.is_string()) {
     const auto path = resolve(base_dir, file.get<std::string>());
     try {
-      s.private_key = std::make_shared<const Ed25519Key>(Ed25519Key::private_from_file(path));
+      s.private_key = std::make_shared<const r2r_wire::Ed25519Key>(r2r_wire::Ed25519Key::private_from_file(path));
     } catch (const std::exception& e) {
       bad("private_key_file", e.what());
     }

@@ -18,15 +18,15 @@ namespace rcand::kernel::r2r {
 // The auction's keys (bid_window_ms, cost_per_queued_task_s, max_held_tasks) are checked by this service's table too,
 // so a mistake is reported with its file position, but the fleet plugin (org.rcand.fleet) reads and applies them.
 struct R2rSettings {
-  sdk::Pose2d origin;                               // runtime.r2r.origin {x, y, heading_deg}: status positions
-  std::chrono::milliseconds status_interval{1000};  // runtime.r2r.status_interval_ms
-  std::optional<std::string> outbound_token;        // contents of runtime.r2r.token_file: sent in header.auth.token
-  std::shared_ptr<const Ed25519Key> private_key;    // runtime.r2r.private_key_file: signs every outbound message
-  MessageAuthSettings auth;                         // require_signatures, peers[] {name, public_key_file|public_key, role},
-                                                    // replay_window_s; peers: the inline ones, then peers_file's
+  sdk::Pose2d origin;                                       // runtime.r2r.origin {x, y, heading_deg}: status positions
+  std::chrono::milliseconds status_interval{1000};          // runtime.r2r.status_interval_ms
+  std::optional<std::string> outbound_token;                // contents of runtime.r2r.token_file: sent in header.auth.token
+  std::shared_ptr<const r2r_wire::Ed25519Key> private_key;  // runtime.r2r.private_key_file: signs every outbound message
+  MessageAuthSettings auth;  // require_signatures, peers[] {name, public_key_file|public_key, role},
+                             // replay_window_s; peers: the inline ones, then peers_file's
   // runtime.r2r.peers_file (services/r2r/peers_file.hpp), re-read on each SIGHUP reload; the inline peers stay.
   std::optional<std::filesystem::path> peers_file;
-  std::vector<PeerKey> inline_peers;
+  std::vector<r2r_wire::PeerKey> inline_peers;
   std::vector<std::string> inline_where;  // "runtime.r2r.peers[i]" per inline peer
   // Memory bounds (issue 13 #14).
   std::size_t max_peers = 1024;       // runtime.r2r.max_peers: the peer table; the least recently heard goes
@@ -41,6 +41,6 @@ R2rSettings load_r2r_settings(const nlohmann::json& runtime_r2r, const std::file
 
 // The peers `settings` accepts with its peers file read again (a SIGHUP reload). Throws std::invalid_argument with the
 // file's line (the caller keeps the table it has).
-std::vector<PeerKey> reload_peers(const R2rSettings& settings);
+std::vector<r2r_wire::PeerKey> reload_peers(const R2rSettings& settings);
 
 }  // namespace rcand::kernel::r2r

@@ -6,12 +6,13 @@
 #include <stdexcept>
 #include <vector>
 
+#include "libs/r2r_wire/message_signature.hpp"
 #include "services/r2r/message_auth.hpp"
 
 namespace rcand::kernel::r2r {
 
 std::string replay_key(const nlohmann::json& message) {
-  const std::string input = signing_input(message);
+  const std::string input = r2r_wire::signing_input(message);
   std::string digest(EVP_MAX_MD_SIZE, '\0');
   unsigned int length = 0;
   if (EVP_Digest(input.data(), input.size(), reinterpret_cast<unsigned char*>(digest.data()), &length, EVP_sha256(), nullptr) !=

@@ -5,6 +5,7 @@
 #include <optional>
 
 #include "kernel/api/answers.hpp"
+#include "kernel/kernel.hpp"
 #include "libs/base/json_body.hpp"
 #include "libs/base/logging.hpp"
 #include "libs/mdns/host_resolver.hpp"
@@ -66,11 +67,12 @@ struct Gather {
 
 class SwarmBroadcast final : public kernel::Service {
  public:
-  explicit SwarmBroadcast(kernel::ServiceHost& host) : host_(host) {
+  SwarmBroadcast(kernel::ServiceHost& host, std::shared_ptr<swarm::LiveRegistry> swarm) : host_(host), swarm_(std::move(swarm)) {
+    swarm_->replace(read_swarm_file(host.config.runtime.swarm_file, logger("kernel")));
     // docs/protocol.md §9: "mDNS host first, the static ip when resolution fails": *.local peers resolve through
     // avahi-daemon, prefetched so the first broadcast stop finds them in the cache.
     std::vector<std::string> mdns_hosts;
-    for (const auto& node : host.swarm_at_start.nodes)
+    for (const auto& node : swarm_->now().nodes)
       if (mdns::is_mdns_host(node.host)) mdns_hosts.push_back(node.host);
     if (!mdns_hosts.empty()) {
       resolver_ = std::make_shared<mdns::AvahiHostResolver>(logger("kernel.mdns"));
@@ -82,7 +84,7 @@ class SwarmBroadcast final : public kernel::Service {
     // fell behind and healthy peers' answers missed the deadline).
     const int stop_priority = host.config.runtime.stop_path_priority;
     fan_out_ = std::make_unique<swarm::FanOut>(resolver_, stop_priority, stop_priority > 1 ? 1 : 0);
-    table_ = std::make_unique<SwarmTable>(host, *fan_out_);
+    table_ = std::make_unique<SwarmTable>(host, *swarm_, *fan_out_);
   }
   ~SwarmBroadcast() override { stop(); }
 
@@ -94,6 +96,12 @@ class SwarmBroadcast final : public kernel::Service {
     router.wrap("POST", "/api/command",
                 [this](Call& call, Reply reply, const RouteHandler& next) { command_route(call, std::move(reply), next); });
     table_->add_routes(router);
+  }
+
+  // runtime.swarm_file is live: the file (this one or another) is read and checked, then swapped in whole.
+  kernel::ServiceReload prepare_reload(const kernel::RobotConfig& next) override {
+    auto peers = std::make_shared<swarm::SwarmRegistry>(read_swarm_file(next.runtime.swarm_file, nullptr));
+    return {[swarm = swarm_, peers] { swarm->replace(std::move(*peers)); }, {"runtime.swarm_file"}};
   }
 
   void stop() noexcept override {
@@ -150,10 +158,9 @@ class SwarmBroadcast final : public kernel::Service {
     std::optional<std::string> bad = read_selection(b.body, "nodes", selection.names);
     std::string field = "nodes";
     if (!bad && (bad = read_selection(b.body, "tags", selection.tags))) field = "tags";
-    static const swarm::SwarmRegistry kNoPeers;
-    const swarm::SwarmRegistry* registry = host_.swarm_now();
+    const swarm::SwarmRegistry& registry = swarm_->now();
     if (!bad) {
-      auto chosen = swarm::select_nodes(registry ? *registry : kNoPeers, selection);
+      auto chosen = swarm::select_nodes(registry, selection);
       if (auto* failure = std::get_if<swarm::SelectionError>(&chosen)) {
         bad = failure->message;
         field = failure->field;
@@ -163,7 +170,7 @@ class SwarmBroadcast final : public kernel::Service {
       }
     }
     if (!bad) return std::nullopt;
-    json extra{{"field", field}, {"known_nodes", registry ? registry->names() : std::vector<std::string>{}}};
+    json extra{{"field", field}, {"known_nodes", registry.names()}};
     if (b.is_stop) extra["estopped"] = true;  // the local stop already happened
     return kernel::error_response(400, "BAD_REQUEST", *bad, std::move(extra));
   }
@@ -282,6 +289,7 @@ class SwarmBroadcast final : public kernel::Service {
   }
 
   kernel::ServiceHost& host_;
+  std::shared_ptr<swarm::LiveRegistry> swarm_;         // loaded and reloaded here; R2R reads it too
   std::shared_ptr<mdns::AvahiHostResolver> resolver_;  // swarm "*.local" hosts; shared with the fan-out
   std::unique_ptr<swarm::FanOut> fan_out_;
   std::unique_ptr<SwarmTable> table_;  // GET /api/swarm, POST /api/swarm/<node>/stop, on the same fan-out
@@ -289,8 +297,28 @@ class SwarmBroadcast final : public kernel::Service {
 
 }  // namespace
 
-std::unique_ptr<kernel::Service> make_swarm_broadcast(kernel::ServiceHost& host) {
-  return std::make_unique<SwarmBroadcast>(host);
+swarm::SwarmRegistry read_swarm_file(const std::filesystem::path& file, const std::shared_ptr<spdlog::logger>& log) {
+  if (std::error_code ec; !std::filesystem::exists(file, ec)) {
+    if (log) log->info("swarm: no swarm file at {}; broadcasts reach this robot only", file.string());
+    return {};
+  }
+  swarm::SwarmRegistry registry;
+  try {
+    registry = swarm::load_swarm_file(file);
+  } catch (const swarm::SwarmError& e) {
+    throw kernel::StartupError(std::string("runtime.swarm_file: ") + e.what());
+  }
+  if (log) {
+    for (const auto& warning : registry.warnings) log->warn("{}", warning);
+    log->info("swarm: {} peer(s) from {}", registry.nodes.size(), file.string());
+  }
+  return registry;
+}
+
+void check_swarm_file(const kernel::RobotConfig& config) { read_swarm_file(config.runtime.swarm_file, nullptr); }
+
+std::unique_ptr<kernel::Service> make_swarm_broadcast(kernel::ServiceHost& host, std::shared_ptr<swarm::LiveRegistry> swarm) {
+  return std::make_unique<SwarmBroadcast>(host, std::move(swarm));
 }
 
 }  // namespace rcand::services

@@ -6,13 +6,24 @@
 // POST /api/swarm/<node>/stop, on the same fan-out.
 #pragma once
 
+#include <spdlog/logger.h>
+
+#include <filesystem>
 #include <memory>
 
 #include "kernel/service.hpp"
+#include "libs/swarm/live_registry.hpp"
 
 namespace rcand::services {
 
-// Always on: without a swarm file a broadcast reaches this robot only.
-std::unique_ptr<kernel::Service> make_swarm_broadcast(kernel::ServiceHost& host);
+// Always on: without a swarm file a broadcast reaches this robot only. Loads runtime.swarm_file into `swarm` (a
+// malformed file: StartupError) and reloads it on SIGHUP (the key is live).
+std::unique_ptr<kernel::Service> make_swarm_broadcast(kernel::ServiceHost& host, std::shared_ptr<swarm::LiveRegistry> swarm);
+
+// runtime.swarm_file (§15.2) as startup reads it: no file means no peers; a malformed one throws StartupError naming
+// the key. `log` (may be null) is told what was read.
+swarm::SwarmRegistry read_swarm_file(const std::filesystem::path& file, const std::shared_ptr<spdlog::logger>& log);
+// --check-config: the swarm file read as at startup (Kernel::check runs it through KernelOptions::service_checks).
+void check_swarm_file(const kernel::RobotConfig& config);
 
 }  // namespace rcand::services

@@ -21,12 +21,6 @@ constexpr std::chrono::milliseconds kNodeTimeout{300};
 constexpr std::string_view kPrefix = "/api/swarm/";
 constexpr std::string_view kStopSuffix = "/stop";
 
-const swarm::SwarmRegistry& current_swarm(const kernel::ServiceHost& host) {
-  static const swarm::SwarmRegistry kNoPeers;
-  const swarm::SwarmRegistry* registry = host.swarm_now();
-  return registry ? *registry : kNoPeers;
-}
-
 // A table row from the node's GET /api/status answer (or its failure).
 json status_row(const swarm::SwarmNode& node, bool self, const swarm::PeerResult& result) {
   json row{{"name", node.name},  {"address", node.address()},
@@ -84,7 +78,7 @@ void SwarmTable::add_routes(kernel::Router& router) {
 }
 
 void SwarmTable::list(kernel::Call&, kernel::Reply reply) {
-  auto nodes = std::make_shared<std::vector<swarm::SwarmNode>>(current_swarm(host_).nodes);
+  auto nodes = std::make_shared<std::vector<swarm::SwarmNode>>(swarm_.now().nodes);
   std::vector<swarm::PeerRequest> probes;
   for (const auto& node : *nodes) {
     auto probe = swarm::peer_request(node, "GET", "/api/status");
@@ -110,7 +104,7 @@ void SwarmTable::stop_node(kernel::Call& call, kernel::Reply reply) {
   const std::string& path = call.request.path;
   const bool shaped = path.size() > kPrefix.size() + kStopSuffix.size() && path.ends_with(kStopSuffix);
   const std::string name = shaped ? path.substr(kPrefix.size(), path.size() - kPrefix.size() - kStopSuffix.size()) : "";
-  const auto& swarm = current_swarm(host_);
+  const auto& swarm = swarm_.now();
   const swarm::SwarmNode* node = shaped ? swarm.find(name) : nullptr;
   if (node == nullptr) return refuse_unknown(call, reply, shaped, name);
   // docs/protocol.md §6.3: audited before it is forwarded, in the stops' retention (never displacing a command).
@@ -168,7 +162,7 @@ void SwarmTable::refuse_unknown(kernel::Call& call, const kernel::Reply& reply, 
     return reply(
         kernel::error_response(404, "NOT_FOUND", "no route " + bounded_text(path, 200) + "; POST /api/swarm/<node>/stop"));
   reply(kernel::error_response(404, "SWARM_NODE_NOT_FOUND", "no node '" + bounded_text(name, 200) + "' in the swarm file",
-                               {{"field", "node"}, {"known_nodes", current_swarm(host_).names()}}));
+                               {{"field", "node"}, {"known_nodes", swarm_.now().names()}}));
 }
 
 }  // namespace rcand::services

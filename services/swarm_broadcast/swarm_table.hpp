@@ -29,7 +29,8 @@ class SwarmTable {
   static constexpr double kUnknownNodePerSecond = 2;
   static constexpr double kUnknownNodeBurst = 10;
 
-  SwarmTable(kernel::ServiceHost& host, swarm::FanOut& fan_out) : host_(host), fan_out_(fan_out) {}
+  SwarmTable(kernel::ServiceHost& host, const swarm::LiveRegistry& swarm, swarm::FanOut& fan_out)
+      : host_(host), swarm_(swarm), fan_out_(fan_out) {}
   void add_routes(kernel::Router& router);
 
  private:
@@ -39,6 +40,7 @@ class SwarmTable {
   void refuse_unknown(kernel::Call& call, const kernel::Reply& reply, bool shaped, const std::string& name);
 
   kernel::ServiceHost& host_;
+  const swarm::LiveRegistry& swarm_;
   swarm::FanOut& fan_out_;
   // Unknown-node refusals per principal (issue 28 #7: they were audited without limit); stops are never limited.
   RateLimiter unknown_node_limit_{{kUnknownNodePerSecond, kUnknownNodeBurst / kUnknownNodePerSecond}};

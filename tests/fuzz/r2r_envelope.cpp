@@ -8,10 +8,10 @@
 #include <variant>
 
 #include "fuzz_check.hpp"
-#include "services/r2r/envelope.hpp"
+#include "libs/r2r_wire/envelope.hpp"
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
-  using namespace rcand::kernel::r2r;
+  using namespace rcand::r2r_wire;
   const auto parsed = parse_envelope(std::string_view(reinterpret_cast<const char*>(data), size));
   if (const auto* envelope = std::get_if<Envelope>(&parsed)) {
     RCAND_FUZZ_CHECK(!envelope->source_id.empty(), "an envelope has a source");

@@ -29,7 +29,7 @@
 
 #include "fuzz_check.hpp"
 #include "libs/base/json_body.hpp"
-#include "services/r2r/envelope.hpp"
+#include "libs/r2r_wire/envelope.hpp"
 #include "sim_robot.hpp"
 #include "ws_client.hpp"
 
@@ -184,11 +184,11 @@ void telemetry_message(const std::string& message, bool binary, std::size_t frag
 }
 
 void check_r2r_frame(const std::string& text) {
-  const auto parsed = rcand::kernel::r2r::parse_envelope(text);
-  const auto* envelope = std::get_if<rcand::kernel::r2r::Envelope>(&parsed);
+  const auto parsed = rcand::r2r_wire::parse_envelope(text);
+  const auto* envelope = std::get_if<rcand::r2r_wire::Envelope>(&parsed);
   RCAND_FUZZ_CHECK(envelope != nullptr, "the robot sends well-formed R2R messages");
   RCAND_FUZZ_CHECK(envelope->source_id == "fuzz-rover", "the robot sends as itself");
-  if (envelope->type == rcand::kernel::r2r::MessageType::Error) {
+  if (envelope->type == rcand::r2r_wire::MessageType::Error) {
     const json code = envelope->payload.value("code", json());
     RCAND_FUZZ_CHECK(code.is_number_integer() && code.get<int>() >= 100 && code.get<int>() <= 105, "an R2R error code");
   }

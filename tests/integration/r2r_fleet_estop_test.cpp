@@ -2,22 +2,25 @@
 // `rcanctl fleet stop --mqtt` (a signed R2R command {"type":"estop"} on r2r/broadcast) latches all three, each naming
 // the sender and its reason, audited with the sender as principal, and each robot publishes its latched status; an
 // unsigned stop and one signed by a key no robot has enrolled latch none and are never answered on the wire.
+// `rcanctl r2r watch --mqtt` shows an operator the broker's traffic.
 #include <doctest/doctest.h>
 
 #include <signal.h>
 
 #include <chrono>
+#include <set>
+#include <sstream>
 
+#include "libs/r2r_wire/message_signature.hpp"
 #include "mosquitto_broker.hpp"
 #include "mqtt_watch.hpp"
 #include "r2r_lab.hpp"
 #include "rcand_process.hpp"
-#include "services/r2r/message_auth.hpp"
 
 using namespace rcand::test;
 using nlohmann::json;
 using namespace std::chrono_literals;
-using rcand::kernel::r2r::Ed25519Key;
+using rcand::r2r_wire::Ed25519Key;
 
 namespace {
 
@@ -66,14 +69,31 @@ TEST_CASE(
       },
       30s));
 
+  // An operator's view of the broker (rcanctl r2r watch --mqtt, no robot token): on subscribing it is handed every
+  // robot's retained status (r2r/status/<name>), and --count ends the watch.
+  const auto watched = run_tool(
+      rcanctl_binary(), {"r2r", "watch", "--mqtt", "127.0.0.1:" + std::to_string(broker.port()), "--count", "3", "--json"});
+  REQUIRE_MESSAGE(watched.exit_code == 0, watched.err);
+  std::set<std::string> statuses;
+  std::istringstream lines(watched.out);
+  for (std::string line; std::getline(lines, line);) {
+    const json message = json::parse(line);
+    CHECK(message["type"] == "status");
+    statuses.insert(message["header"]["source_id"].get<std::string>());
+  }
+  CHECK(statuses == std::set<std::string>(kFleetNames.begin(), kFleetNames.end()));
+  const auto misused = run_tool(rcanctl_binary(), {"r2r", "watch", "--username", "ops", "--token", "x"});
+  CHECK(misused.exit_code == 2);
+  CHECK(misused.err.find("need --mqtt") != std::string::npos);
+
   // An unsigned stop, and one signed by a key no robot enrolled: both broadcasts, both refused by every robot.
   auto rejected = [](const RcandProcess& robot) {
     return robot.json("GET", "/api/r2r/peers", "owner-token")["counters"]["rejected"].get<int>();
   };
   REQUIRE(wire.transport().send(r2r_message("ops", "command", {{"type", "estop"}, {"reason", "unsigned"}}), std::nullopt));
   json forged = json::parse(r2r_message("stranger", "command", {{"type", "estop"}, {"reason", "unenrolled"}}));
-  rcand::kernel::r2r::sign_message(forged, "stranger",
-                                   Ed25519Key::private_from_file(std::filesystem::path(keys) / "stranger.key"));
+  rcand::r2r_wire::sign_message(forged, "stranger",
+                                rcand::r2r_wire::Ed25519Key::private_from_file(std::filesystem::path(keys) / "stranger.key"));
   REQUIRE(wire.transport().send(forged.dump(), std::nullopt));
   const auto stranger_stop = fleet_tool({"stop", "--mqtt", "127.0.0.1:" + std::to_string(broker.port()), "--key",
                                          keys + "/stranger.key", "--name", "stranger", "--reason", "not yet"});

@@ -12,10 +12,10 @@
 #include <chrono>
 #include <mutex>
 
+#include "libs/r2r_wire/message_signature.hpp"
 #include "mosquitto_broker.hpp"
 #include "r2r_lab.hpp"
 #include "rcand_process.hpp"
-#include "services/r2r/message_auth.hpp"
 #include "services/r2r/transports/mqtt_transport.hpp"
 
 using namespace rcand::test;
@@ -51,7 +51,8 @@ TEST_CASE("r2r fleet (ws): the nearest capable robot wins; when the winner dies 
                                                               {"delta", "127.0.0.1", delta.port()}}));
   RcandProcess alpha(r2r_robot_config("alpha", token, 0.0, 0.0, swarm_file));
 
-  const json task{{"description", "fetch the box"}, {"required_capabilities", {"teleop"}}, {"location", {{"x", 0.0}, {"y", 0.0}}}};
+  const json task{
+      {"description", "fetch the box"}, {"required_capabilities", {"teleop"}}, {"location", {{"x", 0.0}, {"y", 0.0}}}};
   int status = 0;
   const auto result = alpha.json("POST", "/api/r2r/auction", "user-token", task.dump(), &status);
   REQUIRE(status == 200);
@@ -138,9 +139,9 @@ TEST_CASE("r2r fleet (mqtt): status, auction, command and errors round-trip thro
 
   // task_request / negotiation bid + award / task_response.
   int status = 0;
-  const auto result = alpha.json("POST", "/api/r2r/auction", "user-token",
-                                 json{{"task_id", "M1"}, {"required_capabilities", {"teleop"}}, {"location", {{"x", 2.5}, {"y", 0}}}}.dump(),
-                                 &status);
+  const auto result = alpha.json(
+      "POST", "/api/r2r/auction", "user-token",
+      json{{"task_id", "M1"}, {"required_capabilities", {"teleop"}}, {"location", {{"x", 2.5}, {"y", 0}}}}.dump(), &status);
   REQUIRE(status == 200);
   CHECK(result["winner"] == "bravo");
   CHECK(seen_where([](const json& m) { return m["type"] == "task_response" && m["payload"]["task_id"] == "M1"; }));
@@ -156,7 +157,10 @@ TEST_CASE("r2r fleet (mqtt): status, auction, command and errors round-trip thro
 
   // command: moves bravo; then bravo is e-stopped and the next command comes back to alpha as error 105.
   alpha.json("POST", "/api/r2r/send", "user-token",
-             json{{"type", "command"}, {"target", "bravo"}, {"payload", {{"type", "move"}, {"linear", 0.3}, {"angular", 0.0}, {"duration_ms", 3000}}}}.dump(),
+             json{{"type", "command"},
+                  {"target", "bravo"},
+                  {"payload", {{"type", "move"}, {"linear", 0.3}, {"angular", 0.0}, {"duration_ms", 3000}}}}
+                 .dump(),
              &status);
   REQUIRE(status == 200);
   CHECK(poll_until<bool>([&]() -> std::optional<bool> {
@@ -165,7 +169,10 @@ TEST_CASE("r2r fleet (mqtt): status, auction, command and errors round-trip thro
   }));
   bravo.json("POST", "/api/stop", "guest-token", "", &status);
   alpha.json("POST", "/api/r2r/send", "user-token",
-             json{{"type", "command"}, {"target", "bravo"}, {"payload", {{"type", "move"}, {"linear", 0.3}, {"angular", 0.0}, {"duration_ms", 3000}}}}.dump(),
+             json{{"type", "command"},
+                  {"target", "bravo"},
+                  {"payload", {{"type", "move"}, {"linear", 0.3}, {"angular", 0.0}, {"duration_ms", 3000}}}}
+                 .dump(),
              &status);
   const auto refused = seen_where([](const json& m) {
     return m["type"] == "error" && m["payload"]["code"] == 105 && m["header"].value("target_id", "") == "alpha";

@@ -6,11 +6,11 @@
 #include <cstdio>
 
 #include "eventually.hpp"
+#include "libs/r2r_wire/message_signature.hpp"
 #include "mosquitto_broker.hpp"
 #include "mqtt_watch.hpp"
 #include "r2r_lab.hpp"
 #include "rcand_process.hpp"
-#include "services/r2r/message_auth.hpp"
 
 using namespace rcand::test;
 using nlohmann::json;

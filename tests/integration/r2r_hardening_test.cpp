@@ -14,12 +14,12 @@
 #include <mutex>
 #include <thread>
 
+#include "libs/r2r_wire/message_signature.hpp"
 #include "libs/rcan/base64.hpp"
 #include "mosquitto_broker.hpp"
 #include "r2r_lab.hpp"
 #include "rcand_process.hpp"
 #include "sanitized_build.hpp"
-#include "services/r2r/message_auth.hpp"
 #include "services/r2r/transports/mqtt_transport.hpp"
 #include "ws_client.hpp"
 
@@ -29,18 +29,15 @@ using namespace std::chrono_literals;
 
 namespace {
 
-
 // Audit entries of R2R-driven moves by `principal`.
 int hardening_moves_by(const RcandProcess& robot, const std::string& principal) {
   int moves = 0;
   const auto audit = robot.json("GET", "/api/audit?limit=500", "owner-token");
   for (const auto& entry : audit["entries"])
-    if (entry.value("event", "") == "POST /api/action move" &&
-        entry.value("principal", "").find(principal) != std::string::npos)
+    if (entry.value("event", "") == "POST /api/action move" && entry.value("principal", "").find(principal) != std::string::npos)
       ++moves;
   return moves;
 }
-
 
 // A UDP socket of the test's on loopback: the destination rcand is told to send status to.
 struct HardeningUdpCapture {
@@ -71,20 +68,20 @@ struct HardeningUdpCapture {
 TEST_CASE("r2r replay: a signed command under other spellings moves once; after a restart the capture is refused") {
   TempDir dir;
   const auto token = dir.write("r2r.token", "owner-token\n");
-  const auto commander = rcand::kernel::r2r::Ed25519Key::generate();
+  const auto commander = rcand::r2r_wire::Ed25519Key::generate();
   const auto public_key = dir.write("commander.pub.pem", commander.public_pem());
   auto config = r2r_robot_config("alpha", token);
-  config["runtime"]["r2r"]["peers"] = json::array({{{"name", "commander"}, {"public_key_file", public_key.string()}, {"role", "USER"}}});
+  config["runtime"]["r2r"]["peers"] =
+      json::array({{{"name", "commander"}, {"public_key_file", public_key.string()}, {"role", "USER"}}});
 
-  json captured = json::parse(r2r_message("commander", "command",
-                                          {{"type", "move"}, {"linear", 0.2}, {"angular", 0.0}, {"duration_ms", 100}},
-                                          std::string("alpha")));
+  json captured = json::parse(r2r_message(
+      "commander", "command", {{"type", "move"}, {"linear", 0.2}, {"angular", 0.0}, {"duration_ms", 100}}, std::string("alpha")));
   {
     RcandProcess robot(config);
     WsClient peer;  // a guest connection: only the signature can make the command a USER's
     REQUIRE(peer.connect(robot.port(), "guest-token") == 101);
     captured["header"]["timestamp"] = unix_now();
-    rcand::kernel::r2r::sign_message(captured, "commander", commander);
+    rcand::r2r_wire::sign_message(captured, "commander", commander);
     peer.send(captured.dump());
     REQUIRE(poll_until<bool>([&]() -> std::optional<bool> {
       if (hardening_moves_by(robot, "commander") == 1) return true;
@@ -131,7 +128,7 @@ TEST_CASE("r2r replay: a signed command under other spellings moves once; after 
   // A command signed now still goes through.
   json fresh = captured;
   fresh["header"]["timestamp"] = unix_now();
-  rcand::kernel::r2r::sign_message(fresh, "commander", commander);
+  rcand::r2r_wire::sign_message(fresh, "commander", commander);
   peer.send(fresh.dump());
   CHECK(poll_until<bool>([&]() -> std::optional<bool> {
     if (hardening_moves_by(restarted, "commander") == 1) return true;
@@ -144,7 +141,7 @@ TEST_CASE("r2r secrets: the R2R token never appears in a UDP status datagram or 
   TempDir dir;
   const std::string secret = "r2r-fleet-secret-5f0c1e";
   const auto token = dir.write("r2r.token", secret + "\n");
-  const auto key = dir.write("alpha.pem", rcand::kernel::r2r::Ed25519Key::generate().private_pem());
+  const auto key = dir.write("alpha.pem", rcand::r2r_wire::Ed25519Key::generate().private_pem());
   HardeningUdpCapture capture;
   auto config = r2r_robot_config("alpha", token);
   config["runtime"]["r2r"]["private_key_file"] = key.string();
@@ -287,13 +284,15 @@ TEST_CASE("r2r status follows the latch after a clear; /api/r2r/send answers que
   }
 
   int status = 0;
-  const auto queued = robot.json("POST", "/api/r2r/send", "user-token", json{{"type", "status"}, {"payload", {{"battery", 40}}}}.dump(), &status);
+  const auto queued =
+      robot.json("POST", "/api/r2r/send", "user-token", json{{"type", "status"}, {"payload", {{"battery", 40}}}}.dump(), &status);
   REQUIRE(status == 200);
   CHECK_FALSE(queued.contains("sent"));
   CHECK(queued["queued"] == true);
   CHECK(queued["transports"] == json::array({"ws"}));
-  const auto nowhere = robot.json("POST", "/api/r2r/send", "user-token",
-                                  json{{"type", "command"}, {"target", "nobody"}, {"payload", {{"type", "stop"}}}}.dump(), &status);
+  const auto nowhere =
+      robot.json("POST", "/api/r2r/send", "user-token",
+                 json{{"type", "command"}, {"target", "nobody"}, {"payload", {{"type", "stop"}}}}.dump(), &status);
   REQUIRE(status == 200);
   CHECK(nowhere["queued"] == false);
   CHECK(nowhere["transports"] == json::array());

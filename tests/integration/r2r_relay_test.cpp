@@ -9,10 +9,10 @@
 #include <chrono>
 #include <mutex>
 
+#include "libs/r2r_wire/message_signature.hpp"
 #include "mosquitto_broker.hpp"
 #include "r2r_lab.hpp"
 #include "rcand_process.hpp"
-#include "services/r2r/message_auth.hpp"
 #include "services/r2r/transports/mqtt_transport.hpp"
 #include "temp_dir.hpp"
 #include "ws_client.hpp"
@@ -20,7 +20,7 @@
 using namespace rcand::test;
 using nlohmann::json;
 using namespace std::chrono_literals;
-using rcand::kernel::r2r::Ed25519Key;
+using rcand::r2r_wire::Ed25519Key;
 
 namespace {
 
@@ -40,13 +40,13 @@ std::optional<bool> relay_moving(const RcandProcess& robot) {
 
 // Each robot signs with a key of its own and accepts the others' and the client's (role USER): MQTT carries no token.
 struct RelayKeys {
-  Ed25519Key client = Ed25519Key::generate();
+  rcand::r2r_wire::Ed25519Key client = rcand::r2r_wire::Ed25519Key::generate();
   void sign_robots(const std::vector<json*>& configs, const TempDir& dir) const {
     std::vector<std::pair<std::string, std::filesystem::path>> public_keys{
         {"client", dir.write("client.pub.pem", client.public_pem())}};
     for (json* config : configs) {
       const std::string name = (*config)["metadata"]["robot_name"];
-      const auto key = Ed25519Key::generate();
+      const auto key = rcand::r2r_wire::Ed25519Key::generate();
       (*config)["runtime"]["r2r"]["private_key_file"] = dir.write(name + ".pem", key.private_pem()).string();
       public_keys.emplace_back(name, dir.write(name + ".pub.pem", key.public_pem()));
     }
@@ -61,7 +61,7 @@ struct RelayKeys {
   // A command signed by the client (no token).
   json signed_command(const std::string& target) const {
     json message = json::parse(r2r_message("client", "command", kRelayedMove, target));
-    rcand::kernel::r2r::sign_message(message, "client", client);
+    rcand::r2r_wire::sign_message(message, "client", client);
     return message;
   }
 };

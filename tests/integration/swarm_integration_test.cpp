@@ -3,9 +3,12 @@
 // checks, and rcanctl. Dead robots are a refused port and a port that accepts and never answers.
 #include <doctest/doctest.h>
 
+#include <signal.h>
+
 #include <chrono>
 #include <memory>
 
+#include "eventually.hpp"
 #include "netns_lab.hpp"
 #include "rcand_process.hpp"
 #include "sanitized_build.hpp"
@@ -36,7 +39,8 @@ json post(const RcandProcess& robot, const std::string& target, const std::strin
 
 }  // namespace
 
-TEST_CASE("swarm: a broadcast stop halts this robot first, then every reachable node; dead ones are reported, all inside 500 ms") {
+TEST_CASE(
+    "swarm: a broadcast stop halts this robot first, then every reachable node; dead ones are reported, all inside 500 ms") {
   TempDir dir;
   RcandProcess b(swarm_robot_config("bravo"));
   RcandProcess c(swarm_robot_config("charlie"));
@@ -122,7 +126,8 @@ TEST_CASE("swarm: a broadcast command reports each node; a node in e-stop acknow
   for (bool by_header : {true, false}) {
     CAPTURE(by_header);
     const std::string body = by_header ? R"({"instruction":"go forward"})" : R"({"instruction":"go forward","broadcast":true})";
-    auto report = post(a, "/api/command", "user-token", body, by_header ? kBroadcast : std::map<std::string, std::string>{}, &status);
+    auto report =
+        post(a, "/api/command", "user-token", body, by_header ? kBroadcast : std::map<std::string, std::string>{}, &status);
     REQUIRE(status == 200);
     INFO(report.dump(2));
     REQUIRE(report["nodes"].size() == 4);
@@ -193,8 +198,9 @@ TEST_CASE("swarm: a broadcast needs the command's scope on the receiving node, a
   RcandProcess b(swarm_robot_config("bravo"));
   RcandProcess c(swarm_robot_config("charlie"));
   // alpha holds only a guest token for bravo: enough to stop it, not to command it.
-  const auto swarm_file = dir.write("swarm.yaml", swarm_yaml({{"bravo", "127.0.0.1", b.port(), "guest-token"},
-                                                              {"charlie", "127.0.0.1", c.port(), "user-token"}}));
+  const auto swarm_file =
+      dir.write("swarm.yaml",
+                swarm_yaml({{"bravo", "127.0.0.1", b.port(), "guest-token"}, {"charlie", "127.0.0.1", c.port(), "user-token"}}));
   RcandProcess a(swarm_robot_config("alpha", swarm_file));
   int status = 0;
 
@@ -255,14 +261,41 @@ TEST_CASE("swarm: the body selects nodes by name or tag; an unknown name lists t
   CHECK(wrong["field"] == "nodes");
 }
 
-TEST_CASE("swarm: rcand refuses to start with a malformed swarm file, naming the line") {
+TEST_CASE("swarm: a malformed swarm file stops a start and fails --check-config, naming the line; a reload to one is refused") {
   TempDir dir;
   const auto swarm_file = dir.write("swarm.yaml", "nodes:\n  - name: a\n    host: h\n");
   const auto config_file = dir.write("robot.rcan.yaml", swarm_robot_config("alpha", swarm_file).dump(2));
   dir.write("jwt.secret", kJwtSecret);
-  auto result = run_tool(rcand_binary(), {"--config", config_file.string(), "--port", "0", "--plugin-path", plugin_dir().string()});
-  CHECK(result.exit_code != 0);
-  CHECK(result.err.find(swarm_file.string() + ":2:5: error: nodes[0].token: missing") != std::string::npos);
+  const std::string missing_token = swarm_file.string() + ":2:5: error: nodes[0].token: missing";
+  for (const bool check_only : {false, true}) {
+    auto result = run_tool(rcand_binary(), {check_only ? "--check-config" : "--config", config_file.string(), "--plugin-path",
+                                            plugin_dir().string(), "--port", "0"});
+    CHECK(result.exit_code != 0);
+    CHECK_MESSAGE(result.err.find(missing_token) != std::string::npos, result.err);
+  }
+
+  // Serving on a good file, a SIGHUP to a malformed one changes nothing; back to a good one, its peers are in force.
+  RcandProcess bravo(swarm_robot_config("bravo"));
+  dir.write("swarm.yaml", swarm_yaml({{"bravo", "127.0.0.1", bravo.port(), "owner-token"}}));
+  RcandProcess alpha(swarm_robot_config("alpha", swarm_file));
+  auto names = [&] {
+    std::vector<std::string> seen;
+    const json table = alpha.json("GET", "/api/swarm", "guest-token");
+    INFO(table.dump());
+    for (const auto& row : table["nodes"]) seen.push_back(row["name"]);
+    return seen;
+  };
+  CHECK(names() == std::vector<std::string>{"bravo"});
+  auto reload = [&](const std::string& expect) {
+    REQUIRE(::kill(alpha.pid(), SIGHUP) == 0);
+    return eventually([&] { return alpha.stderr_text().find(expect) != std::string::npos; });
+  };
+  dir.write("swarm.yaml", "nodes:\n  - name: a\n    host: h\n");
+  CHECK(reload(missing_token));
+  CHECK(names() == std::vector<std::string>{"bravo"});
+  dir.write("swarm.yaml", swarm_yaml({{"charlie", "127.0.0.1", bravo.port(), "owner-token"}}));
+  CHECK(reload(": applied: "));
+  CHECK(names() == std::vector<std::string>{"charlie"});
 }
 
 TEST_CASE("rcanctl swarm status|stop|command: table or JSON per node, exit codes 0/1/2, clear config errors") {
@@ -272,15 +305,17 @@ TEST_CASE("rcanctl swarm status|stop|command: table or JSON per node, exit codes
   const auto refused = refused_port();
   const auto good = dir.write("good.yaml", swarm_yaml({{"bravo", "127.0.0.1", b.port(), "owner-token", {"rover"}},
                                                        {"charlie", "localhost", c.port(), "user-token", {"rover", "arm"}}}));
-  const auto partial = dir.write("partial.yaml", swarm_yaml({{"bravo", "127.0.0.1", b.port(), "owner-token"},
-                                                             {"ghost", "no-such-robot.invalid", refused, "owner-token", {}, "127.0.0.1"}}));
+  const auto partial =
+      dir.write("partial.yaml", swarm_yaml({{"bravo", "127.0.0.1", b.port(), "owner-token"},
+                                            {"ghost", "no-such-robot.invalid", refused, "owner-token", {}, "127.0.0.1"}}));
   const auto ctl = rcanctl_binary();
 
   auto table = run_tool(ctl, {"swarm", "status", "--swarm", good.string()});
   CHECK(table.exit_code == 0);
   INFO(table.out << table.err);
   CHECK(table.out.find("NAME") == 0);
-  for (const char* column : {"ADDRESS", "REACHABLE", "STATE", "E-STOP", "CAPS", "LATENCY"}) CHECK(table.out.find(column) != std::string::npos);
+  for (const char* column : {"ADDRESS", "REACHABLE", "STATE", "E-STOP", "CAPS", "LATENCY"})
+    CHECK(table.out.find(column) != std::string::npos);
   CHECK(table.out.find("bravo ") != std::string::npos);
   CHECK(table.out.find("status,teleop,com.acme.gripper") != std::string::npos);
   CHECK(table.out.find("owner-token") == std::string::npos);  // tokens are never printed
@@ -370,15 +405,14 @@ TEST_CASE("swarm: robots at their own addresses (network namespaces, or loopback
     }
     addresses.push_back(peers.back()->host());
   }
-  if (lab.available())
-    MESSAGE("network namespaces: bravo at " << addresses[0] << ", charlie at " << addresses[1]);
-  else
-    MESSAGE("network namespaces unavailable (" << lab.why_not() << "): this case runs on loopback");
+  if (lab.available()) MESSAGE("network namespaces: bravo at " << addresses[0] << ", charlie at " << addresses[1]);
+  else MESSAGE("network namespaces unavailable (" << lab.why_not() << "): this case runs on loopback");
 
   // bravo's mDNS name does not resolve here: its static ip is the fallback (§15.2).
   TempDir dir;
-  const auto swarm_file = dir.write("swarm.yaml", swarm_yaml({{"bravo", "bravo.rcand-test.invalid", peers[0]->port(), "owner-token", {"rover"}, addresses[0]},
-                                                              {"charlie", addresses[1], peers[1]->port(), "owner-token", {"rover"}}}));
+  const auto swarm_file = dir.write(
+      "swarm.yaml", swarm_yaml({{"bravo", "bravo.rcand-test.invalid", peers[0]->port(), "owner-token", {"rover"}, addresses[0]},
+                                {"charlie", addresses[1], peers[1]->port(), "owner-token", {"rover"}}}));
   RcandProcess a(swarm_robot_config("alpha", swarm_file));
   int status = 0;
   for (const auto& peer : peers) {

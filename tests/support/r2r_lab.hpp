@@ -14,10 +14,10 @@
 #include <utility>
 #include <vector>
 
+#include "libs/r2r_wire/message_signature.hpp"
 #include "rcand_process.hpp"
-#include "services/r2r/message_auth.hpp"
-#include "ws_client.hpp"
 #include "swarm_lab.hpp"
+#include "ws_client.hpp"
 
 namespace rcand::test {
 
@@ -28,12 +28,8 @@ inline nlohmann::json r2r_robot_config(const std::string& name, const std::files
   auto config = swarm_robot_config(name, swarm_file);
   // nav offers the TripEstimator the default bid cost times a located task with; without it a robot declines those.
   config["rcan_protocol"]["capabilities"].push_back("nav");
-  config["runtime"]["r2r"] = {{"enabled", true},
-                              {"udp_enabled", false},
-                              {"token_file", token_file.string()},
-                              {"bid_window_ms", 1000},
-                              {"status_interval_ms", 300},
-                              {"origin", {{"x", x}, {"y", y}}}};
+  config["runtime"]["r2r"] = {{"enabled", true},       {"udp_enabled", false},      {"token_file", token_file.string()},
+                              {"bid_window_ms", 1000}, {"status_interval_ms", 300}, {"origin", {{"x", x}, {"y", y}}}};
   return config;
 }
 
@@ -43,7 +39,7 @@ inline void sign_fleet(const std::vector<nlohmann::json*>& configs, const TempDi
   std::vector<std::pair<std::string, std::filesystem::path>> public_keys;
   for (nlohmann::json* config : configs) {
     const std::string name = (*config)["metadata"]["robot_name"];
-    const auto key = rcand::kernel::r2r::Ed25519Key::generate();
+    const auto key = rcand::r2r_wire::Ed25519Key::generate();
     (*config)["runtime"]["r2r"]["private_key_file"] = dir.write(name + ".pem", key.private_pem()).string();
     public_keys.emplace_back(name, dir.write(name + ".pub.pem", key.public_pem()));
   }
@@ -56,9 +52,7 @@ inline void sign_fleet(const std::vector<nlohmann::json*>& configs, const TempDi
   }
 }
 
-inline double unix_now() {
-  return std::chrono::duration<double>(std::chrono::system_clock::now().time_since_epoch()).count();
-}
+inline double unix_now() { return std::chrono::duration<double>(std::chrono::system_clock::now().time_since_epoch()).count(); }
 
 // A message as a foreign peer writes it (no token: the WebSocket upgrade authenticated the sender).
 inline std::string r2r_message(const std::string& source, const std::string& type, nlohmann::json payload,

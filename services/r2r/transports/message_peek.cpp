@@ -4,7 +4,7 @@
 
 #include <vector>
 
-#include "services/r2r/envelope.hpp"
+#include "libs/r2r_wire/envelope.hpp"
 
 namespace rcand::kernel::r2r {
 namespace {
@@ -36,7 +36,7 @@ class PeekHandler : public nlohmann::json_sax<nlohmann::json> {
   bool start_array(std::size_t) override { return push(false); }
   bool end_array() override { return pop(); }
   bool key(string_t& value) override {
-    if (in_header() && value == kRelayMarker) out_.relayed = true;
+    if (in_header() && value == r2r_wire::kRelayMarker) out_.relayed = true;
     if (!stack_.empty()) stack_.back().key = value;
     return true;
   }

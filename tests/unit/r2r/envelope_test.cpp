@@ -2,9 +2,9 @@
 
 #include <string>
 
-#include "services/r2r/envelope.hpp"
+#include "libs/r2r_wire/envelope.hpp"
 
-using namespace rcand::kernel::r2r;
+using namespace rcand::r2r_wire;
 using nlohmann::json;
 
 namespace {
@@ -39,9 +39,10 @@ TEST_CASE("the seed's examples parse, and serialize round-trips them") {
   CHECK(status.timestamp == 1718000000.0);
   CHECK(status.payload["battery"] == 85);
 
-  const json request{{"header", {{"version", "1.0"}, {"timestamp", 1718000001}, {"source_id", "bot_01"}, {"target_id", "bot_02"}}},
-                     {"type", "task_request"},
-                     {"payload", {{"task_id", "T001"}, {"description", "Pick up item at location (3.4, 6.7)"}, {"deadline", 1718000100}}}};
+  const json request{
+      {"header", {{"version", "1.0"}, {"timestamp", 1718000001}, {"source_id", "bot_01"}, {"target_id", "bot_02"}}},
+      {"type", "task_request"},
+      {"payload", {{"task_id", "T001"}, {"description", "Pick up item at location (3.4, 6.7)"}, {"deadline", 1718000100}}}};
   const Envelope parsed = accepted(request);
   CHECK(parsed.target_id == "bot_02");
   const Envelope again = accepted(json::parse(serialize(parsed)));
@@ -49,9 +50,10 @@ TEST_CASE("the seed's examples parse, and serialize round-trips them") {
   CHECK(again.target_id == parsed.target_id);
   CHECK(again.type == MessageType::TaskRequest);
 
-  const json response{{"header", {{"version", "1.0"}, {"timestamp", 1718000002}, {"source_id", "bot_02"}, {"target_id", "bot_01"}}},
-                      {"type", "task_response"},
-                      {"payload", {{"task_id", "T001"}, {"accepted", true}, {"estimated_time", 45}}}};
+  const json response{
+      {"header", {{"version", "1.0"}, {"timestamp", 1718000002}, {"source_id", "bot_02"}, {"target_id", "bot_01"}}},
+      {"type", "task_response"},
+      {"payload", {{"task_id", "T001"}, {"accepted", true}, {"estimated_time", 45}}}};
   CHECK(accepted(response).type == MessageType::TaskResponse);
   json negotiation = response;
   negotiation["type"] = "negotiation";
@@ -188,9 +190,15 @@ TEST_CASE("payloads are checked per type, naming the field") {
     CHECK(error.code == ErrorCode::InvalidFormat);
     CHECK(error.field == c.field);
   }
-  accepted(with("status", {{"battery", nullptr}, {"position", nullptr}, {"task_progress", nullptr}, {"state", "idle"},
-                           {"estopped", false}, {"capabilities", {"nav"}}}));
-  accepted(with("task_request", {{"task_id", "T"}, {"required_capabilities", {"nav"}}, {"location", {{"x", 1}, {"y", 2}}},
+  accepted(with("status", {{"battery", nullptr},
+                           {"position", nullptr},
+                           {"task_progress", nullptr},
+                           {"state", "idle"},
+                           {"estopped", false},
+                           {"capabilities", {"nav"}}}));
+  accepted(with("task_request", {{"task_id", "T"},
+                                 {"required_capabilities", {"nav"}},
+                                 {"location", {{"x", 1}, {"y", 2}}},
                                  {"bid_deadline", 1718000003.5}}));
   accepted(with("negotiation", {{"task_id", "T"}, {"action", "award"}}));
   accepted(with("negotiation", {{"task_id", "T"}, {"action", "withdraw"}}));
@@ -224,7 +232,7 @@ TEST_CASE("the received header is echoed without credentials") {
 TEST_CASE("the echoed header is the seed's fields only, bounded, whatever the sender packed into it") {
   json message = valid_status();
   message["header"]["padding"] = std::string(40'000, 'x');  // an extension field: not echoed (64 KiB in all)
-  message["header"]["version"] = std::string(10'000, 'v');        // a wrong-but-string field: cut
+  message["header"]["version"] = std::string(10'000, 'v');  // a wrong-but-string field: cut
   message["payload"]["battery"] = "bad";
   const R2rError error = refused(message);
   REQUIRE(error.ref);

@@ -1,5 +1,6 @@
 #include <doctest/doctest.h>
 
+#include "libs/r2r_wire/message_signature.hpp"
 #include "libs/rcan/base64.hpp"
 #include "libs/rcan/crypto.hpp"
 #include "services/r2r/message_auth.hpp"
@@ -33,27 +34,31 @@ json command_message(double timestamp = kNow, const std::string& source = "alex"
   return message("command", {{"type", "move"}, {"linear", 0.2}}, timestamp, source);
 }
 
-Envelope parse(const json& m) {
-  auto parsed = parse_envelope(m.dump());
-  REQUIRE(std::holds_alternative<Envelope>(parsed));
-  return std::get<Envelope>(parsed);
+r2r_wire::Envelope parse(const json& m) {
+  auto parsed = r2r_wire::parse_envelope(m.dump());
+  REQUIRE(std::holds_alternative<r2r_wire::Envelope>(parsed));
+  return std::get<r2r_wire::Envelope>(parsed);
 }
 
 struct Keys {
-  std::shared_ptr<const Ed25519Key> alex = std::make_shared<const Ed25519Key>(Ed25519Key::generate());
-  std::shared_ptr<const Ed25519Key> mallory = std::make_shared<const Ed25519Key>(Ed25519Key::generate());
+  std::shared_ptr<const r2r_wire::Ed25519Key> alex =
+      std::make_shared<const r2r_wire::Ed25519Key>(r2r_wire::Ed25519Key::generate());
+  std::shared_ptr<const r2r_wire::Ed25519Key> mallory =
+      std::make_shared<const r2r_wire::Ed25519Key>(r2r_wire::Ed25519Key::generate());
 };
 
 MessageAuthSettings signed_settings(const Keys& keys, bool required) {
   MessageAuthSettings s;
   s.require_signatures = required;
-  s.peers.push_back({"alex", Role::User, std::make_shared<const Ed25519Key>(Ed25519Key::public_from_text(keys.alex->public_pem()))});
+  s.peers.push_back(
+      {"alex", Role::User,
+       std::make_shared<const r2r_wire::Ed25519Key>(r2r_wire::Ed25519Key::public_from_text(keys.alex->public_pem()))});
   return s;
 }
 
 std::variant<Principal, AuthFailure> check(const MessageAuthenticator& auth, const json& m,
                                            std::optional<Principal> transport = std::nullopt) {
-  const Envelope e = parse(m);
+  const r2r_wire::Envelope e = parse(m);
   return auth.authorize(e, e.received, transport, required_scope(e.type), kNow);
 }
 
@@ -69,23 +74,23 @@ Principal principal(const std::variant<Principal, AuthFailure>& verdict) {
 }  // namespace
 
 TEST_CASE("Ed25519 keys: PEM and raw base64 load, sign and verify; bad keys are refused without echoing them") {
-  const Ed25519Key key = Ed25519Key::generate();
+  const r2r_wire::Ed25519Key key = r2r_wire::Ed25519Key::generate();
   const std::string signature = key.sign("hello");
   CHECK(signature.size() == 64);
-  const Ed25519Key from_pem = Ed25519Key::public_from_text(key.public_pem());
-  const Ed25519Key from_raw = Ed25519Key::public_from_text(key.public_base64());
+  const r2r_wire::Ed25519Key from_pem = r2r_wire::Ed25519Key::public_from_text(key.public_pem());
+  const r2r_wire::Ed25519Key from_raw = r2r_wire::Ed25519Key::public_from_text(key.public_base64());
   CHECK(from_pem.verify("hello", signature));
   CHECK(from_raw.verify("hello", signature));
   CHECK_FALSE(from_raw.verify("hellO", signature));
   CHECK_FALSE(from_raw.is_private());
   CHECK_THROWS_AS(from_raw.sign("x"), std::logic_error);
-  const Ed25519Key reloaded = Ed25519Key::private_from_text(key.private_pem());
+  const r2r_wire::Ed25519Key reloaded = r2r_wire::Ed25519Key::private_from_text(key.private_pem());
   CHECK(from_pem.verify("x", reloaded.sign("x")));
 
-  CHECK_THROWS_AS(Ed25519Key::public_from_text("not a key"), std::invalid_argument);
-  CHECK_THROWS_AS(Ed25519Key::public_from_text(base64_encode(std::string(31, 'k'))), std::invalid_argument);
+  CHECK_THROWS_AS(r2r_wire::Ed25519Key::public_from_text("not a key"), std::invalid_argument);
+  CHECK_THROWS_AS(r2r_wire::Ed25519Key::public_from_text(base64_encode(std::string(31, 'k'))), std::invalid_argument);
   try {
-    Ed25519Key::public_from_text("-----BEGIN PUBLIC KEY-----\nc2VjcmV0\n-----END PUBLIC KEY-----\n");
+    r2r_wire::Ed25519Key::public_from_text("-----BEGIN PUBLIC KEY-----\nc2VjcmV0\n-----END PUBLIC KEY-----\n");
     FAIL("accepted a broken PEM");
   } catch (const std::invalid_argument& e) {
     CHECK(std::string(e.what()).find("c2VjcmV0") == std::string::npos);
@@ -101,7 +106,7 @@ TEST_CASE("signatures: good passes as the peer's role; unsigned-when-required, b
   const MessageAuthenticator auth(tokens, signed_settings(keys, /*required=*/true));
 
   json good = command_message();
-  sign_message(good, "alex", *keys.alex);
+  r2r_wire::sign_message(good, "alex", *keys.alex);
   const Principal who = principal(check(auth, good));
   CHECK(who.name == "alex");
   CHECK(who.role == Role::User);
@@ -110,29 +115,29 @@ TEST_CASE("signatures: good passes as the peer's role; unsigned-when-required, b
   CHECK(failure(check(auth, command_message())).find("requires signed") != std::string::npos);
   // Not even a valid token rescues an unsigned message when signatures are required.
   json tokened = command_message();
-  add_token(tokened, kUserToken);
+  r2r_wire::add_token(tokened, kUserToken);
   CHECK(failure(check(auth, tokened)).find("requires signed") != std::string::npos);
 
   json forged = command_message();
-  sign_message(forged, "alex", *keys.mallory);
+  r2r_wire::sign_message(forged, "alex", *keys.mallory);
   CHECK(failure(check(auth, forged)).find("bad signature") != std::string::npos);
 
   json unknown = command_message(kNow, "mallory");
-  sign_message(unknown, "mallory", *keys.mallory);
+  r2r_wire::sign_message(unknown, "mallory", *keys.mallory);
   CHECK(failure(check(auth, unknown)).find("unknown signing key") != std::string::npos);
 
   json tampered = command_message();
-  sign_message(tampered, "alex", *keys.alex);
+  r2r_wire::sign_message(tampered, "alex", *keys.alex);
   tampered["payload"]["linear"] = 1.0;
   CHECK(failure(check(auth, tampered)).find("bad signature") != std::string::npos);
 
   json added_field = command_message();
-  sign_message(added_field, "alex", *keys.alex);
+  r2r_wire::sign_message(added_field, "alex", *keys.alex);
   added_field["extension"] = "smuggled";  // unknown fields are covered by the signature too
   CHECK(failure(check(auth, added_field)).find("bad signature") != std::string::npos);
 
   json impersonation = command_message(kNow, "blake");
-  sign_message(impersonation, "alex", *keys.alex);
+  r2r_wire::sign_message(impersonation, "alex", *keys.alex);
   CHECK(failure(check(auth, impersonation)).find("cannot sign for") != std::string::npos);
 
   json garbage = command_message();
@@ -147,14 +152,14 @@ TEST_CASE("the signature is over the canonical form: key order does not matter")
   const Authenticator tokens = token_auth();
   const MessageAuthenticator auth(tokens, signed_settings(keys, true));
   json good = command_message();
-  sign_message(good, "alex", *keys.alex);
+  r2r_wire::sign_message(good, "alex", *keys.alex);
   // Written by hand with another key order and spacing, as a non-nlohmann peer might.
   const std::string reordered = std::string("{ \"payload\": {\"linear\": 0.2, \"type\": \"move\"}, \"type\": \"command\", ") +
                                 "\"header\": {\"signature\": " + good["header"]["signature"].dump() +
                                 ", \"source_id\": \"alex\", \"timestamp\": " + json(kNow).dump() + ", \"version\": \"1.0\"} }";
-  auto parsed = parse_envelope(reordered);
-  REQUIRE(std::holds_alternative<Envelope>(parsed));
-  const Envelope& e = std::get<Envelope>(parsed);
+  auto parsed = r2r_wire::parse_envelope(reordered);
+  REQUIRE(std::holds_alternative<r2r_wire::Envelope>(parsed));
+  const r2r_wire::Envelope& e = std::get<r2r_wire::Envelope>(parsed);
   CHECK(std::holds_alternative<Principal>(auth.authorize(e, e.received, std::nullopt, Scope::Control, kNow)));
 }
 
@@ -163,13 +168,13 @@ TEST_CASE("replay: a signed message older than the window or too far ahead is re
   const Authenticator tokens = token_auth();
   const MessageAuthenticator auth(tokens, signed_settings(keys, false));
   json stale = command_message(kNow - kDefaultReplayWindowS - 1);
-  sign_message(stale, "alex", *keys.alex);
+  r2r_wire::sign_message(stale, "alex", *keys.alex);
   CHECK(failure(check(auth, stale)).find("stale") != std::string::npos);
   json recent = command_message(kNow - kDefaultReplayWindowS + 1);
-  sign_message(recent, "alex", *keys.alex);
+  r2r_wire::sign_message(recent, "alex", *keys.alex);
   principal(check(auth, recent));
   json future = command_message(kNow + kDefaultFutureSkewS + 1);
-  sign_message(future, "alex", *keys.alex);
+  r2r_wire::sign_message(future, "alex", *keys.alex);
   CHECK(failure(check(auth, future)).find("future") != std::string::npos);
 }
 
@@ -178,19 +183,19 @@ TEST_CASE("tokens: a known token passes with its role's scopes; wrong token and 
   const MessageAuthenticator auth(tokens, {});
 
   json good = command_message();
-  add_token(good, kUserToken);
+  r2r_wire::add_token(good, kUserToken);
   CHECK(principal(check(auth, good)).name == "peer-user");
 
   json wrong = command_message();
-  add_token(wrong, "not-a-token");
+  r2r_wire::add_token(wrong, "not-a-token");
   CHECK(failure(check(auth, wrong)).find("unknown or invalid token") != std::string::npos);
 
   json guest_command = command_message();
-  add_token(guest_command, kGuestToken);
+  r2r_wire::add_token(guest_command, kGuestToken);
   CHECK(failure(check(auth, guest_command)).find("cannot use scope 'control'") != std::string::npos);
 
   json guest_status = message("status", {{"battery", 50}});
-  add_token(guest_status, kGuestToken);
+  r2r_wire::add_token(guest_status, kGuestToken);
   CHECK(principal(check(auth, guest_status)).role == Role::Guest);
 
   CHECK(failure(check(auth, command_message())).find("authentication required") != std::string::npos);
@@ -209,12 +214,12 @@ TEST_CASE("a transport-authenticated principal is used when the message carries 
 }
 
 TEST_CASE("required scopes per type") {
-  CHECK(required_scope(MessageType::Status) == Scope::Status);
-  CHECK(required_scope(MessageType::Error) == Scope::Status);
-  CHECK(required_scope(MessageType::Command) == Scope::Control);
-  CHECK(required_scope(MessageType::TaskRequest) == Scope::Control);
-  CHECK(required_scope(MessageType::Negotiation) == Scope::Control);
-  CHECK(required_scope(MessageType::TaskResponse) == Scope::Control);
+  CHECK(required_scope(r2r_wire::MessageType::Status) == Scope::Status);
+  CHECK(required_scope(r2r_wire::MessageType::Error) == Scope::Status);
+  CHECK(required_scope(r2r_wire::MessageType::Command) == Scope::Control);
+  CHECK(required_scope(r2r_wire::MessageType::TaskRequest) == Scope::Control);
+  CHECK(required_scope(r2r_wire::MessageType::Negotiation) == Scope::Control);
+  CHECK(required_scope(r2r_wire::MessageType::TaskResponse) == Scope::Control);
 }
 
 TEST_CASE("replay guard: a signature is accepted once inside its window, and memory stays bounded") {

@@ -1,6 +1,7 @@
 #include <doctest/doctest.h>
 
 #include "fleet_fixture.hpp"
+#include "libs/r2r_wire/message_signature.hpp"
 
 using namespace r2r_test;
 using namespace std::chrono_literals;
@@ -44,14 +45,16 @@ TEST_CASE("task_request / task_response / negotiation / error round-trip, and su
   Robot& alex = fleet.add("alex", {"nav"}, FleetPose{});
   Robot& bob = fleet.add("bob", {"nav", "arm"}, FleetPose{});
   std::vector<ReceivedMessage> alex_saw;
-  for (auto type : {MessageType::TaskResponse, MessageType::Negotiation, MessageType::Error})
+  for (auto type : {rcand::r2r_wire::MessageType::TaskResponse, rcand::r2r_wire::MessageType::Negotiation,
+                    rcand::r2r_wire::MessageType::Error})
     alex.node->subscribe(type, [&](const ReceivedMessage& m) { alex_saw.push_back(m); });
   std::vector<ReceivedMessage> bob_saw;
-  bob.node->subscribe(MessageType::TaskRequest, [&](const ReceivedMessage& m) { bob_saw.push_back(m); });
+  bob.node->subscribe(rcand::r2r_wire::MessageType::TaskRequest, [&](const ReceivedMessage& m) { bob_saw.push_back(m); });
 
   // A direct request (no bid_deadline) is answered with task_response.
-  REQUIRE(std::holds_alternative<std::string>(alex.node->send(
-      MessageType::TaskRequest, {{"task_id", "T1"}, {"description", "pick"}, {"required_capabilities", {"arm"}}}, "bob")));
+  REQUIRE(std::holds_alternative<std::string>(
+      alex.node->send(rcand::r2r_wire::MessageType::TaskRequest,
+                      {{"task_id", "T1"}, {"description", "pick"}, {"required_capabilities", {"arm"}}}, "bob")));
   fleet.settle();
   REQUIRE(bob_saw.size() == 1);
   CHECK(bob_saw[0].envelope.payload["task_id"] == "T1");
@@ -62,25 +65,25 @@ TEST_CASE("task_request / task_response / negotiation / error round-trip, and su
   CHECK(responses[0].message["payload"]["estimated_time"] == 0.0);
   CHECK(bob.fleet->held_tasks().size() == 1);  // the fleet plugin's bidder answered
 
-  alex.node->send(MessageType::Negotiation, {{"task_id", "T1"}, {"action", "withdraw"}}, "bob");
-  bob.node->send(MessageType::Error, {{"code", 104}, {"message", "late"}}, "alex");
+  alex.node->send(rcand::r2r_wire::MessageType::Negotiation, {{"task_id", "T1"}, {"action", "withdraw"}}, "bob");
+  bob.node->send(rcand::r2r_wire::MessageType::Error, {{"code", 104}, {"message", "late"}}, "alex");
   fleet.settle();
   CHECK(bob.fleet->held_tasks().empty());  // withdrawn by its requester
   REQUIRE(alex_saw.size() == 2);
-  CHECK(alex_saw[0].envelope.type == MessageType::TaskResponse);
-  CHECK(alex_saw[1].envelope.type == MessageType::Error);
+  CHECK(alex_saw[0].envelope.type == rcand::r2r_wire::MessageType::TaskResponse);
+  CHECK(alex_saw[1].envelope.type == rcand::r2r_wire::MessageType::Error);
   CHECK(alex_saw[1].envelope.payload["code"] == 104);
   CHECK(fleet.net.sent("error", "alex").empty());  // an error is never answered with an error
 
   // A capability this robot lacks: declined.
-  alex.node->send(MessageType::TaskRequest, {{"task_id", "T2"}, {"required_capabilities", {"camera"}}}, "bob");
+  alex.node->send(rcand::r2r_wire::MessageType::TaskRequest, {{"task_id", "T2"}, {"required_capabilities", {"camera"}}}, "bob");
   fleet.settle();
   CHECK(fleet.net.sent("task_response", "bob", "alex").back().message["payload"]["accepted"] == false);
 
   // A payload that does not fit its type is refused before it is sent.
-  const auto bad = alex.node->send(MessageType::Negotiation, {{"task_id", "T1"}, {"action", "haggle"}}, "bob");
-  REQUIRE(std::holds_alternative<R2rError>(bad));
-  CHECK(std::get<R2rError>(bad).field == "/payload/action");
+  const auto bad = alex.node->send(rcand::r2r_wire::MessageType::Negotiation, {{"task_id", "T1"}, {"action", "haggle"}}, "bob");
+  REQUIRE(std::holds_alternative<rcand::r2r_wire::R2rError>(bad));
+  CHECK(std::get<rcand::r2r_wire::R2rError>(bad).field == "/payload/action");
 }
 
 TEST_CASE("command: runs through the action route as the sender; e-stopped answers 105 and nothing moves") {
@@ -89,14 +92,14 @@ TEST_CASE("command: runs through the action route as the sender; e-stopped answe
   Robot& bob = fleet.add("bob", {"teleop"}, std::nullopt);
   const json move{{"type", "move"}, {"linear", 0.3}, {"duration_ms", 200}};
 
-  alex.node->send(MessageType::Command, move, "bob");
+  alex.node->send(rcand::r2r_wire::MessageType::Command, move, "bob");
   fleet.settle();
   CHECK(bob.moves == 1);
   CHECK(bob.command_principals == std::vector<std::string>{"fleet"});
   CHECK(fleet.net.sent("error", "bob").empty());
 
   bob.status.estopped = true;
-  alex.node->send(MessageType::Command, move, "bob");
+  alex.node->send(rcand::r2r_wire::MessageType::Command, move, "bob");
   fleet.settle();
   CHECK(bob.moves == 1);
   const auto errors = fleet.net.sent("error", "bob", "alex");
@@ -152,7 +155,8 @@ TEST_CASE("bad messages: 100 (malformed, unknown type), 101 (unknown target), 10
   Fleet fleet;
   Robot& bob = fleet.add("bob", {"nav"}, std::nullopt);
   int seen = 0;
-  for (auto type : {MessageType::Status, MessageType::Command, MessageType::TaskRequest})
+  for (auto type :
+       {rcand::r2r_wire::MessageType::Status, rcand::r2r_wire::MessageType::Command, rcand::r2r_wire::MessageType::TaskRequest})
     bob.node->subscribe(type, [&](const ReceivedMessage&) { ++seen; });
 
   std::vector<json> replies;
@@ -319,16 +323,17 @@ TEST_CASE("a plugin's cost function replaces the default (R2rLink::set_cost_func
 
 TEST_CASE("signed fleet: signed messages flow; unsigned, unknown-key and replayed ones get 103") {
   Fleet fleet;
-  auto alex_key = std::make_shared<const Ed25519Key>(Ed25519Key::generate());
-  auto bob_key = std::make_shared<const Ed25519Key>(Ed25519Key::generate());
-  auto settings_for = [&](std::shared_ptr<const Ed25519Key> own, const std::string& peer_name,
-                          const std::shared_ptr<const Ed25519Key>& peer_key) {
+  auto alex_key = std::make_shared<const rcand::r2r_wire::Ed25519Key>(rcand::r2r_wire::Ed25519Key::generate());
+  auto bob_key = std::make_shared<const rcand::r2r_wire::Ed25519Key>(rcand::r2r_wire::Ed25519Key::generate());
+  auto settings_for = [&](std::shared_ptr<const rcand::r2r_wire::Ed25519Key> own, const std::string& peer_name,
+                          const std::shared_ptr<const rcand::r2r_wire::Ed25519Key>& peer_key) {
     R2rSettings s = Fleet::defaults();
     s.outbound_token.reset();  // signatures only
     s.private_key = std::move(own);
     s.auth.require_signatures = true;
     s.auth.peers.push_back({peer_name, rcand::sdk::Role::User,
-                            std::make_shared<const Ed25519Key>(Ed25519Key::public_from_text(peer_key->public_base64()))});
+                            std::make_shared<const rcand::r2r_wire::Ed25519Key>(
+                                rcand::r2r_wire::Ed25519Key::public_from_text(peer_key->public_base64()))});
     return s;
   };
   Robot& alex = fleet.add("alex", {"nav"}, FleetPose{}, settings_for(alex_key, "bob", bob_key));
@@ -341,7 +346,7 @@ TEST_CASE("signed fleet: signed messages flow; unsigned, unknown-key and replaye
   CHECK(status[0].message["header"]["signature"]["key_id"] == "alex");
   CHECK_FALSE(status[0].message["header"].contains("auth"));
 
-  alex.node->send(MessageType::Command, {{"type", "move"}, {"linear", 0.1}}, "bob");
+  alex.node->send(rcand::r2r_wire::MessageType::Command, {{"type", "move"}, {"linear", 0.1}}, "bob");
   fleet.settle();
   CHECK(bob.moves == 1);
   CHECK(bob.command_principals == std::vector<std::string>{"alex"});
@@ -353,7 +358,7 @@ TEST_CASE("signed fleet: signed messages flow; unsigned, unknown-key and replaye
   CHECK(replies[0]["header"]["signature"]["key_id"] == "bob");  // errors are signed too
 
   json foreign = fleet.message("command", {{"type", "move"}}, "mallory", "bob");
-  sign_message(foreign, "mallory", Ed25519Key::generate());
+  rcand::r2r_wire::sign_message(foreign, "mallory", rcand::r2r_wire::Ed25519Key::generate());
   replies.clear();
   fleet.net.inject("bob", foreign.dump(), &replies);
   REQUIRE(replies.size() == 1);

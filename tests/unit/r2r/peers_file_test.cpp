@@ -10,7 +10,8 @@
 #include <sstream>
 
 #include "libs/config/robot_config.hpp"
-#include "services/r2r/peers_file.hpp"
+#include "libs/r2r_wire/message_signature.hpp"
+#include "libs/r2r_wire/peers_file.hpp"
 #include "services/r2r/r2r_settings.hpp"
 #include "temp_dir.hpp"
 
@@ -23,7 +24,7 @@ namespace {
 
 std::string peers_file_error(const std::filesystem::path& file) {
   try {
-    load_peers_file(file);
+    r2r_wire::load_peers_file(file);
   } catch (const std::invalid_argument& e) {
     return e.what();
   }
@@ -39,11 +40,11 @@ const char* kPeersHeader =
 
 TEST_CASE("peers file: YAML entries shaped as runtime.r2r.peers[], keys inline or in files relative to it") {
   rcand::test::TempDir dir;
-  const Ed25519Key alpha = Ed25519Key::generate(), bravo = Ed25519Key::generate();
+  const r2r_wire::Ed25519Key alpha = r2r_wire::Ed25519Key::generate(), bravo = r2r_wire::Ed25519Key::generate();
   dir.write("keys/bravo.pub", bravo.public_pem());
   const auto file = dir.write("fleet.yaml", "# the fleet\npeers:\n  - name: alpha\n    public_key: " + alpha.public_base64() +
                                                 "\n  - name: bravo\n    public_key_file: keys/bravo.pub\n    role: owner\n");
-  const LoadedPeers loaded = load_peers_file(file);
+  const r2r_wire::LoadedPeers loaded = r2r_wire::load_peers_file(file);
   REQUIRE(loaded.peers.size() == 2);
   CHECK(loaded.peers[0].name == "alpha");
   CHECK(loaded.peers[0].role == sdk::Role::User);  // the default, as for inline peers
@@ -54,13 +55,13 @@ TEST_CASE("peers file: YAML entries shaped as runtime.r2r.peers[], keys inline o
   // JSON is YAML: a generated file reads as well.
   const auto as_json =
       dir.write("fleet.json", json{{"peers", {{{"name", "alpha"}, {"public_key", alpha.public_base64()}}}}}.dump());
-  CHECK(load_peers_file(as_json).peers.size() == 1);
-  CHECK(load_peers_file(dir.write("empty.yaml", "peers: []\n")).peers.empty());
+  CHECK(r2r_wire::load_peers_file(as_json).peers.size() == 1);
+  CHECK(r2r_wire::load_peers_file(dir.write("empty.yaml", "peers: []\n")).peers.empty());
 }
 
 TEST_CASE("peers file: every fault named with file:line:column, never a key's bytes") {
   rcand::test::TempDir dir;
-  const std::string key = Ed25519Key::generate().public_base64();
+  const std::string key = r2r_wire::Ed25519Key::generate().public_base64();
   auto error_of = [&](const std::string& text) { return peers_file_error(dir.write("p.yaml", text)); };
   const std::string at = (dir.path() / "p.yaml").string();
   CHECK(error_of("peers:\n  - name: a\n    public_key: c2hvcnQ=\n").find(at + ":3:5: error: peers[0].public_key:") == 0);
@@ -83,7 +84,7 @@ TEST_CASE("peers file: every fault named with file:line:column, never a key's by
 
 TEST_CASE("peers file: merged with runtime.r2r.peers; a robot in both is refused naming both places, at load and re-read") {
   rcand::test::TempDir dir;
-  const Ed25519Key alpha = Ed25519Key::generate(), bravo = Ed25519Key::generate();
+  const r2r_wire::Ed25519Key alpha = r2r_wire::Ed25519Key::generate(), bravo = r2r_wire::Ed25519Key::generate();
   const auto file = dir.write("fleet.yaml", "peers:\n  - name: alpha\n    public_key: " + alpha.public_base64() + "\n");
   json block{{"peers_file", "fleet.yaml"}, {"peers", {{{"name", "bravo"}, {"public_key", bravo.public_base64()}}}}};
   const R2rSettings settings = load_r2r_settings(block, dir.path());
@@ -92,7 +93,7 @@ TEST_CASE("peers file: merged with runtime.r2r.peers; a robot in both is refused
   CHECK(settings.auth.peers[1].name == "alpha");
 
   // Re-read (a SIGHUP reload): the file's new content, all at once; a broken file throws with its line.
-  const Ed25519Key charlie = Ed25519Key::generate();
+  const r2r_wire::Ed25519Key charlie = r2r_wire::Ed25519Key::generate();
   dir.write("fleet.yaml", "peers:\n  - name: charlie\n    public_key: " + charlie.public_base64() + "\n");
   const auto reloaded = reload_peers(settings);
   REQUIRE(reloaded.size() == 2);
@@ -116,7 +117,7 @@ TEST_CASE("peers file: merged with runtime.r2r.peers; a robot in both is refused
 
 TEST_CASE("peers file at load and --check-config: missing, broken, or naming an inline robot: file:line:column") {
   rcand::test::TempDir dir;
-  const std::string key = Ed25519Key::generate().public_base64();
+  const std::string key = r2r_wire::Ed25519Key::generate().public_base64();
   dir.write("fleet.yaml", "peers:\n  - name: bravo\n    public_key: " + key + "\n");
   auto load_error = [&](const std::string& r2r_lines) {
     try {
@@ -144,45 +145,48 @@ TEST_CASE("peers file at load and --check-config: missing, broken, or naming an 
 TEST_CASE("peers file: written atomically (a new file renamed over the old), mode 0644, read back the same") {
   rcand::test::TempDir dir;
   const auto file = dir.path() / "fleet.yaml";
-  const json first{{"peers", {{{"name", "alpha"}, {"public_key", Ed25519Key::generate().public_base64()}, {"role", "USER"}}}}};
-  write_peers_document(file, first);
-  CHECK(read_peers_document(file, false) == first);
+  const json first{
+      {"peers", {{{"name", "alpha"}, {"public_key", r2r_wire::Ed25519Key::generate().public_base64()}, {"role", "USER"}}}}};
+  r2r_wire::write_peers_document(file, first);
+  CHECK(r2r_wire::read_peers_document(file, false) == first);
   struct stat info {};
   REQUIRE(::stat(file.c_str(), &info) == 0);
   CHECK((info.st_mode & 0777) == 0644);
   // A reader that opened the old file keeps reading it whole while the new one replaces it.
   std::ifstream reader(file);
   json second = first;
-  second["peers"].push_back({{"name", "bravo"}, {"public_key", Ed25519Key::generate().public_base64()}, {"role", "GUEST"}});
-  write_peers_document(file, second);
+  second["peers"].push_back(
+      {{"name", "bravo"}, {"public_key", r2r_wire::Ed25519Key::generate().public_base64()}, {"role", "GUEST"}});
+  r2r_wire::write_peers_document(file, second);
   std::stringstream old_text;
   old_text << reader.rdbuf();
   CHECK(old_text.str().find("bravo") == std::string::npos);
   CHECK(old_text.str().find("alpha") != std::string::npos);
-  CHECK(read_peers_document(file, false) == second);
+  CHECK(r2r_wire::read_peers_document(file, false) == second);
   std::size_t entries = 0;
   for ([[maybe_unused]] const auto& entry : std::filesystem::directory_iterator(dir.path())) ++entries;
   CHECK(entries == 1);  // no temporary file left behind
-  CHECK(read_peers_document(dir.path() / "new.yaml", true) == json{{"peers", json::array()}});
+  CHECK(r2r_wire::read_peers_document(dir.path() / "new.yaml", true) == json{{"peers", json::array()}});
 }
 
 TEST_CASE("message auth: replace_peers swaps the table in force at once (a SIGHUP reload of the peers file)") {
   AuthSettings open;
   const Authenticator tokens(open);
-  const Ed25519Key alpha = Ed25519Key::generate();
+  const r2r_wire::Ed25519Key alpha = r2r_wire::Ed25519Key::generate();
   MessageAuthenticator auth(tokens, {});
   json m{{"header", {{"version", "1.0"}, {"timestamp", 1'700'000'000.0}, {"source_id", "alpha"}}},
          {"type", "command"},
          {"payload", {{"type", "estop"}}}};
-  sign_message(m, "alpha", alpha);
-  auto parsed = parse_envelope(m.dump());
-  REQUIRE(std::holds_alternative<Envelope>(parsed));
-  const Envelope& e = std::get<Envelope>(parsed);
+  r2r_wire::sign_message(m, "alpha", alpha);
+  auto parsed = r2r_wire::parse_envelope(m.dump());
+  REQUIRE(std::holds_alternative<r2r_wire::Envelope>(parsed));
+  const r2r_wire::Envelope& e = std::get<r2r_wire::Envelope>(parsed);
   auto verdict = auth.authorize(e, e.received, std::nullopt, sdk::Scope::Status, 1'700'000'000.0);
   REQUIRE(std::holds_alternative<AuthFailure>(verdict));
   CHECK(std::get<AuthFailure>(verdict).message == "unknown signing key 'alpha'");
   auth.replace_peers(
-      {{"alpha", sdk::Role::Guest, std::make_shared<const Ed25519Key>(Ed25519Key::public_from_text(alpha.public_pem()))}});
+      {{"alpha", sdk::Role::Guest,
+        std::make_shared<const r2r_wire::Ed25519Key>(r2r_wire::Ed25519Key::public_from_text(alpha.public_pem()))}});
   CHECK(auth.peer_count() == 1);
   verdict = auth.authorize(e, e.received, std::nullopt, sdk::Scope::Status, 1'700'000'000.0);
   REQUIRE(std::holds_alternative<Principal>(verdict));

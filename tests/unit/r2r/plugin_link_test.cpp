@@ -19,24 +19,26 @@ namespace {
 // A vendor-style capability: answers every direct task_request with task_response, and prices bids by queue only.
 class Dispatcher final : public rcand::sdk::Capability {
  public:
-  explicit Dispatcher(rcand::sdk::PluginContext& ctx) : link_(ctx.r2r()) {
-    if (link_ == nullptr) return;  // this kernel has no R2R: the capability still works locally
+  explicit Dispatcher(rcand::sdk::PluginContext& ctx) {
+    if (const auto* links = rcand::sdk::find<rcand::sdk::R2rLinks>(ctx))
+      link_ = links->make_link(ctx.worker("r2r"), "com.test.dispatch");
+    if (link_ == nullptr) return;  // this robot has no R2R: the capability still works locally
     link_->subscribe("task_request", [this](const R2rMessage& m) {
       ++handled;
-      link_->send("task_response", {{"task_id", m.payload["task_id"]}, {"accepted", true}, {"estimated_time", 7}},
-                  m.source_id);
+      link_->send("task_response", {{"task_id", m.payload["task_id"]}, {"accepted", true}, {"estimated_time", 7}}, m.source_id);
     });
     link_->set_cost_function([](const Json&, const std::optional<rcand::sdk::R2rPose>&, std::size_t queue) {
       return std::optional<double>(1.0 + static_cast<double>(queue));
     });
   }
   std::vector<rcand::sdk::Route> routes() override { return {}; }
-  rcand::sdk::R2rLink* link_ = nullptr;
+  std::unique_ptr<rcand::sdk::R2rLink> link_;
   int handled = 0;
 };
 
 void register_dispatcher(rcand::sdk::Registrar& r) {
-  r.add_capability({"com.test.dispatch", false}, [](rcand::sdk::PluginContext& ctx) { return std::make_unique<Dispatcher>(ctx); });
+  r.add_capability({"com.test.dispatch", false},
+                   [](rcand::sdk::PluginContext& ctx) { return std::make_unique<Dispatcher>(ctx); });
 }
 
 }  // namespace
@@ -90,9 +92,9 @@ TEST_CASE("kernel bridge: plugin callbacks run on the plugin worker with validat
   std::vector<R2rMessage> seen;
   const auto id = link->subscribe("task_request", [&](const R2rMessage& m) { seen.push_back(m); });
   CHECK_FALSE(link->send("status", Json::object(), std::nullopt).ok);  // not attached yet
-  bridge.attach(*bob.node);  // like the kernel: after the plugins started
+  bridge.attach(*bob.node);                                            // like the kernel: after the plugins started
 
-  alex.node->send(MessageType::TaskRequest, {{"task_id", "T1"}, {"description", "d"}}, "bob");
+  alex.node->send(rcand::r2r_wire::MessageType::TaskRequest, {{"task_id", "T1"}, {"description", "d"}}, "bob");
   std::vector<json> replies;
   fleet.net.inject("bob", fleet.message("task_request", {{"task_id", 5}}).dump(), &replies);  // invalid: never relayed
   fleet.settle();
@@ -124,7 +126,7 @@ TEST_CASE("kernel bridge: plugin callbacks run on the plugin worker with validat
   CHECK((*alex.fleet->auction_result("A1"))["bids"][0]["cost"] == 42.0);
 
   link->unsubscribe(id);
-  alex.node->send(MessageType::TaskRequest, {{"task_id", "T2"}}, "bob");
+  alex.node->send(rcand::r2r_wire::MessageType::TaskRequest, {{"task_id", "T2"}}, "bob");
   fleet.settle();
   scheduler.run_due();
   CHECK(seen.size() == 1);

@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "fleet_fixture.hpp"
+#include "libs/r2r_wire/message_signature.hpp"
 #include "libs/rcan/base64.hpp"
 #include "services/r2r/replay_guard.hpp"
 
@@ -36,14 +37,15 @@ class HardeningRecordingTransport final : public Transport {
 };
 
 // The signed settings of a two-robot fleet: `own` signs, `peer_name` is accepted with `peer_key`.
-R2rSettings hardening_signed_settings(std::shared_ptr<const Ed25519Key> own, const std::string& peer_name,
-                                      const std::shared_ptr<const Ed25519Key>& peer_key) {
+R2rSettings hardening_signed_settings(std::shared_ptr<const rcand::r2r_wire::Ed25519Key> own, const std::string& peer_name,
+                                      const std::shared_ptr<const rcand::r2r_wire::Ed25519Key>& peer_key) {
   R2rSettings s = Fleet::defaults();
   s.outbound_token.reset();
   s.private_key = std::move(own);
   s.auth.require_signatures = true;
   s.auth.peers.push_back({peer_name, rcand::sdk::Role::User,
-                          std::make_shared<const Ed25519Key>(Ed25519Key::public_from_text(peer_key->public_base64()))});
+                          std::make_shared<const rcand::r2r_wire::Ed25519Key>(
+                              rcand::r2r_wire::Ed25519Key::public_from_text(peer_key->public_base64()))});
   return s;
 }
 
@@ -61,7 +63,7 @@ std::vector<std::string> hardening_sig_spellings(const std::string& canonical) {
     out.push_back(variant);
   }
   out.push_back(canonical.substr(0, canonical.size() - 2));  // padding left off
-  out.push_back(canonical + "\n");                             // whitespace
+  out.push_back(canonical + "\n");                           // whitespace
   out.push_back(" " + canonical);
   std::string urlsafe = canonical;
   for (char& c : urlsafe) c = c == '+' ? '-' : c == '/' ? '_' : c;
@@ -81,7 +83,9 @@ TEST_CASE("base64: only the canonical spelling decodes (unused bits, padding, wh
   }
   CHECK(base64_decode("QQ==") == std::string("A"));  // "QR==" sets an unused bit
   CHECK_FALSE(base64_decode("QR=="));
-  CHECK_FALSE(base64_decode("QUI="  "x"));
+  CHECK_FALSE(
+      base64_decode("QUI="
+                    "x"));
   CHECK(base64_decode("QUI=") == std::string("AB"));
   CHECK_FALSE(base64_decode("QUJ="));  // "AB" with an unused bit set
   CHECK_FALSE(base64_decode("QUI"));
@@ -112,12 +116,12 @@ TEST_CASE("replay key: one key per signed message whatever its spelling; differe
 
 TEST_CASE("signed replay: a captured command under 5 other spellings moves once; a signature re-spelled is refused") {
   Fleet fleet;
-  auto alex_key = std::make_shared<const Ed25519Key>(Ed25519Key::generate());
-  auto bob_key = std::make_shared<const Ed25519Key>(Ed25519Key::generate());
+  auto alex_key = std::make_shared<const rcand::r2r_wire::Ed25519Key>(rcand::r2r_wire::Ed25519Key::generate());
+  auto bob_key = std::make_shared<const rcand::r2r_wire::Ed25519Key>(rcand::r2r_wire::Ed25519Key::generate());
   fleet.add("alex", {"nav"}, FleetPose{}, hardening_signed_settings(alex_key, "bob", bob_key));
   Robot& bob = fleet.add("bob", {"teleop"}, FleetPose{}, hardening_signed_settings(bob_key, "alex", alex_key));
   fleet.advance(10ms);  // after both started
-  fleet["alex"].node->send(MessageType::Command, {{"type", "move"}, {"linear", 0.1}}, "bob");
+  fleet["alex"].node->send(rcand::r2r_wire::MessageType::Command, {{"type", "move"}, {"linear", 0.1}}, "bob");
   fleet.settle();
   REQUIRE(bob.moves == 1);
   const auto captured = fleet.net.sent("command", "alex");
@@ -136,9 +140,9 @@ TEST_CASE("signed replay: a captured command under 5 other spellings moves once;
   }
   CHECK(refused >= 5);
   // Other spellings of the message itself (whitespace, key order, number forms) with the right signature: copies.
-  const std::string respelled[] = {original.dump(2), " " + original.dump() + "\n",
-                                   R"({"payload":)" + original["payload"].dump() + R"(,"type":"command","header":)" +
-                                       original["header"].dump() + "}"};
+  const std::string respelled[] = {
+      original.dump(2), " " + original.dump() + "\n",
+      R"({"payload":)" + original["payload"].dump() + R"(,"type":"command","header":)" + original["header"].dump() + "}"};
   for (const std::string& text : respelled) {
     std::vector<json> replies;
     fleet.net.inject("bob", text, &replies);
@@ -149,12 +153,12 @@ TEST_CASE("signed replay: a captured command under 5 other spellings moves once;
 
 TEST_CASE("signed replay across a restart: a message signed before the robot started is refused (103), nothing moves") {
   Fleet fleet;
-  auto alex_key = std::make_shared<const Ed25519Key>(Ed25519Key::generate());
-  auto bob_key = std::make_shared<const Ed25519Key>(Ed25519Key::generate());
+  auto alex_key = std::make_shared<const rcand::r2r_wire::Ed25519Key>(rcand::r2r_wire::Ed25519Key::generate());
+  auto bob_key = std::make_shared<const rcand::r2r_wire::Ed25519Key>(rcand::r2r_wire::Ed25519Key::generate());
   fleet.add("alex", {"nav"}, FleetPose{}, hardening_signed_settings(alex_key, "bob", bob_key));
   Robot& bob = fleet.add("bob", {"teleop"}, FleetPose{}, hardening_signed_settings(bob_key, "alex", alex_key));
   fleet.advance(10ms);
-  fleet["alex"].node->send(MessageType::Command, {{"type", "move"}, {"linear", 0.1}}, "bob");
+  fleet["alex"].node->send(rcand::r2r_wire::MessageType::Command, {{"type", "move"}, {"linear", 0.1}}, "bob");
   fleet.settle();
   REQUIRE(bob.moves == 1);
   const json captured = fleet.net.sent("command", "alex").at(0).message;
@@ -164,7 +168,7 @@ TEST_CASE("signed replay across a restart: a message signed before the robot sta
   Robot& restarted = fleet.add("bob-restarted", {"teleop"}, FleetPose{}, hardening_signed_settings(bob_key, "alex", alex_key));
   json retargeted = captured;  // the same capture, as the restarted robot sees it (it answers to its own name)
   retargeted["header"]["target_id"] = "bob-restarted";
-  sign_message(retargeted, "alex", *alex_key);  // still timestamped before the restart
+  rcand::r2r_wire::sign_message(retargeted, "alex", *alex_key);  // still timestamped before the restart
   std::vector<json> replies;
   fleet.net.inject("bob-restarted", retargeted.dump(), &replies);
   REQUIRE(replies.size() == 1);
@@ -176,7 +180,7 @@ TEST_CASE("signed replay across a restart: a message signed before the robot sta
   json fresh = captured;
   fresh["header"]["target_id"] = "bob-restarted";
   fresh["header"]["timestamp"] = fleet.clock.wall_ms() / 1000.0;
-  sign_message(fresh, "alex", *alex_key);
+  rcand::r2r_wire::sign_message(fresh, "alex", *alex_key);
   replies.clear();
   fleet.net.inject("bob-restarted", fresh.dump(), &replies);
   CHECK(replies.empty());
@@ -187,16 +191,16 @@ TEST_CASE("token: header.auth.token goes over WebSocket only, never over UDP or 
   Fleet fleet;
   HardeningRecordingTransport udp("udp"), mqtt("mqtt"), ws("ws");
   R2rSettings settings = Fleet::defaults();  // with the fleet token
-  settings.private_key = std::make_shared<const Ed25519Key>(Ed25519Key::generate());
+  settings.private_key = std::make_shared<const rcand::r2r_wire::Ed25519Key>(rcand::r2r_wire::Ed25519Key::generate());
   Robot& alex = fleet.add("alex", {"nav"}, FleetPose{}, settings);
   alex.node->stop();
   alex.node->add_transport(&udp);
   alex.node->add_transport(&mqtt);
   alex.node->add_transport(&ws);
   alex.node->start();
-  fleet.advance(1500ms);  // status (broadcast) at least once more
-  alex.node->send(MessageType::Command, {{"type", "move"}}, "bob");   // targeted
-  alex.node->send(MessageType::TaskRequest, {{"task_id", "T"}, {"bid_deadline", 1e9}}, std::nullopt);
+  fleet.advance(1500ms);                                                              // status (broadcast) at least once more
+  alex.node->send(rcand::r2r_wire::MessageType::Command, {{"type", "move"}}, "bob");  // targeted
+  alex.node->send(rcand::r2r_wire::MessageType::TaskRequest, {{"task_id", "T"}, {"bid_deadline", 1e9}}, std::nullopt);
   alex.node->stop();
 
   REQUIRE_FALSE(udp.sent.empty());
@@ -215,7 +219,7 @@ TEST_CASE("token: header.auth.token goes over WebSocket only, never over UDP or 
 
   // send_message says which transports took it.
   alex.node->start();
-  const auto outcome = alex.node->send_message(MessageType::Status, {{"battery", 50}}, std::nullopt);
+  const auto outcome = alex.node->send_message(rcand::r2r_wire::MessageType::Status, {{"battery", 50}}, std::nullopt);
   REQUIRE(std::holds_alternative<SendOutcome>(outcome));
   const auto& queued_on = std::get<SendOutcome>(outcome).queued_on;
   CHECK(std::find(queued_on.begin(), queued_on.end(), "udp") != queued_on.end());
@@ -275,8 +279,8 @@ TEST_CASE("settings: max_peers, peer_expiry_s and max_held_tasks are read and ch
 
 TEST_CASE("status topic: a signed offline status hours old counts only from its sender's own topic; a stale live one never") {
   Fleet fleet;
-  auto alex_key = std::make_shared<const Ed25519Key>(Ed25519Key::generate());
-  auto bob_key = std::make_shared<const Ed25519Key>(Ed25519Key::generate());
+  auto alex_key = std::make_shared<const rcand::r2r_wire::Ed25519Key>(rcand::r2r_wire::Ed25519Key::generate());
+  auto bob_key = std::make_shared<const rcand::r2r_wire::Ed25519Key>(rcand::r2r_wire::Ed25519Key::generate());
   fleet.add("alex", {"nav"}, FleetPose{}, hardening_signed_settings(alex_key, "bob", bob_key));
   Robot& bob = fleet.add("bob", {"teleop"}, FleetPose{}, hardening_signed_settings(bob_key, "alex", alex_key));
   fleet.advance(10ms);
@@ -285,7 +289,7 @@ TEST_CASE("status topic: a signed offline status hours old counts only from its 
     json message{{"header", {{"version", "1.0"}, {"timestamp", fleet.clock.wall_ms() / 1000.0 - age_s}, {"source_id", "alex"}}},
                  {"type", "status"},
                  {"payload", {{"state", state}, {"estopped", false}, {"battery", nullptr}, {"position", nullptr}}}};
-    sign_message(message, "alex", *alex_key);
+    rcand::r2r_wire::sign_message(message, "alex", *alex_key);
     return message.dump();
   };
   const auto deliver = [&](const std::string& bytes, const std::string& topic) {

@@ -31,8 +31,9 @@ std::string invalid_argument(const json& block, const std::filesystem::path& bas
   return {};
 }
 
-const char* kHeader = "rcan_version: \"1.3\"\nmetadata:\n  robot_name: rover-1\n  robot_uuid: \"abcd1234\"\n"
-                      "  manufacturer: acme\n  model: rover\nruntime:\n  r2r:\n";
+const char* kHeader =
+    "rcan_version: \"1.3\"\nmetadata:\n  robot_name: rover-1\n  robot_uuid: \"abcd1234\"\n"
+    "  manufacturer: acme\n  model: rover\nruntime:\n  r2r:\n";
 
 }  // namespace
 
@@ -46,8 +47,8 @@ TEST_CASE("runtime.r2r: defaults, and every key read with files relative to the 
   CHECK_FALSE(defaults.outbound_token);
 
   const rcand::test::TempDir dir{"rcand-r2r-settings"};
-  const Ed25519Key own = Ed25519Key::generate();
-  const Ed25519Key peer = Ed25519Key::generate();
+  const r2r_wire::Ed25519Key own = r2r_wire::Ed25519Key::generate();
+  const r2r_wire::Ed25519Key peer = r2r_wire::Ed25519Key::generate();
   dir.write("own.pem", own.private_pem());
   dir.write("peer.pem", peer.public_pem());
   dir.write("r2r.token", "fleet-token\n");
@@ -59,8 +60,9 @@ TEST_CASE("runtime.r2r: defaults, and every key read with files relative to the 
                    {"replay_window_s", 10},
                    {"private_key_file", "own.pem"},
                    {"token_file", "r2r.token"},
-                   {"peers", {{{"name", "bob"}, {"public_key_file", "peer.pem"}, {"role", "owner"}},
-                              {{"name", "carol"}, {"public_key", peer.public_base64()}}}},
+                   {"peers",
+                    {{{"name", "bob"}, {"public_key_file", "peer.pem"}, {"role", "owner"}},
+                     {{"name", "carol"}, {"public_key", peer.public_base64()}}}},
                    {"udp_port", 9100}};  // a transport's key: not this module's business
   const R2rSettings s = load_r2r_settings(block, dir.path());
   CHECK(s.origin.x_m == 1.5);
@@ -100,8 +102,8 @@ TEST_CASE("runtime.r2r: bad settings name the key and never echo key bytes") {
   dir.write("empty.token", "\n");
   CHECK(invalid_argument({{"peers", {{{"name", "bob"}, {"public_key_file", "garbage.pem"}}}}}, dir.path())
             .find("runtime.r2r.peers[0].public_key_file") == 0);
-  CHECK(invalid_argument({{"peers", {{{"name", "bob"}, {"public_key_file", "garbage.pem"}}}}}, dir.path())
-            .find("c2VjcmV0") == std::string::npos);
+  CHECK(invalid_argument({{"peers", {{{"name", "bob"}, {"public_key_file", "garbage.pem"}}}}}, dir.path()).find("c2VjcmV0") ==
+        std::string::npos);
   CHECK(invalid_argument({{"peers", {{{"name", "bob"}}}}}, dir.path()).find("exactly one of") != std::string::npos);
   CHECK(invalid_argument({{"peers", {{{"name", "bob"}, {"public_key", "bm9wZQ=="}, {"role", "boss"}}}}}, dir.path())
             .find("runtime.r2r.peers[0].role") == 0);
@@ -109,19 +111,18 @@ TEST_CASE("runtime.r2r: bad settings name the key and never echo key bytes") {
   CHECK(invalid_argument({{"token_file", "missing.token"}}, dir.path()).find("runtime.r2r.token_file") == 0);
   CHECK(invalid_argument({{"token_file", "empty.token"}}, dir.path()).find("is empty") != std::string::npos);
   CHECK(invalid_argument({{"private_key_file", "missing.pem"}}, dir.path()).find("runtime.r2r.private_key_file") == 0);
-  CHECK(invalid_argument({{"require_signatures", true}}, dir.path()).find("private_key_file must be set") !=
-        std::string::npos);
+  CHECK(invalid_argument({{"require_signatures", true}}, dir.path()).find("private_key_file must be set") != std::string::npos);
   CHECK(invalid_argument({{"status_interval_ms", 0}}, dir.path()).find("runtime.r2r.status_interval_ms") == 0);
   CHECK(invalid_argument({{"origin", {{"x", "north"}}}}, dir.path()).find("runtime.r2r.origin.x") == 0);
 }
 
 TEST_CASE("runtime.r2r keys are in the config schema: wrong types stop startup with file:line:column") {
   const std::string yaml = std::string(kHeader) +
-                           "    require_signatures: maybe\n"   // line 9
-                           "    status_interval_ms: -5\n"      // line 10
-                           "    peers:\n"                      // line 11
-                           "      - public_key: abc\n"         // line 12
-                           "        role: boss\n";             // line 13
+                           "    require_signatures: maybe\n"  // line 9
+                           "    status_interval_ms: -5\n"     // line 10
+                           "    peers:\n"                     // line 11
+                           "      - public_key: abc\n"        // line 12
+                           "        role: boss\n";            // line 13
   try {
     parse_robot_config(yaml, "robot.rcan.yaml", "/srv");
     FAIL("accepted");
@@ -133,8 +134,8 @@ TEST_CASE("runtime.r2r keys are in the config schema: wrong types stop startup w
     CHECK(text.find("runtime.r2r.peers[0].name") != std::string::npos);
     CHECK(text.find("robot.rcan.yaml:13:9: error: runtime.r2r.peers[0].role") != std::string::npos);
   }
-  const auto loaded = parse_robot_config(std::string(kHeader) + "    origin: {x: 1, y: 2}\n    bid_window_ms: 500\n",
-                                         "robot.rcan.yaml", "/srv");
+  const auto loaded =
+      parse_robot_config(std::string(kHeader) + "    origin: {x: 1, y: 2}\n    bid_window_ms: 500\n", "robot.rcan.yaml", "/srv");
   CHECK(loaded.warnings.empty());
   CHECK(load_r2r_settings(loaded.config.runtime.r2r, "/srv").origin.y_m == 2);
   CHECK(fleet_settings(loaded.config.runtime.r2r).bid_window_s == 0.5);

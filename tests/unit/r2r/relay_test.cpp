@@ -4,6 +4,7 @@
 #include <doctest/doctest.h>
 
 #include "fleet_fixture.hpp"
+#include "libs/r2r_wire/message_signature.hpp"
 #include "services/r2r/replay_guard.hpp"
 
 using namespace r2r_test;
@@ -17,7 +18,8 @@ const json kRelayMove = {{"type", "move"}, {"linear", 0.2}, {"angular", 0.0}, {"
 std::vector<json> relayed_copies(const Fleet& fleet, const std::string& from, const std::string& to) {
   std::vector<json> out;
   for (const auto& sent : fleet.net.log)
-    if (sent.from == from && sent.to == to && sent.message["header"].contains(kRelayMarker)) out.push_back(sent.message);
+    if (sent.from == from && sent.to == to && sent.message["header"].contains(rcand::r2r_wire::kRelayMarker))
+      out.push_back(sent.message);
   return out;
 }
 
@@ -38,7 +40,7 @@ TEST_CASE("relay: a command for a robot heard from is passed on once, marked; th
   CHECK(bob.command_principals.back() == "fleet");  // the sender's own token, not alex's authority
   const auto copies = relayed_copies(fleet, "alex", "bob");
   REQUIRE(copies.size() == 1);
-  CHECK(copies[0]["header"][kRelayMarker] == "alex");
+  CHECK(copies[0]["header"][rcand::r2r_wire::kRelayMarker] == "alex");
   CHECK(copies[0]["header"]["source_id"] == "client");
   CHECK(copies[0]["header"]["target_id"] == "bob");
   CHECK(alex.node->counters().relayed == 1);
@@ -53,7 +55,7 @@ TEST_CASE("relay: a command for a robot heard from is passed on once, marked; th
   CHECK(replies[0]["payload"]["code"] == 105);
   CHECK(replies[0]["header"]["source_id"] == "bob");
   CHECK(replies[0]["header"]["target_id"] == "client");
-  CHECK(replies[0]["header"][kRelayMarker] == "alex");
+  CHECK(replies[0]["header"][rcand::r2r_wire::kRelayMarker] == "alex");
 }
 
 TEST_CASE("relay: a relayed message is never relayed again; an unknown target is 101; an error is never answered") {
@@ -64,7 +66,7 @@ TEST_CASE("relay: a relayed message is never relayed again; an unknown target is
 
   std::vector<json> replies;
   json marked = fleet.message("command", kRelayMove, "client", "bob");
-  marked["header"][kRelayMarker] = "carol";
+  marked["header"][rcand::r2r_wire::kRelayMarker] = "carol";
   fleet.net.inject("alex", marked.dump(), &replies);
   fleet.settle();
   REQUIRE(replies.size() == 1);
@@ -86,9 +88,9 @@ TEST_CASE("relay: a relayed message is never relayed again; an unknown target is
 }
 
 TEST_CASE("relay: a signed message still verifies at the target; a tampered or replayed relayed copy is refused") {
-  const auto client_key = std::make_shared<const Ed25519Key>(Ed25519Key::generate());
+  const auto client_key = std::make_shared<const rcand::r2r_wire::Ed25519Key>(rcand::r2r_wire::Ed25519Key::generate());
   R2rSettings settings = Fleet::defaults();
-  settings.auth.peers = {PeerKey{"client", rcand::sdk::Role::User, client_key}};
+  settings.auth.peers = {rcand::r2r_wire::PeerKey{"client", rcand::sdk::Role::User, client_key}};
   Fleet fleet;
   Robot& alex = fleet.add("alex", {"nav"}, FleetPose{}, settings);
   Robot& bob = fleet.add("bob", {"nav"}, FleetPose{}, settings);
@@ -96,7 +98,7 @@ TEST_CASE("relay: a signed message still verifies at the target; a tampered or r
 
   json message = fleet.message("command", kRelayMove, "client", "bob");
   message["header"].erase("auth");
-  sign_message(message, "client", *client_key);
+  rcand::r2r_wire::sign_message(message, "client", *client_key);
   std::vector<json> replies;
   fleet.net.inject("alex", message.dump(), &replies);
   fleet.settle();
@@ -131,10 +133,10 @@ TEST_CASE("relay: the hop marker is outside what a signature and the replay key 
   json message{{"header", {{"version", "1.0"}, {"timestamp", 1.0}, {"source_id", "client"}}},
                {"type", "status"},
                {"payload", json::object()}};
-  const std::string before = signing_input(message);
-  message["header"][kRelayMarker] = "alex";
-  CHECK(signing_input(message) == before);
+  const std::string before = rcand::r2r_wire::signing_input(message);
+  message["header"][rcand::r2r_wire::kRelayMarker] = "alex";
+  CHECK(rcand::r2r_wire::signing_input(message) == before);
   const json unmarked = json::parse(message.dump());
-  message["header"].erase(kRelayMarker);
+  message["header"].erase(rcand::r2r_wire::kRelayMarker);
   CHECK(replay_key(message) == replay_key(unmarked));
 }

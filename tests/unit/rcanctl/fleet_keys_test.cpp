@@ -11,12 +11,12 @@
 #include <vector>
 
 #include "fleet_command.hpp"
-#include "services/r2r/message_auth.hpp"
-#include "services/r2r/peers_file.hpp"
+#include "libs/r2r_wire/message_signature.hpp"
+#include "libs/r2r_wire/peers_file.hpp"
 #include "temp_dir.hpp"
 
 using nlohmann::json;
-using rcand::kernel::r2r::Ed25519Key;
+using rcand::r2r_wire::Ed25519Key;
 
 namespace {
 
@@ -86,7 +86,7 @@ TEST_CASE("rcanctl fleet enroll|revoke|list: the peers file, atomic, refusing an
   const auto by_base64 = fleet({"enroll", "--peers-file", peers, "bravo", bravo.public_base64(), "--role", "guest", "--json"});
   REQUIRE(by_base64.code == 0);
   CHECK(json::parse(by_base64.out)["action"] == "enrolled");
-  auto loaded = rcand::kernel::r2r::load_peers_file(peers);  // what every robot reads
+  auto loaded = rcand::r2r_wire::load_peers_file(peers);  // what every robot reads
   REQUIRE(loaded.peers.size() == 2);
   CHECK(loaded.peers[0].key->verify("m", alpha.sign("m")));
   CHECK(loaded.peers[1].role == rcand::sdk::Role::Guest);
@@ -105,7 +105,7 @@ TEST_CASE("rcanctl fleet enroll|revoke|list: the peers file, atomic, refusing an
   std::stringstream old_text;
   old_text << reader.rdbuf();
   CHECK(old_text.str() == before);  // replaced by a rename, never rewritten in place
-  loaded = rcand::kernel::r2r::load_peers_file(peers);
+  loaded = rcand::r2r_wire::load_peers_file(peers);
   CHECK(loaded.peers[1].key->verify("m", alpha.sign("m")));
   CHECK(loaded.peers[1].role == rcand::sdk::Role::User);
 
@@ -114,7 +114,7 @@ TEST_CASE("rcanctl fleet enroll|revoke|list: the peers file, atomic, refusing an
   CHECK(listed["peers"][0]["public_key"] == alpha.public_base64());
   REQUIRE(fleet({"revoke", "--peers-file", peers, "alpha"}).code == 0);
   CHECK(fleet({"revoke", "--peers-file", peers, "alpha"}).code == 1);
-  CHECK(rcand::kernel::r2r::load_peers_file(peers).peers.size() == 1);
+  CHECK(rcand::r2r_wire::load_peers_file(peers).peers.size() == 1);
   std::size_t entries = 0;
   for ([[maybe_unused]] const auto& entry : std::filesystem::directory_iterator(dir.path())) ++entries;
   CHECK(entries == 2);  // keys/ and fleet.yaml: no temporary file left behind

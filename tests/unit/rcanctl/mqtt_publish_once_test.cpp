@@ -56,7 +56,7 @@ TEST_CASE("rcanctl fleet stop: a broker that never completes the TCP handshake f
     CHECK((rc == 0 || errno == EINPROGRESS));  // non-blocking: the handshake completes (or is dropped) later
   }
 
-  rcand::rcanctl::MqttPublishOptions options;
+  rcand::rcanctl::MqttBrokerOptions options;
   options.host = "127.0.0.1";
   options.port = port;
   options.client_id = "rcanctl-publish-once-test";

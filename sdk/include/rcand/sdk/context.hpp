@@ -35,7 +35,7 @@ class RCAND_INTERFACE PluginContext {
   virtual ~PluginContext() = default;
   virtual std::string_view plugin_id() const noexcept = 0;    // the manifest id, e.g. "com.acme.gripper"
   virtual std::string_view instance_id() const noexcept = 0;  // capability name, or the driver's config `id`
-  virtual Logger& log() noexcept = 0;                          // spdlog logger "plugin.<id>"
+  virtual Logger& log() noexcept = 0;                         // spdlog logger "plugin.<id>"
   virtual const Clock& clock() const noexcept = 0;
   virtual EstopView& estop() noexcept = 0;
   virtual MotionGate& motion() noexcept = 0;
@@ -51,7 +51,8 @@ class RCAND_INTERFACE PluginContext {
   virtual const ObstacleSource* obstacles() const noexcept { return nullptr; }
   // Robot-to-robot messages (docs/protocol.md §11) through the kernel's R2R transports, or null when this kernel has
   // no R2R. The fleet plugin (org.rcand.fleet) runs the auctions on its link and prices bids with the TripEstimator
-  // it finds. Deprecated since 1.2: kept until ABI 2.
+  // it finds. Deprecated since 1.2: find<R2rLinks>(ctx)->make_link(...), which this calls once per instance; kept
+  // until ABI 2.
   virtual R2rLink* r2r() noexcept { return nullptr; }
   // ABI 1.1: hands the kernel this instance's status - the value status() would return now - so GET /api/status
   // serves it from a snapshot instead of calling status() per request. Publish on change: after each state change,

@@ -7,18 +7,20 @@
 #include <cstddef>
 #include <cstdint>
 #include <functional>
+#include <memory>
 #include <optional>
 #include <string>
 #include <string_view>
 
 #include "rcand/sdk/export.hpp"
 #include "rcand/sdk/http.hpp"
+#include "rcand/sdk/worker.hpp"
 
 namespace rcand::sdk {
 
 // One validated inbound message.
 struct R2rMessage {
-  std::string type;  // status | task_request | task_response | command | negotiation | error
+  std::string type;                      // status | task_request | task_response | command | negotiation | error
   std::string source_id;                 // the sending robot's name
   std::optional<std::string> target_id;  // this robot, or nullopt for a broadcast
   double timestamp = 0.0;                // Unix seconds, as the sender wrote it
@@ -61,6 +63,19 @@ class RCAND_INTERFACE R2rLink {
   // function restores the default. The last plugin to set one wins. rcand hands it to the fleet plugin, which runs
   // the auctions (rcand/sdk/fleet_auctions.hpp) and calls it on its worker; without that plugin nothing bids.
   virtual void set_cost_function(R2rCostFunction cost) = 0;
+};
+
+// Where a plugin gets its R2R link: a service (services.hpp) that rcand's R2R service offers when runtime.r2r.enabled
+// (find<R2rLinks>(ctx) is null on a robot without R2R). The link is the plugin's: make it in start(), keep it in
+// the instance; its subscriptions end when it is destroyed. PluginContext::r2r(), deprecated, hands out one link
+// per instance made the same way.
+class RCAND_INTERFACE R2rLinks {
+ public:
+  static constexpr std::string_view kServiceId = "rcand.r2r_links/1";
+  virtual ~R2rLinks() = default;
+  // A link whose callbacks run on `worker` (the instance's own, e.g. ctx.worker("r2r")); `who` names the instance
+  // in the robot's logs. Null when no link can be made (the host logs why).
+  virtual std::unique_ptr<R2rLink> make_link(Worker& worker, std::string_view who) const noexcept = 0;
 };
 
 }  // namespace rcand::sdk

@@ -177,7 +177,7 @@ TEST_CASE("an R2R command to an e-stopped robot is answered 105 by the node, thr
     REQUIRE(cv.wait_for(lock, std::chrono::seconds(10), [&] { return answered >= n; }));
   };
 
-  alex->send(MessageType::Command, kMove, "bob");
+  alex->send(r2r_wire::MessageType::Command, kMove, "bob");
   net.pump();
   wait_answers(1);
   net.pump();
@@ -187,7 +187,7 @@ TEST_CASE("an R2R command to an e-stopped robot is answered 105 by the node, thr
   REQUIRE(call(api, "POST", "/api/stop").status == 200);
   const int stopped_at = drive_commands(api);
   CHECK(stopped_at >= after_move);
-  alex->send(MessageType::Command, kMove, "bob");
+  alex->send(r2r_wire::MessageType::Command, kMove, "bob");
   net.pump();
   wait_answers(2);
   net.pump();

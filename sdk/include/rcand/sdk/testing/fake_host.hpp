@@ -305,16 +305,19 @@ class FakeHost {
     if (source) services_.emplace(std::string(ObstacleSource::kServiceId), ServiceOffer{source, ""});
   }
 
-  // ---- R2R (PluginContext::r2r()) ------------------------------------------------------------------------------
+  // ---- R2R (find<R2rLinks>(ctx), and the deprecated PluginContext::r2r()) ------------------------------------
 
   struct R2rSent {
-    std::string instance;  // who sent it
+    std::string instance;  // who sent it: the `who` of R2rLinks::make_link (the instance id for PluginContext::r2r())
     std::string type;
     nlohmann::json payload;
     std::optional<std::string> target;
   };
-  // PluginContext::r2r() is null (a kernel without R2R) until this is called.
-  void enable_r2r() noexcept { r2r_enabled_ = true; }
+  // find<R2rLinks>() and PluginContext::r2r() are null (a robot without R2R) until this is called.
+  void enable_r2r() {
+    std::lock_guard lock(services_mutex_);
+    services_.emplace(std::string(R2rLinks::kServiceId), ServiceOffer{static_cast<const R2rLinks*>(&r2r_links_), ""});
+  }
   // What instances sent, in order. The fake checks the type and that the payload is an object; the kernel also
   // checks each type's payload fields (docs/protocol.md §11).
   const std::vector<R2rSent>& r2r_sent() const noexcept { return r2r_sent_; }
@@ -324,7 +327,7 @@ class FakeHost {
     std::size_t queued = 0;
     for (const auto& [id, sub] : r2r_subscriptions_) {
       if (sub.type != message.type) continue;
-      worker_for(sub.instance, "r2r").post([callback = sub.callback, message] { callback(message); });
+      sub.worker->post([callback = sub.callback, message] { callback(message); });
       ++queued;
     }
     return queued;
@@ -504,10 +507,9 @@ class FakeHost {
 
   class R2rFake final : public R2rLink {
    public:
-    R2rFake(FakeHost& host, std::string instance) : host_(host), instance_(std::move(instance)) {}
+    R2rFake(FakeHost& host, Worker& worker, std::string who) : host_(host), worker_(worker), instance_(std::move(who)) {}
     ~R2rFake() override {
-      for (auto it = host_.r2r_subscriptions_.begin(); it != host_.r2r_subscriptions_.end();)
-        it = it->second.instance == instance_ ? host_.r2r_subscriptions_.erase(it) : std::next(it);
+      std::erase_if(host_.r2r_subscriptions_, [this](const auto& entry) { return entry.second.link == this; });
     }
     R2rSendResult send(std::string_view type, const Json& payload, const std::optional<std::string>& target) override {
       if (!known(type)) return {false, "unknown R2R message type '" + std::string(type) + "'", "/type"};
@@ -520,7 +522,7 @@ class FakeHost {
       if (!known(type)) throw std::invalid_argument("unknown R2R message type '" + std::string(type) + "'");
       if (!callback) throw std::invalid_argument("R2R subscribe needs a callback");
       const std::uint64_t id = ++host_.r2r_next_id_;
-      host_.r2r_subscriptions_[id] = {instance_, std::string(type), std::move(callback)};
+      host_.r2r_subscriptions_[id] = {this, &worker_, std::string(type), std::move(callback)};
       return id;
     }
     void unsubscribe(std::uint64_t id) noexcept override { host_.r2r_subscriptions_.erase(id); }
@@ -533,7 +535,23 @@ class FakeHost {
       return false;
     }
     FakeHost& host_;
+    Worker& worker_;
     std::string instance_;
+  };
+
+  class R2rLinksFake final : public R2rLinks {
+   public:
+    explicit R2rLinksFake(FakeHost& host) : host_(host) {}
+    std::unique_ptr<R2rLink> make_link(Worker& worker, std::string_view who) const noexcept override {
+      try {
+        return std::make_unique<R2rFake>(host_, worker, std::string(who));
+      } catch (...) {
+        return nullptr;
+      }
+    }
+
+   private:
+    FakeHost& host_;
   };
 
   class Context final : public PluginContext {
@@ -555,8 +573,9 @@ class FakeHost {
     Worker& worker(std::string_view name) override { return host_.worker_for(instance_id_, name); }
     const ObstacleSource* obstacles() const noexcept override { return find<ObstacleSource>(host_); }
     R2rLink* r2r() noexcept override {
-      if (!host_.r2r_enabled_) return nullptr;
-      if (!r2r_) r2r_ = std::make_unique<R2rFake>(host_, instance_id_);
+      const auto* links = find<R2rLinks>(host_);
+      if (links == nullptr) return nullptr;
+      if (!r2r_) r2r_ = links->make_link(worker("r2r"), instance_id_);
       return r2r_.get();
     }
     // Any thread, as in the kernel: recorded under a lock; an allocation failure loses the record, never throws.
@@ -574,7 +593,7 @@ class FakeHost {
 
    private:
     FakeHost& host_;
-    std::unique_ptr<R2rFake> r2r_;
+    std::unique_ptr<R2rLink> r2r_;
     std::string plugin_id_;
     std::string instance_id_;
     ConfigView config_;
@@ -929,11 +948,12 @@ class FakeHost {
   mutable std::mutex services_mutex_;  // offers and finds may come from any thread
   std::map<std::string, ServiceOffer, std::less<>> services_;
   struct R2rSubscription {
-    std::string instance;
+    const R2rFake* link;
+    Worker* worker;  // the link's: where its callbacks run
     std::string type;
     R2rLink::Callback callback;
   };
-  bool r2r_enabled_ = false;
+  R2rLinksFake r2r_links_{*this};
   std::vector<R2rSent> r2r_sent_;
   std::map<std::uint64_t, R2rSubscription> r2r_subscriptions_;
   std::uint64_t r2r_next_id_ = 0;

@@ -13,13 +13,21 @@
 #include <nlohmann/json.hpp>
 
 #include <filesystem>
+#include <memory>
 #include <string>
 #include <utility>
 #include <vector>
 
-#include "services/r2r/message_auth.hpp"
+#include "libs/r2r_wire/ed25519_key.hpp"
+#include "rcand/sdk/scope.hpp"
 
-namespace rcand::kernel::r2r {
+namespace rcand::r2r_wire {
+
+struct PeerKey {
+  std::string name;                  // the peer's robot name; also the key_id it signs with
+  sdk::Role role = sdk::Role::User;  // what a message signed by it may do
+  std::shared_ptr<const Ed25519Key> key;
+};
 
 struct LoadedPeers {
   std::vector<PeerKey> peers;
@@ -44,4 +52,4 @@ nlohmann::json read_peers_document(const std::filesystem::path& file, bool missi
 // 0644 (public keys are not secret: every robot reads it). Throws std::runtime_error saying what failed.
 void write_peers_document(const std::filesystem::path& file, const nlohmann::json& doc);
 
-}  // namespace rcand::kernel::r2r
+}  // namespace rcand::r2r_wire

@@ -1,13 +1,13 @@
-#include "services/r2r/envelope.hpp"
+#include "libs/r2r_wire/envelope.hpp"
 
 #include <array>
 #include <cmath>
 #include <utility>
 
 #include "libs/base/bounded_text.hpp"
-#include "services/r2r/payload_schema.hpp"
+#include "libs/r2r_wire/payload_schema.hpp"
 
-namespace rcand::kernel::r2r {
+namespace rcand::r2r_wire {
 namespace {
 
 using nlohmann::json;
@@ -166,4 +166,4 @@ json to_json(const Envelope& envelope) {
 
 std::string serialize(const Envelope& envelope) { return to_json(envelope).dump(-1, ' ', false, json::error_handler_t::replace); }
 
-}  // namespace rcand::kernel::r2r
+}  // namespace rcand::r2r_wire

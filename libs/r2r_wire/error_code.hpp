@@ -7,7 +7,7 @@
 #include <string>
 #include <string_view>
 
-namespace rcand::kernel::r2r {
+namespace rcand::r2r_wire {
 
 enum class ErrorCode : int {
   InvalidFormat = 100,   // malformed envelope or payload, unknown type, over 64 KiB
@@ -31,4 +31,4 @@ nlohmann::json make_error_payload(ErrorCode code, std::string message, const std
 nlohmann::json error_ref(const nlohmann::json& header);
 inline constexpr std::size_t kMaxErrorMessageBytes = 1024;
 
-}  // namespace rcand::kernel::r2r
+}  // namespace rcand::r2r_wire

@@ -6,9 +6,9 @@
 #include <optional>
 #include <string>
 
-#include "services/r2r/envelope.hpp"
+#include "libs/r2r_wire/envelope.hpp"
 
-namespace rcand::kernel::r2r {
+namespace rcand::r2r_wire {
 
 struct PayloadFault {
   std::string field;  // JSON pointer relative to the message ("/payload/task_id")
@@ -21,4 +21,4 @@ std::optional<PayloadFault> check_payload(MessageType type, const nlohmann::json
 // A `command` payload {"type":"estop","reason"?}: the fleet e-stop (docs/protocol.md §11.15), scope `status`.
 bool is_fleet_estop(MessageType type, const nlohmann::json& payload) noexcept;
 
-}  // namespace rcand::kernel::r2r
+}  // namespace rcand::r2r_wire

@@ -1,8 +1,8 @@
-#include "services/r2r/error_code.hpp"
+#include "libs/r2r_wire/error_code.hpp"
 
 #include "libs/base/bounded_text.hpp"
 
-namespace rcand::kernel::r2r {
+namespace rcand::r2r_wire {
 
 std::string_view error_code_name(int code) noexcept {
   switch (code) {
@@ -36,4 +36,4 @@ nlohmann::json error_ref(const nlohmann::json& header) {
   return ref;
 }
 
-}  // namespace rcand::kernel::r2r
+}  // namespace rcand::r2r_wire

@@ -1,8 +1,8 @@
-#include "services/r2r/payload_schema.hpp"
+#include "libs/r2r_wire/payload_schema.hpp"
 
 #include <cmath>
 
-namespace rcand::kernel::r2r {
+namespace rcand::r2r_wire {
 namespace {
 
 using nlohmann::json;
@@ -147,4 +147,4 @@ std::optional<PayloadFault> check_payload(MessageType type, const nlohmann::json
   return PayloadFault{"/type", "unknown message type"};
 }
 
-}  // namespace rcand::kernel::r2r
+}  // namespace rcand::r2r_wire

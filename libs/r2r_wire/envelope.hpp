@@ -10,9 +10,9 @@
 #include <string_view>
 #include <variant>
 
-#include "services/r2r/error_code.hpp"
+#include "libs/r2r_wire/error_code.hpp"
 
-namespace rcand::kernel::r2r {
+namespace rcand::r2r_wire {
 
 inline constexpr std::size_t kMaxMessageBytes = 64 * 1024;  // docs/protocol.md §11: larger is refused with code 100
 inline constexpr int kMaxMessageDepth = 32;                 // JSON nesting; deeper is refused with code 100
@@ -62,4 +62,4 @@ nlohmann::json header_json(const Envelope& envelope);
 nlohmann::json to_json(const Envelope& envelope);
 std::string serialize(const Envelope& envelope);
 
-}  // namespace rcand::kernel::r2r
+}  // namespace rcand::r2r_wire

@@ -1,4 +1,4 @@
-#include "services/r2r/peers_file.hpp"
+#include "libs/r2r_wire/peers_file.hpp"
 
 #include <fcntl.h>
 #include <sys/stat.h>
@@ -15,7 +15,7 @@
 #include "libs/yaml/json_to_yaml.hpp"
 #include "libs/yaml/yaml_document.hpp"
 
-namespace rcand::kernel::r2r {
+namespace rcand::r2r_wire {
 namespace {
 
 using nlohmann::json;
@@ -154,4 +154,4 @@ void write_peers_document(const std::filesystem::path& file, const json& doc) {
   }
 }
 
-}  // namespace rcand::kernel::r2r
+}  // namespace rcand::r2r_wire
