@@ -26,7 +26,7 @@
 #include "ws_client.hpp"
 
 using namespace rcand::test;
-using namespace rcand::kernel::r2r;
+using namespace rcand::services::r2r;
 using nlohmann::json;
 using Clock = std::chrono::steady_clock;
 
@@ -173,10 +173,11 @@ int bench_udp(int messages) {
   for (int i = 0; i < messages; ++i) sender.send(status(i), std::nullopt);
   arrived.wait(2 * messages, std::chrono::seconds(5));
   const double burst_ms = ms_since(start);
-  std::printf("udp   status one way             n=%zu p50=%.3f ms p99=%.3f ms max=%.3f ms | burst %d in %.1f ms = %.0f msg/s, "
-              "%d of %d arrived\n",
-              latencies.size(), percentile(latencies, 0.5), percentile(latencies, 0.99), percentile(latencies, 1.0), messages,
-              burst_ms, messages / (burst_ms / 1000.0), arrived.count - messages, messages);
+  std::printf(
+      "udp   status one way             n=%zu p50=%.3f ms p99=%.3f ms max=%.3f ms | burst %d in %.1f ms = %.0f msg/s, "
+      "%d of %d arrived\n",
+      latencies.size(), percentile(latencies, 0.5), percentile(latencies, 0.99), percentile(latencies, 1.0), messages, burst_ms,
+      messages / (burst_ms / 1000.0), arrived.count - messages, messages);
   return 0;
 }
 
@@ -197,9 +198,9 @@ int bench_auction(int bidders, int rounds) {
   for (int round = 0; round < rounds + 1; ++round) {  // the first one opens the connections: not counted
     int status = 0;
     const auto start = Clock::now();
-    const auto result = requester.json(
-        "POST", "/api/r2r/auction", "owner-token",
-        json{{"required_capabilities", {"teleop"}}, {"location", {{"x", 0.0}, {"y", 0.0}}}}.dump(), &status);
+    const auto result =
+        requester.json("POST", "/api/r2r/auction", "owner-token",
+                       json{{"required_capabilities", {"teleop"}}, {"location", {{"x", 0.0}, {"y", 0.0}}}}.dump(), &status);
     const double total = ms_since(start);
     if (status != 200 || result["state"] != "assigned") {
       std::fprintf(stderr, "auction failed: %d %s\n", status, result.dump().c_str());
@@ -209,9 +210,10 @@ int bench_auction(int bidders, int rounds) {
     over.push_back(total - kBidWindowMs);
     bids += result["bids"].size();
   }
-  std::printf("auction %2d bidders: %zu rounds, %.1f bids/round, decided after bid window + p50=%.1f ms p99=%.1f ms max=%.1f ms\n",
-              bidders, over.size(), static_cast<double>(bids) / static_cast<double>(over.size()), percentile(over, 0.5),
-              percentile(over, 0.99), percentile(over, 1.0));
+  std::printf(
+      "auction %2d bidders: %zu rounds, %.1f bids/round, decided after bid window + p50=%.1f ms p99=%.1f ms max=%.1f ms\n",
+      bidders, over.size(), static_cast<double>(bids) / static_cast<double>(over.size()), percentile(over, 0.5),
+      percentile(over, 0.99), percentile(over, 1.0));
   return 0;
 }
 

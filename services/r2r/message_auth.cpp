@@ -7,7 +7,9 @@
 #include "libs/rcan/base64.hpp"
 #include "libs/rcan/role_scopes.hpp"
 
-namespace rcand::kernel::r2r {
+namespace rcand::services::r2r {
+
+using namespace rcand::kernel;
 
 using nlohmann::json;
 
@@ -94,4 +96,4 @@ std::variant<Principal, AuthFailure> MessageAuthenticator::verify_signature(cons
   return Principal{peer->name, peer->role, default_scopes(peer->role), "signature"};
 }
 
-}  // namespace rcand::kernel::r2r
+}  // namespace rcand::services::r2r

@@ -20,7 +20,7 @@
 #include "libs/r2r_wire/envelope.hpp"
 #include "libs/r2r_wire/peers_file.hpp"
 
-namespace rcand::kernel::r2r {
+namespace rcand::services::r2r {
 
 inline constexpr double kDefaultReplayWindowS = 30.0;  // signed messages older than this are refused
 inline constexpr double kDefaultFutureSkewS = 5.0;     // ... and so are ones this far in the future
@@ -38,24 +38,24 @@ struct AuthFailure {
 
 class MessageAuthenticator {
  public:
-  MessageAuthenticator(const Authenticator& tokens, MessageAuthSettings settings);
+  MessageAuthenticator(const kernel::Authenticator& tokens, MessageAuthSettings settings);
 
   // The principal of a parsed message, checked for `needed`. Order: a signature when present (must verify; it names
   // the principal), else required signatures -> failure, else header.auth.token, else the transport's principal.
   // `raw` is the message as received (for the signature input); now_s = wall clock, Unix seconds.
-  std::variant<Principal, AuthFailure> authorize(const r2r_wire::Envelope& envelope, const nlohmann::json& raw,
-                                                 const std::optional<Principal>& transport_principal, sdk::Scope needed,
-                                                 double now_s) const;
+  std::variant<kernel::Principal, AuthFailure> authorize(const r2r_wire::Envelope& envelope, const nlohmann::json& raw,
+                                                         const std::optional<kernel::Principal>& transport_principal,
+                                                         sdk::Scope needed, double now_s) const;
   const MessageAuthSettings& settings() const noexcept { return settings_; }
   // A SIGHUP reload (runtime.r2r.peers_file): from now on signatures are checked against `peers`, all at once.
   void replace_peers(std::vector<r2r_wire::PeerKey> peers);
   std::size_t peer_count() const;
 
  private:
-  std::variant<Principal, AuthFailure> verify_signature(const r2r_wire::Envelope& envelope, const nlohmann::json& raw,
-                                                        double now_s) const;
+  std::variant<kernel::Principal, AuthFailure> verify_signature(const r2r_wire::Envelope& envelope, const nlohmann::json& raw,
+                                                                double now_s) const;
   std::shared_ptr<const std::vector<r2r_wire::PeerKey>> current_peers() const;
-  const Authenticator& tokens_;
+  const kernel::Authenticator& tokens_;
   MessageAuthSettings settings_;  // its peers as at start; peers_ is the table in force
   mutable std::mutex peers_mutex_;
   std::shared_ptr<const std::vector<r2r_wire::PeerKey>> peers_;
@@ -64,4 +64,4 @@ class MessageAuthenticator {
 // The scope a message type needs from its sender: status/error need `status`, the rest `control`.
 sdk::Scope required_scope(r2r_wire::MessageType type) noexcept;
 
-}  // namespace rcand::kernel::r2r
+}  // namespace rcand::services::r2r

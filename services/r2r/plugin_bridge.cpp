@@ -5,7 +5,9 @@
 #include <memory>
 #include <stdexcept>
 
-namespace rcand::kernel::r2r {
+namespace rcand::services::r2r {
+
+using namespace rcand::kernel;
 
 constexpr r2r_wire::MessageType kAllTypes[] = {r2r_wire::MessageType::Status,       r2r_wire::MessageType::TaskRequest,
                                                r2r_wire::MessageType::TaskResponse, r2r_wire::MessageType::Command,
@@ -166,4 +168,4 @@ void PluginBridge::forget(const Link* owner) noexcept {
   if (price_gone) sync_cost();
 }
 
-}  // namespace rcand::kernel::r2r
+}  // namespace rcand::services::r2r

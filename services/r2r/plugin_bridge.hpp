@@ -17,7 +17,7 @@
 #include "rcand/sdk/worker.hpp"
 #include "services/r2r/r2r_node.hpp"
 
-namespace rcand::kernel::r2r {
+namespace rcand::services::r2r {
 
 class PluginBridge {
  public:
@@ -72,4 +72,4 @@ class PluginBridge {
   std::uint64_t cost_generation_ = 0;  // grows with every change of cost_
 };
 
-}  // namespace rcand::kernel::r2r
+}  // namespace rcand::services::r2r

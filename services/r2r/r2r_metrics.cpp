@@ -5,7 +5,9 @@
 #include <array>
 #include <string_view>
 
-namespace rcand::kernel::r2r {
+namespace rcand::services::r2r {
+
+using namespace rcand::kernel;
 namespace {
 
 constexpr std::array<std::string_view, 3> kLabels{"direction", "type", "transport"};
@@ -22,4 +24,4 @@ R2rNode::MessageObserver message_metrics(const ServiceDirectory& directory) {
   };
 }
 
-}  // namespace rcand::kernel::r2r
+}  // namespace rcand::services::r2r

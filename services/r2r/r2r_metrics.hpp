@@ -6,9 +6,9 @@
 #include "kernel/plugins/service_directory.hpp"
 #include "services/r2r/r2r_node.hpp"
 
-namespace rcand::kernel::r2r {
+namespace rcand::services::r2r {
 
 // The node's message observer, recording into whatever offers sdk::Metrics at each message (nothing when none does).
-R2rNode::MessageObserver message_metrics(const ServiceDirectory& directory);
+R2rNode::MessageObserver message_metrics(const kernel::ServiceDirectory& directory);
 
-}  // namespace rcand::kernel::r2r
+}  // namespace rcand::services::r2r

@@ -35,7 +35,7 @@ class R2rModule final : public Service {
  public:
   R2rModule(ServiceHost& host, std::shared_ptr<const swarm::LiveRegistry> swarm)
       : host_(host), swarm_(std::move(swarm)), bridge_(fleet_lookup(host)) {
-    service_ = R2rService::from_config(
+    service_ = r2r::R2rService::from_config(
         {host.config, host.auth,
          [api = &host.api](const Principal& principal, nlohmann::json body, std::function<void(int, nlohmann::json)> done) {
            api->execute_action(principal, std::move(body), std::move(done));
@@ -96,7 +96,7 @@ class R2rModule final : public Service {
   std::shared_ptr<const swarm::LiveRegistry> swarm_;  // swarm.yaml as now: whom a relay or a WebSocket dial reaches
   r2r::PluginBridge bridge_;                          // before service_: destroyed after it
   BridgeLinks links_{bridge_};
-  std::unique_ptr<R2rService> service_;
+  std::unique_ptr<r2r::R2rService> service_;
 };
 
 }  // namespace

@@ -13,7 +13,9 @@
 #include "services/r2r/refusal_throttle.hpp"
 #include "services/r2r/replay_guard.hpp"
 
-namespace rcand::kernel::r2r {
+namespace rcand::services::r2r {
+
+using namespace rcand::kernel;
 using nlohmann::json;
 
 // Named, not anonymous: R2rNode::Impl (external linkage) keeps Routes in its peer table.
@@ -722,4 +724,4 @@ NodeCounters R2rNode::counters() const {
   return impl_->counters;
 }
 
-}  // namespace rcand::kernel::r2r
+}  // namespace rcand::services::r2r

@@ -31,7 +31,7 @@
 #include "services/r2r/r2r_settings.hpp"
 #include "services/r2r/transport.hpp"
 
-namespace rcand::kernel::r2r {
+namespace rcand::services::r2r {
 
 struct NodeIdentity {
   std::string name;                       // metadata.robot_name: source_id of everything this node sends
@@ -55,11 +55,11 @@ using StatusSource = std::function<LocalStatus()>;
 // Runs a `command` payload exactly as POST /api/action with that body, as `principal` (scope check, the 423 e-stop
 // pre-check, the audit entry). `done` is called once, from any thread, with the HTTP status and JSON body.
 using CommandDone = std::function<void(int http_status, nlohmann::json body)>;
-using CommandExecutor = std::function<void(const Principal& principal, nlohmann::json body, CommandDone done)>;
+using CommandExecutor = std::function<void(const kernel::Principal& principal, nlohmann::json body, CommandDone done)>;
 // The fleet e-stop (docs/protocol.md §11.15): a `command` whose payload is {"type":"estop","reason"?} latches the robot
 // exactly as POST /api/stop with `body` ({"reason","from"}) as `principal` - same audit entry, same latch - on the
 // calling (transport) thread: never behind a worker queue. Returns once latched. There is no R2R way to clear.
-using StopExecutor = std::function<void(const Principal& principal, nlohmann::json body)>;
+using StopExecutor = std::function<void(const kernel::Principal& principal, nlohmann::json body)>;
 
 // A validated inbound message as subscribers see it.
 struct ReceivedMessage {
@@ -72,7 +72,7 @@ using Subscriber = std::function<void(const ReceivedMessage&)>;
 struct R2rNodeDeps {
   NodeIdentity identity;
   const sdk::Clock& clock;
-  const Authenticator& authenticator;  // the robot's HTTP authenticator: header.auth.token is checked against it
+  const kernel::Authenticator& authenticator;  // the robot's HTTP authenticator: header.auth.token is checked against it
   R2rSettings settings;
   StatusSource status_source;          // may be empty: status says unknown everywhere
   CommandExecutor command_executor;    // may be empty: every command is refused (code 103, "commands disabled")
@@ -151,4 +151,4 @@ class R2rNode {
   std::shared_ptr<Impl> impl_;  // shared with pending command completions, which may outlive the node
 };
 
-}  // namespace rcand::kernel::r2r
+}  // namespace rcand::services::r2r

@@ -7,7 +7,9 @@
 #include "libs/base/json_body.hpp"
 #include "services/r2r/r2r_service.hpp"
 
-namespace rcand::kernel {
+namespace rcand::services::r2r {
+
+using namespace rcand::kernel;
 namespace {
 
 using nlohmann::json;
@@ -124,4 +126,4 @@ void add_r2r_routes(Router& router, R2rService* service, AuditLog& audit) {
   router.add({"GET", std::string(kAuctionPrefix) + "*", sdk::Scope::Status}, serve);
 }
 
-}  // namespace rcand::kernel
+}  // namespace rcand::services::r2r

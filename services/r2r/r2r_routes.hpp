@@ -8,11 +8,11 @@
 #include "kernel/api/router.hpp"
 #include "kernel/audit/audit_log.hpp"
 
-namespace rcand::kernel {
+namespace rcand::services::r2r {
 
 class R2rService;
 
 // Startup. `service` null: R2R is off (every row answers R2R_DISABLED). Both outlive the router's use of them.
-void add_r2r_routes(Router& router, R2rService* service, AuditLog& audit);
+void add_r2r_routes(kernel::Router& router, R2rService* service, kernel::AuditLog& audit);
 
-}  // namespace rcand::kernel
+}  // namespace rcand::services::r2r

@@ -15,7 +15,9 @@
 #include "services/r2r/transports/udp_transport.hpp"
 #include "services/r2r/transports/websocket_transport.hpp"
 
-namespace rcand::kernel {
+namespace rcand::services::r2r {
+
+using namespace rcand::kernel;
 
 // Named, not anonymous: R2rService::Impl (external linkage) keeps these.
 namespace r2r_service_detail {
@@ -330,4 +332,4 @@ void R2rService::request_auction(const sdk::FleetAuctions& fleet, const json& bo
   fleet.open(body, [request](const sdk::Response& response) { request->answer(response); });
 }
 
-}  // namespace rcand::kernel
+}  // namespace rcand::services::r2r

@@ -23,15 +23,15 @@
 #include "rcand/sdk/fleet_auctions.hpp"
 #include "services/r2r/r2r_node.hpp"
 
-namespace rcand::kernel {
+namespace rcand::services::r2r {
 
 struct R2rServiceDeps {
-  const RobotConfig& config;
-  const Authenticator& authenticator;
+  const kernel::RobotConfig& config;
+  const kernel::Authenticator& authenticator;
   // POST /api/action as `principal`, through the kernel's middleware (Api::execute_action).
-  std::function<void(const Principal&, nlohmann::json, std::function<void(int, nlohmann::json)>)> execute_action;
+  std::function<void(const kernel::Principal&, nlohmann::json, std::function<void(int, nlohmann::json)>)> execute_action;
   std::function<nlohmann::json()> status_document;  // GET /api/status as a document
-  const Estop& estop;
+  const kernel::Estop& estop;
   const sdk::Clock& clock;
   std::function<const swarm::SwarmRegistry*()> swarm;  // swarm.yaml as now (a SIGHUP reload swaps it)
   std::string ruri;
@@ -78,4 +78,4 @@ class R2rService {
   std::unique_ptr<Impl> impl_;
 };
 
-}  // namespace rcand::kernel
+}  // namespace rcand::services::r2r

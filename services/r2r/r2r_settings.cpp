@@ -8,7 +8,9 @@
 #include "libs/r2r_wire/peers_file.hpp"
 #include "libs/rcan/secret_file.hpp"
 
-namespace rcand::kernel::r2r {
+namespace rcand::services::r2r {
+
+using namespace rcand::kernel;
 namespace {
 
 using nlohmann::json;
@@ -240,4 +242,4 @@ R2rSettings load_r2r_settings(const json& r2r, const std::filesystem::path& base
   return s;
 }
 
-}  // namespace rcand::kernel::r2r
+}  // namespace rcand::services::r2r

@@ -13,7 +13,7 @@
 #include "rcand/sdk/pose_source.hpp"
 #include "services/r2r/message_auth.hpp"
 
-namespace rcand::kernel::r2r {
+namespace rcand::services::r2r {
 
 // The auction's keys (bid_window_ms, cost_per_queued_task_s, max_held_tasks) are checked by this service's table too,
 // so a mistake is reported with its file position, but the fleet plugin (org.rcand.fleet) reads and applies them.
@@ -43,4 +43,4 @@ R2rSettings load_r2r_settings(const nlohmann::json& runtime_r2r, const std::file
 // file's line (the caller keeps the table it has).
 std::vector<r2r_wire::PeerKey> reload_peers(const R2rSettings& settings);
 
-}  // namespace rcand::kernel::r2r
+}  // namespace rcand::services::r2r

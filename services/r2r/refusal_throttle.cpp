@@ -3,7 +3,9 @@
 #include <algorithm>
 #include <vector>
 
-namespace rcand::kernel::r2r {
+namespace rcand::services::r2r {
+
+using namespace rcand::kernel;
 
 // Each budget is asked only while the previous ones allow, so a refusal held back by one costs no other.
 bool RefusalThrottle::Budget::admit(const std::string& sender, std::string_view address, std::int64_t now_us) {
@@ -59,4 +61,4 @@ std::optional<std::string> RefusalThrottle::summary(std::int64_t now_us) {
   return line;
 }
 
-}  // namespace rcand::kernel::r2r
+}  // namespace rcand::services::r2r

@@ -21,7 +21,7 @@
 
 #include "libs/base/rate_limiter.hpp"
 
-namespace rcand::kernel::r2r {
+namespace rcand::services::r2r {
 
 class RefusalThrottle {
  public:
@@ -69,4 +69,4 @@ class RefusalThrottle {
   std::int64_t since_us_ = -1;  // the first refusal held back since the last summary; -1: none
 };
 
-}  // namespace rcand::kernel::r2r
+}  // namespace rcand::services::r2r

@@ -9,7 +9,9 @@
 #include "libs/r2r_wire/message_signature.hpp"
 #include "services/r2r/message_auth.hpp"
 
-namespace rcand::kernel::r2r {
+namespace rcand::services::r2r {
+
+using namespace rcand::kernel;
 
 std::string replay_key(const nlohmann::json& message) {
   const std::string input = r2r_wire::signing_input(message);
@@ -41,4 +43,4 @@ void ReplayGuard::prune(double now_s) {
   std::erase_if(seen_, [&](const auto& entry) { return entry.second < cutoff; });
 }
 
-}  // namespace rcand::kernel::r2r
+}  // namespace rcand::services::r2r

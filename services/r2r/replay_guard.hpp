@@ -13,7 +13,7 @@
 #include <string>
 #include <unordered_map>
 
-namespace rcand::kernel::r2r {
+namespace rcand::services::r2r {
 
 // The identity of a signed message for replay purposes: SHA-256 (32 raw bytes) of its signing input (the canonical
 // message without header.signature), which is what the signature covers.
@@ -37,4 +37,4 @@ class ReplayGuard {
   double last_prune_s_ = 0.0;
 };
 
-}  // namespace rcand::kernel::r2r
+}  // namespace rcand::services::r2r

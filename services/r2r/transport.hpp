@@ -9,7 +9,7 @@
 
 #include "kernel/auth/authenticator.hpp"
 
-namespace rcand::kernel::r2r {
+namespace rcand::services::r2r {
 
 // One message as it arrived, with what the transport knows about its sender.
 struct InboundMessage {
@@ -17,7 +17,7 @@ struct InboundMessage {
   std::string transport;  // "ws" | "udp" | "mqtt" | "local" (tests)
   std::string peer;       // remote address:port (ws, udp) or the MQTT topic it arrived on
   // Set when the transport itself authenticated the sender (a WebSocket upgrade with a bearer token, like HTTP).
-  std::optional<Principal> principal;
+  std::optional<kernel::Principal> principal;
   // Sends bytes back to this sender on the same transport (WebSocket: the same connection); empty when the
   // transport cannot answer one sender (UDP broadcasts: answers go out through send()).
   std::function<void(std::string bytes)> reply;
@@ -63,4 +63,4 @@ class Transport {
   virtual void stop() noexcept = 0;
 };
 
-}  // namespace rcand::kernel::r2r
+}  // namespace rcand::services::r2r

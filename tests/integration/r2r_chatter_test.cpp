@@ -16,7 +16,7 @@
 using namespace rcand::test;
 using nlohmann::json;
 using namespace std::chrono_literals;
-using rcand::kernel::r2r::RefusalThrottle;
+using rcand::services::r2r::RefusalThrottle;
 
 namespace {
 

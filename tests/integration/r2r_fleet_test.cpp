@@ -108,15 +108,15 @@ TEST_CASE("r2r fleet (mqtt): status, auction, command and errors round-trip thro
   RcandProcess alpha(alpha_config);
 
   // An observer on r2r/# sees the fleet's traffic, as `rcanctl r2r watch` does.
-  rcand::kernel::r2r::MqttOptions observer_options;
+  rcand::services::r2r::MqttOptions observer_options;
   observer_options.robot_name = "observer";
   observer_options.host = "127.0.0.1";
   observer_options.port = broker.port();
   observer_options.extra_subscriptions = {"r2r/#"};
-  rcand::kernel::r2r::MqttTransport observer(observer_options);
+  rcand::services::r2r::MqttTransport observer(observer_options);
   std::mutex seen_mutex;
   std::vector<json> seen;
-  observer.start([&](rcand::kernel::r2r::InboundMessage message) {
+  observer.start([&](rcand::services::r2r::InboundMessage message) {
     std::lock_guard lock(seen_mutex);
     seen.push_back(json::parse(message.bytes, nullptr, false));
   });

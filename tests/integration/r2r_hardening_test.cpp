@@ -150,15 +150,15 @@ TEST_CASE("r2r secrets: the R2R token never appears in a UDP status datagram or 
   config["runtime"]["r2r"]["udp_broadcast"] = {"127.0.0.1:" + std::to_string(capture.port())};
   config["runtime"]["r2r"]["mqtt"] = {{"host", "127.0.0.1"}, {"port", broker.port()}, {"keepalive_s", 5}};
 
-  rcand::kernel::r2r::MqttOptions observer_options;
+  rcand::services::r2r::MqttOptions observer_options;
   observer_options.robot_name = "observer";
   observer_options.host = "127.0.0.1";
   observer_options.port = broker.port();
   observer_options.extra_subscriptions = {"r2r/#"};
-  rcand::kernel::r2r::MqttTransport observer(observer_options);
+  rcand::services::r2r::MqttTransport observer(observer_options);
   std::mutex seen_mutex;
   std::vector<std::string> seen;
-  observer.start([&](rcand::kernel::r2r::InboundMessage message) {
+  observer.start([&](rcand::services::r2r::InboundMessage message) {
     std::lock_guard lock(seen_mutex);
     seen.push_back(message.bytes);
   });

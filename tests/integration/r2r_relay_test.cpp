@@ -197,15 +197,15 @@ TEST_CASE("r2r relay (mqtt): a WebSocket client's signed command reaches a robot
   RcandProcess alpha(alpha_config);
   REQUIRE(poll_until<json>([&] { return peer_status(alpha, "bravo"); }));  // heard on r2r/status/bravo
 
-  rcand::kernel::r2r::MqttOptions observer_options;
+  rcand::services::r2r::MqttOptions observer_options;
   observer_options.robot_name = "relay-observer";
   observer_options.host = "127.0.0.1";
   observer_options.port = broker.port();
   observer_options.extra_subscriptions = {"r2r/bravo"};
-  rcand::kernel::r2r::MqttTransport observer(observer_options);
+  rcand::services::r2r::MqttTransport observer(observer_options);
   std::mutex seen_mutex;
   std::vector<json> seen;
-  observer.start([&](rcand::kernel::r2r::InboundMessage m) {
+  observer.start([&](rcand::services::r2r::InboundMessage m) {
     std::lock_guard lock(seen_mutex);
     seen.push_back(json::parse(m.bytes, nullptr, false));
   });

@@ -22,9 +22,9 @@
 namespace rcand::test {
 
 // A client named `name` of the broker on 127.0.0.1:`port` (keepalive 5 s), also subscribed to `subscriptions`.
-inline kernel::r2r::MqttOptions mqtt_client(const std::string& name, std::uint16_t port,
-                                            std::vector<std::string> subscriptions = {}) {
-  kernel::r2r::MqttOptions options;
+inline services::r2r::MqttOptions mqtt_client(const std::string& name, std::uint16_t port,
+                                              std::vector<std::string> subscriptions = {}) {
+  services::r2r::MqttOptions options;
   options.robot_name = name;
   options.host = "127.0.0.1";
   options.port = port;
@@ -44,8 +44,8 @@ class MqttWatch {
  public:
   using Match = std::function<bool(const std::string& topic, const nlohmann::json& message)>;
 
-  explicit MqttWatch(kernel::r2r::MqttOptions options) : transport_(std::move(options)) {
-    transport_.start([this](kernel::r2r::InboundMessage message) {
+  explicit MqttWatch(services::r2r::MqttOptions options) : transport_(std::move(options)) {
+    transport_.start([this](services::r2r::InboundMessage message) {
       auto parsed = nlohmann::json::parse(message.bytes, nullptr, false);
       if (!parsed.is_object()) return;  // no R2R message: nothing a test matches
       std::lock_guard lock(mutex_);
@@ -56,7 +56,7 @@ class MqttWatch {
   MqttWatch(const MqttWatch&) = delete;
   MqttWatch& operator=(const MqttWatch&) = delete;
 
-  kernel::r2r::MqttTransport& transport() { return transport_; }
+  services::r2r::MqttTransport& transport() { return transport_; }
   bool connected(std::chrono::milliseconds timeout = std::chrono::seconds(10)) {
     return eventually([&] { return transport_.connected(); }, timeout);
   }
@@ -91,7 +91,7 @@ class MqttWatch {
  private:
   std::mutex mutex_;
   std::vector<std::pair<std::string, nlohmann::json>> seen_;
-  kernel::r2r::MqttTransport transport_;
+  services::r2r::MqttTransport transport_;
 };
 
 // Matches the messages of R2R `type` sent by `source`.

@@ -6,7 +6,9 @@
 
 #include "libs/r2r_wire/envelope.hpp"
 
-namespace rcand::kernel::r2r {
+namespace rcand::services::r2r {
+
+using namespace rcand::kernel;
 namespace {
 
 // SAX handler: records top-level "type" and "header"."source_id" strings and whether the header carries the hop
@@ -78,4 +80,4 @@ MessagePeek peek_message(std::string_view bytes) noexcept {
   return out;
 }
 
-}  // namespace rcand::kernel::r2r
+}  // namespace rcand::services::r2r

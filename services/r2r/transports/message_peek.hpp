@@ -7,7 +7,7 @@
 #include <string>
 #include <string_view>
 
-namespace rcand::kernel::r2r {
+namespace rcand::services::r2r {
 
 struct MessagePeek {
   std::string type;       // "" when absent or not a string
@@ -17,4 +17,4 @@ struct MessagePeek {
 
 MessagePeek peek_message(std::string_view bytes) noexcept;
 
-}  // namespace rcand::kernel::r2r
+}  // namespace rcand::services::r2r

@@ -14,7 +14,9 @@
 #include "libs/base/file_exposure.hpp"
 #include "services/r2r/transports/message_peek.hpp"
 
-namespace rcand::kernel::r2r {
+namespace rcand::services::r2r {
+
+using namespace rcand::kernel;
 namespace {
 
 std::once_flag library_once;
@@ -324,4 +326,4 @@ MqttCounters MqttTransport::counters() const {
   return state_->counters;
 }
 
-}  // namespace rcand::kernel::r2r
+}  // namespace rcand::services::r2r

@@ -21,7 +21,7 @@
 
 #include "services/r2r/transport.hpp"
 
-namespace rcand::kernel::r2r {
+namespace rcand::services::r2r {
 
 struct MqttTls {
   std::filesystem::path ca_file;                   // required for TLS
@@ -81,4 +81,4 @@ class MqttTransport : public Transport {
   std::shared_ptr<State> state_;
 };
 
-}  // namespace rcand::kernel::r2r
+}  // namespace rcand::services::r2r

@@ -12,7 +12,9 @@
 #include "libs/base/worker_thread.hpp"
 #include "services/r2r/transports/message_peek.hpp"
 
-namespace rcand::kernel::r2r {
+namespace rcand::services::r2r {
+
+using namespace rcand::kernel;
 
 namespace net = boost::asio;
 using udp = net::ip::udp;
@@ -173,4 +175,4 @@ UdpCounters UdpTransport::counters() const {
   return state_->counters;
 }
 
-}  // namespace rcand::kernel::r2r
+}  // namespace rcand::services::r2r

@@ -15,7 +15,7 @@
 
 #include "services/r2r/transport.hpp"
 
-namespace rcand::kernel::r2r {
+namespace rcand::services::r2r {
 
 struct UdpDestination {
   std::string host;        // an IPv4/IPv6 address (resolved once at start)
@@ -58,4 +58,4 @@ class UdpTransport : public Transport {
   std::shared_ptr<State> state_;
 };
 
-}  // namespace rcand::kernel::r2r
+}  // namespace rcand::services::r2r

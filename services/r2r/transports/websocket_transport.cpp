@@ -24,7 +24,9 @@
 #include "libs/swarm/node_tls.hpp"
 #include "services/r2r/transports/message_peek.hpp"
 
-namespace rcand::kernel::r2r {
+namespace rcand::services::r2r {
+
+using namespace rcand::kernel;
 
 namespace net = boost::asio;
 namespace beast = boost::beast;
@@ -675,4 +677,4 @@ void apply_websocket_config(const nlohmann::json& r2r_block, WebSocketOptions& o
   size_key("ws_max_queued_bytes", options.max_queued_bytes);
 }
 
-}  // namespace rcand::kernel::r2r
+}  // namespace rcand::services::r2r

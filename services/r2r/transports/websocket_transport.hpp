@@ -22,7 +22,7 @@
 #include "libs/swarm/swarm_registry.hpp"
 #include "services/r2r/transport.hpp"
 
-namespace rcand::kernel::r2r {
+namespace rcand::services::r2r {
 
 inline constexpr std::string_view kWebSocketPath = "/ws/r2r";
 
@@ -56,7 +56,7 @@ struct WebSocketCounters {
 class WebSocketTransport : public Transport {
  public:
   // `authenticator` authorizes upgrades; it must outlive the transport.
-  WebSocketTransport(WebSocketOptions options, const Authenticator& authenticator);
+  WebSocketTransport(WebSocketOptions options, const kernel::Authenticator& authenticator);
   ~WebSocketTransport() override;  // stop()
 
   // The HTTP server's ServerOptions::upgrade hook: takes GET /ws/r2r (401 without valid credentials, 503 when not
@@ -80,4 +80,4 @@ class WebSocketTransport : public Transport {
   std::shared_ptr<Hub> hub_;
 };
 
-}  // namespace rcand::kernel::r2r
+}  // namespace rcand::services::r2r

@@ -26,7 +26,7 @@ namespace r2r_test {
 
 using namespace rcand;
 using namespace rcand::kernel;
-using namespace rcand::kernel::r2r;
+using namespace rcand::services::r2r;
 using nlohmann::json;
 using rcand::plugins::fleet::Auctions;
 using rcand::plugins::fleet::FleetPoint;

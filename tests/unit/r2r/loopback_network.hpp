@@ -14,9 +14,9 @@
 
 namespace r2r_test {
 
-using rcand::kernel::r2r::Deliver;
-using rcand::kernel::r2r::InboundMessage;
-using rcand::kernel::r2r::Transport;
+using rcand::services::r2r::Deliver;
+using rcand::services::r2r::InboundMessage;
+using rcand::services::r2r::Transport;
 
 class LoopbackNetwork {
  public:
@@ -74,8 +74,7 @@ class LoopbackNetwork {
     message.bytes = bytes;
     message.transport = "local";
     message.peer = "test";
-    if (replies)
-      message.reply = [replies](std::string answer) { replies->push_back(nlohmann::json::parse(answer)); };
+    if (replies) message.reply = [replies](std::string answer) { replies->push_back(nlohmann::json::parse(answer)); };
     endpoint(robot).deliver_(std::move(message));
   }
 
@@ -84,8 +83,7 @@ class LoopbackNetwork {
                          std::optional<std::string> to = std::nullopt) const {
     std::vector<Sent> out;
     for (const Sent& s : log)
-      if (s.message["type"] == type && (!from || s.from == *from) &&
-          (!to || s.message["header"].value("target_id", "") == *to))
+      if (s.message["type"] == type && (!from || s.from == *from) && (!to || s.message["header"].value("target_id", "") == *to))
         out.push_back(s);
     return out;
   }

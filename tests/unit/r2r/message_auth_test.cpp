@@ -8,7 +8,7 @@
 
 using namespace rcand;
 using namespace rcand::kernel;
-using namespace rcand::kernel::r2r;
+using namespace rcand::services::r2r;
 using nlohmann::json;
 using rcand::sdk::Role;
 using rcand::sdk::Scope;

@@ -17,7 +17,7 @@
 
 using namespace rcand;
 using namespace rcand::kernel;
-using namespace rcand::kernel::r2r;
+using namespace rcand::services::r2r;
 using nlohmann::json;
 
 namespace {

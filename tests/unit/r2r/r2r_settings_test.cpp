@@ -10,7 +10,7 @@
 
 using namespace rcand;
 using namespace rcand::kernel;
-using namespace rcand::kernel::r2r;
+using namespace rcand::services::r2r;
 using nlohmann::json;
 using rcand::plugins::fleet::read_fleet_settings;
 

@@ -17,26 +17,26 @@ namespace rcand::test {
 
 class Inbox {
  public:
-  rcand::kernel::r2r::Deliver deliver() {
-    return [state = state_](rcand::kernel::r2r::InboundMessage message) {
+  rcand::services::r2r::Deliver deliver() {
+    return [state = state_](rcand::services::r2r::InboundMessage message) {
       std::lock_guard lock(state->mutex);
       state->messages.push_back(std::move(message));
       state->changed.notify_all();
     };
   }
   // Waits until `count` messages arrived (or the deadline); returns a copy of what is there.
-  std::vector<rcand::kernel::r2r::InboundMessage> wait_for(std::size_t count,
-                                                           std::chrono::milliseconds timeout = std::chrono::seconds(5)) {
+  std::vector<rcand::services::r2r::InboundMessage> wait_for(std::size_t count,
+                                                             std::chrono::milliseconds timeout = std::chrono::seconds(5)) {
     std::unique_lock lock(state_->mutex);
     state_->changed.wait_for(lock, timeout, [&] { return state_->messages.size() >= count; });
     return state_->messages;
   }
   // Waits until some delivered message satisfies `match`; returns it (nullopt at the deadline).
-  std::optional<rcand::kernel::r2r::InboundMessage> wait_until(
-      const std::function<bool(const rcand::kernel::r2r::InboundMessage&)>& match,
+  std::optional<rcand::services::r2r::InboundMessage> wait_until(
+      const std::function<bool(const rcand::services::r2r::InboundMessage&)>& match,
       std::chrono::milliseconds timeout = std::chrono::seconds(5)) {
     std::unique_lock lock(state_->mutex);
-    std::optional<rcand::kernel::r2r::InboundMessage> found;
+    std::optional<rcand::services::r2r::InboundMessage> found;
     state_->changed.wait_for(lock, timeout, [&] {
       for (const auto& message : state_->messages)
         if (match(message)) {
@@ -56,7 +56,7 @@ class Inbox {
   struct State {
     std::mutex mutex;
     std::condition_variable changed;
-    std::vector<rcand::kernel::r2r::InboundMessage> messages;
+    std::vector<rcand::services::r2r::InboundMessage> messages;
   };
   std::shared_ptr<State> state_ = std::make_shared<State>();
 };

@@ -5,7 +5,7 @@
 
 #include "services/r2r/transports/message_peek.hpp"
 
-using rcand::kernel::r2r::peek_message;
+using rcand::services::r2r::peek_message;
 
 TEST_CASE("peek finds the type and header.source_id wherever they are written") {
   auto peek = peek_message(R"({"header":{"version":"1.0","auth":{"token":"x"},"source_id":"bot-a"},"payload":{"type":"no",
@@ -18,7 +18,8 @@ TEST_CASE("peek finds the type and header.source_id wherever they are written") 
 }
 
 TEST_CASE("peek leaves the fields empty for anything odd, and never throws") {
-  for (const std::string& bad : std::vector<std::string>{"", "not json", "[1,2,3]", R"({"type":5,"header":{"source_id":[]}})", R"({"type":"st)",
+  for (const std::string& bad :
+       std::vector<std::string>{"", "not json", "[1,2,3]", R"({"type":5,"header":{"source_id":[]}})", R"({"type":"st)",
                                 std::string(100000, '['), R"({"header":"x","type":null})"}) {
     const auto peek = peek_message(bad);
     CHECK(peek.type.empty());

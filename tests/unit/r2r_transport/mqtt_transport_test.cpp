@@ -17,7 +17,7 @@
 #include "services/r2r/transports/mqtt_transport.hpp"
 #include "wire_message.hpp"
 
-using namespace rcand::kernel::r2r;
+using namespace rcand::services::r2r;
 using namespace std::chrono_literals;
 using nlohmann::json;
 
@@ -213,15 +213,15 @@ TEST_CASE("a broker that is down at start is not fatal: the transport connects w
 }
 
 TEST_CASE("runtime.r2r.mqtt is read with errors naming the key") {
-  const auto options = mqtt_options_from_config(json{{"host", "broker.lan"}, {"port", 1884}, {"username", "u"},
-                                                     {"token_file", "r2r.token"}, {"keepalive_s", 10}},
-                                                "robot-a", "/etc/rcand");
+  const auto options = mqtt_options_from_config(
+      json{{"host", "broker.lan"}, {"port", 1884}, {"username", "u"}, {"token_file", "r2r.token"}, {"keepalive_s", 10}},
+      "robot-a", "/etc/rcand");
   CHECK(options.host == "broker.lan");
   CHECK(options.port == 1884);
   CHECK(options.token_file == std::filesystem::path("/etc/rcand/r2r.token"));
   CHECK(mqtt_options_from_config(json{{"tls", {{"ca_file", "/ca.pem"}}}}, "r", "/").port == 8883);
-  CHECK_THROWS_WITH_AS(mqtt_options_from_config(json{{"port", 0}}, "r", "/"), "runtime.r2r.mqtt.port: expected an integer from 1 to 65535",
-                       std::invalid_argument);
+  CHECK_THROWS_WITH_AS(mqtt_options_from_config(json{{"port", 0}}, "r", "/"),
+                       "runtime.r2r.mqtt.port: expected an integer from 1 to 65535", std::invalid_argument);
   CHECK_THROWS_WITH_AS(mqtt_options_from_config(json{{"tls", {{"cert_file", "c.pem"}}}}, "r", "/"),
                        "runtime.r2r.mqtt.tls.ca_file: required for TLS", std::invalid_argument);
   CHECK_THROWS_AS(mqtt_options_from_config(json{{"password_file", "p"}, {"token_file", "t"}}, "r", "/"), std::invalid_argument);

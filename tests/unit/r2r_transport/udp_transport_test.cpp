@@ -11,7 +11,7 @@
 #include "services/r2r/transports/udp_transport.hpp"
 #include "wire_message.hpp"
 
-using namespace rcand::kernel::r2r;
+using namespace rcand::services::r2r;
 using nlohmann::json;
 
 namespace {
@@ -47,7 +47,7 @@ TEST_CASE("status broadcasts reach every destination as one datagram each; other
   CHECK_FALSE(got_b[0].reply);
   CHECK_FALSE(got_b[0].principal);
 
-  CHECK_FALSE(a.send(wire_message("command"), std::nullopt));  // not status: WebSocket or MQTT carry it
+  CHECK_FALSE(a.send(wire_message("command"), std::nullopt));     // not status: WebSocket or MQTT carry it
   CHECK_FALSE(a.send(wire_message("status"), std::string("b")));  // no addressing by name over UDP
   CHECK(a.counters().sent == 2);
   a.stop();

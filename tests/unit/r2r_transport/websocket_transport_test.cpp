@@ -27,6 +27,7 @@
 
 using namespace rcand;
 using namespace rcand::kernel;
+using namespace rcand::services;
 using namespace std::chrono_literals;
 using nlohmann::json;
 namespace beast = boost::beast;
@@ -354,7 +355,7 @@ TEST_CASE("a client that does not read is dropped once its queue passes max_queu
   }
   const auto deadline = std::chrono::steady_clock::now() + 5s;
   while (!robot.transport->connections()["connections"].empty() && std::chrono::steady_clock::now() < deadline)
-    std::this_thread::sleep_for(5ms);  // the close completes on the server's loop: polled, bounded
+    std::this_thread::sleep_for(5ms);                            // the close completes on the server's loop: polled, bounded
   CHECK(robot.transport->connections()["connections"].empty());  // 24 MB offered: dropped, not queued
 }
 
