@@ -5,8 +5,6 @@
 
 namespace rcand::services::r2r {
 
-using namespace rcand::kernel;
-
 // Each budget is asked only while the previous ones allow, so a refusal held back by one costs no other.
 bool RefusalThrottle::Budget::admit(const std::string& sender, std::string_view address, std::int64_t now_us) {
   return !per_sender.admit(sender, now_us) && (address.empty() || !per_address.admit(address, now_us)) &&

@@ -18,6 +18,7 @@
 #include "libs/base/logging.hpp"
 #include "libs/base/rate_limiter.hpp"
 #include "libs/swarm/fan_out.hpp"
+#include "libs/swarm/live_registry.hpp"
 
 namespace rcand::services {
 

@@ -7,8 +7,6 @@
 #include "libs/r2r_wire/envelope.hpp"
 
 namespace rcand::services::r2r {
-
-using namespace rcand::kernel;
 namespace {
 
 // SAX handler: records top-level "type" and "header"."source_id" strings and whether the header carries the hop
