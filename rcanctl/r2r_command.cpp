@@ -167,7 +167,6 @@ class Link {
     run(std::chrono::seconds(5));
     if (result) throw std::runtime_error("send failed: " + result.message());
   }
-  // Calls `on_frame` for every frame until `until` (or the connection ends, or Ctrl-C). False when it ended early.
   // Calls on_frame with each message until `until`, Ctrl-C or on_frame returns false; false when the robot hung up.
   bool receive_until(std::chrono::steady_clock::time_point until, const std::function<bool(const std::string&)>& on_frame) {
     bool ended = false, enough = false;
