@@ -57,7 +57,7 @@ def compiles(argv, directory, header):
         probe = os.path.join(scratch, "probe.cpp")
         with open(probe, "w") as out:
             out.write(f'#include "{header}"\n')
-        args = [argv[0]] + [a for a in include_flags(argv)] + ["-std=c++20", "-fsyntax-only", probe]
+        args = [argv[0], *include_flags(argv), "-std=c++20", "-fsyntax-only", probe]
         return subprocess.run(args, cwd=directory, capture_output=True, text=True).returncode == 0
 
 
