@@ -7,8 +7,6 @@
 
 namespace rcand::services::r2r {
 
-using namespace rcand::kernel;
-
 constexpr r2r_wire::MessageType kAllTypes[] = {r2r_wire::MessageType::Status,       r2r_wire::MessageType::TaskRequest,
                                                r2r_wire::MessageType::TaskResponse, r2r_wire::MessageType::Command,
                                                r2r_wire::MessageType::Negotiation,  r2r_wire::MessageType::Error};

@@ -11,8 +11,6 @@
 
 namespace rcand::services::r2r {
 
-using namespace rcand::kernel;
-
 std::string replay_key(const nlohmann::json& message) {
   const std::string input = r2r_wire::signing_input(message);
   std::string digest(EVP_MAX_MD_SIZE, '\0');

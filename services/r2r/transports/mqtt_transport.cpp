@@ -15,8 +15,6 @@
 #include "services/r2r/transports/message_peek.hpp"
 
 namespace rcand::services::r2r {
-
-using namespace rcand::kernel;
 namespace {
 
 std::once_flag library_once;
