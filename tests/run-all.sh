@@ -80,7 +80,7 @@ else
   echo "no parent commit: skipped"
 fi
 # The sanitizer build: clang-14 with ASan + UBSan (and libFuzzer coverage), for the suite again and the fuzz targets.
-# Any report, in a test or in an rcand it started, fails the suite. Without integration_kernel and integration_r2r
+# Any report, in a test or in an rcand it started, fails the suite. Without integration_kernel, _flood and _r2r
 # (RCAND_LONG_INTEGRATION_TESTS, tests/integration/CMakeLists.txt): ~8 minutes of running and 2 of building there.
 cmake -S . -B build-sanitize -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo -DCMAKE_C_COMPILER=clang-14 \
       -DCMAKE_CXX_COMPILER=clang++-14 -DRCAND_FUZZ=ON -DRCAND_BUILD_TESTS=ON -DRCAND_BUILD_BENCH=OFF -DCMAKE_UNITY_BUILD=ON \
