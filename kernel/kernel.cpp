@@ -54,7 +54,7 @@ std::size_t connections_within_fd_limit(std::size_t configured, std::size_t busy
   return fitting;
 }
 
-AuthSettings auth_settings(const RobotConfig& config, const std::string& ruri, const std::string& address) {
+AuthSettings auth_settings(const config::RobotConfig& config, const std::string& ruri, const std::string& address) {
   AuthSettings settings;
   settings.robot_ruri = ruri;
   if (const auto parsed = parse_ruri(ruri).ruri) settings.device_id = parsed->device_id;
@@ -86,7 +86,7 @@ AuthSettings auth_settings(const RobotConfig& config, const std::string& ruri, c
 
 // docs/protocol.md §3.9: the robot's own pages and runtime.listen.allowed_origins; its names are the machine's and
 // metadata.robot_name.local.
-http::OriginPolicy origin_policy(const RobotConfig& config) {
+http::OriginPolicy origin_policy(const config::RobotConfig& config) {
   try {
     return http::OriginPolicy({config.runtime.allowed_origins, http::OriginPolicy::own_host_names(config.robot_name)});
   } catch (const std::invalid_argument& e) {  // the schema refuses such an origin first
@@ -95,7 +95,7 @@ http::OriginPolicy origin_policy(const RobotConfig& config) {
 }
 
 // runtime.listen.tls as the HTTP server takes it; its files are read (and every problem named) by make_server_tls_context.
-std::optional<http::TlsSettings> tls_settings(const RobotConfig& config) {
+std::optional<http::TlsSettings> tls_settings(const config::RobotConfig& config) {
   const auto& tls = config.runtime.listen_tls;
   if (!tls) return std::nullopt;
   return http::TlsSettings{tls->cert_file, tls->key_file, tls->client_ca_file};
@@ -136,8 +136,11 @@ ProviderLookup installed_providers(const PluginHost& host) {
 
 std::vector<std::filesystem::path> default_plugin_paths() { return {"/usr/local/lib/rcand/plugins", RCAND_DEFAULT_PLUGIN_DIR}; }
 
+// The kernel's parts. The values on top are built in declaration order, each from the ones above it; every part
+// below is made by Kernel() or claim_robot() and destroyed by ~State() in the order stated there, whatever the order
+// here. Stopping them is Kernel::shutdown()'s.
 struct Kernel::State {
-  RobotConfig config;
+  config::RobotConfig config;
   std::string address;
   std::uint16_t port = 0;
   std::atomic<std::uint16_t> bound_port{0};
@@ -150,12 +153,14 @@ struct Kernel::State {
   KernelServices services{clock, estop, gate, robot_config_view, &audit, {}, {}};  // audit: address only
   AuditLog audit;
   PluginHost host;
+
+  std::unique_ptr<StateDir> state_dir;             // runtime.state_dir, locked by claim_robot() (not when embedded)
+  std::atomic<StateDir*> state_dir_live{nullptr};  // the e-stop listeners' view: set once the latch is restored
   std::unique_ptr<Authenticator> auth;
   std::unique_ptr<CapabilityRegistry> registry;
   std::unique_ptr<Api> api;
   std::unique_ptr<KernelRequestDispatcher> dispatcher;  // offered to plugins: requests on a caller's behalf
   std::unique_ptr<ServiceHost> service_host;
-  // Optional services: declared before the plugin runtime, so what they lend plugins (R2R links) outlives them.
   std::vector<std::unique_ptr<Service>> optional_services;
   std::unique_ptr<PluginRuntime> runtime;
   std::unique_ptr<DeadlineCrew> halt_crew;  // one thread per actuator: the stop path's parallel halt() calls
@@ -169,17 +174,14 @@ struct Kernel::State {
   std::function<void()> on_capabilities_up;
   std::unique_ptr<KernelRouteDeps> kernel_routes;
   std::unique_ptr<CapabilityRouteDeps> capability_routes;
-  std::unique_ptr<SlotTable> stream_slots;                 // streamed answers held at once (runtime.max_streams_per_*)
-  std::unique_ptr<StatusBoard> status_board;               // GET /api/status, discovery, mDNS TXT and R2R status read it
-  std::unique_ptr<http::Server> server;                    // bound by claim_robot(), serving from start()
-  std::vector<http::UpgradeHandler> upgrades;              // the services' WebSocket upgrades: set by start() before it serves
-  std::unique_ptr<mdns::ServicePublisher> mdns_publisher;  // reads the status: destroyed before it
+  std::unique_ptr<SlotTable> stream_slots;     // streamed answers held at once (runtime.max_streams_per_*)
+  std::unique_ptr<StatusBoard> status_board;   // GET /api/status, discovery, mDNS TXT and R2R status read it
+  std::unique_ptr<http::Server> server;        // bound by claim_robot(), serving from start()
+  std::vector<http::UpgradeHandler> upgrades;  // the services' WebSocket upgrades: set by start() before it serves
+  std::unique_ptr<mdns::ServicePublisher> mdns_publisher;
   bool shut_down = false;
-  // runtime.state_dir, locked by claim_robot() (an embedded kernel, --check-config's, leaves it alone). Last:
-  // destroyed first, its writer reads the e-stop.
-  std::unique_ptr<StateDir> state_dir;
-  std::atomic<StateDir*> state_dir_live{nullptr};  // the e-stop listeners' view: set once the latch is restored
 
+  ~State();
   void claim_robot();
   http::ServerOptions server_options();
   void load_plugins(const KernelOptions& options);
@@ -189,9 +191,35 @@ struct Kernel::State {
   void tell_services();
   void add_routes();
   void restore_latch();
-  bool reload_tls(const RobotConfig& next);
+  bool reload_tls(const config::RobotConfig& next);
   void reload_plugin(const std::string& id, const std::string& principal, std::function<void(int, nlohmann::json)> done);
 };
+
+// Each part goes before what it uses: the state dir first (its writer reads the e-stop), the readers of the status
+// (mDNS, the server and its WebSocket upgrades) before it, and it before the plugins it polls; the threads that call
+// into plugins (reloads, timers, halts; shutdown() joined the starter) before the plugins; the plugins before the
+// services that lend them R2R links; the request path last. The values above the parts outlive them all.
+Kernel::State::~State() {
+  state_dir_live = nullptr;
+  state_dir.reset();
+  mdns_publisher.reset();
+  upgrades.clear();
+  server.reset();
+  status_board.reset();
+  stream_slots.reset();
+  capability_routes.reset();
+  kernel_routes.reset();
+  reloader.reset();
+  timers.reset();
+  halt_crew.reset();
+  runtime.reset();
+  optional_services.clear();
+  service_host.reset();
+  dispatcher.reset();
+  api.reset();
+  registry.reset();
+  auth.reset();
+}
 
 // Manifests only: nothing is opened until we know what the config needs. Then the registry, and the robot config as
 // plugins see it.
@@ -337,7 +365,7 @@ void Kernel::State::start_capabilities() {
   });
 }
 
-Kernel::Kernel(RobotConfig config, KernelOptions options) : state_(std::make_unique<State>()) {
+Kernel::Kernel(config::RobotConfig config, KernelOptions options) : state_(std::make_unique<State>()) {
   auto& s = *state_;
   s.config = std::move(config);
   s.on_capabilities_up = std::move(options.on_capabilities_up);
@@ -365,7 +393,7 @@ Kernel::Kernel(RobotConfig config, KernelOptions options) : state_(std::make_uni
                                      static_cast<const sdk::RequestDispatcher*>(s.dispatcher.get()), nullptr, "rcand", nullptr);
   s.create_services(options);  // before the plugins: R2R offers them links
   if (auto problems = s.runtime->plan_problems(cfg, s.registry->served()); !problems.empty())
-    throw ConfigError(std::move(problems));
+    throw yaml::ConfigError(std::move(problems));
   s.start_plugins();
   s.timers = std::make_unique<WorkerThread>("kernel.timers", nullptr);
   if (cfg.doc.is_object() && cfg.doc.value(nlohmann::json::json_pointer("/runtime/plugins/allow_reload"), false))
@@ -385,7 +413,7 @@ Kernel::Kernel(RobotConfig config, KernelOptions options) : state_(std::make_uni
 
 Kernel::~Kernel() { shutdown(); }
 
-Kernel::CheckReport Kernel::check(RobotConfig config, const KernelOptions& options) {
+Kernel::CheckReport Kernel::check(config::RobotConfig config, const KernelOptions& options) {
   State s;
   s.config = std::move(config);
   s.services.ruri = robot_ruri(s.config.ruri, s.config.manufacturer, s.config.model, s.config.robot_uuid);
@@ -400,7 +428,7 @@ Kernel::CheckReport Kernel::check(RobotConfig config, const KernelOptions& optio
   s.load_plugins(options);
   PluginRuntime runtime(s.host, s.services, s.actuators);
   auto problems = runtime.check(s.config, s.registry->served());
-  if (!problems.empty()) throw ConfigError(std::move(problems));
+  if (!problems.empty()) throw yaml::ConfigError(std::move(problems));
   CheckReport report{s.registry->names(), {}};
   for (const auto& driver : s.config.drivers)
     for (const auto* plugin : s.host.providers_of_driver(driver.protocol))
@@ -517,50 +545,66 @@ bool Kernel::stop_path_responsive(std::chrono::milliseconds within) const {
   return state_ && state_->server && state_->server->accept_loop_responsive(within);
 }
 
+// The stop order, stated once (~State destroys the parts later). Each step runs whatever the one before did: a part
+// that fails to stop never leaves the plugins running or the state dir without its clean-exit record.
 void Kernel::shutdown() noexcept {
   if (!state_ || state_->shut_down) return;
   auto& s = *state_;
   s.shut_down = true;
-  try {
-    const auto before = s.estop.snapshot();  // what the state dir keeps: the latch as it was, not this one
-    s.estop.latch("rcand shutting down", "kernel", {{}, "shutdown", {}, {}});  // motors stop first, whatever else happens
-    // Then the services, in reverse: no R2R message is handled or sent, no broadcast goes out.
-    for (auto it = s.optional_services.rbegin(); it != s.optional_services.rend(); ++it) (*it)->stop();
-    // A capability still starting is abandoned (its plugin thread left running, as at plugin_start_timeout_ms); the
-    // rest never start.
+  const auto before = s.estop.snapshot();  // what the state dir keeps: the latch as it was, not this one
+  const auto step = [](const char* part, const auto& run) noexcept {
+    try {
+      run();
+    } catch (const std::exception& e) {
+      logger("kernel")->error("shutdown, {}: {}", part, e.what());
+    }
+  };
+  step("e-stop", [&] { s.estop.latch("rcand shutting down", "kernel", {{}, "shutdown", {}, {}}); });  // motors first
+  // Then the services, in reverse: no R2R message is handled or sent, no broadcast goes out.
+  step("services", [&] { std::for_each(s.optional_services.rbegin(), s.optional_services.rend(), [](auto& x) { x->stop(); }); });
+  // A capability still starting is abandoned (its plugin thread left running, as at plugin_start_timeout_ms); the
+  // rest never start.
+  step("starter", [&] {
     s.stop_starting = true;
-    if (!s.capabilities_up.load() && s.runtime) s.runtime->give_up_starting();
+    if (!s.capabilities_up.load()) s.runtime->give_up_starting();
     if (s.starter.joinable()) s.starter.join();
     s.capabilities_up = true;
     s.capabilities_up.notify_all();
-    s.reloads_closed = true;
-    if (s.reloader) s.reloader->join();              // a reload under way ends first; queued ones answer 503
-    if (s.mdns_publisher) s.mdns_publisher->stop();  // withdrawn (goodbye sent) while HTTP still answers
+  });
+  s.reloads_closed = true;
+  step("reloads", [&] {
+    if (s.reloader) s.reloader->join();
+  });  // a reload under way ends first; queued ones answer 503
+  step("mDNS", [&] {
+    if (s.mdns_publisher) s.mdns_publisher->stop();
+  });  // withdrawn while HTTP still answers
+  step("HTTP", [&] {
     if (s.server) s.server->stop();
-    if (s.status_board) s.status_board->stop();  // before the plugins go: it polls them
-    // A halt() still running (slow or hung driver) must not have its driver destroyed under it: leak the plugin
-    // objects instead (the process is ending).
+  });
+  step("status", [&] { s.status_board->stop(); });  // before the plugins go: it polls them
+  // A halt() still running (slow or hung driver) must not have its driver destroyed under it: leak the plugin
+  // objects instead (the process is ending).
+  step("plugins", [&] {
     const bool halts_quiet = !s.halt_crew || s.halt_crew->quiesce(std::chrono::seconds(2));
-    if (s.runtime) s.runtime->shutdown();
+    s.runtime->shutdown();
     s.estop.use_halt_crew(nullptr);
-    if (!halts_quiet) {
-      logger("kernel")->error("a driver's halt() is still running at shutdown; its plugin objects are not destroyed");
-      keep_forever(s.runtime);
-    }
-    if (s.timers) s.timers->join();
-    // Last: a shutdown that does not get here (a crash, the grace timer) leaves the running marker.
-    // Only a run that marked the state dir running says how it ended (a start refused later leaves it as it was).
+    if (halts_quiet) return;
+    logger("kernel")->error("a driver's halt() is still running at shutdown; its plugin objects are not destroyed");
+    keep_forever(s.runtime);
+  });
+  step("timers", [&] { s.timers->join(); });
+  // Last: a shutdown that does not get here (a crash, the grace timer) leaves the running marker.
+  // Only a run that marked the state dir running says how it ended (a start refused later leaves it as it was).
+  step("state dir", [&] {
     if (auto* state_dir = s.state_dir_live.exchange(nullptr))
       state_dir->clean_exit({before.estopped, before.reason, before.source, before.since_ms});
-  } catch (const std::exception& e) {
-    logger("kernel")->error("during shutdown: {}", e.what());
-  }
+  });
 }
 
 // SIGHUP: runtime.listen.tls's files are read again even when the config names the same ones (renewed in place), for
 // the connections accepted from now on. Throws (nothing changed) when they cannot be used; false when TLS was not on
 // at start or is not now: turning it on or off needs a restart.
-bool Kernel::State::reload_tls(const RobotConfig& next) {
+bool Kernel::State::reload_tls(const config::RobotConfig& next) {
   const auto tls = tls_settings(next);
   if (!tls || !config.runtime.listen_tls || !server) return false;
   server->reload_tls(*tls);
@@ -575,8 +619,8 @@ Kernel::ReloadReport Kernel::reload(const std::filesystem::path& file) noexcept 
   std::optional<std::string> new_log_level;
   try {
     // Everything that can fail is read and checked before anything changes.
-    LoadedConfig loaded = load_robot_config(file);
-    const RobotConfig& next = loaded.config;
+    config::LoadedConfig loaded = config::load_robot_config(file);
+    const config::RobotConfig& next = loaded.config;
     AuthSettings auth = auth_settings(next, s.services.ruri, s.address);
     std::vector<ServiceReload> service_reloads;
     for (auto& service : s.optional_services) service_reloads.push_back(service->prepare_reload(next));
@@ -594,7 +638,7 @@ Kernel::ReloadReport Kernel::reload(const std::filesystem::path& file) noexcept 
       (live ? report.applied : report.needs_restart).push_back(std::move(key));
     }
     report.ok = true;
-  } catch (const ConfigError& e) {
+  } catch (const yaml::ConfigError& e) {
     for (const auto& diagnostic : e.diagnostics()) report.errors.push_back(diagnostic.format());
   } catch (const std::exception& e) {
     report.errors.emplace_back(file.string() + ": " + e.what());

@@ -34,7 +34,7 @@ struct KernelOptions {
   // The optional services to run (kernel/service.hpp), in start order; rcand's main passes linked_services().
   std::vector<std::function<std::unique_ptr<Service>(ServiceHost&)>> services;
   // What the services read besides config keys, checked by check() as at startup; rcand's main passes linked_service_checks().
-  std::vector<std::function<void(const RobotConfig&)>> service_checks;
+  std::vector<std::function<void(const config::RobotConfig&)>> service_checks;
   // A kernel that never serves (tests and fuzzers that embed it and call its Api directly): it claims neither the
   // state dir nor a port, and start() refuses.
   bool embedded = false;
@@ -60,7 +60,7 @@ class Kernel {
   // and writes nothing (not with KernelOptions::embedded). Then loads plugins, plans capabilities, starts every
   // driver and declares every capability (an embedded kernel starts them too; a serving one once start() serves).
   // Throws ConfigError (with file:line:column) or StartupError.
-  Kernel(RobotConfig config, KernelOptions options = {});
+  Kernel(config::RobotConfig config, KernelOptions options = {});
   ~Kernel();  // shutdown()
   Kernel(const Kernel&) = delete;
   Kernel& operator=(const Kernel&) = delete;
@@ -73,7 +73,7 @@ class Kernel {
     std::vector<std::string> capabilities;
     std::vector<std::string> fail_safes;  // "drive0 (sim_diff_drive): <fail-safe>"
   };
-  static CheckReport check(RobotConfig config, const KernelOptions& options);
+  static CheckReport check(config::RobotConfig config, const KernelOptions& options);
 
   // Restores the e-stop latch from the state dir, then serves on the port claimed and starts the capabilities on a
   // thread of their own (each answers 503 STARTING until it is up); returns the port. std::logic_error for an

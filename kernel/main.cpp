@@ -72,7 +72,7 @@ int usage_error(const std::string& message) {
   return 2;
 }
 
-void print_warnings(const LoadedConfig& loaded) {
+void print_warnings(const config::LoadedConfig& loaded) {
   for (const auto& warning : loaded.warnings) std::cerr << warning.format() << "\n";
 }
 
@@ -90,9 +90,9 @@ std::vector<std::filesystem::path> plugin_paths_of(const Options& options) {
   std::vector<std::filesystem::path> paths = options.plugin_paths;
   if (paths.empty()) {
     try {
-      paths = load_robot_config(options.config).config.runtime.plugin_paths;
+      paths = config::load_robot_config(options.config).config.runtime.plugin_paths;
       if (paths.empty()) paths = default_plugin_paths();
-    } catch (const ConfigError&) {
+    } catch (const yaml::ConfigError&) {
       paths = default_plugin_paths();
     }
   }
@@ -191,7 +191,7 @@ std::optional<int> parse_arguments(const std::vector<std::string>& args, Options
   return std::nullopt;
 }
 
-int serve(const Options& options, LoadedConfig loaded, sigset_t& signals) {
+int serve(const Options& options, config::LoadedConfig loaded, sigset_t& signals) {
   const std::string address = loaded.config.runtime.listen_address;
   Kernel kernel(std::move(loaded.config), kernel_options(options));
   const auto port = kernel.start();
@@ -231,7 +231,7 @@ int main(int argc, char** argv) {
   Options options;
   if (auto done = parse_arguments(std::vector<std::string>(argv + 1, argv + argc), options)) return *done;
   configure_logging("info");
-  set_default_load_options(LoadOptions{options.strict});
+  config::set_default_load_options(config::LoadOptions{options.strict});
   if (options.check_plugins) return check_plugins(options);
   if (options.describe) return describe(options);
 
@@ -251,9 +251,9 @@ int main(int argc, char** argv) {
     std::optional<UserIdentity> user;
     if (options.check_config && !options.as_user.empty() && !(user = lookup_user(options.as_user)))
       return usage_error("--as-user: no user named '" + options.as_user + "'");
-    LoadOptions load_options = default_load_options();
+    config::LoadOptions load_options = config::default_load_options();
     if (user) load_options.user = user->uid;
-    LoadedConfig loaded = load_robot_config(options.config, load_options);
+    config::LoadedConfig loaded = config::load_robot_config(options.config, load_options);
     for (const auto& driver : loaded.config.drivers) protocols.push_back(driver.protocol);
     print_warnings(loaded);
     configure_logging(loaded.config.runtime.log_level);
@@ -263,7 +263,7 @@ int main(int argc, char** argv) {
     if (user) {
       auto plugin_paths = options.plugin_paths.empty() ? loaded.config.runtime.plugin_paths : options.plugin_paths;
       if (plugin_paths.empty()) plugin_paths = default_plugin_paths();
-      const auto problems = config_access_problems(loaded.config, options.config, plugin_paths, *user);
+      const auto problems = config::config_access_problems(loaded.config, options.config, plugin_paths, *user);
       for (const auto& problem : problems) std::cerr << "rcand: --as-user " << options.as_user << ": " << problem << "\n";
       if (!problems.empty()) return 1;
     }
@@ -275,8 +275,9 @@ int main(int argc, char** argv) {
     for (const auto& fragment : fragments) std::cout << "  merged " << fragment.string() << "\n";
     for (const auto& line : report.fail_safes) std::cout << "  fail-safe of " << line << "\n";
     return 0;
-  } catch (const ConfigError& e) {
-    for (const auto& diagnostic : e.diagnostics()) std::cerr << with_protocol_advice(diagnostic, protocols).format() << "\n";
+  } catch (const yaml::ConfigError& e) {
+    for (const auto& diagnostic : e.diagnostics())
+      std::cerr << config::with_protocol_advice(diagnostic, protocols).format() << "\n";
     std::cerr << "rcand: configuration invalid; not started\n";
     return 1;
   } catch (const StartupError& e) {

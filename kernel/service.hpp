@@ -29,7 +29,7 @@ namespace rcand::kernel {
 
 // What the kernel lends a service. Everything outlives the service.
 struct ServiceHost {
-  const RobotConfig& config;
+  const config::RobotConfig& config;
   const Authenticator& auth;
   Estop& estop;
   AuditLog& audit;
@@ -67,7 +67,7 @@ class Service {
   virtual void capabilities_changed() noexcept {}
   // SIGHUP: reads and checks what this service takes from `next` (files it names) before anything changes. Throws
   // StartupError naming the key at fault: then nothing of the reload is applied.
-  virtual ServiceReload prepare_reload(const RobotConfig& /*next*/) { return {}; }
+  virtual ServiceReload prepare_reload(const config::RobotConfig& /*next*/) { return {}; }
   // Shutdown, after the e-stop latch: nothing of this service runs or sends afterwards. Idempotent.
   virtual void stop() noexcept {}
 };
@@ -78,6 +78,6 @@ using ServiceFactory = std::function<std::unique_ptr<Service>(ServiceHost&)>;
 // Defined by the binary that links the services (services/linked_services.cpp), not by the kernel. Checks: what
 // the services read besides config keys (files), each read as at startup; a problem throws StartupError (--check-config).
 std::vector<ServiceFactory> linked_services();
-std::vector<std::function<void(const RobotConfig&)>> linked_service_checks();
+std::vector<std::function<void(const config::RobotConfig&)>> linked_service_checks();
 
 }  // namespace rcand::kernel

@@ -177,9 +177,9 @@ std::optional<bool> config_enables_mdns(const std::string& config_file) {
   };
   yaml::YamlDocument config = read(config_file);
   if (!config.ok) return std::nullopt;
-  for (const auto& fragment_file : kernel::config_fragment_files(config_file))
+  for (const auto& fragment_file : config::config_fragment_files(config_file))
     if (const auto fragment = read(fragment_file); fragment.ok)
-      kernel::merge_config_fragment(config, fragment, fragment_file.string(), diagnostics);
+      config::merge_config_fragment(config, fragment, fragment_file.string(), diagnostics);
   const json enabled = config.doc.value("/rcan_protocol/enable_mdns"_json_pointer, json(false));
   return enabled == true;
 }

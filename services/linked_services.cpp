@@ -17,6 +17,6 @@ std::vector<ServiceFactory> linked_services() {
           services::make_telemetry};
 }
 
-std::vector<std::function<void(const RobotConfig&)>> linked_service_checks() { return {services::check_swarm_file}; }
+std::vector<std::function<void(const config::RobotConfig&)>> linked_service_checks() { return {services::check_swarm_file}; }
 
 }  // namespace rcand::kernel

@@ -8,7 +8,11 @@ Reads BUILD_DIR/compile_commands.json. For each compile of a target under libs/,
 -I roots it gets must not include the source tree itself, and the repository folders reachable through them must be
 exactly the layer's. Then, with a libs module's, a kernel module's and rcanctl's own flags, the compiler must accept a
 probe that includes its layer's header and refuse one that includes the next layer's: the rule holds in the compiler,
-not only in this script's reading of the flags."""
+not only in this script's reading of the flags.
+
+Namespaces match folders too: a file of libs/<m>/ opens `rcand` or `rcand::<m>`, of kernel/ `rcand::kernel`, of
+services/<m>/ `rcand::services` or `rcand::services::<m>`, of rcanctl/ `rcand::rcanctl`, of the SDK `rcand::sdk`
+(each with anything nested), and none opens a namespace named after another module."""
 import json
 import os
 import re
@@ -76,6 +80,50 @@ def include_flags(argv):
     return flags
 
 
+NAMESPACE_OPENING = re.compile(r"^\s*namespace\s+([A-Za-z_][\w:]*)\s*\{", re.MULTILINE)
+
+
+# The one file that defines a declaration of another layer: rcand's main sees the services only through
+# kernel/service.hpp's linked_services(), which the services define.
+NAMESPACE_EXCEPTIONS = {("services/linked_services.cpp", "rcand::kernel")}
+
+
+def namespace_rule(path):
+    """(allowed prefixes of a `rcand...` namespace, the module's own name) for a source file's repository path."""
+    parts = path.split("/")
+    if parts[0] == "libs":
+        return ("rcand", f"rcand::{parts[1]}"), parts[1]
+    if parts[0] == "services":
+        own = parts[1] if len(parts) > 2 else "services"
+        return ("rcand::services",) if own == "services" else ("rcand::services", f"rcand::services::{own}"), own
+    if parts[0] == "sdk":
+        return ("rcand::sdk",), "sdk"
+    return (f"rcand::{parts[0]}",), parts[0]
+
+
+def namespace_problems(source):
+    files = []
+    for top in ("libs", "kernel", "services", "rcanctl", "sdk/include/rcand/sdk"):
+        for directory, _, names in os.walk(os.path.join(source, top)):
+            files += [os.path.join(directory, n) for n in names if n.endswith((".hpp", ".cpp", ".h"))]
+    modules = {"kernel", "services", "rcanctl", "sdk"} | set(os.listdir(os.path.join(source, "libs")))
+    problems = []
+    for file in sorted(files):
+        path = os.path.relpath(file, source)
+        allowed, own = namespace_rule(path)
+        with open(file, encoding="utf-8", errors="replace") as f:
+            text = f.read()
+        for name in NAMESPACE_OPENING.findall(text):
+            if (path, name) in NAMESPACE_EXCEPTIONS:
+                continue
+            if name == "rcand" or name.startswith("rcand::"):
+                if not any(name == a or (a != "rcand" and name.startswith(a + "::")) for a in allowed):
+                    problems.append(f"{path}: opens namespace {name}, must be in {' or '.join(allowed)}")
+            elif name.split("::")[0] in modules - {own}:
+                problems.append(f"{path}: opens namespace {name}, another module's")
+    return problems, len(files)
+
+
 def main():
     if len(sys.argv) != 3:
         print(__doc__)
@@ -110,11 +158,13 @@ def main():
             problems.append(f"{layer}/: a probe including {PROBE_HEADERS[own]} does not compile with its flags")
         if compiles(argv, directory, PROBE_HEADERS[foreign]):
             problems.append(f"{layer}/: a probe including {PROBE_HEADERS[foreign]} compiles: the layering leaks")
+    namespace_issues, sources = namespace_problems(source)
+    problems += namespace_issues
     for problem in problems:
         print(problem)
     total = sum(checked.values())
     print(f"build layers: {total} compiles checked ({', '.join(f'{k} {v}' for k, v in sorted(checked.items()))}), "
-          f"{len(problems)} problem(s)")
+          f"namespaces of {sources} sources, {len(problems)} problem(s)")
     return 1 if problems else 0
 
 

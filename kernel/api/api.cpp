@@ -41,8 +41,8 @@ std::optional<std::string_view> request_credential(const http::Request& request)
   return std::nullopt;
 }
 
-Api::Api(const RuntimeConfig& config, const Authenticator& auth, AuditLog& audit, const Estop& estop, const sdk::Clock& clock,
-         http::OriginPolicy origins)
+Api::Api(const config::RuntimeConfig& config, const Authenticator& auth, AuditLog& audit, const Estop& estop,
+         const sdk::Clock& clock, http::OriginPolicy origins)
     : auth_(auth),
       audit_(audit),
       estop_(estop),

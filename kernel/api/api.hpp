@@ -30,8 +30,8 @@ std::optional<std::string_view> request_credential(const http::Request& request)
 
 class Api {
  public:
-  Api(const RuntimeConfig& config, const Authenticator& auth, AuditLog& audit, const Estop& estop, const sdk::Clock& clock,
-      http::OriginPolicy origins = http::OriginPolicy());
+  Api(const config::RuntimeConfig& config, const Authenticator& auth, AuditLog& audit, const Estop& estop,
+      const sdk::Clock& clock, http::OriginPolicy origins = http::OriginPolicy());
 
   // Startup only: routes are added before the server starts and never change afterwards.
   Router& router() noexcept { return router_; }

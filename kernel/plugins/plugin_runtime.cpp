@@ -18,7 +18,7 @@ namespace {
 
 // The instance's settings against its manifest's schema for that item (`kind` "driver" or "capability", `name` its
 // protocol or name); a fault is a config error at the key's file:line:column.
-nlohmann::json validated_settings(const RobotConfig& config, const PluginRecord& plugin, std::string_view kind,
+nlohmann::json validated_settings(const config::RobotConfig& config, const PluginRecord& plugin, std::string_view kind,
                                   const std::string& name, const nlohmann::json& settings, const std::string& path,
                                   std::vector<sdk::contract::Claim>* claims = nullptr) {
   const nlohmann::json schema = plugin.manifest ? settings_schema_of(*plugin.manifest, kind, name) : nlohmann::json::object();
@@ -165,7 +165,7 @@ PluginRuntime::~PluginRuntime() {
   if (abandon_drivers_) abandon(drivers_);
 }
 
-void PluginRuntime::start_drivers(const RobotConfig& config) {
+void PluginRuntime::start_drivers(const config::RobotConfig& config) {
   for (std::size_t i = 0; i < config.drivers.size(); ++i) {
     auto& instance = drivers_.emplace_back();
     instance.id = config.drivers[i].id;
@@ -175,7 +175,7 @@ void PluginRuntime::start_drivers(const RobotConfig& config) {
   drivers_started_ = true;
 }
 
-void PluginRuntime::start_driver(DriverInstance& instance, std::size_t index, const RobotConfig& config) {
+void PluginRuntime::start_driver(DriverInstance& instance, std::size_t index, const config::RobotConfig& config) {
   auto log = logger("kernel.plugins");
   const auto& entry = config.drivers[index];
 
@@ -229,7 +229,7 @@ void PluginRuntime::start_driver(DriverInstance& instance, std::size_t index, co
             instance.health.failed() ? "failed: " + instance.health.reason() : "started");
 }
 
-void PluginRuntime::declare_capabilities(const std::vector<std::string>& names, const RobotConfig& config) {
+void PluginRuntime::declare_capabilities(const std::vector<std::string>& names, const config::RobotConfig& config) {
   for (const auto& name : names) {
     if (name == kStatusCapability) continue;  // the kernel's own
     auto& instance = capabilities_.emplace_back();
@@ -240,7 +240,7 @@ void PluginRuntime::declare_capabilities(const std::vector<std::string>& names, 
   start_crews();  // the drivers' status readers, and an on_estop() crew from the start
 }
 
-void PluginRuntime::start_declared(const RobotConfig& config, const std::function<bool()>& go_on,
+void PluginRuntime::start_declared(const config::RobotConfig& config, const std::function<bool()>& go_on,
                                    const std::function<void(CapabilityInstance&)>& up) {
   for (auto& instance : capabilities_) {
     if (!instance.starting.load()) continue;
@@ -255,14 +255,14 @@ void PluginRuntime::start_declared(const RobotConfig& config, const std::functio
   }
 }
 
-void PluginRuntime::start_capability(CapabilityInstance& instance, const RobotConfig& config) {
+void PluginRuntime::start_capability(CapabilityInstance& instance, const config::RobotConfig& config) {
   if (const RegisteredCapability* registered = prepare_capability(instance, config))
     launch_capability(instance, *registered, config);
 }
 
 // Its plugin found, its requirements and settings checked (a ConfigError throws), its context and worker made: no
 // plugin code runs. Null when it failed (named in its health).
-const RegisteredCapability* PluginRuntime::prepare_capability(CapabilityInstance& instance, const RobotConfig& config) {
+const RegisteredCapability* PluginRuntime::prepare_capability(CapabilityInstance& instance, const config::RobotConfig& config) {
   auto log = logger("kernel.plugins");
   const std::string& name = instance.name;
   auto [registered, plugin] = find_loaded(host_, host_.providers_of_capability(name), &PluginRecord::capabilities, name);
@@ -293,7 +293,7 @@ const RegisteredCapability* PluginRuntime::prepare_capability(CapabilityInstance
 
 // Its factory, start() and routes(), bounded by runtime.plugin_start_timeout_ms.
 void PluginRuntime::launch_capability(CapabilityInstance& instance, const RegisteredCapability& registered,
-                                      const RobotConfig& config) {
+                                      const config::RobotConfig& config) {
   const PluginRecord* plugin = host_.find(instance.plugin_id);
   bool abandoned = false;
   // Shared with the plugin thread: one that was given up on may still write them after this returns.
@@ -368,16 +368,17 @@ std::string unserved(const PluginHost& host, std::string_view kind, const std::s
 
 }  // namespace
 
-std::vector<ConfigDiagnostic> PluginRuntime::check(const RobotConfig& config, const std::vector<std::string>& capabilities) {
-  std::vector<ConfigDiagnostic> problems;
+std::vector<yaml::ConfigDiagnostic> PluginRuntime::check(const config::RobotConfig& config,
+                                                         const std::vector<std::string>& capabilities) {
+  std::vector<yaml::ConfigDiagnostic> problems;
   const auto problem = [&](const std::string& path, std::string message) {
-    problems.push_back({ConfigDiagnostic::Severity::Error, config.mark_of(path), path, std::move(message)});
+    problems.push_back({yaml::ConfigDiagnostic::Severity::Error, config.mark_of(path), path, std::move(message)});
   };
   const auto settings = [&](const PluginRecord& plugin, const char* kind, const std::string& name, const nlohmann::json& value,
                             const std::string& path) {
     try {
       validated_settings(config, plugin, kind, name, value, path);
-    } catch (const ConfigError& e) {
+    } catch (const yaml::ConfigError& e) {
       problems.insert(problems.end(), e.diagnostics().begin(), e.diagnostics().end());
     }
   };
@@ -415,11 +416,11 @@ std::vector<ConfigDiagnostic> PluginRuntime::check(const RobotConfig& config, co
   return problems;
 }
 
-std::vector<ConfigDiagnostic> PluginRuntime::plan_problems(const RobotConfig& config,
-                                                           const std::vector<std::string>& capabilities) {
-  std::vector<ConfigDiagnostic> problems;
+std::vector<yaml::ConfigDiagnostic> PluginRuntime::plan_problems(const config::RobotConfig& config,
+                                                                 const std::vector<std::string>& capabilities) {
+  std::vector<yaml::ConfigDiagnostic> problems;
   const auto add = [&](const std::string& path, std::string message) {
-    problems.push_back({ConfigDiagnostic::Severity::Error, config.mark_of(path), path, std::move(message)});
+    problems.push_back({yaml::ConfigDiagnostic::Severity::Error, config.mark_of(path), path, std::move(message)});
   };
   std::vector<sdk::contract::InstanceClaims> claims;
   std::vector<sdk::contract::PlannedItem> planned, installed;
@@ -433,7 +434,7 @@ std::vector<ConfigDiagnostic> PluginRuntime::plan_problems(const RobotConfig& co
         claims.emplace_back(sdk::contract::InstanceClaims{"drivers[" + std::to_string(i) + "]", "driver " + entry.id, {}});
     try {
       validated_settings(config, *plugin, "driver", entry.protocol, entry.settings, instance.where, &instance.claims);
-    } catch (const ConfigError& e) {
+    } catch (const yaml::ConfigError& e) {
       problems.insert(problems.end(), e.diagnostics().begin(), e.diagnostics().end());
     }
   }
@@ -445,7 +446,7 @@ std::vector<ConfigDiagnostic> PluginRuntime::plan_problems(const RobotConfig& co
     for (const auto& [block, schema] : reads.items())
       if (config.doc.contains(block)) try {
           plugin_settings(config, plugin->id, schema, config.doc[block], false, block);
-        } catch (const ConfigError& e) {
+        } catch (const yaml::ConfigError& e) {
           problems.insert(problems.end(), e.diagnostics().begin(), e.diagnostics().end());
         }
   }
@@ -669,7 +670,7 @@ bool PluginRuntime::stop_drivers(const std::vector<DriverInstance*>& members) {
 
 void PluginRuntime::restart_after_reload(const std::vector<std::size_t>& driver_indices,
                                          const std::vector<CapabilityInstance*>& members, bool capabilities_stopped, bool stopped,
-                                         const RobotConfig& config) {
+                                         const config::RobotConfig& config) {
   // Each instance in service again on its new code, or failed with the reason when it could not be.
   const auto restart = [stopped](InstanceHealth& health, const auto& start) {
     health.reset();
@@ -686,7 +687,8 @@ void PluginRuntime::restart_after_reload(const std::vector<std::size_t>& driver_
   start_crews();
 }
 
-ReloadResult PluginRuntime::reload(const std::string& id, const RobotConfig& config, const std::function<void()>& halt_first) {
+ReloadResult PluginRuntime::reload(const std::string& id, const config::RobotConfig& config,
+                                   const std::function<void()>& halt_first) {
   ReloadResult result;
   const auto refuse = [&result](int status, std::string code, std::string error) {
     result.status = status;

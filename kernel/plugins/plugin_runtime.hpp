@@ -73,8 +73,8 @@ class PluginRuntime {
 
   // Main thread, at startup. Plugin settings that fail the manifest's config schema throw ConfigError (with the
   // config file's line and column); plugin code that throws marks only that instance failed.
-  void start_drivers(const RobotConfig& config);
-  void start_capabilities(const std::vector<std::string>& names, const RobotConfig& config) {
+  void start_drivers(const config::RobotConfig& config);
+  void start_capabilities(const std::vector<std::string>& names, const config::RobotConfig& config) {
     declare_capabilities(names, config);
     start_declared(config, [] { return true; }, {});
   }
@@ -82,8 +82,8 @@ class PluginRuntime {
   // declared (its plugin found, its settings checked, a ConfigError thrown) and `starting`, no plugin code run. Then,
   // on one other thread, not concurrently with reload() or shutdown(): each one's factory, start() and routes() in
   // order, `up` called as each is up or failed; once `go_on` answers false the rest fail without starting.
-  void declare_capabilities(const std::vector<std::string>& names, const RobotConfig& config);
-  void start_declared(const RobotConfig& config, const std::function<bool()>& go_on,
+  void declare_capabilities(const std::vector<std::string>& names, const config::RobotConfig& config);
+  void start_declared(const config::RobotConfig& config, const std::function<bool()>& go_on,
                       const std::function<void(CapabilityInstance&)>& up);
   // Any thread, at shutdown: a capability's start() still running is abandoned now (as at plugin_start_timeout_ms).
   void give_up_starting() { start_waiter_->give_up(); }
@@ -91,12 +91,13 @@ class PluginRuntime {
   // factory runs, no device is opened): a driver protocol or capability no loaded plugin serves (with a did-you-mean
   // over the installed ones), settings that fail the manifest's schema, an actuator interface a capability requires
   // and no configured driver provides, and plan_problems(). Every problem at its config position.
-  std::vector<ConfigDiagnostic> check(const RobotConfig& config, const std::vector<std::string>& capabilities);
+  std::vector<yaml::ConfigDiagnostic> check(const config::RobotConfig& config, const std::vector<std::string>& capabilities);
   // What the robot as a whole would refuse, from the manifests (rcand/sdk/contract/plan.hpp): every driver's settings
   // that fail its schema, a pin, channel, address or servo id two settings claim, a config block a capability reads
   // (camera) that fails its schema, a need under a config condition nothing started offers (camera.depth without
   // vision). --check-config reports these, and a start refuses with them before any instance exists.
-  std::vector<ConfigDiagnostic> plan_problems(const RobotConfig& config, const std::vector<std::string>& capabilities);
+  std::vector<yaml::ConfigDiagnostic> plan_problems(const config::RobotConfig& config,
+                                                    const std::vector<std::string>& capabilities);
 
   CapabilityInstance* capability(std::string_view name) noexcept;
   const std::deque<DriverInstance>& drivers() const noexcept { return drivers_; }
@@ -128,19 +129,19 @@ class PluginRuntime {
   // call into the old code does not return, nothing is destroyed and the instances stay failed (restart rcand). Not
   // concurrently with itself or shutdown() (the kernel serializes).
   // `halt_first` runs once the request is known to be valid, before anything of the plugin stops.
-  ReloadResult reload(const std::string& id, const RobotConfig& config, const std::function<void()>& halt_first);
+  ReloadResult reload(const std::string& id, const config::RobotConfig& config, const std::function<void()>& halt_first);
 
  private:
   std::optional<nlohmann::json> status_at(const std::size_t& status_index);
   // The on_estop() crew and the status reader over every instance with an object, except those of plugin `skip`;
   // returns the ones they replace (still running what they were asked).
   std::pair<std::shared_ptr<DeadlineCrew>, std::shared_ptr<StatusReader>> start_crews(std::string_view skip = {});
-  void start_capability(CapabilityInstance& instance, const RobotConfig& config);
-  const RegisteredCapability* prepare_capability(CapabilityInstance& instance, const RobotConfig& config);
-  void launch_capability(CapabilityInstance& instance, const RegisteredCapability& registered, const RobotConfig& config);
+  void start_capability(CapabilityInstance& instance, const config::RobotConfig& config);
+  const RegisteredCapability* prepare_capability(CapabilityInstance& instance, const config::RobotConfig& config);
+  void launch_capability(CapabilityInstance& instance, const RegisteredCapability& registered, const config::RobotConfig& config);
   // Creates and starts `instance` for config.drivers[index]; its actuator goes in the table at startup, or back in
   // its slot after a reload (one that became an actuator, or changed interface, fails: the table is fixed).
-  void start_driver(DriverInstance& instance, std::size_t index, const RobotConfig& config);
+  void start_driver(DriverInstance& instance, std::size_t index, const config::RobotConfig& config);
   // The indices in drivers_ of the driver instances plugin `id` serves, or would serve (it failed before it could).
   std::vector<std::size_t> drivers_of(const std::string& id);
   // `members` out of the actuator table, shut down and destroyed; false when a call into one of them did not return
@@ -149,7 +150,7 @@ class PluginRuntime {
   // The reload's instances started again from the reopened plugin, or marked failed when their old version could not
   // be stopped; then the crews rebuilt over every instance.
   void restart_after_reload(const std::vector<std::size_t>& driver_indices, const std::vector<CapabilityInstance*>& members,
-                            bool capabilities_stopped, bool stopped, const RobotConfig& config);
+                            bool capabilities_stopped, bool stopped, const config::RobotConfig& config);
   // The capability instances plugin `id` serves, or would serve (it failed before it could).
   std::vector<CapabilityInstance*> instances_of(const std::string& id);
   // `members` (of plugin `id`) held closed, drained, out of the crews, shut down and destroyed; false when one of

@@ -16,11 +16,6 @@ namespace rcand::kernel {
 // "watchdog_ms: expected integer >= 1, found -3"; key() and problem() apart.
 using ConfigSchemaError = sdk::contract::SettingsError;
 
-// A manifest's "config" schema, checked at load; `field_prefix` starts field names ("config.").
-inline void check_config_schema(const nlohmann::json& schema, const std::string& field_prefix = {}) {
-  sdk::contract::check_settings_schema(schema, field_prefix);
-}
-
 // The settings with defaults filled in, or ConfigSchemaError for the first problem. `driver_entry`: a drivers[] entry
 // (its id and protocol kept; port, address, baud_rate, channels too for a flat "config" map). Unknown keys that are no
 // near miss go to `ignored` (null: refused, as rcand --strict does, and as every driver entry is).
@@ -36,7 +31,7 @@ inline nlohmann::json apply_config_schema(const nlohmann::json& schema, const nl
 // not name is an error in a driver entry (a misspelt pin moves the wrong motor); elsewhere a near miss is an error and
 // any other a warning logged at its position, or an error with --strict. `claims`, if given, receives what the
 // settings name (claims.hpp).
-nlohmann::json plugin_settings(const RobotConfig& config, const std::string& plugin_id, const nlohmann::json& schema,
+nlohmann::json plugin_settings(const config::RobotConfig& config, const std::string& plugin_id, const nlohmann::json& schema,
                                const nlohmann::json& settings, bool driver_entry, const std::string& path,
                                std::vector<sdk::contract::Claim>* claims = nullptr);
 

@@ -18,15 +18,16 @@ std::vector<std::string> standard_names() {
   return names;
 }
 
-[[noreturn]] void fail(const RobotConfig& config, const std::string& path, std::string message) {
-  throw ConfigError({ConfigDiagnostic{ConfigDiagnostic::Severity::Error, config.mark_of(path), path, std::move(message)}});
+[[noreturn]] void fail(const config::RobotConfig& config, const std::string& path, std::string message) {
+  throw yaml::ConfigError(
+      {yaml::ConfigDiagnostic{yaml::ConfigDiagnostic::Severity::Error, config.mark_of(path), path, std::move(message)}});
 }
 
 // The capabilities the configured drivers imply, each driver as its manifest says ("implies": a Dynamixel bus is an
 // arm's servos with physics.kinematics, a drive without), plus: any driver implementing differential_drive implies
 // nav and teleop, any implementing joint_arm arm. An implication its "unless" key turns off that nothing else gives
 // is named in a note beside the one that applies instead.
-std::vector<std::string> implied_by_drivers(const RobotConfig& config, const ProviderLookup& lookup,
+std::vector<std::string> implied_by_drivers(const config::RobotConfig& config, const ProviderLookup& lookup,
                                             std::vector<std::string>& notes) {
   std::vector<std::string> implied, off;
   std::vector<std::pair<std::string, DriverImplication>> read_as;  // protocol, an implication with a note
@@ -54,7 +55,8 @@ std::vector<std::string> implied_by_drivers(const RobotConfig& config, const Pro
 
 // §9.3: status always; what the drivers imply (nav only with the §10.2 physics); vision with a camera, chat with an
 // agent. Standard capabilities in the table's order, then custom ones as implied.
-std::vector<std::string> auto_detect(const RobotConfig& config, const ProviderLookup& lookup, std::vector<std::string>& notes) {
+std::vector<std::string> auto_detect(const config::RobotConfig& config, const ProviderLookup& lookup,
+                                     std::vector<std::string>& notes) {
   auto implied = implied_by_drivers(config, lookup, notes);
   if (config.has_camera) implied.emplace_back(kVisionCapability);
   if (config.has_agent) implied.emplace_back(kChatCapability);
@@ -74,7 +76,7 @@ std::vector<std::string> auto_detect(const RobotConfig& config, const ProviderLo
 // Plugins that declare a capability by themselves (a manifest's "declared_when": the fleet plugin on robots with
 // runtime.r2r.enabled) join an auto-detected list. Beside a written list that does not name them they run without
 // being advertised: what a robot advertises is what its file declares (§9.5), and one that wants to offer it lists it.
-void add_declared_when(const RobotConfig& config, const ProviderLookup& lookup, CapabilityPlan& plan) {
+void add_declared_when(const config::RobotConfig& config, const ProviderLookup& lookup, CapabilityPlan& plan) {
   if (!lookup.declared_when) return;
   for (const auto& [name, key] : lookup.declared_when()) {
     if (!config.is_true(key) || std::find(plan.names.begin(), plan.names.end(), name) != plan.names.end() ||
@@ -88,10 +90,10 @@ void add_declared_when(const RobotConfig& config, const ProviderLookup& lookup, 
 
 // A listed name that is neither §9's nor reverse-domain: a typo (refused), or, in a file of another RCAN major version
 // and no near miss of a §9 name, that version's capability (true: not served, with a note).
-bool other_version_capability(const RobotConfig& config, const std::string& name, const std::string& path,
+bool other_version_capability(const config::RobotConfig& config, const std::string& name, const std::string& path,
                               std::vector<std::string>& notes) {
   const auto close = closest_match(name, standard_names());
-  const auto major = config_detail::rcan_major_version(config.rcan_version);
+  const auto major = config::detail::rcan_major_version(config.rcan_version);
   if (!close && major && *major != 1) {
     notes.push_back(path + ": '" + name + "' is no RCAN 1.3 capability (the file is written for RCAN " + config.rcan_version +
                     "): not served, not advertised");
@@ -121,11 +123,11 @@ bool is_reverse_domain_name(std::string_view name) noexcept {
   return labels >= 3;
 }
 
-bool has_nav_physics(const RobotConfig& config) noexcept {
+bool has_nav_physics(const config::RobotConfig& config) noexcept {
   return config.wheel_circumference_m.has_value() && config.turn_time_per_deg_s.has_value();
 }
 
-CapabilityPlan plan_capabilities(const RobotConfig& config, const ProviderLookup& lookup) {
+CapabilityPlan plan_capabilities(const config::RobotConfig& config, const ProviderLookup& lookup) {
   CapabilityPlan plan;
   auto providers = [&](std::string_view name) { return lookup.providers ? lookup.providers(name) : std::vector<std::string>{}; };
 

@@ -26,7 +26,7 @@ inline constexpr std::string_view kServiceType = "_rcan._tcp";
 // §9.4: lowercase labels of [a-z0-9_-], at least three of them, each starting with a letter ("com.acme.gripper").
 bool is_reverse_domain_name(std::string_view name) noexcept;
 // §10.2: wheel_circumference_m and turn_time_per_deg_s are both present.
-bool has_nav_physics(const RobotConfig& config) noexcept;
+bool has_nav_physics(const config::RobotConfig& config) noexcept;
 
 // What the registry needs to know about installed plugins while planning.
 struct ProviderLookup {
@@ -58,7 +58,7 @@ struct CapabilityPlan {
 // capabilities without an installed provider are dropped with a note.
 // A capability an installed plugin declares by itself when its config key is true joins an auto-detected list, and
 // runs unadvertised beside a written one that does not name it.
-CapabilityPlan plan_capabilities(const RobotConfig& config, const ProviderLookup& lookup);
+CapabilityPlan plan_capabilities(const config::RobotConfig& config, const ProviderLookup& lookup);
 
 struct RobotIdentity {
   std::string ruri, name, model;

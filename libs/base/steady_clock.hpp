@@ -19,8 +19,4 @@ class SteadyClock final : public sdk::Clock {
   }
 };
 
-namespace kernel {
-using rcand::SteadyClock;  // the kernel's clock
-}  // namespace kernel
-
 }  // namespace rcand

@@ -2,7 +2,7 @@
 
 #include <utility>
 
-namespace rcand::kernel {
+namespace rcand::config {
 
 std::vector<std::string> config_access_problems(const RobotConfig& config, const std::filesystem::path& config_file,
                                                 const std::vector<std::filesystem::path>& plugin_paths,
@@ -34,4 +34,4 @@ std::vector<std::string> config_access_problems(const RobotConfig& config, const
   return problems;
 }
 
-}  // namespace rcand::kernel
+}  // namespace rcand::config

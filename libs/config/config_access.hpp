@@ -9,7 +9,7 @@
 #include "libs/base/user_access.hpp"
 #include "libs/config/robot_config.hpp"
 
-namespace rcand::kernel {
+namespace rcand::config {
 
 // One line per path `user` lacks the access it needs to: the config file, its conf.d fragments, the state dir, the
 // secrets, TLS files, swarm file and audit log it names, the plugin directories, and every /dev/ path a driver
@@ -17,4 +17,4 @@ namespace rcand::kernel {
 std::vector<std::string> config_access_problems(const RobotConfig& config, const std::filesystem::path& config_file,
                                                 const std::vector<std::filesystem::path>& plugin_paths, const UserIdentity& user);
 
-}  // namespace rcand::kernel
+}  // namespace rcand::config

@@ -7,7 +7,7 @@
 #include <map>
 #include <set>
 
-namespace rcand::kernel {
+namespace rcand::config {
 namespace {
 
 void add_warning(const RobotConfig& config, std::vector<ConfigDiagnostic>& warnings, const std::string& key_path,
@@ -36,7 +36,7 @@ void default_identity(RobotConfig& c, std::vector<ConfigDiagnostic>& warnings) {
 }
 
 void read_rcan_version(const RobotConfig& c, std::vector<ConfigDiagnostic>& warnings) {
-  const auto major = config_detail::rcan_major_version(c.rcan_version);
+  const auto major = detail::rcan_major_version(c.rcan_version);
   if (!major || *major == 1) return;
   add_warning(c, warnings, "rcan_version",
               "the file is written for RCAN " + c.rcan_version +
@@ -115,4 +115,4 @@ void apply_config_defaults(RobotConfig& config, std::vector<ConfigDiagnostic>& w
   drop_nav_without_physics(config, warnings);
 }
 
-}  // namespace rcand::kernel
+}  // namespace rcand::config

@@ -9,7 +9,7 @@
 
 #include "libs/config/robot_config.hpp"
 
-namespace rcand::kernel {
+namespace rcand::config {
 
 // "Castor_RC_Car" -> "castor-rc-car": lower case, every run of other characters one '-', none at either end
 // ("robot" when nothing is left).
@@ -22,4 +22,4 @@ inline constexpr std::string_view kUnknownManufacturer = "unknown";
 // to `warnings` for each.
 void apply_config_defaults(RobotConfig& config, std::vector<ConfigDiagnostic>& warnings);
 
-}  // namespace rcand::kernel
+}  // namespace rcand::config

@@ -2,7 +2,7 @@
 
 #include <algorithm>
 
-namespace rcand::kernel {
+namespace rcand::config {
 namespace {
 
 namespace fs = std::filesystem;
@@ -73,4 +73,4 @@ void merge_config_fragment(yaml::YamlDocument& base, const yaml::YamlDocument& f
   merge_mapping(base.doc, fragment.doc, "", base.marks, fragment.marks);
 }
 
-}  // namespace rcand::kernel
+}  // namespace rcand::config

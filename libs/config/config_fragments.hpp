@@ -12,7 +12,7 @@
 
 #include "libs/yaml/yaml_document.hpp"
 
-namespace rcand::kernel {
+namespace rcand::config {
 
 using yaml::ConfigDiagnostic;
 using yaml::SourceMark;
@@ -27,4 +27,4 @@ std::vector<std::filesystem::path> config_fragment_files(const std::filesystem::
 void merge_config_fragment(yaml::YamlDocument& base, const yaml::YamlDocument& fragment, const std::string& fragment_name,
                            std::vector<ConfigDiagnostic>& diagnostics);
 
-}  // namespace rcand::kernel
+}  // namespace rcand::config

@@ -3,10 +3,10 @@
 
 #include <string>
 
-namespace rcand::kernel {
+namespace rcand::config {
 
 // One line per known key: "path  type  required|default <v>|optional  description". "drivers[]" is any item of the
 // drivers list; "runtime.capabilities.*" any capability name.
 std::string config_reference();
 
-}  // namespace rcand::kernel
+}  // namespace rcand::config

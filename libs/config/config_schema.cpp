@@ -17,7 +17,7 @@
 #include <stdexcept>
 #include <unordered_map>
 
-namespace rcand::kernel::config_detail {
+namespace rcand::config::detail {
 
 using nlohmann::json;
 using enum ValueType;
@@ -671,28 +671,28 @@ void validate_config(const json& doc, const std::map<std::string, SourceMark>& m
   check_cross_field_rules(doc, validator);
 }
 
-}  // namespace rcand::kernel::config_detail
+}  // namespace rcand::config::detail
 
-namespace rcand::kernel {
+namespace rcand::config {
 
 ConfigFragment::ConfigFragment(std::vector<KeySpec> rows) : rows_(std::move(rows)) {
-  auto& registry = config_detail::registry();
+  auto& registry = detail::registry();
   if (registry.indexed) throw std::logic_error("a config fragment was registered after the first validation");
   registry.fragments.push_back(&rows_);
 }
 
 ConfigFragment::ConfigFragment(std::vector<KeySpec> rows, std::string_view block_path, FragmentFileCheck files)
     : ConfigFragment(std::move(rows)) {
-  config_detail::registry().file_checks.emplace_back(block_path, files);
+  detail::registry().file_checks.emplace_back(block_path, files);
 }
 
 void ConfigFragment::check(const nlohmann::json& block, std::string_view schema_path) const {
-  const KeySpec* spec = config_detail::find_spec(schema_path);
+  const KeySpec* spec = detail::find_spec(schema_path);
   if (spec == nullptr) throw std::logic_error("no config key " + std::string(schema_path));
   const std::map<std::string, SourceMark> no_marks;
   const std::string no_file;
   std::vector<ConfigDiagnostic> found;
-  config_detail::Validator validator(no_marks, no_file, found);
+  detail::Validator validator(no_marks, no_file, found);
   validator.check(*spec, block, std::string(schema_path));
   for (const auto& diagnostic : found)
     if (diagnostic.severity == ConfigDiagnostic::Severity::Error)
@@ -700,7 +700,7 @@ void ConfigFragment::check(const nlohmann::json& block, std::string_view schema_
 }
 
 std::string config_reference() {
-  using config_detail::config_schema;
+  using detail::config_schema;
   std::size_t width = 0;
   for (const KeySpec* row : config_schema()) width = std::max(width, row->path.size());
   std::string out;
@@ -708,23 +708,23 @@ std::string config_reference() {
     const KeySpec& spec = *row;
     std::string line(spec.path);
     line.resize(width + 2, ' ');
-    std::string type = config_detail::type_phrase(spec.type);
+    std::string type = detail::type_phrase(spec.type);
     type = type.substr(type.find(' ') + 1);  // "a number" -> "number"
     type = type.substr(0, type.find(' '));   // "boolean (true or false)" -> "boolean"
     type.resize(std::max<std::size_t>(type.size(), 8) + 2, ' ');
     line += type;
     std::string status = spec.required                   ? "required"
-                         : !spec.default_value.is_null() ? "default " + config_detail::dump(spec.default_value)
+                         : !spec.default_value.is_null() ? "default " + detail::dump(spec.default_value)
                                                          : "optional";
     status.resize(std::max<std::size_t>(status.size(), 32) + 2, ' ');
     line += status;
     line += spec.description;
     if (spec.min || spec.max) {
       line += " [";
-      if (spec.min && spec.max && !spec.min_exclusive) line += config_detail::number_text(*spec.min) + "..";
-      else if (spec.min) line += (spec.min_exclusive ? "> " : ">= ") + config_detail::number_text(*spec.min);
+      if (spec.min && spec.max && !spec.min_exclusive) line += detail::number_text(*spec.min) + "..";
+      else if (spec.min) line += (spec.min_exclusive ? "> " : ">= ") + detail::number_text(*spec.min);
       if (spec.min && spec.max && spec.min_exclusive) line += ", ";
-      if (spec.max) line += (spec.min && !spec.min_exclusive ? "" : "<= ") + config_detail::number_text(*spec.max);
+      if (spec.max) line += (spec.min && !spec.min_exclusive ? "" : "<= ") + detail::number_text(*spec.max);
       line += "]";
     }
     if (!spec.choices.empty()) {
@@ -737,4 +737,4 @@ std::string config_reference() {
   return out;
 }
 
-}  // namespace rcand::kernel
+}  // namespace rcand::config

@@ -14,7 +14,7 @@
 #include <string_view>
 #include <vector>
 
-namespace rcand::kernel::config_detail {
+namespace rcand::config::detail {
 
 enum class ValueType { Any, String, Integer, Number, Boolean, Mapping, Sequence };
 
@@ -62,12 +62,12 @@ std::optional<int> rcan_major_version(std::string_view text) noexcept;
 // A role name as auth reads it (GUEST ... CREATOR, any case); for rows of any fragment that name a role.
 std::string check_role(const nlohmann::json& value);
 
-}  // namespace rcand::kernel::config_detail
+}  // namespace rcand::config::detail
 
-namespace rcand::kernel {
+namespace rcand::config {
 
-using config_detail::KeySpec;
-using config_detail::ValueType;
+using detail::KeySpec;
+using detail::ValueType;
 
 // A service's own keys, under a block the kernel's table declares as an open mapping (runtime.r2r). A fragment is a
 // static object in the service's library: it registers itself before main, so the loader, --check-config and a
@@ -96,4 +96,4 @@ class ConfigFragment {
   std::vector<KeySpec> rows_;
 };
 
-}  // namespace rcand::kernel
+}  // namespace rcand::config

@@ -4,7 +4,7 @@
 #include <array>
 #include <cctype>
 
-namespace rcand::kernel {
+namespace rcand::config {
 namespace {
 
 bool same_name(std::string_view a, std::string_view b) noexcept {
@@ -114,4 +114,4 @@ yaml::ConfigDiagnostic with_protocol_advice(yaml::ConfigDiagnostic diagnostic, c
   return diagnostic;
 }
 
-}  // namespace rcand::kernel
+}  // namespace rcand::config

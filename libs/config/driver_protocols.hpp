@@ -11,7 +11,7 @@
 
 #include "libs/yaml/diagnostic.hpp"
 
-namespace rcand::kernel {
+namespace rcand::config {
 
 struct ProtocolAlias {
   std::string_view written;   // as other runtimes write it (compared without regard to case)
@@ -29,4 +29,4 @@ std::string unserved_protocol_advice(std::string_view protocol);
 // `protocols` are the file's drivers' protocols, in order.
 yaml::ConfigDiagnostic with_protocol_advice(yaml::ConfigDiagnostic diagnostic, const std::vector<std::string>& protocols);
 
-}  // namespace rcand::kernel
+}  // namespace rcand::config

@@ -2,7 +2,7 @@
 
 #include <array>
 
-namespace rcand::kernel::config_detail {
+namespace rcand::config::detail {
 namespace {
 
 using enum ForeignKey::Origin;
@@ -154,12 +154,12 @@ const ForeignKey* find_foreign_key(std::string_view key_path) noexcept {
   return nullptr;
 }
 
-}  // namespace rcand::kernel::config_detail
+}  // namespace rcand::config::detail
 
-namespace rcand::kernel {
+namespace rcand::config {
 
 bool is_foreign_driver_key(std::string_view key) noexcept {
-  for (const auto& foreign : config_detail::kForeignKeys)
+  for (const auto& foreign : detail::kForeignKeys)
     if (foreign.path.starts_with("drivers[].") && foreign.path.substr(10) == key) return true;
   return false;
 }
@@ -171,7 +171,7 @@ std::vector<std::string> take_foreign_settings(nlohmann::json& settings, const n
   for (auto it = settings.begin(); it != settings.end();) {
     const bool named = properties.is_object() && properties.contains(it.key());
     const bool others =
-        driver_entry ? is_foreign_driver_key(it.key()) : config_detail::find_foreign_key(path + "." + it.key()) != nullptr;
+        driver_entry ? is_foreign_driver_key(it.key()) : detail::find_foreign_key(path + "." + it.key()) != nullptr;
     if (named || !others) {
       ++it;
       continue;
@@ -182,4 +182,4 @@ std::vector<std::string> take_foreign_settings(nlohmann::json& settings, const n
   return taken;
 }
 
-}  // namespace rcand::kernel
+}  // namespace rcand::config

@@ -10,7 +10,7 @@
 #include <string_view>
 #include <vector>
 
-namespace rcand::kernel::config_detail {
+namespace rcand::config::detail {
 
 struct ForeignKey {
   enum class Origin { NewerRcan, OtherRuntime };
@@ -22,9 +22,9 @@ struct ForeignKey {
 // The catalogue entry for `key_path` (a plain dotted path, no list indices), or nullptr.
 const ForeignKey* find_foreign_key(std::string_view key_path) noexcept;
 
-}  // namespace rcand::kernel::config_detail
+}  // namespace rcand::config::detail
 
-namespace rcand::kernel {
+namespace rcand::config {
 
 // A key of a drivers[] entry that other runtimes write and no plugin of rcand's reads unless its settings schema
 // names it ("link_id", "frequency"): the plugin settings check ignores it with a warning instead of refusing it.
@@ -35,4 +35,4 @@ bool is_foreign_driver_key(std::string_view key) noexcept;
 std::vector<std::string> take_foreign_settings(nlohmann::json& settings, const nlohmann::json& properties, bool driver_entry,
                                                const std::string& path);
 
-}  // namespace rcand::kernel
+}  // namespace rcand::config

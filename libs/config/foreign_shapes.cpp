@@ -9,7 +9,7 @@
 #include <string_view>
 #include <utility>
 
-namespace rcand::kernel {
+namespace rcand::config {
 namespace foreign_shapes_detail {
 
 using nlohmann::json;
@@ -776,4 +776,4 @@ void read_foreign_shapes(yaml::YamlDocument& document, const std::string& file, 
   foreign_shapes_detail::ShapeReader(document, file, notes).run();
 }
 
-}  // namespace rcand::kernel
+}  // namespace rcand::config

@@ -21,8 +21,8 @@
 #include "libs/yaml/diagnostic.hpp"
 #include "libs/yaml/yaml_document.hpp"
 
-namespace rcand::kernel {
+namespace rcand::config {
 
 void read_foreign_shapes(yaml::YamlDocument& document, const std::string& file, std::vector<yaml::ConfigDiagnostic>& notes);
 
-}  // namespace rcand::kernel
+}  // namespace rcand::config

@@ -22,12 +22,12 @@
 #include <cstring>
 #include <tuple>
 
-namespace rcand::kernel {
+namespace rcand::config {
 namespace {
 
 using nlohmann::json;
 namespace fs = std::filesystem;
-using config_detail::schema_default;
+using detail::schema_default;
 
 // Far larger than any hand-written config; keeps a wrong path (a disk image, /dev/zero) from exhausting memory.
 constexpr std::size_t kMaxFileBytes = 4 * 1024 * 1024;
@@ -273,14 +273,14 @@ LoadedConfig parse_robot_config(std::string_view yaml, const std::string& displa
     if (document.ok && patch.ok) merge_config_fragment(document, patch, fragment.display_name, diagnostics);
   }
   if (document.ok) read_foreign_shapes(document, display_name, diagnostics);
-  if (document.ok) config_detail::validate_config(document.doc, document.marks, display_name, diagnostics);
+  if (document.ok) detail::validate_config(document.doc, document.marks, display_name, diagnostics);
   const auto error_found = [&diagnostics] {
     return std::any_of(diagnostics.begin(), diagnostics.end(),
                        [](const ConfigDiagnostic& d) { return d.severity == ConfigDiagnostic::Severity::Error; });
   };
   // The files the keys name are read only once the keys themselves are right.
   if (document.ok && !error_found())
-    config_detail::check_fragment_files(document.doc, document.marks, display_name, base_dir, diagnostics);
+    detail::check_fragment_files(document.doc, document.marks, display_name, base_dir, diagnostics);
   sort_by_position(diagnostics);
   const bool has_error = std::any_of(diagnostics.begin(), diagnostics.end(),
                                      [](const ConfigDiagnostic& d) { return d.severity == ConfigDiagnostic::Severity::Error; });
@@ -328,4 +328,4 @@ LoadedConfig load_robot_config(const fs::path& file, LoadOptions options) {
   return loaded;
 }
 
-}  // namespace rcand::kernel
+}  // namespace rcand::config

@@ -17,7 +17,7 @@
 #include "libs/base/closest_match.hpp"
 #include "libs/yaml/diagnostic.hpp"
 
-namespace rcand::kernel {
+namespace rcand::config {
 
 using yaml::ConfigDiagnostic;
 using yaml::ConfigError;
@@ -146,4 +146,4 @@ LoadedConfig parse_robot_config(std::string_view yaml, const std::string& displa
                                 LoadOptions options = default_load_options(),
                                 const std::vector<ConfigFragmentText>& fragments = {});
 
-}  // namespace rcand::kernel
+}  // namespace rcand::config

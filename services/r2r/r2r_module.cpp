@@ -61,7 +61,7 @@ class R2rModule final : public Service {
     service_->start(http_port);  // throws StartupError naming the runtime.r2r setting at fault
   }
   // The peers file is read again; its key (a different file) needs a restart.
-  ServiceReload prepare_reload(const RobotConfig&) override {
+  ServiceReload prepare_reload(const config::RobotConfig&) override {
     if (!service_) return {};
     return {[service = service_.get()] { service->reload_peers(); }, {}};
   }

@@ -133,7 +133,7 @@ struct R2rService::Impl {
 };
 
 std::unique_ptr<R2rService> R2rService::from_config(R2rServiceDeps deps) {
-  const RobotConfig& cfg = deps.config;
+  const config::RobotConfig& cfg = deps.config;
   const json& r2r_block = cfg.runtime.r2r;
   if (!r2r_block.is_object() || !r2r_block.contains("enabled") || r2r_block["enabled"] != true) return nullptr;
   auto impl = std::make_unique<Impl>(std::move(deps));

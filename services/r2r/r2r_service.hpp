@@ -26,7 +26,7 @@
 namespace rcand::services::r2r {
 
 struct R2rServiceDeps {
-  const kernel::RobotConfig& config;
+  const config::RobotConfig& config;
   const kernel::Authenticator& authenticator;
   // POST /api/action as `principal`, through the kernel's middleware (Api::execute_action).
   std::function<void(const kernel::Principal&, nlohmann::json, std::function<void(int, nlohmann::json)>)> execute_action;

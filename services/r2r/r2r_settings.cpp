@@ -10,12 +10,11 @@
 
 namespace rcand::services::r2r {
 
-using namespace rcand::kernel;
 namespace {
 
 using nlohmann::json;
-using enum ValueType;
-using config_detail::check_role;
+using enum config::ValueType;
+using config::detail::check_role;
 
 std::string check_one_key(const json& peer) {
   if (peer.contains("public_key_file") == peer.contains("public_key"))
@@ -29,7 +28,7 @@ std::vector<std::pair<std::string, std::string>> check_r2r_files(const json& blo
 // is checked with file:line:column before anything here runs; load_r2r_settings() runs the same check on a block it
 // is handed directly. A table, one key per row, kept in its hand layout.
 // clang-format off
-const ConfigFragment kR2rKeys({
+const config::ConfigFragment kR2rKeys({
     // The protocol core (docs/protocol.md §11, README "R2R").
     {.path = "runtime.r2r.origin", .type = Mapping, .description = "where this robot's dead-reckoning frame starts in the fleet frame"},
     {.path = "runtime.r2r.origin.x", .type = Number, .default_value = 0, .description = "metres"},
@@ -137,7 +136,7 @@ json read(const json& block, const std::string& key) {
     at = dot + 1;
   }
   if (node != nullptr && !node->is_null()) return *node;
-  return config_detail::schema_default(std::string(kBlock) + "." + key);
+  return config::detail::schema_default(std::string(kBlock) + "." + key);
 }
 
 std::filesystem::path resolve(const std::filesystem::path& base, const std::string& file) {
@@ -165,7 +164,7 @@ std::vector<r2r_wire::PeerKey> read_peers(const json& peers, const std::filesyst
     peer.name = entry["name"].get<std::string>();
     const json role = entry.contains("role") && !entry["role"].is_null()
                           ? entry["role"]
-                          : config_detail::schema_default("runtime.r2r.peers[].role");
+                          : config::detail::schema_default("runtime.r2r.peers[].role");
     peer.role = sdk::parse_role(role.get<std::string>()).value();  // checked by the table
     const bool has_file = entry.contains("public_key_file");
     const std::string key = has_file ? "public_key_file" : "public_key";

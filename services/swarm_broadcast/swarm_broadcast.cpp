@@ -99,7 +99,7 @@ class SwarmBroadcast final : public kernel::Service {
   }
 
   // runtime.swarm_file is live: the file (this one or another) is read and checked, then swapped in whole.
-  kernel::ServiceReload prepare_reload(const kernel::RobotConfig& next) override {
+  kernel::ServiceReload prepare_reload(const config::RobotConfig& next) override {
     auto peers = std::make_shared<swarm::SwarmRegistry>(read_swarm_file(next.runtime.swarm_file, nullptr));
     return {[swarm = swarm_, peers] { swarm->replace(std::move(*peers)); }, {"runtime.swarm_file"}};
   }
@@ -315,7 +315,7 @@ swarm::SwarmRegistry read_swarm_file(const std::filesystem::path& file, const st
   return registry;
 }
 
-void check_swarm_file(const kernel::RobotConfig& config) { read_swarm_file(config.runtime.swarm_file, nullptr); }
+void check_swarm_file(const config::RobotConfig& config) { read_swarm_file(config.runtime.swarm_file, nullptr); }
 
 std::unique_ptr<kernel::Service> make_swarm_broadcast(kernel::ServiceHost& host, std::shared_ptr<swarm::LiveRegistry> swarm) {
   return std::make_unique<SwarmBroadcast>(host, std::move(swarm));

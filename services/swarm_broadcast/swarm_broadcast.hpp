@@ -24,6 +24,6 @@ std::unique_ptr<kernel::Service> make_swarm_broadcast(kernel::ServiceHost& host,
 // the key. `log` (may be null) is told what was read.
 swarm::SwarmRegistry read_swarm_file(const std::filesystem::path& file, const std::shared_ptr<spdlog::logger>& log);
 // --check-config: the swarm file read as at startup (Kernel::check runs it through KernelOptions::service_checks).
-void check_swarm_file(const kernel::RobotConfig& config);
+void check_swarm_file(const config::RobotConfig& config);
 
 }  // namespace rcand::services

@@ -23,18 +23,18 @@ using namespace rcand::services::telemetry;
 
 // runtime.telemetry: this service's keys, joined to the config's one table (libs/config/config_schema.hpp).
 // clang-format off
-const kernel::ConfigFragment kTelemetryKeys({
-    {.path = "runtime.telemetry", .type = kernel::ValueType::Mapping, .description = "WS /ws/telemetry and GET /metrics"},
-    {.path = "runtime.telemetry.metrics_port", .type = kernel::ValueType::Integer, .min = 1, .max = 65535,
+const config::ConfigFragment kTelemetryKeys({
+    {.path = "runtime.telemetry", .type = config::ValueType::Mapping, .description = "WS /ws/telemetry and GET /metrics"},
+    {.path = "runtime.telemetry.metrics_port", .type = config::ValueType::Integer, .min = 1, .max = 65535,
      .description = "also serve GET /metrics without credentials on 127.0.0.1 at this port (loopback only: a local "
                     "Prometheus or node agent scrapes it; the robot's own port keeps asking for scope status)"},
-    {.path = "runtime.telemetry.max_clients", .type = kernel::ValueType::Integer, .default_value = 256, .min = 1,
+    {.path = "runtime.telemetry.max_clients", .type = config::ValueType::Integer, .default_value = 256, .min = 1,
      .max = 100000, .description = "WS /ws/telemetry clients at once; beyond it the upgrade answers 503"},
-    {.path = "runtime.telemetry.reserved_clients", .type = kernel::ValueType::Integer, .default_value = 32, .min = 0,
+    {.path = "runtime.telemetry.reserved_clients", .type = config::ValueType::Integer, .default_value = 32, .min = 0,
      .max = 100000, .description = "of max_clients, the last ones only OWNER and CREATOR get (503 SLOTS_RESERVED to others)"},
-    {.path = "runtime.telemetry.max_clients_per_principal", .type = kernel::ValueType::Integer, .default_value = 8, .min = 1,
+    {.path = "runtime.telemetry.max_clients_per_principal", .type = config::ValueType::Integer, .default_value = 8, .min = 1,
      .max = 100000, .description = "WS /ws/telemetry clients one principal below OWNER may hold; beyond it 429 TOO_MANY_CONNECTIONS"},
-    {.path = "runtime.telemetry.max_clients_per_address", .type = kernel::ValueType::Integer, .default_value = 16, .min = 1,
+    {.path = "runtime.telemetry.max_clients_per_address", .type = config::ValueType::Integer, .default_value = 16, .min = 1,
      .max = 100000, .description = "WS /ws/telemetry clients the principals below OWNER may hold from one client address "
                                    "(everyone in auth mode open); beyond it 429 TOO_MANY_CONNECTIONS"},
 });

@@ -55,7 +55,7 @@ void check_merge(const std::string& base_text, const std::string& fragment_text)
   if (!base.ok || !fragment.ok) return;
   json expected = base.doc.is_object() ? base.doc : json::object();
   const std::size_t before = diagnostics.size();
-  rcand::kernel::merge_config_fragment(base, fragment, "conf.d/50-fuzz.yaml", diagnostics);
+  rcand::config::merge_config_fragment(base, fragment, "conf.d/50-fuzz.yaml", diagnostics);
   if (!fragment.doc.is_object()) {
     RCAND_FUZZ_CHECK(diagnostics.size() == before + 1, "a fragment that is not a mapping is one error");
     return;
@@ -81,12 +81,12 @@ void check_merge(const std::string& base_text, const std::string& fragment_text)
   }
 }
 
-void check_load(const std::string& base_text, const std::vector<rcand::kernel::ConfigFragmentText>& fragments) {
+void check_load(const std::string& base_text, const std::vector<rcand::config::ConfigFragmentText>& fragments) {
   std::map<std::string, int> lines{
       {"fuzz.rcan.yaml", static_cast<int>(std::count(base_text.begin(), base_text.end(), '\n')) + 1}};
   for (const auto& f : fragments) lines[f.display_name] = static_cast<int>(std::count(f.text.begin(), f.text.end(), '\n')) + 1;
   try {
-    const auto loaded = rcand::kernel::parse_robot_config(base_text, "fuzz.rcan.yaml", "/nonexistent-fuzz-dir", {}, fragments);
+    const auto loaded = rcand::config::parse_robot_config(base_text, "fuzz.rcan.yaml", "/nonexistent-fuzz-dir", {}, fragments);
     RCAND_FUZZ_CHECK(!loaded.config.robot_name.empty(), "an accepted config names the robot");
     for (const auto& warning : loaded.warnings)
       RCAND_FUZZ_CHECK(warning.severity == yaml::ConfigDiagnostic::Severity::Warning, "a warning is a warning");
@@ -121,7 +121,7 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
     start = nul + 1;
   }
   const std::string& base = parts.front();
-  std::vector<rcand::kernel::ConfigFragmentText> fragments;
+  std::vector<rcand::config::ConfigFragmentText> fragments;
   for (std::size_t i = 1; i < parts.size(); ++i)
     fragments.push_back({parts[i], "/etc/rcand/conf.d/" + std::to_string(i) + "0-fuzz.yaml"});
   if (!fragments.empty()) check_merge(base, fragments.front().text);

@@ -13,14 +13,14 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   const std::string_view yaml(reinterpret_cast<const char*>(data), size);
   const int lines = static_cast<int>(std::count(yaml.begin(), yaml.end(), '\n')) + 1;
   try {
-    const auto loaded = rcand::kernel::parse_robot_config(yaml, "fuzz.rcan.yaml", "/nonexistent-fuzz-dir");
+    const auto loaded = rcand::config::parse_robot_config(yaml, "fuzz.rcan.yaml", "/nonexistent-fuzz-dir");
     for (const auto& warning : loaded.warnings)
-      RCAND_FUZZ_CHECK(warning.severity == rcand::kernel::ConfigDiagnostic::Severity::Warning, "a warning is a warning");
+      RCAND_FUZZ_CHECK(warning.severity == rcand::config::ConfigDiagnostic::Severity::Warning, "a warning is a warning");
     RCAND_FUZZ_CHECK(!loaded.config.robot_name.empty(), "an accepted config names the robot");
-  } catch (const rcand::kernel::ConfigError& error) {
+  } catch (const rcand::config::ConfigError& error) {
     const auto& diagnostics = error.diagnostics();
     RCAND_FUZZ_CHECK(std::any_of(diagnostics.begin(), diagnostics.end(),
-                                 [](const auto& d) { return d.severity == rcand::kernel::ConfigDiagnostic::Severity::Error; }),
+                                 [](const auto& d) { return d.severity == rcand::config::ConfigDiagnostic::Severity::Error; }),
                      "a ConfigError carries an error");
     for (const auto& diagnostic : diagnostics) {
       RCAND_FUZZ_CHECK(diagnostic.format().rfind("fuzz.rcan.yaml", 0) == 0, "a diagnostic starts with the file name");

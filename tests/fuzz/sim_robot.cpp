@@ -102,7 +102,7 @@ struct Robot {
     write_file(dir / "jwt.secret", "fuzz-jwt-secret-0123456789abcdef\n");
     write_file(dir / "swarm.yaml", kSwarmYaml);
     write_file(dir / "robot.rcan.yaml", robot_yaml());
-    auto loaded = kernel::load_robot_config(dir / "robot.rcan.yaml");
+    auto loaded = config::load_robot_config(dir / "robot.rcan.yaml");
     kernel::KernelOptions options;
     options.services = kernel::linked_services();  // swarm broadcasts, R2R and telemetry, as in rcand
     options.port = 0;                              // only serve_robot() binds, to a free port

@@ -324,7 +324,7 @@ TEST_CASE("tests/configs covers every driver protocol of rcand's plugins and eve
   std::set<std::string> protocols, blocks;  // as written in configs that load
   for (const auto& entry : corpus()) {
     if (entry.outcome == "refuses") continue;
-    const auto doc = rcand::kernel::load_robot_config(entry.file).config.doc;
+    const auto doc = rcand::config::load_robot_config(entry.file).config.doc;
     for (const auto& [key, value] : doc.items()) blocks.insert(key);
     for (const auto& driver : doc.value("drivers", nlohmann::json::array())) protocols.insert(driver.value("protocol", ""));
   }
@@ -337,7 +337,7 @@ TEST_CASE("tests/configs covers every driver protocol of rcand's plugins and eve
         CHECK_MESSAGE(protocols.contains(provided.value("name", "")),
                       "no config that loads uses driver protocol " << provided.value("name", ""));
   }
-  for (const auto* row : rcand::kernel::config_detail::config_schema()) {
+  for (const auto* row : rcand::config::detail::config_schema()) {
     const std::string path(row->path);
     if (path.find('.') == std::string::npos && path.find('[') == std::string::npos)
       CHECK_MESSAGE(blocks.contains(path), "no config that loads has the block " << path);

@@ -38,8 +38,7 @@ std::vector<std::filesystem::path> corpus_files() {
        std::filesystem::recursive_directory_iterator(std::filesystem::path(RCAND_SOURCE_DIR) / "tests" / "configs"))
     // opencastor/ too: the reference runtime's presets as they are (groq_rover's and dynamixel_arm's confidence gate
     // of scope `safety` once passed --check-config and refused to start).
-    if (item.path().string().ends_with(".rcan.yaml"))
-      files.push_back(item.path());
+    if (item.path().string().ends_with(".rcan.yaml")) files.push_back(item.path());
   std::sort(files.begin(), files.end());
   return files;
 }
@@ -125,7 +124,7 @@ TEST_CASE("every config that passes --check-config starts, and nothing in it fai
       continue;
     }
     Bench bench;
-    const json doc = bench.prepare(rcand::kernel::load_robot_config(file).config.doc);
+    const json doc = bench.prepare(rcand::config::load_robot_config(file).config.doc);
     std::unique_ptr<RcandProcess> robot;
     try {
       robot = std::make_unique<RcandProcess>(doc);

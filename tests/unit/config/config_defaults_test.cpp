@@ -9,10 +9,10 @@
 #include <algorithm>
 
 using namespace config_test;
-using rcand::kernel::ConfigDiagnostic;
-using rcand::kernel::LoadOptions;
-using rcand::kernel::model_slug;
-using rcand::kernel::parse_robot_config;
+using rcand::config::ConfigDiagnostic;
+using rcand::config::LoadOptions;
+using rcand::config::model_slug;
+using rcand::config::parse_robot_config;
 
 namespace {
 
@@ -29,7 +29,7 @@ std::string without_maker(const std::vector<std::string>& more = {}) {
 std::vector<ConfigDiagnostic> strict_errors(const std::string& yaml) {
   try {
     parse_robot_config(yaml, "test.rcan.yaml", "/srv/robot", LoadOptions{.strict = true});
-  } catch (const rcand::kernel::ConfigError& e) {
+  } catch (const rcand::config::ConfigError& e) {
     return e.diagnostics();
   }
   FAIL("--strict accepted:\n" << yaml);
@@ -112,7 +112,7 @@ TEST_CASE("other runtimes' protocol names for the same hardware are read as rcan
 }
 
 TEST_CASE("--check-config's advice for a protocol no installed plugin serves") {
-  using rcand::kernel::with_protocol_advice;
+  using rcand::config::with_protocol_advice;
   const ConfigDiagnostic unserved{ConfigDiagnostic::Severity::Error,
                                   {"r.rcan.yaml", 9, 15},
                                   "drivers[1].protocol",
@@ -251,12 +251,12 @@ TEST_CASE("--strict: a file with no warning passes, any warning is refused at it
   CHECK(refused[0].mark.line == 7);
   CHECK(has(refused[0].format(), "error: 1 key of other RCAN versions or runtimes"));
   // The process-wide default is what rcand --strict sets; an explicit option overrides it.
-  rcand::kernel::set_default_load_options(LoadOptions{.strict = true});
-  const bool strict_by_default = rcand::kernel::default_load_options().strict;
-  CHECK_THROWS_AS(parse_robot_config(join(lines), "test.rcan.yaml", "/srv/robot"), rcand::kernel::ConfigError);
-  rcand::kernel::set_default_load_options(LoadOptions{});
+  rcand::config::set_default_load_options(LoadOptions{.strict = true});
+  const bool strict_by_default = rcand::config::default_load_options().strict;
+  CHECK_THROWS_AS(parse_robot_config(join(lines), "test.rcan.yaml", "/srv/robot"), rcand::config::ConfigError);
+  rcand::config::set_default_load_options(LoadOptions{});
   CHECK(strict_by_default);
-  CHECK_FALSE(rcand::kernel::default_load_options().strict);
+  CHECK_FALSE(rcand::config::default_load_options().strict);
   CHECK(parse_ok(join(lines)).warnings.size() == 1);
 }
 

@@ -4,8 +4,8 @@
 #include <doctest/doctest.h>
 
 using namespace config_test;
-using rcand::kernel::ConfigError;
-using rcand::kernel::load_robot_config;
+using rcand::config::ConfigError;
+using rcand::config::load_robot_config;
 namespace fs = std::filesystem;
 
 TEST_CASE("relative plugin_paths, jwt_secret_file and swarm_file resolve against the file's folder") {

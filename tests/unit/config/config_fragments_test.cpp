@@ -6,8 +6,8 @@
 #include "libs/config/config_fragments.hpp"
 
 using namespace config_test;
-using rcand::kernel::ConfigError;
-using rcand::kernel::load_robot_config;
+using rcand::config::ConfigError;
+using rcand::config::load_robot_config;
 
 namespace {
 
@@ -94,11 +94,11 @@ TEST_CASE("conf.d: a fragment that is not a mapping, or not YAML, is an error na
 }
 
 TEST_CASE("conf.d merge: a replaced or removed key takes its marks along") {
-  std::vector<rcand::kernel::ConfigDiagnostic> diagnostics;
+  std::vector<rcand::config::ConfigDiagnostic> diagnostics;
   auto base = rcand::yaml::yaml_to_json("a:\n  b: [1, 2]\n  c: 3\n", "base.yaml", diagnostics);
   const auto patch = rcand::yaml::yaml_to_json("a:\n  b: 7\n  c: null\n  d:\n    e: null\n    f: 1\n", "patch.yaml", diagnostics);
   REQUIRE(diagnostics.empty());
-  rcand::kernel::merge_config_fragment(base, patch, "patch.yaml", diagnostics);
+  rcand::config::merge_config_fragment(base, patch, "patch.yaml", diagnostics);
   CHECK(base.doc == nlohmann::json{{"a", {{"b", 7}, {"d", {{"f", 1}}}}}});  // RFC 7396: nulls never land
   CHECK(base.marks.at("a").file == "base.yaml");                            // a merged mapping keeps its place
   CHECK(base.marks.at("a.b").file == "patch.yaml");
@@ -109,12 +109,12 @@ TEST_CASE("conf.d merge: a replaced or removed key takes its marks along") {
 
 // Found by fuzz_conf_d: a main file that is a list left its items' marks ("[0]") after the merge replaced it by {}.
 TEST_CASE("conf.d merge: a fragment over a main file that is not a mapping leaves no marks of the old items") {
-  std::vector<rcand::kernel::ConfigDiagnostic> diagnostics;
+  std::vector<rcand::config::ConfigDiagnostic> diagnostics;
   auto base = rcand::yaml::yaml_to_json("- 1\n- {a: 2}\n", "base.yaml", diagnostics);
   const auto patch = rcand::yaml::yaml_to_json("b: 3\n", "patch.yaml", diagnostics);
   REQUIRE(diagnostics.empty());
   REQUIRE(base.marks.count("[1].a") == 1);
-  rcand::kernel::merge_config_fragment(base, patch, "patch.yaml", diagnostics);
+  rcand::config::merge_config_fragment(base, patch, "patch.yaml", diagnostics);
   CHECK(base.doc == nlohmann::json{{"b", 3}});
   CHECK(base.marks.count("[0]") == 0);
   CHECK(base.marks.count("[1]") == 0);

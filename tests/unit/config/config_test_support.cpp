@@ -8,17 +8,17 @@
 
 namespace config_test {
 
-using rcand::kernel::ConfigDiagnostic;
-using rcand::kernel::ConfigError;
+using rcand::config::ConfigDiagnostic;
+using rcand::config::ConfigError;
 
 std::vector<std::string> minimal_lines() {
   return {
-      "rcan_version: \"1.3\"",        // 1
-      "metadata:",                    // 2
-      "  robot_name: rover-1",        // 3
-      "  robot_uuid: \"abcd1234\"",   // 4
-      "  manufacturer: acme",         // 5
-      "  model: rover",               // 6
+      "rcan_version: \"1.3\"",       // 1
+      "metadata:",                   // 2
+      "  robot_name: rover-1",       // 3
+      "  robot_uuid: \"abcd1234\"",  // 4
+      "  manufacturer: acme",        // 5
+      "  model: rover",              // 6
   };
 }
 
@@ -28,9 +28,9 @@ std::string join(const std::vector<std::string>& lines) {
   return out;
 }
 
-rcand::kernel::LoadedConfig parse_ok(const std::string& yaml) {
+rcand::config::LoadedConfig parse_ok(const std::string& yaml) {
   try {
-    return rcand::kernel::parse_robot_config(yaml, "test.rcan.yaml", "/srv/robot");
+    return rcand::config::parse_robot_config(yaml, "test.rcan.yaml", "/srv/robot");
   } catch (const ConfigError& e) {
     FAIL("unexpected ConfigError:\n" << std::string(e.what()));
   }
@@ -39,7 +39,7 @@ rcand::kernel::LoadedConfig parse_ok(const std::string& yaml) {
 
 std::vector<ConfigDiagnostic> parse_errors(const std::string& yaml) {
   try {
-    rcand::kernel::parse_robot_config(yaml, "test.rcan.yaml", "/srv/robot");
+    rcand::config::parse_robot_config(yaml, "test.rcan.yaml", "/srv/robot");
   } catch (const ConfigError& e) {
     return e.diagnostics();
   }

@@ -19,11 +19,11 @@ std::vector<std::string> minimal_lines();
 std::string join(const std::vector<std::string>& lines);
 
 // Parses `yaml` as "test.rcan.yaml" in /srv/robot and returns the result; FAILs the test when it throws.
-rcand::kernel::LoadedConfig parse_ok(const std::string& yaml);
+rcand::config::LoadedConfig parse_ok(const std::string& yaml);
 // Parses `yaml`, which must fail: returns every diagnostic of the ConfigError (FAILs the test when nothing is thrown).
-std::vector<rcand::kernel::ConfigDiagnostic> parse_errors(const std::string& yaml);
+std::vector<rcand::config::ConfigDiagnostic> parse_errors(const std::string& yaml);
 // Only the errors among `diagnostics`.
-std::vector<rcand::kernel::ConfigDiagnostic> errors_only(const std::vector<rcand::kernel::ConfigDiagnostic>& diagnostics);
+std::vector<rcand::config::ConfigDiagnostic> errors_only(const std::vector<rcand::config::ConfigDiagnostic>& diagnostics);
 
 using rcand::test::TempDir;
 

@@ -14,8 +14,8 @@
 
 using namespace config_test;
 using rcand::untrusted_writers;
-using rcand::kernel::ConfigError;
-using rcand::kernel::load_robot_config;
+using rcand::config::ConfigError;
+using rcand::config::load_robot_config;
 namespace fs = std::filesystem;
 
 namespace {
@@ -108,7 +108,7 @@ TEST_CASE("config trust: a config file, fragment or directory another user could
   }
   SUBCASE("--check-config --as-user: judged for that user, whose files it trusts") {
     REQUIRE(::chown(fragment.c_str(), 65534, 0) == 0);
-    rcand::kernel::LoadOptions as_nobody;
+    rcand::config::LoadOptions as_nobody;
     as_nobody.user = 65534;
     CHECK_THROWS_AS(load_robot_config(file), ConfigError);
     CHECK(load_robot_config(file, as_nobody).config.runtime.log_level == "warn");

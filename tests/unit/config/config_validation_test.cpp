@@ -8,9 +8,9 @@
 #include <tuple>
 
 using namespace config_test;
-using rcand::kernel::ConfigDiagnostic;
-using rcand::kernel::ConfigError;
-using rcand::kernel::parse_robot_config;
+using rcand::config::ConfigDiagnostic;
+using rcand::config::ConfigError;
+using rcand::config::parse_robot_config;
 
 namespace {
 

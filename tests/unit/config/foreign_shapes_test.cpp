@@ -14,13 +14,13 @@ namespace {
 bool foreign_shape_has(const std::string& text, const std::string& part) { return text.find(part) != std::string::npos; }
 
 // The minimal file with `extra` lines after it.
-rcand::kernel::LoadedConfig parse_with(std::initializer_list<std::string> extra) {
+rcand::config::LoadedConfig parse_with(std::initializer_list<std::string> extra) {
   auto lines = minimal_lines();
   lines.insert(lines.end(), extra);
   return parse_ok(join(lines));
 }
 
-std::size_t warnings_naming(const rcand::kernel::LoadedConfig& loaded, const std::string& part) {
+std::size_t warnings_naming(const rcand::config::LoadedConfig& loaded, const std::string& part) {
   return static_cast<std::size_t>(std::count_if(loaded.warnings.begin(), loaded.warnings.end(), [&part](const auto& warning) {
     return foreign_shape_has(warning.message, part);
   }));

@@ -8,9 +8,9 @@
 
 #include <array>
 
-using rcand::kernel::ConfigError;
-using rcand::kernel::load_robot_config;
-using rcand::kernel::LoadOptions;
+using rcand::config::ConfigError;
+using rcand::config::load_robot_config;
+using rcand::config::LoadOptions;
 namespace fs = std::filesystem;
 
 namespace {

@@ -12,7 +12,7 @@
 
 using namespace config_test;
 using rcand::closest_match;
-using rcand::kernel::RobotConfig;
+using rcand::config::RobotConfig;
 
 namespace {
 
@@ -343,7 +343,7 @@ TEST_CASE("closest_match suggests plausible typos only") {
 }
 
 TEST_CASE("config_reference lists every key from the validating table") {
-  const std::string text = rcand::kernel::config_reference();
+  const std::string text = rcand::config::config_reference();
   CHECK(text.find("physics.wheel_circumference_m") != std::string::npos);
   CHECK(text.find("runtime.auth.tokens[].sha256") != std::string::npos);
   const auto port = text.substr(text.find("rcan_protocol.port"));

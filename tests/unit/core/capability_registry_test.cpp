@@ -11,8 +11,8 @@ using namespace rcand::kernel;
 
 namespace {
 
-RobotConfig base_config() {
-  RobotConfig config;
+config::RobotConfig base_config() {
+  config::RobotConfig config;
   config.source_file = "robot.rcan.yaml";
   config.robot_name = "rover";
   config.manufacturer = "acme";
@@ -268,12 +268,12 @@ TEST_CASE("explicit lists are validated with the config position") {
     config.capabilities = std::move(list);
     try {
       plan_capabilities(config, installed_everything());
-    } catch (const ConfigError& e) {
+    } catch (const yaml::ConfigError& e) {
       REQUIRE(e.diagnostics().size() == 1);
       return e.diagnostics()[0];
     }
     FAIL("expected a ConfigError");
-    return ConfigDiagnostic{};
+    return yaml::ConfigDiagnostic{};
   };
   SUBCASE("unknown standard-looking name suggests the closest") {
     auto d = error_of({"status", "navv"});
@@ -305,7 +305,7 @@ TEST_CASE("explicit lists are validated with the config position") {
     try {
       plan_capabilities(config, nobody);
       FAIL("expected a ConfigError");
-    } catch (const ConfigError& e) {
+    } catch (const yaml::ConfigError& e) {
       const auto& message = e.diagnostics()[0].message;
       CHECK(message.find("org.rcand.teleop") != std::string::npos);
       CHECK(message.find("rcand-plugins-core") != std::string::npos);

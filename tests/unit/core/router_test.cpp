@@ -132,7 +132,7 @@ struct ApiRig {
                        {"owner", sdk::Role::Owner, sha256_hex("owner-token")}};
     return settings;
   }()};
-  RuntimeConfig runtime;
+  config::RuntimeConfig runtime;
   std::optional<Api> api;
   int handled = 0;
   ApiRig() {

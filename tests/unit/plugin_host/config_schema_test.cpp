@@ -118,7 +118,7 @@ TEST_CASE("a driver entry keeps its RCAN fields; other keys its plugin does not 
 }
 
 TEST_CASE("plugin_settings: a refused setting is a config error at the file:line:column of its key") {
-  const auto loaded = rcand::kernel::parse_robot_config(R"(rcan_version: "1.3"
+  const auto loaded = rcand::config::parse_robot_config(R"(rcan_version: "1.3"
 metadata:
   robot_name: r
   robot_uuid: "abcd1234"
@@ -140,7 +140,7 @@ runtime:
   const auto error_of = [&](const json& schema, const json& settings, bool driver_entry, const std::string& path) {
     try {
       rcand::kernel::plugin_settings(config, "org.example.x", schema, settings, driver_entry, path);
-    } catch (const rcand::kernel::ConfigError& e) {
+    } catch (const rcand::config::ConfigError& e) {
       return std::string(e.what());
     }
     return std::string();

@@ -30,7 +30,7 @@ namespace fs = std::filesystem;
 const fs::path kServiceFixtures = RCAND_TEST_PLUGIN_DIR;
 const std::string kOwnerToken = "service-lookup-test-owner-token";
 
-RobotConfig services_robot() {
+config::RobotConfig services_robot() {
   const std::string yaml = R"(rcan_version: "1.3"
 metadata: {robot_name: sally, robot_uuid: "7a1b2c3d", manufacturer: rcand, model: fixture}
 rcan_protocol:
@@ -50,7 +50,7 @@ runtime:
     tokens:
       - {principal: owner, role: owner, sha256: )" +
                            sha256_hex(kOwnerToken) + "}\n";
-  return parse_robot_config(yaml, "sally.rcan.yaml", "/").config;
+  return config::parse_robot_config(yaml, "sally.rcan.yaml", "/").config;
 }
 
 // The Api's answer to an owner's GET (capability handlers answer from their worker).
@@ -110,7 +110,7 @@ TEST_CASE("the plugin runtime withdraws an instance's offers before its shutdown
   sdk::ConfigView robot_config;
   KernelServices services{clock, estop, gate, robot_config, nullptr, "rcan://test/robot", {}};
   PluginRuntime runtime(host, services, actuators);
-  runtime.start_capabilities({"org.rcand.test.service_offer", "org.rcand.test.service_find"}, RobotConfig{});
+  runtime.start_capabilities({"org.rcand.test.service_offer", "org.rcand.test.service_find"}, config::RobotConfig{});
 
   const auto* greeter = sdk::find<test::Greeter>(services.directory);  // the kernel side finds it with the same header
   REQUIRE(greeter != nullptr);

@@ -25,7 +25,7 @@ const fs::path kStreamFixtures = RCAND_TEST_PLUGIN_DIR;
 const std::string kStreamOwner = "stream-routes-test-owner";
 const std::string kStreamGuest = "stream-routes-test-guest";
 
-RobotConfig streamer_robot() {
+config::RobotConfig streamer_robot() {
   const std::string yaml = R"(rcan_version: "1.3"
 metadata: {robot_name: streamer, robot_uuid: "7a1b2c3e", manufacturer: rcand, model: fixture}
 rcan_protocol:
@@ -46,7 +46,7 @@ runtime:
                            sha256_hex(kStreamOwner) + R"(}
       - {principal: guest, role: guest, sha256: )" +
                            sha256_hex(kStreamGuest) + "}\n";
-  return parse_robot_config(yaml, "streamer.rcan.yaml", "/").config;
+  return config::parse_robot_config(yaml, "streamer.rcan.yaml", "/").config;
 }
 
 http::Response stream_call(Api& api, const std::string& path, const std::string& token = kStreamOwner) {

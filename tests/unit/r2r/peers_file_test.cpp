@@ -121,8 +121,8 @@ TEST_CASE("peers file at load and --check-config: missing, broken, or naming an 
   dir.write("fleet.yaml", "peers:\n  - name: bravo\n    public_key: " + key + "\n");
   auto load_error = [&](const std::string& r2r_lines) {
     try {
-      parse_robot_config(std::string(kPeersHeader) + r2r_lines, "robot.rcan.yaml", dir.path());
-    } catch (const ConfigError& e) {
+      config::parse_robot_config(std::string(kPeersHeader) + r2r_lines, "robot.rcan.yaml", dir.path());
+    } catch (const yaml::ConfigError& e) {
       return std::string(e.what());
     }
     FAIL("accepted");
@@ -138,7 +138,7 @@ TEST_CASE("peers file at load and --check-config: missing, broken, or naming an 
   CHECK(missing.find("cannot read the peers file") != std::string::npos);
   // A public key is no secret: a world-readable peers file passes without a warning.
   const auto loaded =
-      parse_robot_config(std::string(kPeersHeader) + "    peers_file: fleet.yaml\n", "robot.rcan.yaml", dir.path());
+      config::parse_robot_config(std::string(kPeersHeader) + "    peers_file: fleet.yaml\n", "robot.rcan.yaml", dir.path());
   CHECK(loaded.warnings.empty());
 }
 

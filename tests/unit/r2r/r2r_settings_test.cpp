@@ -124,9 +124,9 @@ TEST_CASE("runtime.r2r keys are in the config schema: wrong types stop startup w
                            "      - public_key: abc\n"        // line 12
                            "        role: boss\n";            // line 13
   try {
-    parse_robot_config(yaml, "robot.rcan.yaml", "/srv");
+    config::parse_robot_config(yaml, "robot.rcan.yaml", "/srv");
     FAIL("accepted");
-  } catch (const ConfigError& e) {
+  } catch (const yaml::ConfigError& e) {
     const std::string text = e.what();
     CAPTURE(text);
     CHECK(text.find("robot.rcan.yaml:9:5: error: runtime.r2r.require_signatures") != std::string::npos);
@@ -134,8 +134,8 @@ TEST_CASE("runtime.r2r keys are in the config schema: wrong types stop startup w
     CHECK(text.find("runtime.r2r.peers[0].name") != std::string::npos);
     CHECK(text.find("robot.rcan.yaml:13:9: error: runtime.r2r.peers[0].role") != std::string::npos);
   }
-  const auto loaded =
-      parse_robot_config(std::string(kHeader) + "    origin: {x: 1, y: 2}\n    bid_window_ms: 500\n", "robot.rcan.yaml", "/srv");
+  const auto loaded = config::parse_robot_config(std::string(kHeader) + "    origin: {x: 1, y: 2}\n    bid_window_ms: 500\n",
+                                                 "robot.rcan.yaml", "/srv");
   CHECK(loaded.warnings.empty());
   CHECK(load_r2r_settings(loaded.config.runtime.r2r, "/srv").origin.y_m == 2);
   CHECK(fleet_settings(loaded.config.runtime.r2r).bid_window_s == 0.5);
@@ -147,9 +147,9 @@ TEST_CASE("runtime.r2r rules across keys are the table's too: refused with file:
                            "    peers:\n"                                                       // line 10
                            "      - {name: bob, public_key: abc, public_key_file: bob.pem}\n";  // line 11
   try {
-    parse_robot_config(yaml, "robot.rcan.yaml", "/srv");
+    config::parse_robot_config(yaml, "robot.rcan.yaml", "/srv");
     FAIL("accepted");
-  } catch (const ConfigError& e) {
+  } catch (const yaml::ConfigError& e) {
     const std::string text = e.what();
     CAPTURE(text);
     CHECK(text.find("robot.rcan.yaml:8:3: error: runtime.r2r.private_key_file: required key 'private_key_file' is missing "

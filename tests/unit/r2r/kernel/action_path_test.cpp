@@ -30,7 +30,7 @@ const std::string kOwnerToken = "r2r-kernel-test-owner-token";
 const std::string kUserToken = "r2r-kernel-test-user-token";
 const std::string kGuestToken = "r2r-kernel-test-guest-token";
 
-RobotConfig sim_rover() {
+config::RobotConfig sim_rover() {
   const std::string yaml = R"(rcan_version: "1.3"
 metadata: {robot_name: bob, robot_uuid: "5f3c2a1b", manufacturer: rcand, model: sim-rover}
 physics: {type: differential, wheel_circumference_m: 0.21, turn_time_per_deg_s: 0.008}
@@ -47,7 +47,7 @@ runtime:
                            sha256_hex(kOwnerToken) +
                            "}\n      - {principal: chat-user, role: user, sha256: " + sha256_hex(kUserToken) +
                            "}\n      - {principal: chat-guest, role: guest, sha256: " + sha256_hex(kGuestToken) + "}\n";
-  return parse_robot_config(yaml, "bob.rcan.yaml", "/").config;
+  return config::parse_robot_config(yaml, "bob.rcan.yaml", "/").config;
 }
 
 // Runs the Api with `request` and waits for its answer (capability handlers answer from their worker).
