@@ -26,13 +26,14 @@ TEST_CASE("rcand with a dynamixel arm: arm_pose moves a servo; kill -9 and the w
     kinematics.push_back({{"joint", "j" + std::to_string(i)}, {"min_deg", -90}, {"max_deg", 90}});
   }
   config["physics"]["kinematics"] = kinematics;
+  // A 50 ms reply timeout: the emulator answers at once, but a 5 ms one was missed under ASan on a loaded machine.
   config["drivers"] = json::array({{{"id", "arm0"},
                                     {"protocol", "dynamixel"},
                                     {"port", pty.slave_path()},
                                     {"baud_rate", 1000000},
                                     {"servos", servos},
                                     {"poll_hz", 100},
-                                    {"reply_timeout_ms", 5},
+                                    {"reply_timeout_ms", 50},
                                     {"watchdog_ms", 100}}});
   config["rcan_protocol"]["capabilities"] = {"status", "arm"};
   rcand::test::RcandProcess rcand(config);
