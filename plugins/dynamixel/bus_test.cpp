@@ -32,6 +32,19 @@ std::vector<std::uint8_t> u32(std::int32_t v) {
 
 }  // namespace
 
+TEST_CASE("a late reply: a ping with tries takes it, a scan after a missed ping lists its servo once") {
+  Bench b;
+  b.emulator.hold_next_reply(3);
+  CHECK(b.bus.ping(3, 3).id == 3);  // the first try's reply comes late, with the second try's
+
+  b.emulator.hold_next_reply(3);
+  CHECK_THROWS_AS(b.bus.ping(3), DxlError);
+  const auto found = b.bus.scan();  // the late reply arrives ahead of the broadcast's answers
+  std::vector<int> ids;
+  for (const auto& reply : found) ids.push_back(reply.id);
+  CHECK(ids == std::vector<int>{1, 2, 3, 4, 5, 6});
+}
+
 TEST_CASE("ping, scan, read and write") {
   Bench b;
   const auto reply = b.bus.ping(3);
@@ -50,6 +63,7 @@ TEST_CASE("ping, scan, read and write") {
     CHECK(e.kind() == DxlError::Kind::NoReply);
     CHECK(std::string(e.what()).find("no answer from Dynamixel ID 5 (ping) at 1000000 bps on " + b.pty.slave_path()) == 0);
   }
+  CHECK_THROWS_WITH_AS(b.bus.ping(5, 3), doctest::Contains("no answer from Dynamixel ID 5 (ping, 3 tries)"), DxlError);
   b.bus.write(2, kTableX.goal_position, u32(1234));
   CHECK(get_i32(b.bus.read(2, kTableX.goal_position, 4), 0) == 1234);
   // EEPROM with the torque on: the servo refuses, and the error names it.

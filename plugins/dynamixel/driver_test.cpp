@@ -190,7 +190,7 @@ TEST_CASE("a missing servo is a named fault with what a scan found; so is an unk
   Rig rig({1, 2});
   rig.make(arm_config(rig.pty.slave_path(), 3));
   const auto error = error_of([&] { rig.driver->start(); });
-  CHECK(error.find("no answer from Dynamixel ID 3 (ping) at 1000000 bps on " + rig.pty.slave_path()) == 0);
+  CHECK(error.find("no answer from Dynamixel ID 3 (ping, 3 tries) at 1000000 bps on " + rig.pty.slave_path()) == 0);
   CHECK(error.find("A scan at this rate found IDs 1, 2") != std::string::npos);
 
   PtyPair pty;

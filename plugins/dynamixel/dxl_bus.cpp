@@ -1,5 +1,6 @@
 #include "dxl_bus.hpp"
 
+#include <algorithm>
 #include <array>
 
 namespace rcand::plugins::dynamixel {
@@ -70,10 +71,17 @@ Packet DxlBus::expect(std::uint8_t id, std::size_t reply_params, const char* wha
   return std::move(*reply);
 }
 
-PingReply DxlBus::ping(std::uint8_t id) {
-  send(encode(id, inst::kPing, {}));
-  const auto reply = expect(id, 3, "ping");
-  return {id, get_u16(reply.params, 1), reply.params[3], (reply.params[0] & kAlertBit) != 0};
+PingReply DxlBus::ping(std::uint8_t id, unsigned tries) {
+  const std::string what = tries > 1 ? "ping, " + std::to_string(tries) + " tries" : "ping";
+  for (unsigned attempt = 1;; ++attempt) {
+    send(encode(id, inst::kPing, {}));
+    try {
+      const auto reply = expect(id, 3, what.c_str());
+      return {id, get_u16(reply.params, 1), reply.params[3], (reply.params[0] & kAlertBit) != 0};
+    } catch (const DxlError& e) {
+      if (e.kind() != DxlError::Kind::NoReply || attempt >= tries) throw;
+    }
+  }
 }
 
 std::vector<PingReply> DxlBus::scan() {
@@ -81,9 +89,12 @@ std::vector<PingReply> DxlBus::scan() {
   std::vector<PingReply> found;
   // Every possible ID answers in turn; the wait restarts with each answer.
   while (auto reply = receive(kBroadcastId, deadline_for(kStatusOverhead + 3))) {
-    if (reply->params.size() == 4)
+    // (a second answer from one ID is the late reply to a ping sent before the scan)
+    const bool listed = std::any_of(found.begin(), found.end(), [&](const PingReply& p) { return p.id == reply->id; });
+    if (reply->params.size() == 4 && !listed)
       found.push_back({reply->id, get_u16(reply->params, 1), reply->params[3], (reply->params[0] & kAlertBit) != 0});
   }
+  std::sort(found.begin(), found.end(), [](const PingReply& a, const PingReply& b) { return a.id < b.id; });
   return found;
 }
 

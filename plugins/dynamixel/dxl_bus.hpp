@@ -54,8 +54,10 @@ class DxlBus {
   // `reply_margin`: added to the wire time of every expected reply (latency timer, return delay, scheduling).
   DxlBus(std::shared_ptr<SerialLink> link, std::chrono::microseconds reply_margin);
 
-  PingReply ping(std::uint8_t id);
-  // A broadcast ping: every servo on the bus answers, in ID order.
+  // `tries` > 1: a reply lost to noise, or late on a loaded host, is asked for again before the servo counts as
+  // missing (a ping changes nothing, so repeating it is safe).
+  PingReply ping(std::uint8_t id, unsigned tries = 1);
+  // A broadcast ping: every servo on the bus answers, in ID order; each ID is listed once.
   std::vector<PingReply> scan();
   // Throws DxlError (NoReply, ServoError, BadReply). `alert` (optional) is set from the reply's Alert bit.
   std::vector<std::uint8_t> read(std::uint8_t id, std::uint16_t address, std::uint16_t length, bool* alert = nullptr);

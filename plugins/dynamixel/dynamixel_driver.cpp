@@ -17,6 +17,7 @@ using Items = std::vector<std::pair<std::uint8_t, std::vector<std::uint8_t>>>;
 
 constexpr unsigned kStaleAfterMissedPolls = 3;  // then a joint's position is unknown, never a stale guess
 constexpr auto kRebootTime = std::chrono::seconds(2);
+constexpr unsigned kStartPingTries = 3;  // as Feetech's bus does: a reply lost once is not a missing servo
 
 std::string id_text(std::uint8_t id) { return "Dynamixel ID " + std::to_string(id); }
 
@@ -148,7 +149,7 @@ void DynamixelDriver::start() {
           const std::uint8_t id = servo.config.id;
           PingReply reply;
           try {
-            reply = bus.ping(id);
+            reply = bus.ping(id, kStartPingTries);
           } catch (const DxlError& e) {
             if (e.kind() != DxlError::Kind::NoReply) throw;
             std::string found;

@@ -58,6 +58,11 @@ void ServoEmulator::set_present(std::uint8_t id, bool present) {
   servos_.at(id).present = present;
 }
 
+void ServoEmulator::hold_next_reply(std::uint8_t id) {
+  std::lock_guard lock(mutex_);
+  hold_next_.insert(id);
+}
+
 void ServoEmulator::set_hardware_error(std::uint8_t id, std::uint8_t bits) {
   std::lock_guard lock(mutex_);
   auto& s = servos_.at(id);
@@ -142,12 +147,15 @@ void ServoEmulator::reply(std::uint8_t id, std::uint8_t error, std::span<const s
   std::vector<std::uint8_t> body{static_cast<std::uint8_t>(error | (s.table[T.hardware_error] ? 0x80 : 0))};
   body.insert(body.end(), params.begin(), params.end());
   const auto packet = encode(id, inst::kStatus, body);
-  outbox_.insert(outbox_.end(), packet.begin(), packet.end());
+  auto& to = hold_next_.erase(id) ? held_ : outbox_;
+  to.insert(to.end(), packet.begin(), packet.end());
 }
 
 void ServoEmulator::handle(const Packet& p, Clock::time_point now) {
   if (p.code == inst::kStatus) return;  // another servo's reply (none here, but a real bus carries them)
   received_.push_back({now, p});
+  outbox_.insert(outbox_.end(), held_.begin(), held_.end());
+  held_.clear();
   const auto hear = [&](std::uint8_t id) -> Servo* {
     auto it = servos_.find(id);
     if (it == servos_.end() || !it->second.present) return nullptr;

@@ -14,6 +14,7 @@
 #include <functional>
 #include <map>
 #include <mutex>
+#include <set>
 #include <thread>
 #include <vector>
 
@@ -52,6 +53,9 @@ class ServoEmulator {
   void set_present(std::uint8_t id, bool present);
   void set_hardware_error(std::uint8_t id, std::uint8_t bits);  // latches; a reboot clears it
   void set_position(std::uint8_t id, std::int32_t ticks);
+  // The servo's next reply is late: sent only after the next instruction packet arrives, ahead of its answers
+  // (what a bus sees when a host gave up waiting and asked again).
+  void hold_next_reply(std::uint8_t id);
   // Delay each reply by its wire time at this rate (0: reply at once), so timing looks like a real 1 Mbps bus.
   void set_wire_baud(int baud);
 
@@ -79,6 +83,8 @@ class ServoEmulator {
   std::map<std::uint8_t, Servo> servos_;
   std::vector<Received> received_;
   std::vector<std::uint8_t> outbox_;
+  std::set<std::uint8_t> hold_next_;
+  std::vector<std::uint8_t> held_;  // replies held back by hold_next_reply()
   int wire_baud_ = 0;
   Clock::time_point last_tick_;
   Decoder decoder_;

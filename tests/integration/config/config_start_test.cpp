@@ -47,6 +47,10 @@ ProcessResult check(const std::filesystem::path& file) {
   return run_tool(rcand_binary(), {"--check-config", file.string(), "--plugin-path", plugin_dir().string()});
 }
 
+// An emulator is a thread of this test, which a loaded machine (ctest -j2 under ASan) may not run for tens of
+// milliseconds: its replies get the margin a slow USB adapter would, so that a start fails only for the config.
+constexpr int kEmulatorReplyMs = 200;
+
 // The fake or absent hardware a corpus config starts on.
 struct Bench {
   TempDir dir{"rcand-config-start"};
@@ -70,6 +74,7 @@ struct Bench {
         auto& pty = ptys.emplace_back(std::make_unique<dxl::PtyPair>());
         emulators.push_back(std::make_unique<dxl::ServoEmulator>(pty->master(), ids));
         driver["port"] = pty->slave_path();
+        driver["reply_timeout_ms"] = kEmulatorReplyMs;
       } else if (protocol == "feetech") {
         std::vector<std::uint8_t> ids;
         for (const auto& servo : driver.value("servos", json::array()))
@@ -77,6 +82,7 @@ struct Bench {
         auto& pty = ptys.emplace_back(std::make_unique<dxl::PtyPair>());
         sts_emulators.push_back(std::make_unique<rcand::plugins::feetech::testing::StsEmulator>(pty->master(), ids));
         driver["port"] = pty->slave_path();
+        driver["reply_timeout_ms"] = kEmulatorReplyMs;
       } else if (protocol == "arduino_serial_json") {
         auto& pty = arduino_ptys.emplace_back(std::make_unique<bridge::ArduinoPty>());
         arduinos.push_back(std::make_unique<bridge::ArduinoEmulator>(pty->master()));
