@@ -15,7 +15,7 @@
 #include "libs/base/logging.hpp"
 #include "libs/base/worker_thread.hpp"
 #include "rcand/sdk/context.hpp"
-#include "rcand/sdk/obstacle_source.hpp"
+#include "rcand/sdk/interfaces/obstacle_source.hpp"
 
 namespace rcand::kernel {
 

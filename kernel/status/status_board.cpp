@@ -12,7 +12,7 @@
 #include "libs/base/logging.hpp"
 #include "libs/base/plugin_health.hpp"
 #include "libs/base/worker_thread.hpp"
-#include "rcand/sdk/pose_source.hpp"
+#include "rcand/sdk/interfaces/pose_source.hpp"
 
 namespace rcand::kernel {
 namespace {

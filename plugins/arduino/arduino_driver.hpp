@@ -14,7 +14,7 @@
 #pragma once
 
 #include <rcand/sdk/bus_worker.hpp>
-#include <rcand/sdk/obstacle_source.hpp>
+#include <rcand/sdk/interfaces/obstacle_source.hpp>
 #include <rcand/sdk/plugin.hpp>
 
 #include <chrono>

@@ -4,7 +4,7 @@
 // 400 that names the joint and the limit. Stopping is the driver's halt(): the arm holds its pose, torque on.
 #pragma once
 
-#include <rcand/sdk/arm.hpp>
+#include <rcand/sdk/interfaces/arm.hpp>
 #include <rcand/sdk/plugin.hpp>
 
 #include <cstdint>

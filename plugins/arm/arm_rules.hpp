@@ -3,8 +3,8 @@
 // no clock), so each rule is tested on its own; a refusal is the HTTP answer naming the joint and the limit.
 #pragma once
 
-#include <rcand/sdk/arm.hpp>
 #include <rcand/sdk/http.hpp>
+#include <rcand/sdk/interfaces/arm.hpp>
 
 #include <optional>
 #include <string>

@@ -3,7 +3,7 @@
 // torque on, as a real arm must (dropping torque lets it fall under gravity).
 #pragma once
 
-#include <rcand/sdk/arm.hpp>
+#include <rcand/sdk/interfaces/arm.hpp>
 #include <rcand/sdk/plugin.hpp>
 #include <rcand/sdk/status_publisher.hpp>
 

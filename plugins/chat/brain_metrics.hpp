@@ -1,4 +1,4 @@
-// chat's brain calls as Prometheus metrics (rcand/sdk/metrics.hpp), recorded once per call of the chain:
+// chat's brain calls as Prometheus metrics (rcand/sdk/interfaces/metrics.hpp), recorded once per call of the chain:
 //   rcand_chat_brain_calls_total{provider, model, outcome}   outcome: answered, fallback (answered after an earlier
 //                                                            brain of the chain failed), error, timeout (failed when
 //                                                            the call's deadline had passed)
@@ -6,8 +6,8 @@
 // Nothing is recorded when nothing offers sdk::Metrics (rcand without telemetry, a fake host without it).
 #pragma once
 
-#include <rcand/sdk/brain.hpp>
 #include <rcand/sdk/context.hpp>
+#include <rcand/sdk/interfaces/brain.hpp>
 
 #include <chrono>
 #include <string_view>

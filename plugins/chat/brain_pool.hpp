@@ -5,8 +5,8 @@
 // every waiting job (its `drop` answers the client) and cancels the running ones through their CancelToken.
 #pragma once
 
-#include <rcand/sdk/brain.hpp>
 #include <rcand/sdk/context.hpp>
+#include <rcand/sdk/interfaces/brain.hpp>
 
 #include <cstdint>
 #include <deque>

@@ -57,6 +57,29 @@ TEST_CASE("fallback chain: a 500 from agent.provider switches to the fallback in
   CHECK(thought.body["state"] == "dispatched");
 }
 
+TEST_CASE("chat's HTTP brains are Brain services found by name; a name another plugin offers fails chat's start") {
+  ScriptedModelServer primary(ScriptedModelServer::Wire::OpenAI);
+  ScriptedModelServer backup(ScriptedModelServer::Wire::Ollama);
+  backup.always(ScriptedModelServer::answer(answer_with(waypoint(1, 0))));
+  {
+    Fixture f(rover_config(brains(primary, backup), chain_agent()));
+    const auto* found = static_cast<const sdk::Brain*>(f.host.service(sdk::brain_service_id("backup")));
+    REQUIRE(found != nullptr);
+    CHECK(found->provider() == "backup");
+    CHECK(f.host.service(sdk::brain_service_id("primary")) != nullptr);
+    CHECK(f.host.service(sdk::brain_service_id("grammar")) == nullptr);  // embedded in chat, always last
+  }
+
+  FakeHost host(rover_config(brains(primary, backup), chain_agent()));
+  host.load(RCAND_ENTRY_FUNCTION, manifest());
+  SpyBrain other;
+  REQUIRE(host.offer_service(sdk::brain_service_id("backup"), static_cast<const sdk::Brain*>(&other)));
+  CHECK_THROWS_WITH_AS(host.add_capability("chat"),
+                       doctest::Contains("brain 'backup' is configured in runtime.capabilities.chat.brains and offered by "
+                                         "another plugin too"),
+                       rcand::sdk::testing::HostError);
+}
+
 TEST_CASE("fallback chain: a hung provider is dropped at its first_byte_timeout and the fallback starts < 50 ms later") {
   ScriptedModelServer primary(ScriptedModelServer::Wire::OpenAI);
   ScriptedModelServer backup(ScriptedModelServer::Wire::Ollama);

@@ -1,11 +1,12 @@
 #include "chat.hpp"
 
 #include <rcand/sdk/bounded_text.hpp>
-#include <rcand/sdk/pose_source.hpp>
+#include <rcand/sdk/interfaces/pose_source.hpp>
+#include <rcand/sdk/interfaces/request_dispatcher.hpp>
 #include <rcand/sdk/request_body.hpp>
-#include <rcand/sdk/request_dispatcher.hpp>
 
 #include <random>
+#include <stdexcept>
 #include <variant>
 
 #include "action_check.hpp"
@@ -135,6 +136,14 @@ Chat::~Chat() { shutdown(); }
 
 void Chat::start() {
   declare_brain_metrics(ctx_);
+  // chat's HTTP brains are Brain services like any plugin's: the chain finds every brain one way, and another
+  // plugin can ask the robot's configured model too. One provider per name: a clash is a named fault, never a
+  // silent choice between two brains.
+  for (const auto& b : model_brains_)
+    if (!ctx_.offer_service(sdk::brain_service_id(b->provider()), static_cast<const sdk::Brain*>(b.get())))
+      throw std::runtime_error("brain '" + std::string(b->provider()) +
+                               "' is configured in runtime.capabilities.chat.brains and offered by another plugin too: "
+                               "give one of them another provider name");
   if (model_brains_.empty()) return;
   health_ = &ctx_.worker("health");
   for (std::size_t i = 0; i < model_brains_.size(); ++i) health_->post([this, i] { probe(i); });
@@ -158,12 +167,6 @@ void Chat::probe(std::size_t brain) noexcept {
   probes_.timers.push_back(health_->schedule(b.settings().health_interval, [this, brain] { probe(brain); }));
   if (probes_.timers.size() > 4 * model_brains_.size())  // fired timers need no cancelling
     probes_.timers.erase(probes_.timers.begin(), probes_.timers.end() - static_cast<long>(model_brains_.size()));
-}
-
-const ModelBrain* Chat::model_brain(std::string_view provider) const noexcept {
-  for (const auto& b : model_brains_)
-    if (b->provider() == provider) return b.get();
-  return nullptr;
 }
 
 std::vector<sdk::Route> Chat::routes() {
@@ -259,9 +262,9 @@ sdk::Proposal Chat::ask_brains(const Thought& thought, const sdk::BrainContext& 
     const auto started = Clock::now();
     sdk::BrainRequest request{thought.input.instruction, thought.input.image_b64, thought.deadline - kGrammarReserve};
     sdk::Proposal p;
-    const sdk::Brain* brain = model_brain(provider);
-    if (brain == nullptr && provider != GrammarBrain::kProvider)
-      brain = static_cast<const sdk::Brain*>(ctx_.service(sdk::brain_service_id(provider)));
+    const sdk::Brain* brain = provider == GrammarBrain::kProvider
+                                  ? nullptr
+                                  : static_cast<const sdk::Brain*>(ctx_.service(sdk::brain_service_id(provider)));
     if (provider == GrammarBrain::kProvider) {
       request.deadline = thought.deadline;
       p = grammar_.propose(request, context, cancel);

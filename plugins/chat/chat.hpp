@@ -15,7 +15,7 @@
 //     clear, approved or not.
 #pragma once
 
-#include <rcand/sdk/brain.hpp>
+#include <rcand/sdk/interfaces/brain.hpp>
 #include <rcand/sdk/plugin.hpp>
 #include <rcand/sdk/stream.hpp>
 
@@ -53,7 +53,6 @@ class Chat final : public sdk::Capability {
   sdk::Response thought(const sdk::Request& request) const;
   sdk::Response pending(const sdk::Request& request) const;
   const ChatSettings& settings() const noexcept { return settings_; }
-  const ModelBrain* model_brain(std::string_view provider) const noexcept;
 
  private:
   struct Thought;

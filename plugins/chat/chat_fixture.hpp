@@ -4,7 +4,7 @@
 
 #include <doctest/doctest.h>
 
-#include <rcand/sdk/request_dispatcher.hpp>
+#include <rcand/sdk/interfaces/request_dispatcher.hpp>
 #include <rcand/sdk/testing/fake_host.hpp>
 #include <rcand/sdk/testing/recording_stream.hpp>
 

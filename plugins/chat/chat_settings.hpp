@@ -9,8 +9,8 @@
 // The robot's integrator writes them, next to the capability they drive; chat checks each action like any brain's.
 #pragma once
 
-#include <rcand/sdk/brain.hpp>
 #include <rcand/sdk/config_view.hpp>
+#include <rcand/sdk/interfaces/brain.hpp>
 
 #include <chrono>
 #include <string>

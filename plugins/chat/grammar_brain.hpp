@@ -20,7 +20,7 @@
 // A move with neither distance nor duration lasts 1 s; "turn left" alone is 90 degrees, "turn around" 180.
 #pragma once
 
-#include <rcand/sdk/brain.hpp>
+#include <rcand/sdk/interfaces/brain.hpp>
 
 #include <string_view>
 

@@ -7,7 +7,7 @@
 // microseconds of an e-stop, whatever step the call is in.
 #pragma once
 
-#include <rcand/sdk/brain.hpp>
+#include <rcand/sdk/interfaces/brain.hpp>
 
 #include <boost/asio/io_context.hpp>
 #include <boost/asio/ip/tcp.hpp>

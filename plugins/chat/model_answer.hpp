@@ -8,7 +8,7 @@
 // so the chain moves on. Whether the action is allowed is chat's action check, as for every brain.
 #pragma once
 
-#include <rcand/sdk/brain.hpp>
+#include <rcand/sdk/interfaces/brain.hpp>
 
 #include <string>
 #include <string_view>

@@ -13,8 +13,8 @@
 //   max_answer_bytes, ca_file (a private CA for https), health_interval_ms.
 #pragma once
 
-#include <rcand/sdk/brain.hpp>
 #include <rcand/sdk/config_view.hpp>
+#include <rcand/sdk/interfaces/brain.hpp>
 
 #include <boost/asio/ssl/context.hpp>
 

@@ -10,7 +10,7 @@
 //     no request a client could send is that large, and an out-of-range confidence is no probability.
 #pragma once
 
-#include <rcand/sdk/brain.hpp>
+#include <rcand/sdk/interfaces/brain.hpp>
 
 #include <cstddef>
 #include <string>

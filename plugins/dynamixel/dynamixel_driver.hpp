@@ -9,8 +9,8 @@
 // cable is cut, every servo stops by itself after watchdog_ms.
 #pragma once
 
-#include <rcand/sdk/arm.hpp>
 #include <rcand/sdk/bus_worker.hpp>
+#include <rcand/sdk/interfaces/arm.hpp>
 #include <rcand/sdk/plugin.hpp>
 
 #include <atomic>

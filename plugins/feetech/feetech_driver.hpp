@@ -13,8 +13,8 @@
 // needs a physical e-stop that cuts the servo supply.
 #pragma once
 
-#include <rcand/sdk/arm.hpp>
 #include <rcand/sdk/bus_worker.hpp>
+#include <rcand/sdk/interfaces/arm.hpp>
 #include <rcand/sdk/logger.hpp>
 #include <rcand/sdk/plugin.hpp>
 

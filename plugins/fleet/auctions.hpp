@@ -9,7 +9,7 @@
 #pragma once
 
 #include <rcand/sdk/clock.hpp>
-#include <rcand/sdk/fleet_auctions.hpp>
+#include <rcand/sdk/interfaces/fleet_auctions.hpp>
 #include <rcand/sdk/logger.hpp>
 #include <rcand/sdk/r2r.hpp>
 

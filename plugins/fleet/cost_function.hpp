@@ -3,10 +3,10 @@
 // its queue; a plugin may install its own through R2rLink::set_cost_function, which rcand hands on to this plugin.
 #pragma once
 
+#include <rcand/sdk/interfaces/pose_source.hpp>
+#include <rcand/sdk/interfaces/trip_estimator.hpp>
 #include <rcand/sdk/logger.hpp>
-#include <rcand/sdk/pose_source.hpp>
 #include <rcand/sdk/r2r.hpp>
-#include <rcand/sdk/trip_estimator.hpp>
 
 #include <cstddef>
 #include <functional>

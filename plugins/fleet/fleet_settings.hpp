@@ -3,7 +3,7 @@
 #pragma once
 
 #include <rcand/sdk/config_view.hpp>
-#include <rcand/sdk/pose_source.hpp>
+#include <rcand/sdk/interfaces/pose_source.hpp>
 
 #include <string>
 #include <vector>

@@ -2,7 +2,7 @@
 // rcand's R2R service finds, bids priced by a TripEstimator and a PoseSource found as services, and shutdown.
 #include <doctest/doctest.h>
 
-#include <rcand/sdk/fleet_auctions.hpp>
+#include <rcand/sdk/interfaces/fleet_auctions.hpp>
 #include <rcand/sdk/testing/fake_host.hpp>
 
 #include <cmath>

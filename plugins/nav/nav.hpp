@@ -6,8 +6,8 @@
 // obstacle, driver exception, shutdown), a scope guard stops the motors. Waits wake at once on cancel or e-stop.
 #pragma once
 
+#include <rcand/sdk/interfaces/pose_source.hpp>
 #include <rcand/sdk/plugin.hpp>
-#include <rcand/sdk/pose_source.hpp>
 
 #include <atomic>
 #include <condition_variable>

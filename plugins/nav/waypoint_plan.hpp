@@ -2,8 +2,8 @@
 // and the dead-reckoning timing from the physics block. Pure functions, no I/O.
 #pragma once
 
+#include <rcand/sdk/interfaces/trip_estimator.hpp>
 #include <rcand/sdk/plugin.hpp>
-#include <rcand/sdk/trip_estimator.hpp>
 
 #include <cstdint>
 #include <optional>

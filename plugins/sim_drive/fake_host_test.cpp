@@ -3,11 +3,11 @@
 // declared here as the nav capability, provides routes of every kind.
 #include <doctest/doctest.h>
 
+#include <rcand/sdk/interfaces/pose_source.hpp>
+#include <rcand/sdk/interfaces/trip_estimator.hpp>
 #include <rcand/sdk/plugin.hpp>
-#include <rcand/sdk/pose_source.hpp>
 #include <rcand/sdk/testing/fake_host.hpp>
 #include <rcand/sdk/testing/recording_drive.hpp>
-#include <rcand/sdk/trip_estimator.hpp>
 
 #include <chrono>
 #include <optional>

@@ -11,7 +11,7 @@
 // the robot's sdk::ObstacleSource.
 #pragma once
 
-#include <rcand/sdk/obstacle_source.hpp>
+#include <rcand/sdk/interfaces/obstacle_source.hpp>
 #include <rcand/sdk/stream.hpp>
 
 #include <opencv2/core.hpp>

@@ -1,4 +1,4 @@
-// The camera stream as Prometheus metrics (rcand/sdk/metrics.hpp), taken from the status the frame hub publishes (on
+// The camera stream as Prometheus metrics (rcand/sdk/interfaces/metrics.hpp), taken from the status the frame hub publishes (on
 // every change, and about once a second while someone watches), so the delivery thread does nothing more per frame:
 //   rcand_vision_stream_viewers                    MJPEG viewers watching now
 //   rcand_vision_frames_per_second{stage}          captured (from the camera) and encoded (JPEG, sent to viewers)

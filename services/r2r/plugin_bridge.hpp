@@ -12,7 +12,7 @@
 #include <string>
 #include <vector>
 
-#include "rcand/sdk/fleet_auctions.hpp"
+#include "rcand/sdk/interfaces/fleet_auctions.hpp"
 #include "rcand/sdk/r2r.hpp"
 #include "rcand/sdk/worker.hpp"
 #include "services/r2r/r2r_node.hpp"

@@ -1,6 +1,6 @@
 #include "services/r2r/r2r_metrics.hpp"
 
-#include <rcand/sdk/metrics.hpp>
+#include <rcand/sdk/interfaces/metrics.hpp>
 
 #include <array>
 #include <string_view>

@@ -1,4 +1,4 @@
-// R2R messages as a Prometheus counter (rcand/sdk/metrics.hpp, offered by the telemetry service):
+// R2R messages as a Prometheus counter (rcand/sdk/interfaces/metrics.hpp, offered by the telemetry service):
 //   rcand_r2r_messages_total{direction, type, transport}   direction: received (accepted: valid and authorized) or
 //                                                          sent (taken by a transport, "reply"/"route" included)
 #pragma once

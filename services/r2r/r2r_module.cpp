@@ -1,7 +1,7 @@
 #include "services/r2r/r2r_module.hpp"
 
 #include "libs/base/logging.hpp"
-#include "rcand/sdk/fleet_auctions.hpp"
+#include "rcand/sdk/interfaces/fleet_auctions.hpp"
 #include "rcand/sdk/r2r.hpp"
 #include "services/r2r/plugin_bridge.hpp"
 #include "services/r2r/r2r_metrics.hpp"

@@ -26,7 +26,7 @@
 #include "kernel/auth/authenticator.hpp"
 #include "libs/r2r_wire/envelope.hpp"
 #include "rcand/sdk/clock.hpp"
-#include "rcand/sdk/pose_source.hpp"
+#include "rcand/sdk/interfaces/pose_source.hpp"
 #include "services/r2r/message_auth.hpp"
 #include "services/r2r/r2r_settings.hpp"
 #include "services/r2r/transport.hpp"

@@ -20,7 +20,7 @@
 #include "libs/http/server_options.hpp"
 #include "libs/swarm/swarm_registry.hpp"
 #include "rcand/sdk/clock.hpp"
-#include "rcand/sdk/fleet_auctions.hpp"
+#include "rcand/sdk/interfaces/fleet_auctions.hpp"
 #include "services/r2r/r2r_node.hpp"
 
 namespace rcand::services::r2r {

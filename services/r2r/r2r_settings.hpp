@@ -10,7 +10,7 @@
 #include <string>
 #include <vector>
 
-#include "rcand/sdk/pose_source.hpp"
+#include "rcand/sdk/interfaces/pose_source.hpp"
 #include "services/r2r/message_auth.hpp"
 
 namespace rcand::services::r2r {

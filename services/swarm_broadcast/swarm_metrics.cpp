@@ -1,6 +1,6 @@
 #include "services/swarm_broadcast/swarm_metrics.hpp"
 
-#include <rcand/sdk/metrics.hpp>
+#include <rcand/sdk/interfaces/metrics.hpp>
 
 #include <array>
 

@@ -1,4 +1,4 @@
-// §15 swarm results as Prometheus counters (rcand/sdk/metrics.hpp, offered by the telemetry service):
+// §15 swarm results as Prometheus counters (rcand/sdk/interfaces/metrics.hpp, offered by the telemetry service):
 //   rcand_swarm_broadcasts_total{kind, result}        kind: stop, command; result: ok (every node ok), partial, failed
 //   rcand_swarm_node_results_total{kind, outcome}     per node of a broadcast, and per-node stops from the swarm table
 //                                                     (kind node_stop); outcome: ok, not_executed (a latched node's

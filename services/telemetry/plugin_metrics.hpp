@@ -1,11 +1,11 @@
-// The metrics plugins and rcand's in-tree services contribute (rcand/sdk/metrics.hpp): the telemetry service offers
+// The metrics plugins and rcand's in-tree services contribute (rcand/sdk/interfaces/metrics.hpp): the telemetry service offers
 // this object as sdk::Metrics and writes its families into GET /metrics after its own. A call checks the rules
 // (rcand/sdk/contract/metric_rules.hpp), looks its family and label values up and changes one number, under one
 // brief lock; a scrape writes every family under the same lock. Refusals are counted and logged once per family and
 // reason, so a plugin calling wrongly on every frame cannot flood the log.
 #pragma once
 
-#include <rcand/sdk/metrics.hpp>
+#include <rcand/sdk/interfaces/metrics.hpp>
 
 #include <atomic>
 #include <cstdint>

@@ -19,7 +19,7 @@
 
 #include <nlohmann/json.hpp>
 
-#include "rcand/sdk/obstacle_source.hpp"
+#include "rcand/sdk/interfaces/obstacle_source.hpp"
 
 namespace rcand::services::telemetry {
 

@@ -6,7 +6,7 @@
 #include "kernel/safety/stop_summary.hpp"
 #include "libs/config/config_schema.hpp"
 #include "libs/http/server.hpp"
-#include "rcand/sdk/obstacle_source.hpp"
+#include "rcand/sdk/interfaces/obstacle_source.hpp"
 #include "services/telemetry/metrics_text.hpp"
 #include "services/telemetry/plugin_metrics.hpp"
 #include "services/telemetry/route_metrics.hpp"

@@ -2,7 +2,7 @@
 // implementing sdk::ObstacleSource. It reports `nearest_cm` on every zone, and `then_cm` from read number
 // `after_reads` on, so a test can put an obstacle in front of a running nav job without any timing of its own.
 #include <rcand/sdk/export.hpp>
-#include <rcand/sdk/obstacle_source.hpp>
+#include <rcand/sdk/interfaces/obstacle_source.hpp>
 #include <rcand/sdk/plugin.hpp>
 
 #include <atomic>

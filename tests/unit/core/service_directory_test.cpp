@@ -2,10 +2,10 @@
 // withdrawn with its instance, hidden once the instance failed; and the instance context that plugins reach it by.
 #include <doctest/doctest.h>
 
-#include <rcand/sdk/obstacle_source.hpp>
-#include <rcand/sdk/pose_source.hpp>
+#include <rcand/sdk/interfaces/obstacle_source.hpp>
+#include <rcand/sdk/interfaces/pose_source.hpp>
+#include <rcand/sdk/interfaces/trip_estimator.hpp>
 #include <rcand/sdk/testing/manual_clock.hpp>
-#include <rcand/sdk/trip_estimator.hpp>
 
 #include <atomic>
 #include <thread>

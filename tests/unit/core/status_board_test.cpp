@@ -17,7 +17,7 @@
 #include "kernel/safety/estop.hpp"
 #include "kernel/safety/kernel_motion_gate.hpp"
 #include "kernel/status/status_board.hpp"
-#include "rcand/sdk/pose_source.hpp"
+#include "rcand/sdk/interfaces/pose_source.hpp"
 
 using namespace rcand;
 using namespace rcand::kernel;

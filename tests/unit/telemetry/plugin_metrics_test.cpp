@@ -1,4 +1,4 @@
-// Metrics contributed through sdk::Metrics (rcand/sdk/metrics.hpp): the naming rules (shared by rcand and the fake
+// Metrics contributed through sdk::Metrics (rcand/sdk/interfaces/metrics.hpp): the naming rules (shared by rcand and the fake
 // host), refusals that never reach the page, many threads recording at once, and the exposition of every family
 // type, checked by `promtool check metrics` where Debian's prometheus package is installed.
 #include <doctest/doctest.h>

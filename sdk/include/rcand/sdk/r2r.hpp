@@ -61,7 +61,7 @@ class RCAND_INTERFACE R2rLink {
   virtual void unsubscribe(std::uint64_t id) noexcept = 0;
   // Any thread. Replaces the robot's bid pricing (default: nav time to the task location plus the queue); an empty
   // function restores the default. The last plugin to set one wins. rcand hands it to the fleet plugin, which runs
-  // the auctions (rcand/sdk/fleet_auctions.hpp) and calls it on its worker; without that plugin nothing bids.
+  // the auctions (rcand/sdk/interfaces/fleet_auctions.hpp) and calls it on its worker; without that plugin nothing bids.
   virtual void set_cost_function(R2rCostFunction cost) = 0;
 };
 

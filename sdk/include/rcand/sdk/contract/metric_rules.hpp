@@ -1,4 +1,4 @@
-// The rules a metric family and its samples must keep (rcand/sdk/metrics.hpp), written once and used by rcand's
+// The rules a metric family and its samples must keep (rcand/sdk/interfaces/metrics.hpp), written once and used by rcand's
 // telemetry and by the fake host (testing/recording_metrics.hpp), so a plugin test that records a metric holds on the
 // robot. They are the conventions `promtool check metrics` lints, so an accepted family never makes a finding.
 #pragma once
@@ -10,7 +10,7 @@
 #include <string>
 #include <string_view>
 
-#include "rcand/sdk/metrics.hpp"
+#include "rcand/sdk/interfaces/metrics.hpp"
 
 namespace rcand::sdk::contract {
 

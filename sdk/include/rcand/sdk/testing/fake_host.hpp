@@ -25,7 +25,6 @@
 #include <memory>
 #include <mutex>
 #include <optional>
-#include <set>
 #include <span>
 #include <stdexcept>
 #include <string>
@@ -44,23 +43,14 @@
 #include "rcand/sdk/driver.hpp"
 #include "rcand/sdk/registrar.hpp"
 #include "rcand/sdk/services.hpp"
+#include "rcand/sdk/testing/fake_r2r.hpp"
+#include "rcand/sdk/testing/fake_registry.hpp"
 #include "rcand/sdk/testing/fake_scheduler.hpp"
+#include "rcand/sdk/testing/fake_services.hpp"
 #include "rcand/sdk/testing/manual_clock.hpp"
 #include "rcand/sdk/testing/recording_logger.hpp"
 
 namespace rcand::sdk::testing {
-
-// Misuse of the host, or a plugin instance that failed to construct or start (the kernel would record it
-// failed; a test wants to know at once).
-class HostError : public std::runtime_error {
- public:
-  using std::runtime_error::runtime_error;
-};
-// The plugin was refused at load: bad descriptor, incompatible ABI, manifest mismatch, registration failed.
-class LoadError : public HostError {
- public:
-  using HostError::HostError;
-};
 
 class FakeHost {
  public:
@@ -86,11 +76,11 @@ class FakeHost {
   ~FakeHost() {
     // As the kernel: an instance's service offers are withdrawn before its shutdown().
     for (auto it = capabilities_.rbegin(); it != capabilities_.rend(); ++it) {
-      withdraw_offers((*it)->name);
+      services_.withdraw((*it)->name);
       (*it)->instance->shutdown();
     }
     for (auto it = drivers_.rbegin(); it != drivers_.rend(); ++it) {
-      withdraw_offers((*it)->id);
+      services_.withdraw((*it)->id);
       if ((*it)->actuator) (*it)->actuator->halt();
       (*it)->instance->shutdown();
     }
@@ -103,49 +93,49 @@ class FakeHost {
 
   // Checks the descriptor like the kernel (magic, size, ABI major/minor, id, version), then calls the register
   // function once. Throws LoadError with the reason; on failure nothing of the plugin is kept.
-  void load(rcand_plugin_entry_fn entry) { load_impl(entry, nullptr); }
+  void load(rcand_plugin_entry_fn entry) { registry_.load(entry, nullptr); }
 
   // As load(entry), and also checks the plugin against its manifest as the kernel does: id and version equal,
   // registrations equal to "provides", a well-formed "config" schema; instance settings are then validated against
   // that schema (none: the plugin takes no settings), with defaults filled in, before each factory runs. The config
   // rules are the kernel's own (rcand/sdk/contract/settings.hpp).
-  void load(rcand_plugin_entry_fn entry, const nlohmann::json& manifest) { load_impl(entry, &manifest); }
+  void load(rcand_plugin_entry_fn entry, const nlohmann::json& manifest) { registry_.load(entry, &manifest); }
 
   // ---- instances -------------------------------------------------------------------------------------------
 
   // One `drivers[]` entry: calls the protocol's factory (settings carry `id` and `protocol`), then start().
   Driver& add_driver(std::string id, std::string protocol, nlohmann::json settings = {}) {
     if (find_driver(id)) throw HostError("driver id '" + id + "' is already in use");
-    const auto reg = driver_registrations_.find(protocol);
-    if (reg == driver_registrations_.end())
-      throw HostError("no loaded plugin registers driver protocol '" + protocol + "'" + known(driver_registrations_));
+    const auto* reg = registry_.driver(protocol);
+    if (reg == nullptr)
+      throw HostError("no loaded plugin registers driver protocol '" + protocol + "'" + registry_.known_drivers());
     if (settings.is_null()) settings = nlohmann::json::object();
     if (!settings.is_object()) throw HostError("drivers[" + id + "]: settings must be an object");
     settings["id"] = id;
     settings["protocol"] = protocol;
-    settings = apply_schema(reg->second.plugin_id, "driver", protocol, std::move(settings), "drivers[" + id + "]");
+    settings = apply_schema(reg->plugin_id, "driver", protocol, std::move(settings), "drivers[" + id + "]");
 
     auto slot = std::make_unique<DriverSlot>();
     slot->id = id;
-    slot->context = std::make_unique<Context>(*this, reg->second.plugin_id, id, std::move(settings));
+    slot->context = std::make_unique<Context>(*this, reg->plugin_id, id, std::move(settings));
     try {
-      slot->instance = reg->second.factory(*slot->context);
+      slot->instance = reg->factory(*slot->context);
     } catch (const std::exception& e) {
-      withdraw_offers(id);
+      services_.withdraw(id);
       throw HostError("driver '" + id + "': factory threw: " + e.what());
     }
     if (!slot->instance) throw HostError("driver '" + id + "': factory returned null");
-    if (reg->second.info.actuates) {
+    if (reg->info.actuates) {
       slot->actuator = dynamic_cast<ActuatorDriver*>(slot->instance.get());
       if (!slot->actuator) throw HostError("driver '" + id + "': registered as actuating but the factory made no ActuatorDriver");
-      if (slot->actuator->interface_name() != reg->second.info.interface)
-        throw HostError("driver '" + id + "': registered interface '" + reg->second.info.interface +
-                        "' but the instance implements '" + std::string(slot->actuator->interface_name()) + "'");
+      if (slot->actuator->interface_name() != reg->info.interface)
+        throw HostError("driver '" + id + "': registered interface '" + reg->info.interface + "' but the instance implements '" +
+                        std::string(slot->actuator->interface_name()) + "'");
     }
     try {
       slot->instance->start();
     } catch (const std::exception& e) {
-      withdraw_offers(id);
+      services_.withdraw(id);
       throw HostError("driver '" + id + "': start() threw: " + e.what());
     }
     drivers_.push_back(std::move(slot));
@@ -171,27 +161,26 @@ class FakeHost {
   // runtime.capabilities.<name>), start(), routes().
   Capability& add_capability(std::string name, nlohmann::json settings = {}) {
     if (find_capability(name)) throw HostError("capability '" + name + "' is already added");
-    const auto reg = capability_registrations_.find(name);
-    if (reg == capability_registrations_.end())
-      throw HostError("no loaded plugin registers capability '" + name + "'" + known(capability_registrations_));
+    const auto* reg = registry_.capability(name);
+    if (reg == nullptr) throw HostError("no loaded plugin registers capability '" + name + "'" + registry_.known_capabilities());
     if (settings.is_null() || (settings.is_object() && settings.empty())) {
       const auto configured = robot_config_.sub("runtime.capabilities." + name).raw();
       settings = configured.is_object() ? configured : nlohmann::json::object();
     }
     if (!settings.is_object()) throw HostError("runtime.capabilities." + name + ": settings must be an object");
-    settings = apply_schema(reg->second.plugin_id, "capability", name, std::move(settings), "runtime.capabilities." + name);
+    settings = apply_schema(reg->plugin_id, "capability", name, std::move(settings), "runtime.capabilities." + name);
 
     auto slot = std::make_unique<CapabilitySlot>();
     slot->name = name;
     slot->custom = name.find('.') != std::string::npos;  // reverse-domain names are custom (§9)
-    slot->context = std::make_unique<Context>(*this, reg->second.plugin_id, name, std::move(settings));
+    slot->context = std::make_unique<Context>(*this, reg->plugin_id, name, std::move(settings));
     try {
-      slot->instance = reg->second.factory(*slot->context);
+      slot->instance = reg->factory(*slot->context);
       if (!slot->instance) throw HostError("factory returned null");
       slot->instance->start();
       slot->routes = slot->instance->routes();
     } catch (const std::exception& e) {
-      withdraw_offers(name);
+      services_.withdraw(name);
       throw HostError("capability '" + name + "': " + e.what());
     }
     check_routes(*slot);
@@ -288,54 +277,32 @@ class FakeHost {
 
   // The test offers a service itself, say a fake PoseSource: sdk::offer<PoseSource>(host, fake). Refused (false,
   // logged) like an instance's offer when the id is taken. Not owned: it must outlive the host.
-  bool offer_service(std::string_view interface_id, const void* service) noexcept { return offer_as("", interface_id, service); }
+  bool offer_service(std::string_view interface_id, const void* service) noexcept {
+    return services_.offer("", interface_id, service);
+  }
   // What find<T>() answers every instance, so sdk::find<PoseSource>(host) checks what a plugin offered. Null when
   // nothing offers the id, or its instance failed.
   const void* service(std::string_view interface_id) const noexcept {
-    std::lock_guard lock(services_mutex_);
-    const auto it = services_.find(interface_id);
-    if (it == services_.end() || instance_failed(it->second.owner)) return nullptr;
-    return it->second.object;
+    return services_.find(interface_id, [this](const std::string& owner) { return instance_failed(owner); });
   }
   // What find<ObstacleSource>() and PluginContext::obstacles() return (null: none), replacing any earlier offer of
   // it, the test's or an instance's. Not owned.
-  void set_obstacle_source(const ObstacleSource* source) noexcept {
-    std::lock_guard lock(services_mutex_);
-    if (const auto it = services_.find(ObstacleSource::kServiceId); it != services_.end()) services_.erase(it);
-    if (source) services_.emplace(std::string(ObstacleSource::kServiceId), ServiceOffer{source, ""});
-  }
+  void set_obstacle_source(const ObstacleSource* source) noexcept { services_.replace(ObstacleSource::kServiceId, source); }
 
   // ---- R2R (find<R2rLinks>(ctx), and the deprecated PluginContext::r2r()) ------------------------------------
 
-  struct R2rSent {
-    std::string instance;  // who sent it: the `who` of R2rLinks::make_link (the instance id for PluginContext::r2r())
-    std::string type;
-    nlohmann::json payload;
-    std::optional<std::string> target;
-  };
+  using R2rSent = FakeR2r::Sent;
   // find<R2rLinks>() and PluginContext::r2r() are null (a robot without R2R) until this is called.
-  void enable_r2r() {
-    std::lock_guard lock(services_mutex_);
-    services_.emplace(std::string(R2rLinks::kServiceId), ServiceOffer{static_cast<const R2rLinks*>(&r2r_links_), ""});
-  }
-  // What instances sent, in order. The fake checks the type and that the payload is an object; the kernel also
-  // checks each type's payload fields (docs/protocol.md §11).
-  const std::vector<R2rSent>& r2r_sent() const noexcept { return r2r_sent_; }
+  void enable_r2r() noexcept { services_.replace(R2rLinks::kServiceId, static_cast<const R2rLinks*>(&r2r_)); }
+  // What instances sent, in order (FakeR2r::sent()).
+  const std::vector<R2rSent>& r2r_sent() const noexcept { return r2r_.sent(); }
   // Queues `message` for every subscription of its type on the subscriber's "r2r" worker, as the kernel does for a
   // validated message; run it with run_pending() or advance(). Returns how many subscriptions it was queued for.
-  std::size_t deliver_r2r(const R2rMessage& message) {
-    std::size_t queued = 0;
-    for (const auto& [id, sub] : r2r_subscriptions_) {
-      if (sub.type != message.type) continue;
-      sub.worker->post([callback = sub.callback, message] { callback(message); });
-      ++queued;
-    }
-    return queued;
-  }
+  std::size_t deliver_r2r(const R2rMessage& message) { return r2r_.deliver(message); }
   // The cost function an instance installed (empty: the kernel's default).
-  const R2rCostFunction& r2r_cost_function() const noexcept { return r2r_cost_; }
+  R2rCostFunction r2r_cost_function() const { return r2r_.cost_function(); }
   // Later sends fail with `error` ("R2R is not running on this robot"); an empty string makes them succeed again.
-  void fail_r2r_sends(std::string error) { r2r_send_error_ = std::move(error); }
+  void fail_r2r_sends(std::string error) { r2r_.fail_sends(std::move(error)); }
 
   // ---- published statuses (PluginContext::publish_status) -----------------------------------------------------
 
@@ -393,17 +360,6 @@ class FakeHost {
 
  private:
   class Context;
-  struct CapabilityRegistration {
-    CapabilityInfo info;
-    CapabilityFactory factory;
-    std::string plugin_id;
-  };
-  struct DriverRegistration {
-    DriverInfo info;
-    DriverFactory factory;
-    std::string plugin_id;
-  };
-
   // Member order is destruction order in reverse: the instance goes before its context.
   struct DriverSlot {
     std::string id;
@@ -505,55 +461,6 @@ class FakeHost {
     FakeHost& host_;
   };
 
-  class R2rFake final : public R2rLink {
-   public:
-    R2rFake(FakeHost& host, Worker& worker, std::string who) : host_(host), worker_(worker), instance_(std::move(who)) {}
-    ~R2rFake() override {
-      std::erase_if(host_.r2r_subscriptions_, [this](const auto& entry) { return entry.second.link == this; });
-    }
-    R2rSendResult send(std::string_view type, const Json& payload, const std::optional<std::string>& target) override {
-      if (!known(type)) return {false, "unknown R2R message type '" + std::string(type) + "'", "/type"};
-      if (!payload.is_object()) return {false, "payload must be an object", "/payload"};
-      if (!host_.r2r_send_error_.empty()) return {false, host_.r2r_send_error_, ""};
-      host_.r2r_sent_.push_back({instance_, std::string(type), payload, target});
-      return {true, "", ""};
-    }
-    std::uint64_t subscribe(std::string_view type, Callback callback) override {
-      if (!known(type)) throw std::invalid_argument("unknown R2R message type '" + std::string(type) + "'");
-      if (!callback) throw std::invalid_argument("R2R subscribe needs a callback");
-      const std::uint64_t id = ++host_.r2r_next_id_;
-      host_.r2r_subscriptions_[id] = {this, &worker_, std::string(type), std::move(callback)};
-      return id;
-    }
-    void unsubscribe(std::uint64_t id) noexcept override { host_.r2r_subscriptions_.erase(id); }
-    void set_cost_function(R2rCostFunction cost) override { host_.r2r_cost_ = std::move(cost); }
-
-   private:
-    static bool known(std::string_view type) {
-      for (std::string_view t : {"status", "task_request", "task_response", "command", "negotiation", "error"})
-        if (t == type) return true;
-      return false;
-    }
-    FakeHost& host_;
-    Worker& worker_;
-    std::string instance_;
-  };
-
-  class R2rLinksFake final : public R2rLinks {
-   public:
-    explicit R2rLinksFake(FakeHost& host) : host_(host) {}
-    std::unique_ptr<R2rLink> make_link(Worker& worker, std::string_view who) const noexcept override {
-      try {
-        return std::make_unique<R2rFake>(host_, worker, std::string(who));
-      } catch (...) {
-        return nullptr;
-      }
-    }
-
-   private:
-    FakeHost& host_;
-  };
-
   class Context final : public PluginContext {
    public:
     Context(FakeHost& host, std::string plugin_id, std::string instance_id, nlohmann::json settings)
@@ -588,7 +495,7 @@ class FakeHost {
     }
     const void* service(std::string_view interface_id) const noexcept override { return host_.service(interface_id); }
     bool offer_service(std::string_view interface_id, const void* service) noexcept override {
-      return host_.offer_as(instance_id_, interface_id, service);
+      return host_.services_.offer(instance_id_, interface_id, service);
     }
 
    private:
@@ -600,129 +507,6 @@ class FakeHost {
     RecordingLogger logger_;
   };
 
-  // Stages what one register function adds; the host keeps it only if the whole registration succeeds.
-  class Recorder final : public Registrar {
-   public:
-    explicit Recorder(const FakeHost& host, std::string plugin_id) : host_(host), plugin_id_(std::move(plugin_id)) {}
-    void add_capability(CapabilityInfo info, CapabilityFactory factory) override {
-      if (closed) throw std::logic_error("add_capability called outside the register function");
-      if (info.name.empty()) throw std::invalid_argument("add_capability: empty capability name");
-      if (!factory) throw std::invalid_argument("add_capability(" + info.name + "): null factory");
-      if (capabilities.count(info.name) || host_.capability_registrations_.count(info.name))
-        throw std::invalid_argument("capability '" + info.name + "' is registered twice");
-      const std::string name = info.name;
-      capabilities.emplace(name, CapabilityRegistration{std::move(info), std::move(factory), plugin_id_});
-    }
-    void add_driver(DriverInfo info, DriverFactory factory) override {
-      if (closed) throw std::logic_error("add_driver called outside the register function");
-      if (info.protocol.empty()) throw std::invalid_argument("add_driver: empty protocol");
-      if (!factory) throw std::invalid_argument("add_driver(" + info.protocol + "): null factory");
-      if (info.actuates && info.interface.empty())
-        throw std::invalid_argument("add_driver(" + info.protocol + "): an actuating driver must name its interface");
-      if (drivers.count(info.protocol) || host_.driver_registrations_.count(info.protocol))
-        throw std::invalid_argument("driver protocol '" + info.protocol + "' is registered twice");
-      const std::string protocol = info.protocol;
-      drivers.emplace(protocol, DriverRegistration{std::move(info), std::move(factory), plugin_id_});
-    }
-
-    bool closed = false;
-    std::map<std::string, CapabilityRegistration, std::less<>> capabilities;
-    std::map<std::string, DriverRegistration, std::less<>> drivers;
-
-   private:
-    const FakeHost& host_;
-    std::string plugin_id_;
-  };
-
-  // ---- loading ---------------------------------------------------------------------------------------------
-
-  void load_impl(rcand_plugin_entry_fn entry, const nlohmann::json* manifest) {
-    if (!entry) throw LoadError("failed-to-open: the entry function is null");
-    const rcand_plugin_descriptor* d = entry();
-    if (!d) throw LoadError("failed-to-open: the entry function returned no descriptor");
-    if (d->magic != RCAND_DESCRIPTOR_MAGIC) throw LoadError("incompatible-abi: bad descriptor magic (not an rcand plugin)");
-    if (d->struct_size > sizeof(rcand_plugin_descriptor))
-      throw LoadError("incompatible-abi: descriptor is " + std::to_string(d->struct_size) + " bytes, larger than this host's " +
-                      std::to_string(sizeof(rcand_plugin_descriptor)) + " (built against a newer SDK)");
-    if (d->struct_size < sizeof(rcand_plugin_descriptor))  // the 1.0 layout is the current one
-      throw LoadError("incompatible-abi: descriptor is " + std::to_string(d->struct_size) +
-                      " bytes, smaller than the ABI 1.0 layout");
-    if (d->abi_major != RCAND_ABI_MAJOR)
-      throw LoadError("incompatible-abi: built for ABI " + std::to_string(d->abi_major) + ", host speaks " +
-                      std::to_string(RCAND_ABI_MAJOR));
-    if (d->abi_minor > RCAND_ABI_MINOR)
-      throw LoadError("incompatible-abi: built for ABI " + std::to_string(d->abi_major) + "." + std::to_string(d->abi_minor) +
-                      ", newer than the host's " + std::to_string(RCAND_ABI_MAJOR) + "." + std::to_string(RCAND_ABI_MINOR));
-    if (!d->plugin_id || !*d->plugin_id) throw LoadError("incompatible-abi: the descriptor has no plugin id");
-    if (!d->version || !*d->version) throw LoadError("incompatible-abi: the descriptor has no version");
-    if (!d->register_plugin) throw LoadError("incompatible-abi: the descriptor has no register function");
-    const std::string id = d->plugin_id;
-    if (loaded_.count(id)) throw LoadError("duplicate plugin id '" + id + "'");
-    if (manifest) check_manifest_identity(*manifest, id, d->version);
-    if (manifest) {  // the kernel's manifest check, from the same contract
-      try {
-        if (manifest->contains("config")) contract::check_settings_schema(manifest->at("config"), "config.");
-        const auto provides = manifest->value("provides", nlohmann::json::array());
-        for (std::size_t i = 0; i < provides.size(); ++i)
-          if (provides[i].is_object()) contract::check_provided_item(provides[i], "provides[" + std::to_string(i) + "]");
-      } catch (const contract::SettingsError& e) {
-        throw LoadError(std::string("invalid-manifest: ") + e.what());
-      }
-    }
-
-    Recorder recorder(*this, id);
-    try {
-      d->register_plugin(reinterpret_cast<rcand_registrar*>(static_cast<Registrar*>(&recorder)));
-    } catch (const std::exception& e) {
-      throw LoadError("registration-failed: " + id + ": " + e.what());
-    } catch (...) {
-      throw LoadError("registration-failed: " + id + ": unknown exception");
-    }
-    recorder.closed = true;
-    if (manifest) check_provides(*manifest, id, recorder);
-
-    loaded_.insert(id);
-    if (manifest) manifests_[id] = *manifest;  // its settings schemas: none means the plugin takes no settings
-    for (auto& [name, reg] : recorder.capabilities) capability_registrations_.emplace(name, std::move(reg));
-    for (auto& [protocol, reg] : recorder.drivers) driver_registrations_.emplace(protocol, std::move(reg));
-  }
-
-  static void check_manifest_identity(const nlohmann::json& m, const std::string& id, const std::string& version) {
-    if (!m.is_object()) throw LoadError("manifest-mismatch: the manifest is not a JSON object");
-    if (m.value("id", std::string()) != id)
-      throw LoadError("manifest-mismatch: descriptor id '" + id + "' != manifest id '" + m.value("id", std::string()) + "'");
-    if (m.value("version", std::string()) != version)
-      throw LoadError("manifest-mismatch: descriptor version '" + version + "' != manifest version '" +
-                      m.value("version", std::string()) + "'");
-  }
-
-  // Registered items must equal the manifest's "provides" (kind, name, actuates, interface), as a set.
-  static void check_provides(const nlohmann::json& m, const std::string& id, const Recorder& r) {
-    using Item = std::tuple<std::string, std::string, bool, std::string>;
-    std::set<Item> declared, registered;
-    const auto provides = m.find("provides");
-    if (provides == m.end() || !provides->is_array()) throw LoadError("manifest-mismatch: " + id + ": no provides[] array");
-    for (const auto& p : *provides) {
-      if (!p.is_object() || !p.contains("kind") || !p.contains("name"))
-        throw LoadError("manifest-mismatch: " + id + ": provides[] items need kind and name");
-      declared.emplace(p.value("kind", std::string()), p.value("name", std::string()), p.value("actuates", false),
-                       p.value("interface", std::string()));
-    }
-    for (const auto& [name, reg] : r.capabilities) registered.emplace("capability", name, reg.info.actuates, "");
-    for (const auto& [protocol, reg] : r.drivers) registered.emplace("driver", protocol, reg.info.actuates, reg.info.interface);
-    if (declared != registered) {
-      auto describe = [](const std::set<Item>& items) {
-        std::string out;
-        for (const auto& [kind, name, actuates, interface] : items)
-          out += (out.empty() ? "" : ", ") + kind + " " + name + (actuates ? " (actuates" : " (") +
-                 (interface.empty() ? "" : " " + interface) + ")";
-        return out.empty() ? std::string("nothing") : out;
-      };
-      throw LoadError("manifest-mismatch: " + id + " registered " + describe(registered) + " but its manifest provides " +
-                      describe(declared));
-    }
-  }
-
   // The kernel's settings rule (rcand/sdk/contract/settings.hpp): types, bounds, enums and required keys checked,
   // defaults filled in; in a driver entry every unknown key is refused, elsewhere near-miss unknown keys are refused
   // with a did-you-mean and other unknown keys left out and recorded (ignored_settings(); rcand logs a warning). A
@@ -730,11 +514,11 @@ class FakeHost {
   // `where` names the instance in the error.
   nlohmann::json apply_schema(const std::string& plugin_id, std::string_view kind, const std::string& name,
                               nlohmann::json settings, const std::string& where) {
-    const auto it = manifests_.find(plugin_id);
-    if (it == manifests_.end()) return settings;  // loaded without a manifest: nothing to check against
+    const nlohmann::json* manifest = registry_.manifest(plugin_id);
+    if (manifest == nullptr) return settings;  // loaded without a manifest: nothing to check against
     const bool driver = kind == "driver";
     auto result = contract::validate_settings(
-        contract::item_settings_schema(it->second, kind, name), settings,
+        contract::item_settings_schema(*manifest, kind, name), settings,
         contract::SettingsRules{
             driver ? std::span<const std::string_view>(contract::kDriverEntryKeys) : std::span<const std::string_view>(),
             driver ? contract::UnknownKeys::Refuse : contract::UnknownKeys::WarnUnlessNearMiss});
@@ -752,12 +536,6 @@ class FakeHost {
       driver_claims_ = std::move(claims);
     }
     return std::move(result.settings);
-  }
-
-  template <class Map> static std::string known(const Map& map) {
-    std::string out;
-    for (const auto& [name, reg] : map) out += (out.empty() ? "" : ", ") + name;
-    return out.empty() ? " (none loaded)" : " (known: " + out + ")";
   }
 
   // Roughly what the kernel enforces on routes at registration.
@@ -880,29 +658,6 @@ class FakeHost {
 
   // ---- services ----------------------------------------------------------------------------------------------
 
-  // `owner`: the offering instance (driver id or capability name), "" for the test.
-  bool offer_as(const std::string& owner, std::string_view interface_id, const void* service) noexcept {
-    try {
-      const std::string who = owner.empty() ? std::string("the test") : "instance '" + owner + "'";
-      if (interface_id.empty() || !service) {
-        kernel_log_.error(who, ": offer of service '", interface_id,
-                          "' refused: ", interface_id.empty() ? "empty id" : "null object");
-        return false;
-      }
-      std::lock_guard lock(services_mutex_);
-      if (!services_.emplace(std::string(interface_id), ServiceOffer{service, owner}).second) {
-        kernel_log_.error(who, ": offer of service '", interface_id, "' refused: already offered (one provider per service)");
-        return false;
-      }
-      return true;
-    } catch (...) {
-      return false;
-    }
-  }
-  void withdraw_offers(const std::string& owner) noexcept {
-    std::lock_guard lock(services_mutex_);
-    std::erase_if(services_, [&owner](const auto& entry) { return entry.second.owner == owner; });
-  }
   bool instance_failed(const std::string& owner) const noexcept {
     if (const DriverSlot* d = owner.empty() ? nullptr : find_driver(owner)) return d->failed.load();
     if (const CapabilitySlot* c = owner.empty() ? nullptr : find_capability(owner)) return c->failed;
@@ -941,41 +696,22 @@ class FakeHost {
 
   // Declaration order matters: services before the instances that use them.
   ConfigView robot_config_;
-  struct ServiceOffer {
-    const void* object = nullptr;
-    std::string owner;  // the offering instance; "" for the test
-  };
-  mutable std::mutex services_mutex_;  // offers and finds may come from any thread
-  std::map<std::string, ServiceOffer, std::less<>> services_;
-  struct R2rSubscription {
-    const R2rFake* link;
-    Worker* worker;  // the link's: where its callbacks run
-    std::string type;
-    R2rLink::Callback callback;
-  };
-  R2rLinksFake r2r_links_{*this};
-  std::vector<R2rSent> r2r_sent_;
-  std::map<std::uint64_t, R2rSubscription> r2r_subscriptions_;
-  std::uint64_t r2r_next_id_ = 0;
+  FakeR2r r2r_;
   mutable std::mutex published_mutex_;  // publish_status() may come from any thread
   std::map<std::string, std::vector<nlohmann::json>, std::less<>> published_;
-  R2rCostFunction r2r_cost_;
-  std::string r2r_send_error_;
   ManualClock clock_;
   LogSink sink_;
   FakeScheduler scheduler_;
   RecordingLogger kernel_log_;
+  FakeServiceDirectory services_{kernel_log_};
   Estop estop_;
   Gate gate_;
   std::multimap<std::int64_t, std::string> scheduled_latches_;
   std::vector<std::string> task_failures_;
   std::uint64_t message_counter_ = 0;
-  std::set<std::string> loaded_;
-  std::map<std::string, nlohmann::json> manifests_;
   std::vector<std::string> ignored_settings_;
   std::vector<contract::InstanceClaims> driver_claims_;  // every driver's claims, for the next one's check
-  std::map<std::string, CapabilityRegistration, std::less<>> capability_registrations_;
-  std::map<std::string, DriverRegistration, std::less<>> driver_registrations_;
+  FakePluginRegistry registry_;
   std::map<std::string, std::unique_ptr<FakeWorker>> workers_;
   std::vector<std::unique_ptr<DriverSlot>> drivers_;
   std::vector<std::unique_ptr<CapabilitySlot>> capabilities_;

@@ -1,4 +1,4 @@
-// A Metrics service (rcand/sdk/metrics.hpp) that keeps what a plugin recorded, for tests on the fake host. It refuses
+// A Metrics service (rcand/sdk/interfaces/metrics.hpp) that keeps what a plugin recorded, for tests on the fake host. It refuses
 // exactly what rcand refuses (the same rules, rcand/sdk/contract/metric_rules.hpp):
 //
 //   rcand::sdk::testing::RecordingMetrics metrics;
@@ -15,7 +15,7 @@
 #include <vector>
 
 #include "rcand/sdk/contract/metric_rules.hpp"
-#include "rcand/sdk/metrics.hpp"
+#include "rcand/sdk/interfaces/metrics.hpp"
 
 namespace rcand::sdk::testing {
 
