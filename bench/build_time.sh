@@ -14,9 +14,9 @@ for rev in "$@"; do
   git -C "$repo" worktree add -f --detach "$dir" "$rev" > /dev/null
   cmake -S "$dir" -B "$dir/b" -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo -DCMAKE_UNITY_BUILD=ON -DRCAND_BUILD_TESTS=ON \
         -DRCAND_BUILD_BENCH=OFF > /dev/null
-  start=$(date +%s.%N)
+  start=$(date +%s)
   cmake --build "$dir/b" > "$work/build-$rev.log"
-  end=$(date +%s.%N)
+  end=$(date +%s)
   cmake -S "$dir" -B "$dir/lint" -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo -DRCAND_BUILD_TESTS=ON -DRCAND_BUILD_BENCH=OFF \
         > /dev/null
   graph=$(python3 - "$dir/lint/compile_commands.json" <<'PY'
@@ -39,6 +39,6 @@ for c in json.load(open(sys.argv[1])):
 print(f"{units} translation units, {lines} preprocessed lines ({lines // max(units, 1)} per unit)")
 PY
 )
-  printf '%s: build %.0f s (%s ninja steps); %s\n' "$(git -C "$repo" rev-parse --short "$rev")" "$(echo "$end - $start" | bc)" \
+  printf '%s: build %d s (%s ninja steps); %s\n' "$(git -C "$repo" rev-parse --short "$rev")" "$((end - start))" \
          "$(grep -c '^\[' "$work/build-$rev.log")" "$graph"
 done
