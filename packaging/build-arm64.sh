@@ -35,16 +35,19 @@ if [ ! -e "$root/.rcand-build-root" ]; then
     crossbuild-essential-arm64 cmake ninja-build pkg-config dpkg-dev file nlohmann-json3-dev libcli11-dev \
     libboost-dev:arm64 libyaml-cpp-dev:arm64 libspdlog-dev:arm64 libssl-dev:arm64 libavahi-client-dev:arm64 \
     libmosquitto-dev:arm64 libgpiod-dev:arm64 libopencv-core-dev:arm64 libopencv-imgproc-dev:arm64 \
-    libopencv-imgcodecs-dev:arm64 libopencv-videoio-dev:arm64 libjpeg62-turbo-dev:arm64 > "$build/apt.log" 2>&1 || {
+    libopencv-imgcodecs-dev:arm64 libopencv-videoio-dev:arm64 libjpeg62-turbo-dev:arm64 libseccomp-dev:arm64 \
+    > "$build/apt.log" 2>&1 || {
     tail -n 20 "$build/apt.log"
     exit 1
   }
   touch "$root/.rcand-build-root"
 fi
-# A root made before a dependency was added lacks it: CLI11 (rcanctl), libjpeg-turbo (the vision plugin's encoder).
+# A root made before a dependency was added lacks it: CLI11 (rcanctl), libjpeg-turbo (the vision plugin's encoder),
+# libseccomp (rcand-plugin-host's filter).
 missing=()
 [ -f "$root/usr/include/CLI/CLI.hpp" ] || missing+=(libcli11-dev)
 [ -f "$root/usr/include/aarch64-linux-gnu/jconfig.h" ] || missing+=(libjpeg62-turbo-dev:arm64)
+[ -f "$root/usr/lib/aarch64-linux-gnu/pkgconfig/libseccomp.pc" ] || missing+=(libseccomp-dev:arm64)
 if [ ${#missing[@]} -gt 0 ]; then
   chroot "$root" apt-get -qq update
   chroot "$root" env DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends "${missing[@]}" > /dev/null

@@ -15,6 +15,7 @@ packages=(
   libopencv-core-dev libopencv-imgproc-dev libopencv-videoio-dev  # the vision plugin (videoio: its video module)
   libjpeg62-turbo-dev libopencv-imgcodecs-dev  # its JPEG encoder; imgcodecs: its tests decode with it
   libgpiod-dev                              # the gpio H-bridge plugin (libgpiod 1.6 C API)
+  libseccomp-dev                            # rcand-plugin-host's system call filter (isolation: process)
   curl                                      # README examples
 )
 case "${1:-}" in --tests | --checks) tests=1 ;; *) tests=0 ;; esac

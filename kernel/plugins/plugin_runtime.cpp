@@ -5,12 +5,14 @@
 #include <set>
 
 #include "kernel/plugins/guarded.hpp"
-#include "kernel/plugins/settings_schema.hpp"
 #include "libs/base/bounded_call.hpp"
 #include "libs/base/bounded_text.hpp"
 #include "libs/base/closest_match.hpp"
 #include "libs/base/keep_forever.hpp"
 #include "libs/base/stop_path_priority.hpp"
+#include "libs/config/plugin_settings.hpp"
+#include "libs/isolation/host_process.hpp"
+#include "libs/isolation/isolated_capability.hpp"
 #include "rcand/sdk/contract/plan.hpp"
 
 namespace rcand::kernel {
@@ -22,7 +24,7 @@ nlohmann::json validated_settings(const config::RobotConfig& config, const Plugi
                                   const std::string& name, const nlohmann::json& settings, const std::string& path,
                                   std::vector<sdk::contract::Claim>* claims = nullptr) {
   const nlohmann::json schema = plugin.manifest ? settings_schema_of(*plugin.manifest, kind, name) : nlohmann::json::object();
-  return plugin_settings(config, plugin.id, schema, settings, kind == "driver", path, claims);
+  return config::plugin_settings(config, plugin.id, schema, settings, kind == "driver", path, claims);
 }
 
 // What `plugin`'s manifest provides as `kind` `name`, for the plan rule.
@@ -142,6 +144,39 @@ template <class RouteType> std::optional<std::string> route_problem(const std::v
     if (!seen.insert({route.method, key}).second) return name + ": declared twice";
   }
   return std::nullopt;
+}
+
+// `registered`'s factory, or for a capability configured `isolation: process` (rcand/sdk/contract/isolation.hpp) one
+// that runs it in rcand-plugin-host; its deaths are audited, a crash loop fails the instance.
+sdk::CapabilityFactory factory_of(const RegisteredCapability& registered, const PluginRecord& plugin,
+                                  CapabilityInstance& instance, KernelServices& services, const config::RobotConfig& config) {
+  const ProvidedItem* item = plugin.manifest ? find_provided(*plugin.manifest, "capability", instance.name) : nullptr;
+  const auto isolation = sdk::contract::isolation_of(item != nullptr ? item->entry : nlohmann::json(),
+                                                     config.runtime.capabilities.value(instance.name, nlohmann::json()));
+  if (!isolation.process) return registered.factory;
+  const auto under = [](int ms) { return std::chrono::milliseconds(std::max(100, ms - 250)); };
+  const auto binary = isolation::find_host_binary(RCAND_PLUGIN_HOST_DIR);
+  isolation::HostSpec spec{binary.value_or(""),
+                           {plugin.manifest_file.parent_path().string()},
+                           plugin.id,
+                           isolation.memory_mb,
+                           isolation.network,
+                           under(config.runtime.handler_timeout_ms),
+                           under(config.runtime.plugin_start_timeout_ms)};
+  isolation::HostEvents events{[&services, id = plugin.id](const std::string& event, const std::string& detail) {
+                                 if (services.audit == nullptr) return;
+                                 AuditEntry entry;
+                                 entry.principal = "plugin:" + id, entry.ruri = services.ruri, entry.event = event;
+                                 entry.outcome = "error", entry.detail = detail;
+                                 services.audit->record(std::move(entry));
+                               },
+                               [&health = instance.health](const std::string& reason) { health.mark_failed(reason); }};
+  return [spec, events](sdk::PluginContext& context) -> std::unique_ptr<sdk::Capability> {
+    if (spec.binary.empty())
+      throw std::runtime_error(
+          "configured isolation: process, and rcand-plugin-host is not installed beside rcand or in " RCAND_PLUGIN_HOST_DIR);
+    return std::make_unique<isolation::IsolatedCapability>(context, spec, events);
+  };
 }
 
 }  // namespace
@@ -299,7 +334,7 @@ void PluginRuntime::launch_capability(CapabilityInstance& instance, const Regist
   // Shared with the plugin thread: one that was given up on may still write them after this returns.
   auto routes = std::make_shared<std::pair<std::vector<sdk::Route>, std::vector<sdk::StreamRoute>>>();
   instance.object = create_and_start<sdk::Capability>(
-      instance.who, registered.factory, *instance.context, instance.health,
+      instance.who, factory_of(registered, *plugin, instance, services_, config), *instance.context, instance.health,
       std::chrono::milliseconds(config.runtime.plugin_start_timeout_ms), abandoned,
       [routes, minor = plugin->abi_minor](sdk::Capability& object) {
         routes->first = object.routes();
@@ -445,7 +480,7 @@ std::vector<yaml::ConfigDiagnostic> PluginRuntime::plan_problems(const config::R
     const auto reads = planned.back().item.value("reads", nlohmann::json::object());
     for (const auto& [block, schema] : reads.items())
       if (config.doc.contains(block)) try {
-          plugin_settings(config, plugin->id, schema, config.doc[block], false, block);
+          config::plugin_settings(config, plugin->id, schema, config.doc[block], false, block);
         } catch (const yaml::ConfigError& e) {
           problems.insert(problems.end(), e.diagnostics().begin(), e.diagnostics().end());
         }

@@ -6,6 +6,7 @@
 #include <sstream>
 #include <utility>
 
+#include "rcand/sdk/contract/isolation.hpp"
 #include "rcand/sdk/contract/plan.hpp"
 #include "rcand/sdk/contract/settings.hpp"
 
@@ -115,6 +116,15 @@ ProvidedItem parse_provided(const Fields& f, const json& entry, const std::strin
     f.fail(field + ".interface", "required for an actuating driver (for example \"differential_drive\")");
   }
   if (const auto it = entry.find("fail_safe"); it != entry.end()) item.fail_safe = f.string(*it, field + ".fail_safe");
+  for (const char* key : {"isolation", "isolation_needs"}) {
+    if (!entry.contains(key)) continue;
+    if (item.kind != "capability") f.fail(field + "." + key, "only a capability runs in a process of its own");
+    try {
+      sdk::contract::isolation_of(entry, nullptr);
+    } catch (const sdk::contract::SettingsError& e) {
+      f.fail(field + "." + e.key(), e.problem());
+    }
+  }
   if (const auto it = entry.find("implies"); it != entry.end()) item.implies = parse_implies(f, *it, item, field + ".implies");
   try {
     sdk::contract::check_provided_item(entry, field);

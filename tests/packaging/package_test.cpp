@@ -205,6 +205,7 @@ TEST_CASE("the kernel, SDK and core plugin packages are built, and the core set 
 TEST_CASE("the unpacked tree has the Debian layout, the systemd unit and the conffile") {
   REQUIRE_PACKAGES(p);
   CHECK(fs::is_regular_file(p.root / "usr/sbin/rcand"));
+  CHECK(fs::is_regular_file(p.root / "usr/libexec/rcand/rcand-plugin-host"));  // isolation: process (issue 34)
   CHECK(fs::is_regular_file(p.root / "usr/bin/rcanctl"));
   CHECK(fs::is_regular_file(p.root / "etc/rcand/robot.rcan.yaml"));
   for (const char* file : {"rcand_teleop.so", "teleop.json", "rcand_nav.so", "nav.json", "rcand_fleet.so", "fleet.json",

@@ -161,6 +161,26 @@ TEST_CASE("a scaffolded capability builds and tests against the installed SDK al
     CHECK(robot.json("GET", "/api/discovery").dump().find("com.acme.lidar") != std::string::npos);
     CHECK(robot.stop() == 0);
   }
+  {  // The same build in a process of its own (issue 34), by one setting in a conf.d fragment: the plugin cannot tell.
+    const fs::path fragment = build / "dev/conf.d/50-isolated.yaml";
+    fs::create_directories(fragment.parent_path());
+    std::ofstream(fragment) << "runtime:\n  capabilities:\n    com.acme.lidar:\n      isolation: process\n";
+    auto robot = dev_run(source);
+    int status = 0;
+    const auto answer =
+        robot.json("POST", "/api/cap/com.acme.lidar/message", "rcand-dev-user", R"({"text":"isolated"})", &status);
+    INFO(answer.dump(), robot.stderr_text());
+    CHECK(status == 200);
+    CHECK(answer == nlohmann::json{{"ok", true}, {"messages", 1}});
+    CHECK(robot.json("GET", "/api/cap/com.acme.lidar/state", "rcand-dev-user")["last_message"] == "isolated");
+    const auto process =
+        robot.json("GET", "/api/status", "rcand-dev-owner")["capabilities"]["com.acme.lidar"]["status"]["process"];
+    CHECK(process.value("isolation", "") == "process");
+    CHECK(process.value("pid", 0) > 0);
+    CHECK(process.value("pid", 0) != robot.pid());
+    CHECK(robot.stop() == 0);
+    fs::remove(fragment);
+  }
 
   // The package, as its CMakeLists.txt makes it; installed (unpacked) and served from the packaged plugin directory.
   if (::access("/usr/bin/dpkg-deb", X_OK) != 0 || std::string(RCAND_LIBRARY_ARCHITECTURE).empty()) {

@@ -1,11 +1,11 @@
-#include "kernel/plugins/settings_schema.hpp"
+#include "libs/config/plugin_settings.hpp"
 #include "libs/config/robot_config.hpp"
 
 #include <doctest/doctest.h>
 
 using nlohmann::json;
-using rcand::kernel::apply_config_schema;
-using rcand::kernel::ConfigSchemaError;
+using rcand::config::apply_config_schema;
+using rcand::config::ConfigSchemaError;
 
 namespace {
 
@@ -139,7 +139,7 @@ runtime:
   const auto& config = loaded.config;
   const auto error_of = [&](const json& schema, const json& settings, bool driver_entry, const std::string& path) {
     try {
-      rcand::kernel::plugin_settings(config, "org.example.x", schema, settings, driver_entry, path);
+      rcand::config::plugin_settings(config, "org.example.x", schema, settings, driver_entry, path);
     } catch (const rcand::config::ConfigError& e) {
       return std::string(e.what());
     }
@@ -155,6 +155,6 @@ runtime:
   CHECK(error_of(teleop, config.runtime.capabilities["teleop"], false, "runtime.capabilities.teleop") ==
         "robot.rcan.yaml:16:14: error: runtime.capabilities.teleop.watchdog_ms: expected integer >= 1, found 0 (settings of "
         "plugin org.example.x)");
-  CHECK(rcand::kernel::plugin_settings(config, "org.example.x", teleop, json{{"watchdog_ms", 5}}, false, "x") ==
+  CHECK(rcand::config::plugin_settings(config, "org.example.x", teleop, json{{"watchdog_ms", 5}}, false, "x") ==
         json{{"watchdog_ms", 5}});
 }

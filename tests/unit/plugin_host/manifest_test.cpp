@@ -163,6 +163,16 @@ TEST_CASE("parse_manifest errors name the file and the field") {
     doc["abi"]["minor"] = -1;
     CHECK(manifest_error_of(doc).find("abi.minor: expected an integer in [0, 65535], found -1") != std::string::npos);
   }
+  SUBCASE("isolation of a driver: drivers run in rcand, where a halt always reaches them") {
+    doc["provides"][1]["isolation"] = "process";
+    CHECK(manifest_error_of(doc) ==
+          "/plugins/teleop.json: provides[1].isolation: only a capability runs in a process of its own");
+  }
+  SUBCASE("isolation unknown") {
+    doc["provides"][0]["isolation"] = "sandbox";
+    CHECK(manifest_error_of(doc) ==
+          "/plugins/teleop.json: provides[0].isolation: expected \"process\" or \"in_process\", found \"sandbox\"");
+  }
   SUBCASE("provides not an array") {
     doc["provides"] = "teleop";
     CHECK(manifest_error_of(doc) == "/plugins/teleop.json: provides: expected array, found string");

@@ -37,6 +37,7 @@
 #include "rcand/sdk/capability.hpp"
 #include "rcand/sdk/context.hpp"
 #include "rcand/sdk/contract/door.hpp"
+#include "rcand/sdk/contract/isolation.hpp"
 #include "rcand/sdk/contract/plan.hpp"
 #include "rcand/sdk/contract/requests.hpp"
 #include "rcand/sdk/contract/settings.hpp"
@@ -517,11 +518,11 @@ class FakeHost {
     const nlohmann::json* manifest = registry_.manifest(plugin_id);
     if (manifest == nullptr) return settings;  // loaded without a manifest: nothing to check against
     const bool driver = kind == "driver";
-    auto result = contract::validate_settings(
-        contract::item_settings_schema(*manifest, kind, name), settings,
-        contract::SettingsRules{
-            driver ? std::span<const std::string_view>(contract::kDriverEntryKeys) : std::span<const std::string_view>(),
-            driver ? contract::UnknownKeys::Refuse : contract::UnknownKeys::WarnUnlessNearMiss});
+    const auto schema = contract::item_settings_schema(*manifest, kind, name);
+    auto result = driver
+                      ? contract::validate_settings(
+                            schema, settings, contract::SettingsRules{contract::kDriverEntryKeys, contract::UnknownKeys::Refuse})
+                      : contract::validate_capability_settings(schema, settings, contract::UnknownKeys::WarnUnlessNearMiss);
     if (!result.problems.empty()) {
       const auto& [key, problem] = result.problems.front();
       throw HostError((key.empty() ? where : where + (key.front() == '[' ? "" : ".") + key) + ": " + problem +

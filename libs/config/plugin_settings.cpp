@@ -1,9 +1,9 @@
-#include "kernel/plugins/settings_schema.hpp"
+#include "libs/config/plugin_settings.hpp"
 
 #include "libs/base/logging.hpp"
 #include "libs/config/foreign_keys.hpp"
 
-namespace rcand::kernel {
+namespace rcand::config {
 
 nlohmann::json plugin_settings(const config::RobotConfig& config, const std::string& plugin_id, const nlohmann::json& schema,
                                const nlohmann::json& settings, bool driver_entry, const std::string& path,
@@ -12,12 +12,13 @@ nlohmann::json plugin_settings(const config::RobotConfig& config, const std::str
   const bool strict = config::default_load_options().strict;
   const sdk::contract::SettingsRules rules{
       driver_entry ? std::span<const std::string_view>(sdk::contract::kDriverEntryKeys) : std::span<const std::string_view>(),
-      driver_entry || strict ? UnknownKeys::Refuse : UnknownKeys::WarnUnlessNearMiss};
+      driver_entry || strict ? UnknownKeys::Refuse : UnknownKeys::WarnUnlessNearMiss};  // a capability's: its isolation too
   // Another runtime's keys (a driver entry's link_id, frequency; camera.depth_enabled): ignored with a warning.
   nlohmann::json own = settings;
   const auto foreign = config::take_foreign_settings(
       own, sdk::contract::settings_root(schema).value("properties", nlohmann::json::object()), driver_entry, path);
-  auto result = sdk::contract::validate_settings(schema, own, rules);
+  auto result = driver_entry ? sdk::contract::validate_settings(schema, own, rules)
+                             : sdk::contract::validate_capability_settings(schema, own, rules.unknown);
   for (const auto& key : foreign)
     if (strict) result.problems.push_back({key, "another runtime's key, not a setting of this plugin (--strict)"});
     else result.ignored.push_back(key);
@@ -41,4 +42,4 @@ nlohmann::json plugin_settings(const config::RobotConfig& config, const std::str
   return std::move(result.settings);
 }
 
-}  // namespace rcand::kernel
+}  // namespace rcand::config

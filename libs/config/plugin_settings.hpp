@@ -9,9 +9,10 @@
 #include <vector>
 
 #include "libs/config/robot_config.hpp"
+#include "rcand/sdk/contract/isolation.hpp"
 #include "rcand/sdk/contract/settings.hpp"
 
-namespace rcand::kernel {
+namespace rcand::config {
 
 // "watchdog_ms: expected integer >= 1, found -3"; key() and problem() apart.
 using ConfigSchemaError = sdk::contract::SettingsError;
@@ -35,4 +36,4 @@ nlohmann::json plugin_settings(const config::RobotConfig& config, const std::str
                                const nlohmann::json& settings, bool driver_entry, const std::string& path,
                                std::vector<sdk::contract::Claim>* claims = nullptr);
 
-}  // namespace rcand::kernel
+}  // namespace rcand::config

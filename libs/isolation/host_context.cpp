@@ -1,0 +1,166 @@
+#include "libs/isolation/host_context.hpp"
+
+#include <utility>
+
+#include "libs/base/logging.hpp"
+
+namespace rcand::isolation {
+
+using nlohmann::json;
+
+namespace {
+
+std::vector<sdk::ActuatorInfo> actuators_of(const json& start) {
+  std::vector<sdk::ActuatorInfo> actuators;
+  for (const auto& entry : start.at("actuators"))
+    actuators.push_back({entry.at(0).get<std::string>(), entry.at(1).get<std::string>()});
+  return actuators;
+}
+
+}  // namespace
+
+HostContext::HostContext(Channel& channel, const json& start)
+    : channel_(channel),
+      plugin_id_(start.at("plugin").get<std::string>()),
+      instance_id_(start.at("capability").get<std::string>()),
+      gate_(*this, actuators_of(start)),
+      settings_(start.at("settings")),
+      robot_config_(start.at("robot_config")),
+      latched_(start.value("latched", false)) {}
+
+HostContext::~HostContext() { join_workers(); }
+
+sdk::Worker& HostContext::worker(std::string_view name) {
+  if (name.empty()) throw std::invalid_argument("a worker needs a name");
+  const std::string full = instance_id_ + "." + std::string(name);
+  std::lock_guard lock(mutex_);
+  for (auto& worker : workers_)
+    if (worker->name() == full) return *worker;
+  workers_.push_back(
+      std::make_unique<WorkerThread>(full, [this, full](const std::string& why) { logger_.error("worker ", full, ": ", why); }));
+  return *workers_.back();
+}
+
+void HostContext::publish_status(const json& status) noexcept { channel_.send({{"t", "publish"}, {"status", status}}); }
+
+bool HostContext::offer_service(std::string_view interface_id, const void*) noexcept {
+  logger_.warn("service ", interface_id, " not offered: services are not carried out of an isolated capability's process");
+  return false;
+}
+
+void HostContext::set_latched(bool latched) {
+  {
+    std::lock_guard lock(mutex_);
+    latched_.store(latched);
+  }
+  changed_.notify_all();
+}
+
+void HostContext::deliver(const json& reply) {
+  {
+    std::lock_guard lock(mutex_);
+    if (auto it = calls_.find(reply.at("id").get<std::uint64_t>()); it != calls_.end()) it->second = reply;
+  }
+  changed_.notify_all();
+}
+
+void HostContext::close() {
+  {
+    std::lock_guard lock(mutex_);
+    closed_ = true;
+  }
+  changed_.notify_all();
+}
+
+void HostContext::join_workers() {
+  std::deque<std::unique_ptr<WorkerThread>> workers;
+  {
+    std::lock_guard lock(mutex_);
+    workers.swap(workers_);
+  }
+  for (auto& worker : workers) worker->join();
+}
+
+json HostContext::call(std::string_view op, std::string_view actuator, std::string_view method, json args) {
+  std::unique_lock lock(mutex_);
+  const std::uint64_t id = ++next_call_;
+  calls_[id];
+  lock.unlock();
+  const bool sent = channel_.send(
+      {{"t", "call"}, {"id", id}, {"op", op}, {"actuator", actuator}, {"method", method}, {"args", std::move(args)}});
+  lock.lock();
+  if (sent) changed_.wait(lock, [&] { return calls_[id].has_value() || closed_; });
+  auto reply = std::move(calls_[id]);
+  calls_.erase(id);
+  if (reply) return std::move(*reply);
+  return {{"gate", static_cast<int>(sdk::GateStatus::ActuatorFailed)}, {"error", "rcand did not answer: its channel is closed"}};
+}
+
+void HostContext::Log::log(sdk::LogLevel level, std::string_view message) noexcept {
+  // Never waits: a line rcand cannot take now (its channel full) is dropped rather than holding the plugin.
+  channel_.send({{"t", "log"}, {"level", static_cast<int>(level)}, {"text", message}}, nullptr, /*wait=*/false);
+}
+
+bool HostContext::Estop::sleep_unless_latched(std::chrono::microseconds duration) const {
+  std::unique_lock lock(host_.mutex_);
+  return !host_.changed_.wait_for(lock, duration, [&] { return host_.latched_.load(); });
+}
+
+void HostContext::Estop::request_estop(const std::string& reason) noexcept {
+  try {
+    host_.call("estop", "", "", reason);
+  } catch (...) {  // noexcept hook: a reason that cannot be encoded still latches nothing here; rcand's own checks stand
+  }
+}
+
+std::unique_ptr<sdk::ActuatorDriver> HostContext::Gate::stand_in(std::string_view actuator_id, std::string_view op,
+                                                                 const std::shared_ptr<CallOutcome>& outcome,
+                                                                 sdk::GateStatus& refusal) const {
+  for (const auto& info : actuators_) {
+    if (info.id != actuator_id) continue;
+    const std::string id(actuator_id);
+    auto actuator = remote_actuator(
+        info.interface, op,
+        [this, id](std::string_view call_op, std::string_view method, json args) {
+          return host_.call(call_op, id, method, std::move(args));
+        },
+        outcome);
+    if (!actuator) {
+      host_.logger_.error("actuator ", actuator_id, " implements ", info.interface,
+                          ", which is not carried to an isolated capability yet: run this capability in_process");
+      refusal = sdk::GateStatus::WrongInterface;
+    }
+    return actuator;
+  }
+  refusal = sdk::GateStatus::UnknownActuator;
+  return nullptr;
+}
+
+sdk::GateStatus HostContext::Gate::actuate(std::string_view actuator_id,
+                                           const std::function<void(sdk::ActuatorDriver&)>& command) {
+  auto outcome = std::make_shared<CallOutcome>();
+  sdk::GateStatus refusal = sdk::GateStatus::Ok;
+  auto actuator = stand_in(actuator_id, "actuate", outcome, refusal);
+  if (!actuator) return refusal;
+  command(*actuator);
+  return outcome->status;
+}
+
+sdk::GateStatus HostContext::Gate::inspect(std::string_view actuator_id,
+                                           const std::function<void(const sdk::ActuatorDriver&)>& reader) const {
+  auto outcome = std::make_shared<CallOutcome>();
+  sdk::GateStatus refusal = sdk::GateStatus::Ok;
+  auto actuator = stand_in(actuator_id, "inspect", outcome, refusal);
+  if (!actuator) return refusal;
+  reader(*actuator);
+  return outcome->status;
+}
+
+void HostContext::Gate::halt(std::string_view actuator_id) noexcept {
+  try {
+    host_.call("halt", actuator_id, "halt", json::array());
+  } catch (...) {  // noexcept: rcand halts what this capability moved when its process ends
+  }
+}
+
+}  // namespace rcand::isolation

@@ -1,0 +1,27 @@
+// What an isolated capability's host process may do (issue 34): less than rcand. Entered by rcand-plugin-host before
+// it opens the plugin, so the plugin's own initialisation already runs inside it:
+//   - no new privileges (setuid binaries gain nothing) and no Linux capabilities, the bounding set emptied as far as
+//     the process may;
+//   - a seccomp filter (libseccomp) refusing with EPERM what no capability needs: tracing or reading other processes'
+//     memory, signalling rcand or any process group, kernel modules, mounts and namespaces, reboot, BPF, keyrings,
+//     clock setting and raw I/O ports; and, unless its manifest entry says it needs the network
+//     ("isolation_needs": ["network"]), sockets other than Unix ones.
+// EPERM rather than a kill: a library that probes for a feature gets "not permitted" and goes on without it.
+#pragma once
+
+#include <sys/types.h>
+
+#include <string>
+#include <vector>
+
+namespace rcand::isolation {
+
+struct SandboxNeeds {
+  bool network = false;
+};
+
+// The calling process, every thread of it, from now on. `parent` is rcand's pid. Throws std::runtime_error naming
+// the step that failed (the host then refuses to start the capability).
+void enter_host_sandbox(pid_t parent, const SandboxNeeds& needs);
+
+}  // namespace rcand::isolation

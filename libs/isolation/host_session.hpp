@@ -1,0 +1,30 @@
+// rcand-plugin-host's life (services/plugin_host): the start message, the plugin opened and its capability started,
+// then every message of rcand served until it says shutdown or its channel ends. Requests run one at a time on the
+// capability's worker, as in rcand; on_estop() and status() on threads of their own, so neither waits behind a
+// request; the heartbeat is answered from the channel's reader, so a request that runs long does not end the host.
+#pragma once
+
+#include <nlohmann/json.hpp>
+
+#include <functional>
+#include <memory>
+
+#include "libs/isolation/channel.hpp"
+#include "rcand/sdk/registrar.hpp"
+
+namespace rcand::isolation {
+
+// The plugin opened for the start message: its capability's factory, the descriptor's ABI minor, and what keeps the
+// library loaded. A loader throws std::exception with the reason (the loader's own checks refused it).
+struct LoadedCapability {
+  sdk::CapabilityFactory factory;
+  int abi_minor = 0;
+  std::shared_ptr<void> keep;
+};
+using CapabilityLoader = std::function<LoadedCapability(const nlohmann::json& start)>;
+
+// The process's exit status: 0 after rcand's shutdown, 2 without a start message, 3 when the capability did not
+// start (rcand got the reason first).
+int run_host(Channel& channel, const CapabilityLoader& load);
+
+}  // namespace rcand::isolation

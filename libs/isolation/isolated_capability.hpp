@@ -1,0 +1,131 @@
+// A capability whose plugin runs in a process of its own (`isolation: process`, issue 34), as rcand sees it: an
+// sdk::Capability like any other, so the kernel's routes, status, stop path and shutdown treat it as they treat one in
+// process. Its start() starts rcand-plugin-host, which opens the same plugin through the same loader checks and runs
+// the capability there (host_session.hpp); routes forward each request over the channel, and the host's calls on
+// actuators go through this process's motion gate (actuator_calls.hpp), so the latch, the epoch and the scope stay
+// checked here.
+//
+// When the host process ends (a segfault, an abort, a kill) or stops answering (its heartbeat, a request past its
+// time, memory over its limit, in which cases rcand kills it), every actuator the capability moved is halted at once,
+// its routes answer 503 with the reason, its status shows the fault, the death is audited, and the host is started
+// again after a backoff (100 ms doubling to 5 s; back to 100 ms after a life of 30 s). Five deaths within a minute
+// are a crash loop: the capability is then failed with the last reason, and not started again until rcand restarts.
+#pragma once
+
+#include <sys/types.h>
+
+#include <atomic>
+#include <chrono>
+#include <condition_variable>
+#include <cstdint>
+#include <deque>
+#include <filesystem>
+#include <functional>
+#include <map>
+#include <memory>
+#include <mutex>
+#include <optional>
+#include <set>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "libs/base/worker_thread.hpp"
+#include "libs/isolation/channel.hpp"
+#include "rcand/sdk/capability.hpp"
+#include "rcand/sdk/context.hpp"
+
+namespace rcand::isolation {
+
+// What the host process runs, and its limits.
+struct HostSpec {
+  std::filesystem::path binary;           // rcand-plugin-host (find_host_binary)
+  std::vector<std::string> plugin_paths;  // rcand's plugin search path: the host finds the plugin as rcand did
+  std::string plugin_id;
+  std::size_t memory_limit_mb = 1024;               // isolation_memory_mb: resident memory past it kills the host
+  bool network = false;                             // its manifest's isolation_needs: IP sockets past the filter
+  std::chrono::milliseconds request_timeout{4750};  // under the kernel's handler timeout, which would fail it for good
+  std::chrono::milliseconds start_timeout{9500};    // the plugin's factory, start() and routes(), in the host
+};
+
+// What the kernel learns of the host's life: an audit entry (event, detail) per death, and the instance failed once
+// the host is in a crash loop.
+struct HostEvents {
+  std::function<void(const std::string& event, const std::string& detail)> audit;
+  std::function<void(const std::string& reason)> fail;
+};
+
+class IsolatedCapability final : public sdk::Capability {
+ public:
+  static constexpr std::chrono::milliseconds kHeartbeat{200};
+  static constexpr std::chrono::milliseconds kHeartbeatLimit{3000};
+  static constexpr std::chrono::milliseconds kFirstBackoff{100};
+  static constexpr std::chrono::milliseconds kMaxBackoff{5000};
+  static constexpr std::chrono::seconds kStableLife{30};
+  static constexpr int kCrashLoopDeaths = 5;
+  static constexpr std::chrono::seconds kCrashLoopWindow{60};
+  static constexpr std::chrono::milliseconds kStatusWait{150};
+  static constexpr int kMaxCallsInFlight = 64;
+
+  IsolatedCapability(sdk::PluginContext& context, HostSpec spec, HostEvents events);
+  ~IsolatedCapability() override;
+
+  // The first host started and its capability up, or throws what went wrong there (the instance then fails).
+  void start() override;
+  std::vector<sdk::Route> routes() override;
+  sdk::Json status() const override;
+  void on_estop() noexcept override;
+  void shutdown() noexcept override;
+
+  // The host's pid now (0 while none runs) and how many times it was started again: for tests and the status.
+  pid_t pid() const;
+  int restarts() const;
+
+ private:
+  struct Host {
+    pid_t pid = 0;
+    std::shared_ptr<Channel> channel;
+    std::thread reader;
+    bool gone = false;  // its channel closed: the process ended or is ending
+    std::chrono::steady_clock::time_point started, last_pong;
+  };
+
+  void spawn(std::unique_lock<std::mutex>& lock);
+  void read(std::shared_ptr<Channel> channel);
+  void handle(const nlohmann::json& message, const std::shared_ptr<Channel>& channel);
+  void answer_call(const nlohmann::json& call, const std::shared_ptr<Channel>& channel);
+  void supervise();
+  void check_alive(std::unique_lock<std::mutex>& lock);
+  void bury(std::unique_lock<std::mutex>& lock);
+  void end_host(std::unique_lock<std::mutex>& lock);
+  void kill_host(const std::string& why);
+  sdk::Response forward(std::size_t route, const sdk::Request& request);
+  sdk::Response unavailable() const;                         // under mutex_
+  nlohmann::json with_process(nlohmann::json status) const;  // under mutex_
+  void halt_moved(const std::set<std::string>& moved) noexcept;
+
+  sdk::PluginContext& context_;
+  const HostSpec spec_;
+  const HostEvents events_;
+  WorkerThread calls_;  // the host's calls on actuators, one at a time, in order
+  std::atomic<int> calls_in_flight_{0};
+
+  mutable std::mutex mutex_;
+  mutable std::condition_variable changed_;
+  Host host_;
+  bool up_ = false, stopping_ = false, failed_ = false;
+  std::uint64_t generation_ = 0;  // one more for each host that ended
+  std::string down_reason_, kill_reason_, start_error_;
+  std::optional<nlohmann::json> route_specs_;  // what the first host's capability serves; later ones must agree
+  mutable std::uint64_t next_id_ = 0;
+  std::map<std::uint64_t, std::optional<sdk::Response>> requests_;
+  mutable std::map<std::uint64_t, std::optional<nlohmann::json>> statuses_;
+  std::set<std::string> moved_;  // actuators a call of this capability moved
+  int restarts_ = 0;
+  std::chrono::milliseconds backoff_{0};
+  std::chrono::steady_clock::time_point restart_at_;
+  std::deque<std::chrono::steady_clock::time_point> deaths_;
+  std::thread supervisor_;
+};
+
+}  // namespace rcand::isolation

@@ -1,0 +1,19 @@
+// The SDK's values as messages on an isolated capability's channel (channel.hpp): a route without its handler, a
+// request (without its credential, which never leaves rcand), a response. Both ends are built from one tree, so the
+// encoding is positional and unversioned; a field that does not decode throws nlohmann::json's exception.
+#pragma once
+
+#include <nlohmann/json.hpp>
+
+#include "rcand/sdk/capability.hpp"
+#include "rcand/sdk/http.hpp"
+
+namespace rcand::isolation {
+
+nlohmann::json encode_route(const sdk::Route& route);
+sdk::Route decode_route(const nlohmann::json& message);  // no handler: the caller gives it one
+
+nlohmann::json encode_request(const sdk::Request& request);
+sdk::Request decode_request(const nlohmann::json& message);
+
+}  // namespace rcand::isolation

@@ -1,0 +1,56 @@
+// rcand-plugin-host: the process an isolated capability runs in (libs/isolation/host_session.hpp). rcand starts it
+// with its end of the channel on descriptor 3; it opens the plugin rcand chose through rcand's own plugin host (the
+// manifest, the descriptor and the registration checked as in rcand), runs the capability, and ends with rcand.
+#include <sys/prctl.h>
+#include <unistd.h>
+
+#include <csignal>
+#include <cstdio>
+#include <filesystem>
+#include <stdexcept>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "kernel/plugins/plugin_host.hpp"
+#include "libs/base/logging.hpp"
+#include "libs/isolation/host_sandbox.hpp"
+#include "libs/isolation/host_session.hpp"
+
+namespace rcand::services {
+
+namespace {
+
+// The sandbox first, then the plugin: its static initialisers already run inside it.
+isolation::LoadedCapability load(const nlohmann::json& start) {
+  isolation::enter_host_sandbox(::getppid(), {start.value("network", false)});
+  auto host = std::make_shared<kernel::PluginHost>();
+  std::vector<std::filesystem::path> paths;
+  for (const auto& path : start.at("plugin_paths")) paths.emplace_back(path.get<std::string>());
+  const std::string id = start.at("plugin").get<std::string>(), capability = start.at("capability").get<std::string>();
+  host->scan(paths);
+  host->load_needed({capability}, {});
+  const kernel::PluginRecord* record = host->find(id);
+  if (record == nullptr) throw std::runtime_error("plugin " + id + " is not installed in rcand's plugin path");
+  if (record->state != kernel::PluginState::Loaded)
+    throw std::runtime_error("plugin " + id + " is " + std::string(kernel::to_string(record->state)) + ": " + record->reason);
+  for (const auto& registered : record->capabilities)
+    if (registered.info.name == capability) return {registered.factory, record->abi_minor, host};
+  throw std::runtime_error("plugin " + id + " registers no capability " + capability);
+}
+
+}  // namespace
+
+}  // namespace rcand::services
+
+int main(int argc, char** argv) {
+  if (argc != 3 || std::string_view(argv[1]) != "--parent") {
+    std::fprintf(stderr, "usage: rcand-plugin-host --parent PID (rcand starts it, its channel on descriptor 3)\n");
+    return 2;
+  }
+  ::prctl(PR_SET_PDEATHSIG, SIGKILL);
+  if (std::to_string(::getppid()) != argv[2]) return 1;  // rcand ended before the line above took effect
+  rcand::configure_logging("info");
+  rcand::isolation::Channel channel(3);
+  return rcand::isolation::run_host(channel, rcand::services::load);
+}
