@@ -41,12 +41,19 @@ void check(int result, const char* step) {
   if (result < 0) throw std::runtime_error(std::string("sandbox: ") + step + ": " + std::strerror(-result));
 }
 
+// Every capability out of the bounding set (where the process may) and out of its own sets. capset(2) only when there
+// is something to drop: the packaged unit already starts rcand with none, and its filter refuses capset (@privileged).
 void drop_capabilities() {
   for (int cap = 0; cap <= CAP_LAST_CAP; ++cap)
     ::prctl(PR_CAPBSET_DROP, cap, 0, 0, 0);  // EPERM without CAP_SETPCAP: none to drop
   __user_cap_header_struct header{_LINUX_CAPABILITY_VERSION_3, 0};
-  __user_cap_data_struct none[_LINUX_CAPABILITY_U32S_3]{};
-  if (::syscall(SYS_capset, &header, none) != 0)
+  __user_cap_data_struct held[_LINUX_CAPABILITY_U32S_3]{};
+  if (::syscall(SYS_capget, &header, held) != 0)
+    throw std::runtime_error(std::string("sandbox: reading capabilities: ") + std::strerror(errno));
+  bool any = false;
+  for (const auto& set : held) any = any || set.effective != 0 || set.permitted != 0 || set.inheritable != 0;
+  const __user_cap_data_struct none[_LINUX_CAPABILITY_U32S_3]{};
+  if (any && ::syscall(SYS_capset, &header, none) != 0)
     throw std::runtime_error(std::string("sandbox: dropping capabilities: ") + std::strerror(errno));
 }
 

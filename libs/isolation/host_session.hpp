@@ -1,7 +1,8 @@
 // rcand-plugin-host's life (services/plugin_host): the start message, the plugin opened and its capability started,
-// then every message of rcand served until it says shutdown or its channel ends. Requests run one at a time on the
-// capability's worker, as in rcand; on_estop() and status() on threads of their own, so neither waits behind a
-// request; the heartbeat is answered from the channel's reader, so a request that runs long does not end the host.
+// then every message of rcand served until it says shutdown or its channel ends. The channel's reader runs from the
+// start (rcand's answers to what the capability asks during its start() arrive there). Requests run one at a time on
+// the capability's worker, as in rcand; on_estop() and status() on threads of their own, so neither waits behind a
+// request; the heartbeat is answered from the reader, so a request that runs long does not end the host.
 #pragma once
 
 #include <nlohmann/json.hpp>

@@ -115,8 +115,12 @@ void IsolatedCapability::handle(const json& message, const std::shared_ptr<Chann
     if (type == "pong") {
       host_.last_pong = Clock::now();
     } else if (type == "response") {
-      if (auto it = requests_.find(message.at("id").get<std::uint64_t>()); it != requests_.end())
-        it->second = sdk::Response{message.at("status").get<int>(), message.at("body")};
+      if (auto it = requests_.find(message.at("id").get<std::uint64_t>()); it != requests_.end()) {
+        Answer answer;
+        if (message.contains("threw")) answer.threw = message["threw"].get<std::string>();
+        else answer.response = sdk::Response{message.at("status").get<int>(), message.at("body")};
+        it->second = std::move(answer);
+      }
     } else if (type == "status") {
       if (auto it = statuses_.find(message.at("id").get<std::uint64_t>()); it != statuses_.end())
         it->second = message.at("status");
@@ -200,7 +204,8 @@ sdk::Response IsolatedCapability::forward(std::size_t route, const sdk::Request&
   });
   auto answer = std::move(requests_[id]);
   requests_.erase(id);
-  if (answer) return std::move(*answer);
+  if (answer && answer->threw) throw std::runtime_error(*answer->threw);  // rcand answers it as in process
+  if (answer) return std::move(answer->response);
   if (!sent) return sdk::Response::error(503, "UNAVAILABLE", "the request could not reach the capability's process: " + error);
   if (!answered) {
     const std::string why = "did not answer " + request.method + " " + request.path + " within " + ms_text(spec_.request_timeout);
@@ -379,16 +384,6 @@ void IsolatedCapability::end_host(std::unique_lock<std::mutex>& lock) {
   if (host.reader.joinable()) host.reader.join();
   reap(host.pid);
   lock.lock();
-}
-
-pid_t IsolatedCapability::pid() const {
-  std::lock_guard lock(mutex_);
-  return host_.pid;
-}
-
-int IsolatedCapability::restarts() const {
-  std::lock_guard lock(mutex_);
-  return restarts_;
 }
 
 }  // namespace rcand::isolation

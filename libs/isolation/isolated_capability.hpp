@@ -77,10 +77,6 @@ class IsolatedCapability final : public sdk::Capability {
   void on_estop() noexcept override;
   void shutdown() noexcept override;
 
-  // The host's pid now (0 while none runs) and how many times it was started again: for tests and the status.
-  pid_t pid() const;
-  int restarts() const;
-
  private:
   struct Host {
     pid_t pid = 0;
@@ -118,7 +114,11 @@ class IsolatedCapability final : public sdk::Capability {
   std::string down_reason_, kill_reason_, start_error_;
   std::optional<nlohmann::json> route_specs_;  // what the first host's capability serves; later ones must agree
   mutable std::uint64_t next_id_ = 0;
-  std::map<std::uint64_t, std::optional<sdk::Response>> requests_;
+  struct Answer {
+    sdk::Response response;
+    std::optional<std::string> threw;  // what its handler threw, if it did
+  };
+  std::map<std::uint64_t, std::optional<Answer>> requests_;
   mutable std::map<std::uint64_t, std::optional<nlohmann::json>> statuses_;
   std::set<std::string> moved_;  // actuators a call of this capability moved
   int restarts_ = 0;

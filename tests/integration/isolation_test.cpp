@@ -124,6 +124,8 @@ TEST_CASE("isolation: an isolated capability serves from its own process and mov
   robot.rcand.json("POST", kBase + "/crash", "owner-token", R"({"how":"throw"})", &thrown);
   CHECK(thrown == 500);
   CHECK(robot.capability_pid() == pid);
+  // Counted as in process (docs/protocol.md §7.16), in the status snapshot once it is rebuilt.
+  CHECK(eventually([&] { return robot.capability_status().value("handler_errors", 0) == 1; }, 10s, 10ms));
 
   // rcand's shutdown reaches the capability's own shutdown() in its process, whose log line rcand writes.
   CHECK(robot.rcand.stop() == 0);
@@ -154,6 +156,19 @@ TEST_CASE("isolation: the capability's process has less than rcand: no privilege
     CAPTURE(what);
     CHECK(in_process.rcand.json("POST", kBase + "/try", "owner-token", json{{"what", what}}.dump()).value("errno", -1) == 0);
   }
+}
+
+TEST_CASE("isolation: under the packaged unit's restrictions (no capabilities, capset refused) the host still starts") {
+  auto config = crasher_config();
+  config["runtime"]["plugin_paths"] = {plugin_dir().string(), (test_plugin_dir() / "crasher").string()};
+  RcandProcess rcand(config, {RCAND_UNIT_RESTRICTIONS}, "127.0.0.1");
+  int status = 0;
+  const auto privileges = rcand.json("GET", kBase + "/privileges", "owner-token", "", &status);
+  INFO(rcand.stderr_text());
+  REQUIRE(status == 200);
+  CHECK(privileges.value("CapEff", "") == "0000000000000000");
+  CHECK(privileges.value("Seccomp", "") == "2");
+  CHECK(rcand.json("POST", kBase + "/try", "owner-token", R"({"what":"signal_rcand"})").value("errno", -1) == EPERM);
 }
 
 TEST_CASE("isolation: a segfault ends only the capability's process") {
