@@ -12,11 +12,12 @@ nlohmann::json plugin_settings(const config::RobotConfig& config, const std::str
   const bool strict = config::default_load_options().strict;
   const sdk::contract::SettingsRules rules{
       driver_entry ? std::span<const std::string_view>(sdk::contract::kDriverEntryKeys) : std::span<const std::string_view>(),
-      driver_entry || strict ? UnknownKeys::Refuse : UnknownKeys::WarnUnlessNearMiss};  // a capability's: its isolation too
+      driver_entry || strict ? UnknownKeys::Refuse : UnknownKeys::WarnUnlessNearMiss};
   // Another runtime's keys (a driver entry's link_id, frequency; camera.depth_enabled): ignored with a warning.
   nlohmann::json own = settings;
   const auto foreign = config::take_foreign_settings(
       own, sdk::contract::settings_root(schema).value("properties", nlohmann::json::object()), driver_entry, path);
+  // A capability's block also carries where it runs (rcand/sdk/contract/isolation.hpp), checked there.
   auto result = driver_entry ? sdk::contract::validate_settings(schema, own, rules)
                              : sdk::contract::validate_capability_settings(schema, own, rules.unknown);
   for (const auto& key : foreign)

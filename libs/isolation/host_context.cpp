@@ -113,12 +113,12 @@ void HostContext::Estop::request_estop(const std::string& reason) noexcept {
   }
 }
 
-std::unique_ptr<sdk::ActuatorDriver> HostContext::Gate::stand_in(std::string_view actuator_id, std::string_view op,
-                                                                 const std::shared_ptr<CallOutcome>& outcome,
-                                                                 sdk::GateStatus& refusal) const {
+sdk::GateStatus HostContext::Gate::through_stand_in(std::string_view actuator_id, std::string_view op,
+                                                    const std::function<void(sdk::ActuatorDriver&)>& use) const {
   for (const auto& info : actuators_) {
     if (info.id != actuator_id) continue;
     const std::string id(actuator_id);
+    auto outcome = std::make_shared<CallOutcome>();
     auto actuator = remote_actuator(
         info.interface, op,
         [this, id](std::string_view call_op, std::string_view method, json args) {
@@ -128,32 +128,22 @@ std::unique_ptr<sdk::ActuatorDriver> HostContext::Gate::stand_in(std::string_vie
     if (!actuator) {
       host_.logger_.error("actuator ", actuator_id, " implements ", info.interface,
                           ", which is not carried to an isolated capability yet: run this capability in_process");
-      refusal = sdk::GateStatus::WrongInterface;
+      return sdk::GateStatus::WrongInterface;
     }
-    return actuator;
+    use(*actuator);
+    return outcome->status;
   }
-  refusal = sdk::GateStatus::UnknownActuator;
-  return nullptr;
+  return sdk::GateStatus::UnknownActuator;
 }
 
 sdk::GateStatus HostContext::Gate::actuate(std::string_view actuator_id,
                                            const std::function<void(sdk::ActuatorDriver&)>& command) {
-  auto outcome = std::make_shared<CallOutcome>();
-  sdk::GateStatus refusal = sdk::GateStatus::Ok;
-  auto actuator = stand_in(actuator_id, "actuate", outcome, refusal);
-  if (!actuator) return refusal;
-  command(*actuator);
-  return outcome->status;
+  return through_stand_in(actuator_id, "actuate", command);
 }
 
 sdk::GateStatus HostContext::Gate::inspect(std::string_view actuator_id,
                                            const std::function<void(const sdk::ActuatorDriver&)>& reader) const {
-  auto outcome = std::make_shared<CallOutcome>();
-  sdk::GateStatus refusal = sdk::GateStatus::Ok;
-  auto actuator = stand_in(actuator_id, "inspect", outcome, refusal);
-  if (!actuator) return refusal;
-  reader(*actuator);
-  return outcome->status;
+  return through_stand_in(actuator_id, "inspect", [&reader](const sdk::ActuatorDriver& actuator) { reader(actuator); });
 }
 
 void HostContext::Gate::halt(std::string_view actuator_id) noexcept {

@@ -82,9 +82,10 @@ class HostContext final : public sdk::PluginContext {
                             const std::function<void(const sdk::ActuatorDriver&)>& reader) const override;
 
    private:
-    // The stand-in for `actuator_id`, its calls sent as `op`; null with `refusal` set when there is none.
-    std::unique_ptr<sdk::ActuatorDriver> stand_in(std::string_view actuator_id, std::string_view op,
-                                                  const std::shared_ptr<CallOutcome>& outcome, sdk::GateStatus& refusal) const;
+    // `use` run on a stand-in for `actuator_id` whose calls are sent as `op`; the first refusal of those calls, or why
+    // there is no stand-in (an unknown actuator, an interface not carried).
+    sdk::GateStatus through_stand_in(std::string_view actuator_id, std::string_view op,
+                                     const std::function<void(sdk::ActuatorDriver&)>& use) const;
     HostContext& host_;
     const std::vector<sdk::ActuatorInfo> actuators_;
   };

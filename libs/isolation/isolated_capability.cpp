@@ -40,7 +40,7 @@ void IsolatedCapability::start() {
 }
 
 // Under mutex_. A new host process and its reader; the start message names what it runs.
-void IsolatedCapability::spawn(std::unique_lock<std::mutex>& lock) {
+void IsolatedCapability::spawn() {
   auto [mine, theirs] = Channel::socket_pair();
   auto channel = std::make_shared<Channel>(mine);
   pid_t pid = 0;
@@ -66,7 +66,6 @@ void IsolatedCapability::spawn(std::unique_lock<std::mutex>& lock) {
   kill_reason_.clear();
   host_ = Host{pid, channel, {}, false, Clock::now(), Clock::now()};
   host_.reader = std::thread([this, channel] { read(channel); });
-  (void)lock;
 }
 
 void IsolatedCapability::read(std::shared_ptr<Channel> channel) {
@@ -226,6 +225,8 @@ sdk::Response IsolatedCapability::unavailable() const {
       {{"reason", reason}});
 }
 
+json IsolatedCapability::down_status() const { return with_process({{"fault", unavailable().body.value("error", "")}}); }
+
 json IsolatedCapability::with_process(json status) const {
   if (status.is_object()) status["process"] = {{"isolation", "process"}, {"pid", host_.pid}, {"restarts", restarts_}};
   return status;
@@ -233,7 +234,7 @@ json IsolatedCapability::with_process(json status) const {
 
 sdk::Json IsolatedCapability::status() const {
   std::unique_lock lock(mutex_);
-  if (!up_) return with_process({{"fault", unavailable().body.value("error", "")}});
+  if (!up_) return down_status();
   const std::uint64_t id = ++next_id_, generation = generation_;
   statuses_[id];
   const auto channel = host_.channel;
@@ -246,7 +247,7 @@ sdk::Json IsolatedCapability::status() const {
   statuses_.erase(id);
   if (status) return with_process(std::move(*status));
   if (!answered) return with_process({{"fault", "its status() did not answer within " + ms_text(kStatusWait)}});
-  return with_process({{"fault", unavailable().body.value("error", "")}});
+  return down_status();
 }
 
 void IsolatedCapability::on_estop() noexcept {
@@ -264,11 +265,11 @@ void IsolatedCapability::supervise() {
     changed_.wait_for(lock, kHeartbeat, [&] { return stopping_ || host_.gone; });
     if (stopping_) break;
     if (host_.pid != 0 && host_.gone) bury(lock);
-    else if (host_.pid != 0) check_alive(lock);
+    else if (host_.pid != 0) check_alive();
     else if (!failed_ && Clock::now() >= restart_at_) {
       try {
         if (route_specs_) ++restarts_;  // the first host is no restart
-        spawn(lock);
+        spawn();
       } catch (const std::exception& e) {
         down_reason_ = std::string("cannot start its process: ") + e.what();
         failed_ = true;
@@ -283,8 +284,7 @@ void IsolatedCapability::supervise() {
 }
 
 // Under mutex_: the heartbeat, the start deadline and the memory limit of the running host.
-void IsolatedCapability::check_alive(std::unique_lock<std::mutex>& lock) {
-  (void)lock;
+void IsolatedCapability::check_alive() {
   const auto now = Clock::now();
   if (!up_) {
     if (now - host_.started > spec_.start_timeout)
@@ -317,9 +317,7 @@ void IsolatedCapability::bury(std::unique_lock<std::mutex>& lock) {
   lock.unlock();
   halt_moved(moved);
   calls_.post([this, moved] { halt_moved(moved); });  // again after any call of the dead host already under way
-  host.channel->shutdown();
-  if (host.reader.joinable()) host.reader.join();
-  const std::string how = reap(host.pid);
+  const std::string how = close_and_reap(host);
   lock.lock();
   const auto now = Clock::now();
   const std::string process = "its process " + std::to_string(host.pid);
@@ -343,7 +341,7 @@ void IsolatedCapability::bury(std::unique_lock<std::mutex>& lock) {
                    std::to_string(kCrashLoopWindow.count()) + " s; the last: " + down_reason_;
   }
   const std::string reason = down_reason_;
-  const json fault = with_process({{"fault", unavailable().body.value("error", "")}});
+  const json fault = down_status();
   lock.unlock();
   context_.publish_status(fault);
   logger("kernel.plugins")
@@ -380,10 +378,15 @@ void IsolatedCapability::end_host(std::unique_lock<std::mutex>& lock) {
   host_ = {};
   up_ = false;
   lock.unlock();
+  close_and_reap(host);
+  lock.lock();
+}
+
+// Not under mutex_ (its reader may want it one last time): the channel closed, the reader joined, the process reaped.
+std::string IsolatedCapability::close_and_reap(Host& host) {
   host.channel->shutdown();
   if (host.reader.joinable()) host.reader.join();
-  reap(host.pid);
-  lock.lock();
+  return reap(host.pid);
 }
 
 }  // namespace rcand::isolation

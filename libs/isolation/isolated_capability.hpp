@@ -86,18 +86,20 @@ class IsolatedCapability final : public sdk::Capability {
     std::chrono::steady_clock::time_point started, last_pong;
   };
 
-  void spawn(std::unique_lock<std::mutex>& lock);
+  void spawn();  // under mutex_
   void read(std::shared_ptr<Channel> channel);
   void handle(const nlohmann::json& message, const std::shared_ptr<Channel>& channel);
   void answer_call(const nlohmann::json& call, const std::shared_ptr<Channel>& channel);
   void supervise();
-  void check_alive(std::unique_lock<std::mutex>& lock);
+  void check_alive();  // under mutex_
   void bury(std::unique_lock<std::mutex>& lock);
   void end_host(std::unique_lock<std::mutex>& lock);
+  static std::string close_and_reap(Host& host);
   void kill_host(const std::string& why);
   sdk::Response forward(std::size_t route, const sdk::Request& request);
   sdk::Response unavailable() const;                         // under mutex_
   nlohmann::json with_process(nlohmann::json status) const;  // under mutex_
+  nlohmann::json down_status() const;                        // under mutex_: the fault while no host serves
   void halt_moved(const std::set<std::string>& moved) noexcept;
 
   sdk::PluginContext& context_;

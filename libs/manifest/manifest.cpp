@@ -116,9 +116,10 @@ ProvidedItem parse_provided(const Fields& f, const json& entry, const std::strin
     f.fail(field + ".interface", "required for an actuating driver (for example \"differential_drive\")");
   }
   if (const auto it = entry.find("fail_safe"); it != entry.end()) item.fail_safe = f.string(*it, field + ".fail_safe");
-  for (const char* key : {"isolation", "isolation_needs"}) {
-    if (!entry.contains(key)) continue;
-    if (item.kind != "capability") f.fail(field + "." + key, "only a capability runs in a process of its own");
+  if (entry.contains("isolation") || entry.contains("isolation_needs")) {
+    if (item.kind != "capability")
+      f.fail(field + (entry.contains("isolation") ? ".isolation" : ".isolation_needs"),
+             "only a capability runs in a process of its own");
     try {
       sdk::contract::isolation_of(entry, nullptr);
     } catch (const sdk::contract::SettingsError& e) {
