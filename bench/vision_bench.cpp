@@ -78,6 +78,14 @@ long cpu_ticks(pid_t pid) {
 }
 
 // rcand's CPU over `seconds`, in % of one core.
+// VmRSS of `pid`, in kB (0 when it cannot be read).
+long resident_kb(pid_t pid) {
+  std::ifstream in("/proc/" + std::to_string(pid) + "/status");
+  for (std::string line; std::getline(in, line);)
+    if (line.rfind("VmRSS:", 0) == 0) return std::stol(line.substr(6));
+  return 0;
+}
+
 double cpu_percent(pid_t pid, double seconds) {
   const long before = cpu_ticks(pid);
   const auto started = Clock::now();
@@ -117,6 +125,7 @@ struct Options {
   int width = 640, height = 480;
   double fps = 30;
   std::string source = "synthetic";
+  bool isolated = false;  // --isolated 1: vision in a process of its own (issue 34); CPU and memory of both processes
 };
 
 Options parse(int argc, char** argv) {
@@ -136,6 +145,7 @@ Options parse(int argc, char** argv) {
     else if (key == "--width") o.width = static_cast<int>(value);
     else if (key == "--height") o.height = static_cast<int>(value);
     else if (key == "--fps") o.fps = value;
+    else if (key == "--isolated") o.isolated = value != 0;
     else throw std::runtime_error("unknown option " + key);
   }
   return o;
@@ -160,13 +170,23 @@ int main(int argc, char** argv) try {
   }
   config["rcan_protocol"]["capabilities"] = {"status", "teleop", "vision", "com.acme.gripper"};
   config["runtime"]["capabilities"]["vision"] = {{"max_viewers", std::max(32, o.viewers)}};
+  if (o.isolated) config["runtime"]["capabilities"]["vision"]["isolation"] = "process";
   config["runtime"]["logging"]["level"] = "warn";
   rcand::test::RcandProcess rcand(config);
   std::printf("rcand pid %d on port %u: %s %dx%d at %.0f fps, %d viewers, %.0f s\n", rcand.pid(), rcand.port(), o.source.c_str(),
               o.width, o.height, o.fps, o.viewers, o.seconds);
 
   std::this_thread::sleep_for(std::chrono::seconds(1));  // startup settled
+  // With --isolated, the host process that runs vision (its pid in vision's status) is measured beside rcand.
+  const json process = rcand.json("GET", "/api/status", "guest-token")["capabilities"]["vision"]["status"]["process"];
+  const pid_t host = process.is_object() ? process["pid"].get<pid_t>() : 0;
+  if (o.isolated && host == 0) throw std::runtime_error("--isolated: vision's status names no process");
+  const auto both_ticks = [&] { return cpu_ticks(rcand.pid()) + (host != 0 ? cpu_ticks(host) : 0); };
+  const long idle_host_before = host != 0 ? cpu_ticks(host) : 0;
   const double idle_cpu = cpu_percent(rcand.pid(), o.idle_seconds);
+  const double idle_host_cpu = host != 0 ? 100.0 * static_cast<double>(cpu_ticks(host) - idle_host_before) /
+                                               static_cast<double>(::sysconf(_SC_CLK_TCK)) / o.idle_seconds
+                                         : 0.0;
   const auto idle_stops = stop_round_trips(rcand.port(), o.idle_seconds);
 
   std::vector<std::unique_ptr<Viewer>> viewers;
@@ -203,10 +223,11 @@ int main(int argc, char** argv) try {
   for (auto& viewer : viewers) viewer->frames_at_start = viewer->frames;
   measuring = true;
   const auto window_start = Clock::now();
-  const long ticks_before = cpu_ticks(rcand.pid());
+  const long ticks_before = cpu_ticks(rcand.pid()), both_before = both_ticks();
 
   std::this_thread::sleep_for(std::chrono::duration<double>(o.seconds));
-  const long ticks_after = cpu_ticks(rcand.pid());
+  const long ticks_after = cpu_ticks(rcand.pid()), both_after = both_ticks();
+  const long rss_kb = resident_kb(rcand.pid()), host_rss_kb = host != 0 ? resident_kb(host) : 0;
   measuring = false;
   const double window = std::chrono::duration<double>(Clock::now() - window_start).count();
   for (auto& viewer : viewers) viewer->frames_at_end = viewer->frames;
@@ -235,6 +256,15 @@ int main(int argc, char** argv) try {
               stream_cpu - idle_cpu);
   const double passed =
       (status_after.value("frames_passed_through", 0.0) - status_before.value("frames_passed_through", 0.0)) / window;
+  if (host != 0) {
+    const double both_cpu =
+        100.0 * static_cast<double>(both_after - both_before) / static_cast<double>(::sysconf(_SC_CLK_TCK)) / window;
+    std::printf("host %d CPU (%% of one core):   idle %.1f  streaming %.1f;  rcand + host streaming %.1f\n", host, idle_host_cpu,
+                both_cpu - stream_cpu, both_cpu);
+    std::printf("resident memory streaming:      rcand %.1f MB, host %.1f MB\n", rss_kb / 1024.0, host_rss_kb / 1024.0);
+  } else {
+    std::printf("resident memory streaming:      rcand %.1f MB\n", rss_kb / 1024.0);
+  }
   std::printf("captured / encoded / passed through per second:  %.1f / %.1f / %.1f\n", captured, encoded, passed);
   std::printf("rcand CPU per captured frame:   %.2f ms (streaming)\n", captured > 0 ? stream_cpu * 10.0 / captured : 0.0);
   std::printf("capture -> client (ms):         p50 %.2f  p99 %.2f  max %.2f  (n=%zu)\n", percentile(latency, 0.5),

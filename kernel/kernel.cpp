@@ -244,7 +244,7 @@ void Kernel::State::load_plugins(const KernelOptions& options) {
   std::set<std::string> protocols;
   for (const auto& driver : config.drivers) protocols.insert(driver.protocol);
   host.set_register_timeout(std::chrono::milliseconds(config.runtime.plugin_start_timeout_ms));
-  host.load_needed(capabilities, protocols);
+  host.load_needed(capabilities, protocols, &config.runtime.capabilities);
   for (const auto& record : host.records())
     if (is_failure(record->state))
       log->error("plugin {} ({}): {} — {}{}", record->id, record->manifest_file.string(), to_string(record->state),

@@ -21,6 +21,7 @@
 #include "kernel/plugins/recording_registrar.hpp"
 #include "libs/base/bounded_call.hpp"
 #include "libs/base/string_list.hpp"
+#include "libs/manifest/served_apart.hpp"
 
 namespace rcand::kernel {
 namespace {
@@ -146,7 +147,8 @@ std::vector<const PluginRecord*> PluginHost::providers_of_driver(std::string_vie
   return out;
 }
 
-void PluginHost::load_needed(const std::set<std::string>& capabilities, const std::set<std::string>& driver_protocols) {
+void PluginHost::load_needed(const std::set<std::string>& capabilities, const std::set<std::string>& driver_protocols,
+                             const json* capability_settings) {
   std::set<const PluginRecord*> chosen;
   std::map<const PluginRecord*, std::string> passed_over;  // provider -> why another one was chosen
   const auto choose = [&](std::string_view kind, const std::string& name, std::vector<const PluginRecord*> providers) {
@@ -163,7 +165,14 @@ void PluginHost::load_needed(const std::set<std::string>& capabilities, const st
   for (const auto& record : records_) {
     if (record->state != PluginState::InstalledNotEnabled || !installed(*record)) continue;
     if (record->library) continue;  // opened before
-    if (chosen.count(record.get()) != 0) {
+    if (chosen.count(record.get()) != 0 && capability_settings != nullptr &&
+        served_apart(*record->manifest, capabilities, driver_protocols, *capability_settings)) {
+      for (const auto& item : record->manifest->provides)
+        if (item.kind == "capability") record->capabilities.push_back({{item.name, item.actuates}, nullptr});
+      record->abi_minor = RCAND_ABI_MINOR;  // what rcand calls is its own proxy (libs/isolation)
+      record->build_info = "opened by rcand-plugin-host (isolation: process)";
+      set_state(*record, PluginState::Loaded, "", "");
+    } else if (chosen.count(record.get()) != 0) {
       open(*record);
     } else if (const auto it = passed_over.find(record.get()); it != passed_over.end()) {
       set_state(*record, PluginState::InstalledNotEnabled, it->second, "remove one of the providers to choose the other");

@@ -45,8 +45,11 @@ class PluginHost {
   // Opens exactly the plugins that provide something needed (the first provider in scan order for each
   // name; other providers of the same name stay installed-not-enabled with a reason naming the chosen one).
   // Never throws for a plugin's fault: each opened plugin ends Loaded or in a failure state with reason and
-  // hint. Plugins already opened by an earlier call are left as they are.
-  void load_needed(const std::set<std::string>& capabilities, const std::set<std::string>& driver_protocols);
+  // hint. Plugins already opened by an earlier call are left as they are. With `capability_settings`
+  // (runtime.capabilities), a plugin needed only for capabilities that run with `isolation: process` is not opened:
+  // it is Loaded with what its manifest provides and no factories (its host process opens it, through these checks).
+  void load_needed(const std::set<std::string>& capabilities, const std::set<std::string>& driver_protocols,
+                   const nlohmann::json* capability_settings = nullptr);
 
   // A development reload of plugin `id`, once nothing of it runs (PluginRuntime::reload): its manifest re-read and
   // its library opened again from disk, through a private copy (a new file, so the loader cannot hand back the old

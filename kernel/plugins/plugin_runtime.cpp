@@ -96,7 +96,8 @@ std::unique_ptr<Object> create_and_start(const std::string& who,
   auto startup = std::make_shared<Startup>();
   const bool finished = bounded_call(
       "plugin.start", timeout,
-      [startup, who, &factory, &context, more = std::move(more)] {
+      // The factory copied: a thread given up on still calls it after this returns, and the caller's may be a temporary.
+      [startup, who, factory, &context, more = std::move(more)] {
         Fault failure;
         std::unique_ptr<Object> made;
         if (auto object = guarded_result(who, "factory", failure, [&] { return factory(context); }); object && *object) {

@@ -43,7 +43,23 @@ sdk::Worker& HostContext::worker(std::string_view name) {
 
 void HostContext::publish_status(const json& status) noexcept { channel_.send({{"t", "publish"}, {"status", status}}); }
 
-bool HostContext::offer_service(std::string_view interface_id, const void*) noexcept {
+const void* HostContext::service(std::string_view interface_id) const noexcept {
+  return interface_id == sdk::Metrics::kServiceId ? static_cast<const sdk::Metrics*>(&metrics_) : nullptr;
+}
+
+bool HostContext::offer_service(std::string_view interface_id, const void* service) noexcept {
+  if (interface_id == sdk::ObstacleSource::kServiceId && service != nullptr) {
+    try {
+      const json reply = call("offer", "", interface_id, nullptr);
+      if (reply.value("result", json()) != true) return false;  // refused by rcand (another plugin offers it), logged there
+      std::lock_guard lock(mutex_);
+      if (!obstacles_) obstacles_ = std::make_unique<ObstaclePoller>(channel_, *static_cast<const sdk::ObstacleSource*>(service));
+      return true;
+    } catch (const std::exception& e) {
+      logger_.error("obstacle source not offered: ", e.what());
+      return false;
+    }
+  }
   logger_.warn("service ", interface_id, " not offered: services are not carried out of an isolated capability's process");
   return false;
 }
@@ -79,6 +95,11 @@ void HostContext::join_workers() {
     workers.swap(workers_);
   }
   for (auto& worker : workers) worker->join();
+  std::unique_ptr<ObstaclePoller> obstacles;
+  {
+    std::lock_guard lock(mutex_);
+    obstacles.swap(obstacles_);
+  }
 }
 
 json HostContext::call(std::string_view op, std::string_view actuator, std::string_view method, json args) {

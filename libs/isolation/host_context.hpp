@@ -1,8 +1,9 @@
 // The sdk::PluginContext an isolated capability gets in its host process (rcand-plugin-host): the plugin is built
 // against the SDK alone and cannot tell. Its log lines, published statuses, e-stop requests and calls on actuators go
 // to rcand over the channel (rcand's gate decides every motion); its settings and the robot config came with the start
-// message; its workers are threads of the host. Typed services between plugins are objects in one address space and
-// are not carried: service() finds nothing and offer_service() refuses, logged.
+// message; its workers are threads of the host. Of the typed services, rcand's metrics (remote_metrics.hpp) and an
+// obstacle source the plugin offers (remote_obstacles.hpp) are carried; the others are objects in one address space:
+// service() finds none of them and offer_service() refuses, logged.
 #pragma once
 
 #include <nlohmann/json.hpp>
@@ -22,6 +23,8 @@
 #include "libs/base/worker_thread.hpp"
 #include "libs/isolation/actuator_calls.hpp"
 #include "libs/isolation/channel.hpp"
+#include "libs/isolation/remote_metrics.hpp"
+#include "libs/isolation/remote_obstacles.hpp"
 #include "rcand/sdk/context.hpp"
 
 namespace rcand::isolation {
@@ -41,6 +44,7 @@ class HostContext final : public sdk::PluginContext {
   const sdk::ConfigView& robot_config() const noexcept override { return robot_config_; }
   sdk::Worker& worker(std::string_view name) override;
   void publish_status(const nlohmann::json& status) noexcept override;
+  const void* service(std::string_view interface_id) const noexcept override;
   bool offer_service(std::string_view interface_id, const void* service) noexcept override;
 
   // From the session: rcand's latch as its last message said, a reply to one of this host's calls, and the channel's
@@ -96,6 +100,7 @@ class HostContext final : public sdk::PluginContext {
   Log logger_{channel_};
   Estop estop_{*this};
   Gate gate_;
+  RemoteMetrics metrics_{channel_};
   sdk::ConfigView settings_, robot_config_;
   std::atomic<bool> latched_{false};
 
@@ -105,6 +110,7 @@ class HostContext final : public sdk::PluginContext {
   std::uint64_t next_call_ = 0;
   std::map<std::uint64_t, std::optional<nlohmann::json>> calls_;
   std::deque<std::unique_ptr<WorkerThread>> workers_;
+  std::unique_ptr<ObstaclePoller> obstacles_;  // once the plugin offered its obstacle source and rcand took it
 };
 
 }  // namespace rcand::isolation

@@ -20,7 +20,7 @@ extern char** environ;
 namespace rcand::isolation {
 
 namespace {
-constexpr int kChannelFd = 3;  // where the host finds its end of the channel
+constexpr int kChannelFd = 3, kRingFd = 4;  // where the host finds its end of the channel, and the frame ring
 }
 
 std::optional<std::filesystem::path> find_host_binary(const std::filesystem::path& installed_dir) {
@@ -34,16 +34,28 @@ std::optional<std::filesystem::path> find_host_binary(const std::filesystem::pat
   return std::nullopt;
 }
 
-pid_t spawn_host(const std::filesystem::path& binary, int channel_fd) {
-  // dup2 onto 3 clears close-on-exec there; a channel already at 3 is moved away first, since dup2 onto itself
-  // would leave the flag set and the host without its channel.
-  int source = channel_fd;
-  if (source == kChannelFd && (source = ::fcntl(channel_fd, F_DUPFD_CLOEXEC, kChannelFd + 1)) < 0)
-    throw std::system_error(errno, std::generic_category(), "dup of the channel");
+pid_t spawn_host(const std::filesystem::path& binary, int channel_fd, int ring_fd) {
+  // dup2 onto 3 and 4 clears close-on-exec there; a descriptor already at 3 or 4 is moved away first, since dup2 onto
+  // itself would leave the flag set, and the first dup2 could overwrite the second's source.
+  const auto away = [](int fd, const char* what) {
+    if (fd != kChannelFd && fd != kRingFd) return fd;
+    const int moved = ::fcntl(fd, F_DUPFD_CLOEXEC, kRingFd + 1);
+    if (moved < 0) throw std::system_error(errno, std::generic_category(), what);
+    return moved;
+  };
+  const int channel = away(channel_fd, "dup of the channel");
+  int ring = -1;
+  try {
+    ring = away(ring_fd, "dup of the frame ring");
+  } catch (...) {
+    if (channel != channel_fd) ::close(channel);
+    throw;
+  }
   posix_spawn_file_actions_t actions;
   posix_spawn_file_actions_init(&actions);
-  posix_spawn_file_actions_adddup2(&actions, source, kChannelFd);
-  posix_spawn_file_actions_addclosefrom_np(&actions, kChannelFd + 1);  // rcand's sockets and files stay rcand's
+  posix_spawn_file_actions_adddup2(&actions, channel, kChannelFd);
+  posix_spawn_file_actions_adddup2(&actions, ring, kRingFd);
+  posix_spawn_file_actions_addclosefrom_np(&actions, kRingFd + 1);  // rcand's sockets and files stay rcand's
   const std::string parent = std::to_string(::getpid());
   const std::string path = binary.string();
   std::vector<char*> argv{const_cast<char*>(path.c_str()), const_cast<char*>("--parent"), const_cast<char*>(parent.c_str()),
@@ -51,7 +63,8 @@ pid_t spawn_host(const std::filesystem::path& binary, int channel_fd) {
   pid_t pid = 0;
   const int error = ::posix_spawn(&pid, path.c_str(), &actions, nullptr, argv.data(), environ);
   posix_spawn_file_actions_destroy(&actions);
-  if (source != channel_fd) ::close(source);
+  if (channel != channel_fd) ::close(channel);
+  if (ring != ring_fd) ::close(ring);
   if (error != 0) throw std::system_error(error, std::generic_category(), "cannot start " + path);
   return pid;
 }

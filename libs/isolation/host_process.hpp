@@ -15,10 +15,10 @@ namespace rcand::isolation {
 // executable, else the one installed in `installed_dir`. nullopt when none exists (a named fault for the capability).
 std::optional<std::filesystem::path> find_host_binary(const std::filesystem::path& installed_dir);
 
-// Starts `binary` with `channel_fd` as its descriptor 3 and none of rcand's others (0-2 are shared: its log lines
-// reach rcand's journal), and rcand's pid, which it checks against its parent's (it dies with rcand:
-// PR_SET_PDEATHSIG). Throws std::system_error.
-pid_t spawn_host(const std::filesystem::path& binary, int channel_fd);
+// Starts `binary` with `channel_fd` as its descriptor 3, `ring_fd` (the frame ring) as 4, and none of rcand's others
+// (0-2 are shared: its log lines reach rcand's journal), and rcand's pid, which it checks against its parent's (it
+// dies with rcand: PR_SET_PDEATHSIG). Throws std::system_error.
+pid_t spawn_host(const std::filesystem::path& binary, int channel_fd, int ring_fd);
 
 // Waits for `pid` to end and says how: "exited with status 3", "was killed by signal 11 (SIGSEGV)". One still running
 // after `grace` (it closed its channel and lives on) is killed first.

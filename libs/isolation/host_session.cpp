@@ -10,6 +10,7 @@
 
 #include "libs/base/worker_thread.hpp"
 #include "libs/isolation/host_context.hpp"
+#include "libs/isolation/remote_stream.hpp"
 #include "libs/isolation/wire.hpp"
 
 namespace rcand::isolation {
@@ -18,27 +19,36 @@ using nlohmann::json;
 
 namespace {
 
+struct Served {
+  std::vector<sdk::Route> routes;
+  std::vector<sdk::StreamRoute> streams;
+};
+
 // The capability made and started as rcand would, its routes checked for what the host itself needs.
-std::unique_ptr<sdk::Capability> start_capability(const LoadedCapability& loaded, HostContext& context,
-                                                  std::vector<sdk::Route>& routes) {
+std::unique_ptr<sdk::Capability> start_capability(const LoadedCapability& loaded, HostContext& context, Served& served) {
   auto object = loaded.factory(context);
   if (!object) throw std::runtime_error("its factory returned no capability");
   object->start();
-  routes = object->routes();
-  for (const auto& route : routes)
+  served.routes = object->routes();
+  if (loaded.abi_minor >= 2) served.streams = object->stream_routes();  // older plugins have no such virtual
+  for (const auto& route : served.routes)
     if (!route.handler)
       throw std::runtime_error("routes() returned a route without a handler: " + route.method + " " + route.path);
-  if (loaded.abi_minor >= 2 && !object->stream_routes().empty())
-    throw std::runtime_error("it serves stream routes, which isolation: process does not carry yet; run it in_process");
+  for (const auto& route : served.streams)
+    if (!route.handler)
+      throw std::runtime_error("stream_routes() returned a route without a handler: " + route.method + " " + route.path);
   return object;
 }
 
-// A handler's answer, or what it threw ("threw": rcand throws it again on its side, where a throw is answered, logged
-// and counted as in process: docs/protocol.md §7.16).
-void answer(Channel& channel, const std::vector<sdk::Route>& routes, const json& message) {
-  sdk::Response response;
+// A handler's answer (a stream handler's: that it returned, status 0), or what it threw ("threw": rcand throws it
+// again on its side, where a throw is answered, logged and counted as in process: docs/protocol.md §7.16).
+void answer(Channel& channel, const Served& served, RemoteStreams& streams, const json& message) {
+  sdk::Response response{0, nullptr};
   try {
-    response = routes.at(message.at("route").get<std::size_t>()).handler(decode_request(message.at("req")));
+    const auto route = message.at("route").get<std::size_t>();
+    if (message.at("t") == "stream")
+      served.streams.at(route).handler(decode_request(message.at("req")), streams.open(message.at("v").get<std::uint64_t>()));
+    else response = served.routes.at(route).handler(decode_request(message.at("req")));
   } catch (const std::exception& e) {
     channel.send({{"t", "response"}, {"id", message.at("id")}, {"threw", e.what()}});
     return;
@@ -56,12 +66,13 @@ void answer(Channel& channel, const std::vector<sdk::Route>& routes, const json&
 
 }  // namespace
 
-int run_host(Channel& channel, const CapabilityLoader& load) {
+int run_host(Channel& channel, FrameRing* ring, const CapabilityLoader& load) {
   const auto start = channel.receive();
   if (!start || start->value("t", "") != "start") return 2;
   HostContext context(channel, *start);
-  std::vector<sdk::Route> routes;
-  std::atomic<sdk::Capability*> served{nullptr};  // set once it started, its routes complete
+  Served served;
+  RemoteStreams streams(channel, ring);
+  std::atomic<sdk::Capability*> serving{nullptr};  // set once it started, its routes complete
   const auto ignore = [](const std::string&) {};
   WorkerThread requests("cap." + std::string(context.instance_id()), ignore), stops("estop", ignore), statuses("status", ignore);
   std::mutex mutex;
@@ -72,7 +83,7 @@ int run_host(Channel& channel, const CapabilityLoader& load) {
   std::thread reader([&] {
     while (const auto message = channel.receive()) {
       const std::string type = message->value("t", "");
-      sdk::Capability* object = served.load();
+      sdk::Capability* object = serving.load();
       if (type == "reply") {
         context.deliver(*message);
       } else if (type == "ping") {
@@ -81,8 +92,12 @@ int run_host(Channel& channel, const CapabilityLoader& load) {
       } else if (type == "estop") {
         context.set_latched(true);
         if (object != nullptr) stops.post([object] { object->on_estop(); });
-      } else if (type == "request" && object != nullptr) {  // rcand sends none before it started
-        requests.post([&channel, &routes, message = *message] { answer(channel, routes, message); });
+      } else if ((type == "request" || type == "stream") && object != nullptr) {  // rcand sends none before it started
+        requests.post([&, message = *message] { answer(channel, served, streams, message); });
+      } else if (type == "s_state") {
+        streams.update(*message);
+      } else if (type == "s_started") {
+        streams.started(*message);
       } else if (type == "status?" && object != nullptr) {
         statuses.post([&channel, object, id = message->at("id")] {
           json status;
@@ -98,6 +113,7 @@ int run_host(Channel& channel, const CapabilityLoader& load) {
       }
     }
     context.close();  // calls still waiting on rcand return
+    streams.close_all();
     std::lock_guard lock(mutex);
     ended = true;
     changed.notify_all();
@@ -107,16 +123,17 @@ int run_host(Channel& channel, const CapabilityLoader& load) {
   std::unique_ptr<sdk::Capability> object;
   try {
     loaded = load(*start);
-    object = start_capability(loaded, context, routes);
+    object = start_capability(loaded, context, served);
   } catch (const std::exception& e) {
     channel.send({{"t", "start_failed"}, {"reason", e.what()}});
     channel.shutdown();
     reader.join();
     return 3;
   }
-  json specs = json::array();
-  for (const auto& route : routes) specs.push_back(encode_route(route));
-  served.store(object.get());
+  json specs{{"routes", json::array()}, {"streams", json::array()}};
+  for (const auto& route : served.routes) specs["routes"].push_back(encode_route(route));
+  for (const auto& route : served.streams) specs["streams"].push_back(encode_stream_route(route));
+  serving.store(object.get());
   channel.send({{"t", "started"}, {"routes", specs}});
   {
     std::unique_lock lock(mutex);

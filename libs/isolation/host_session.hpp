@@ -11,6 +11,7 @@
 #include <memory>
 
 #include "libs/isolation/channel.hpp"
+#include "libs/isolation/frame_ring.hpp"
 #include "rcand/sdk/registrar.hpp"
 
 namespace rcand::isolation {
@@ -25,7 +26,7 @@ struct LoadedCapability {
 using CapabilityLoader = std::function<LoadedCapability(const nlohmann::json& start)>;
 
 // The process's exit status: 0 after rcand's shutdown, 2 without a start message, 3 when the capability did not
-// start (rcand got the reason first).
-int run_host(Channel& channel, const CapabilityLoader& load);
+// start (rcand got the reason first). `ring`: the frame ring rcand passed (null: frames go inline).
+int run_host(Channel& channel, FrameRing* ring, const CapabilityLoader& load);
 
 }  // namespace rcand::isolation

@@ -9,6 +9,7 @@
 #include "libs/base/logging.hpp"
 #include "libs/isolation/actuator_calls.hpp"
 #include "libs/isolation/host_process.hpp"
+#include "libs/isolation/remote_metrics.hpp"
 #include "libs/isolation/wire.hpp"
 
 namespace rcand::isolation {
@@ -44,8 +45,10 @@ void IsolatedCapability::spawn() {
   auto [mine, theirs] = Channel::socket_pair();
   auto channel = std::make_shared<Channel>(mine);
   pid_t pid = 0;
+  std::shared_ptr<FrameRing> ring;
   try {
-    pid = spawn_host(spec_.binary, theirs);
+    ring = FrameRing::create();
+    pid = spawn_host(spec_.binary, theirs, ring->fd());
   } catch (...) {
     ::close(theirs);
     throw;
@@ -64,14 +67,14 @@ void IsolatedCapability::spawn() {
                  {"network", spec_.network}});
   start_error_.clear();
   kill_reason_.clear();
-  host_ = Host{pid, channel, {}, false, Clock::now(), Clock::now()};
-  host_.reader = std::thread([this, channel] { read(channel); });
+  host_ = Host{pid, channel, ring, {}, false, Clock::now(), Clock::now()};
+  host_.reader = std::thread([this, channel, ring] { read(channel, ring); });
 }
 
-void IsolatedCapability::read(std::shared_ptr<Channel> channel) {
+void IsolatedCapability::read(std::shared_ptr<Channel> channel, std::shared_ptr<FrameRing> ring) {
   while (auto message = channel->receive()) {
     try {
-      handle(*message, channel);
+      handle(*message, channel, ring.get());
     } catch (const std::exception& e) {
       logger("isolation")->error("capability {}: a message of its process does not decode: {}", context_.instance_id(), e.what());
     }
@@ -81,9 +84,16 @@ void IsolatedCapability::read(std::shared_ptr<Channel> channel) {
   changed_.notify_all();
 }
 
-void IsolatedCapability::handle(const json& message, const std::shared_ptr<Channel>& channel) {
+void IsolatedCapability::handle(const json& message, const std::shared_ptr<Channel>& channel, FrameRing* ring) {
   const std::string type = message.at("t").get<std::string>();
-  if (type == "call") {
+  if (type.starts_with("s_")) {
+    // A stream of a buried host was ended: its ids reach nothing.
+    if (const auto answer = streams_.deliver(message, ring)) channel->send(*answer, nullptr, /*wait=*/false);
+  } else if (type == "obstacles") {
+    obstacles_.update(message);
+  } else if (type == "metric") {
+    record_remote_metric(sdk::find<sdk::Metrics>(context_), message);
+  } else if (type == "call") {
     // A host has one call in flight per thread of its plugin; one that floods rcand is refused, not queued.
     if (calls_in_flight_.fetch_add(1) >= kMaxCallsInFlight) {
       calls_in_flight_.fetch_sub(1);
@@ -124,6 +134,8 @@ void IsolatedCapability::handle(const json& message, const std::shared_ptr<Chann
       if (auto it = statuses_.find(message.at("id").get<std::uint64_t>()); it != statuses_.end())
         it->second = message.at("status");
     } else if (type == "started") {
+      for (const auto& route : message.at("routes").at("routes")) decode_route(route);  // each one decodes, or none serves
+      for (const auto& route : message.at("routes").at("streams")) decode_stream_route(route);
       if (!route_specs_) route_specs_ = message.at("routes");
       if (*route_specs_ == message.at("routes")) {
         up_ = true;
@@ -165,6 +177,9 @@ void IsolatedCapability::answer_call(const json& call, const std::shared_ptr<Cha
       status = context_.motion().inspect(actuator, [&](const sdk::ActuatorDriver& driver) { reply["result"] = reading(driver); });
     } else if (op == "halt") {
       context_.motion().halt(actuator);
+    } else if (op == "offer" && method == sdk::ObstacleSource::kServiceId) {  // a later host offers it again: still ours
+      if (!obstacles_offered_) obstacles_offered_ = sdk::offer<sdk::ObstacleSource>(context_, obstacles_);
+      reply["result"] = obstacles_offered_;
     } else if (op == "estop") {
       context_.estop().request_estop(call.at("args").get<std::string>());
     } else {
@@ -180,15 +195,36 @@ void IsolatedCapability::answer_call(const json& call, const std::shared_ptr<Cha
 std::vector<sdk::Route> IsolatedCapability::routes() {
   std::lock_guard lock(mutex_);
   std::vector<sdk::Route> routes;
-  for (std::size_t i = 0; route_specs_ && i < route_specs_->size(); ++i) {
-    sdk::Route route = decode_route(route_specs_->at(i));
+  for (std::size_t i = 0; route_specs_ && i < route_specs_->at("routes").size(); ++i) {
+    sdk::Route route = decode_route(route_specs_->at("routes").at(i));
     route.handler = [this, i](const sdk::Request& request) { return forward(i, request); };
     routes.push_back(std::move(route));
   }
   return routes;
 }
 
-sdk::Response IsolatedCapability::forward(std::size_t route, const sdk::Request& request) {
+std::vector<sdk::StreamRoute> IsolatedCapability::stream_routes() {
+  std::lock_guard lock(mutex_);
+  std::vector<sdk::StreamRoute> routes;
+  for (std::size_t i = 0; route_specs_ && i < route_specs_->at("streams").size(); ++i) {
+    sdk::StreamRoute route = decode_stream_route(route_specs_->at("streams").at(i));
+    route.handler = [this, i](const sdk::Request& request, std::shared_ptr<sdk::StreamWriter> writer) {
+      open_stream(i, request, std::move(writer));
+    };
+    routes.push_back(std::move(route));
+  }
+  return routes;
+}
+
+// The client's writer kept here under an id, the host's handler given that id; the handler's return awaited as in
+// process (a throw is rethrown: rcand answers 500 and counts it).
+void IsolatedCapability::open_stream(std::size_t route, const sdk::Request& request, std::shared_ptr<sdk::StreamWriter> writer) {
+  const std::uint64_t id = streams_.open(writer);
+  sdk::Response response = forward(route, request, id);
+  if (response.status != 0) writer->respond(response);  // 503: the host is down, or did not take it in time
+}
+
+sdk::Response IsolatedCapability::forward(std::size_t route, const sdk::Request& request, std::optional<std::uint64_t> stream) {
   std::unique_lock lock(mutex_);
   if (!up_) return unavailable();
   const std::uint64_t id = ++next_id_, generation = generation_;
@@ -196,7 +232,9 @@ sdk::Response IsolatedCapability::forward(std::size_t route, const sdk::Request&
   const auto channel = host_.channel;
   lock.unlock();
   std::string error;
-  const bool sent = channel->send({{"t", "request"}, {"id", id}, {"route", route}, {"req", encode_request(request)}}, &error);
+  json message{{"t", stream ? "stream" : "request"}, {"id", id}, {"route", route}, {"req", encode_request(request)}};
+  if (stream) message["v"] = *stream;
+  const bool sent = channel->send(message, &error);
   lock.lock();
   const bool answered = sent && changed_.wait_for(lock, spec_.request_timeout, [&] {
     return requests_[id].has_value() || generation_ != generation || stopping_;
@@ -297,6 +335,7 @@ void IsolatedCapability::check_alive() {
     return kill_host("used " + std::to_string(*resident >> 20) + " MB, over its limit of " +
                      std::to_string(spec_.memory_limit_mb) + " MB (isolation_memory_mb)");
   host_.channel->send({{"t", "ping"}, {"latched", context_.estop().latched()}}, nullptr, /*wait=*/false);
+  if (const auto state = streams_.state()) host_.channel->send(*state, nullptr, /*wait=*/false);
 }
 
 // Under mutex_: rcand ends the host; its reader then sees the channel close and the supervisor buries it.
@@ -315,6 +354,7 @@ void IsolatedCapability::bury(std::unique_lock<std::mutex>& lock) {
   down_reason_ = "its process " + std::to_string(host.pid) + " ended";
   const std::set<std::string> moved = moved_;
   lock.unlock();
+  obstacles_.lost();
   halt_moved(moved);
   calls_.post([this, moved] { halt_moved(moved); });  // again after any call of the dead host already under way
   const std::string how = close_and_reap(host);
@@ -342,7 +382,9 @@ void IsolatedCapability::bury(std::unique_lock<std::mutex>& lock) {
   }
   const std::string reason = down_reason_;
   const json fault = down_status();
+  const sdk::Response unavailable_now = unavailable();
   lock.unlock();
+  streams_.end_all(unavailable_now);
   context_.publish_status(fault);
   logger("kernel.plugins")
       ->error("capability {} ({}): {}{}", context_.instance_id(), spec_.plugin_id, reason,
@@ -379,6 +421,7 @@ void IsolatedCapability::end_host(std::unique_lock<std::mutex>& lock) {
   up_ = false;
   lock.unlock();
   close_and_reap(host);
+  streams_.end_all(sdk::Response::error(503, "UNAVAILABLE", "rcand is shutting down"));
   lock.lock();
 }
 

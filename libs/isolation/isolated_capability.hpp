@@ -32,6 +32,9 @@
 
 #include "libs/base/worker_thread.hpp"
 #include "libs/isolation/channel.hpp"
+#include "libs/isolation/frame_ring.hpp"
+#include "libs/isolation/remote_obstacles.hpp"
+#include "libs/isolation/stream_relay.hpp"
 #include "rcand/sdk/capability.hpp"
 #include "rcand/sdk/context.hpp"
 
@@ -73,6 +76,7 @@ class IsolatedCapability final : public sdk::Capability {
   // The first host started and its capability up, or throws what went wrong there (the instance then fails).
   void start() override;
   std::vector<sdk::Route> routes() override;
+  std::vector<sdk::StreamRoute> stream_routes() override;
   sdk::Json status() const override;
   void on_estop() noexcept override;
   void shutdown() noexcept override;
@@ -81,14 +85,15 @@ class IsolatedCapability final : public sdk::Capability {
   struct Host {
     pid_t pid = 0;
     std::shared_ptr<Channel> channel;
+    std::shared_ptr<FrameRing> ring;  // its frames (stream_frames.hpp)
     std::thread reader;
     bool gone = false;  // its channel closed: the process ended or is ending
     std::chrono::steady_clock::time_point started, last_pong;
   };
 
   void spawn();  // under mutex_
-  void read(std::shared_ptr<Channel> channel);
-  void handle(const nlohmann::json& message, const std::shared_ptr<Channel>& channel);
+  void read(std::shared_ptr<Channel> channel, std::shared_ptr<FrameRing> ring);
+  void handle(const nlohmann::json& message, const std::shared_ptr<Channel>& channel, FrameRing* ring);
   void answer_call(const nlohmann::json& call, const std::shared_ptr<Channel>& channel);
   void supervise();
   void check_alive();  // under mutex_
@@ -96,7 +101,10 @@ class IsolatedCapability final : public sdk::Capability {
   void end_host(std::unique_lock<std::mutex>& lock);
   static std::string close_and_reap(Host& host);
   void kill_host(const std::string& why);
-  sdk::Response forward(std::size_t route, const sdk::Request& request);
+  // A request to the host's route (or, with `stream`, to its stream route, for the client's writer of that id); the
+  // answer, or 503 with the reason. A stream handler's answer is status 0: it returned.
+  sdk::Response forward(std::size_t route, const sdk::Request& request, std::optional<std::uint64_t> stream = std::nullopt);
+  void open_stream(std::size_t route, const sdk::Request& request, std::shared_ptr<sdk::StreamWriter> writer);
   sdk::Response unavailable() const;                         // under mutex_
   nlohmann::json with_process(nlohmann::json status) const;  // under mutex_
   nlohmann::json down_status() const;                        // under mutex_: the fault while no host serves
@@ -106,6 +114,9 @@ class IsolatedCapability final : public sdk::Capability {
   const HostSpec spec_;
   const HostEvents events_;
   WorkerThread calls_;  // the host's calls on actuators, one at a time, in order
+  StreamRelay streams_;
+  RemoteObstacles obstacles_;
+  bool obstacles_offered_ = false;  // on the calls worker
   std::atomic<int> calls_in_flight_{0};
 
   mutable std::mutex mutex_;
@@ -114,7 +125,7 @@ class IsolatedCapability final : public sdk::Capability {
   bool up_ = false, stopping_ = false, failed_ = false;
   std::uint64_t generation_ = 0;  // one more for each host that ended
   std::string down_reason_, kill_reason_, start_error_;
-  std::optional<nlohmann::json> route_specs_;  // what the first host's capability serves; later ones must agree
+  std::optional<nlohmann::json> route_specs_;  // {"routes","streams"} the first host's capability serves; later ones agree
   mutable std::uint64_t next_id_ = 0;
   struct Answer {
     sdk::Response response;

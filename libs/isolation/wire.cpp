@@ -16,6 +16,18 @@ sdk::Route decode_route(const nlohmann::json& message) {
   return route;
 }
 
+nlohmann::json encode_stream_route(const sdk::StreamRoute& route) {
+  return {route.method, route.path, static_cast<int>(route.scope)};
+}
+
+sdk::StreamRoute decode_stream_route(const nlohmann::json& message) {
+  sdk::StreamRoute route;
+  route.method = message.at(0).get<std::string>();
+  route.path = message.at(1).get<std::string>();
+  route.scope = static_cast<sdk::Scope>(message.at(2).get<int>());
+  return route;
+}
+
 nlohmann::json encode_request(const sdk::Request& request) {
   nlohmann::json scopes = nlohmann::json::array();
   for (const auto scope : request.scopes) scopes.push_back(static_cast<int>(scope));

@@ -1,12 +1,13 @@
 // rcand-plugin-host: the process an isolated capability runs in (libs/isolation/host_session.hpp). rcand starts it
-// with its end of the channel on descriptor 3; it opens the plugin rcand chose through rcand's own plugin host (the
-// manifest, the descriptor and the registration checked as in rcand), runs the capability, and ends with rcand.
+// with its end of the channel on descriptor 3 and the frame ring on 4; it opens the plugin rcand chose through rcand's own plugin
+// host (the manifest, the descriptor and the registration checked as in rcand), runs the capability, and ends with rcand.
 #include <sys/prctl.h>
 #include <unistd.h>
 
 #include <csignal>
 #include <cstdio>
 #include <filesystem>
+#include <memory>
 #include <stdexcept>
 #include <string>
 #include <string_view>
@@ -52,5 +53,11 @@ int main(int argc, char** argv) {
   if (std::to_string(::getppid()) != argv[2]) return 1;  // rcand ended before the line above took effect
   rcand::configure_logging("info");
   rcand::isolation::Channel channel(3);
-  return rcand::isolation::run_host(channel, rcand::services::load);
+  std::unique_ptr<rcand::isolation::FrameRing> ring;
+  try {
+    ring = rcand::isolation::FrameRing::attach(4);
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "rcand-plugin-host: %s: frames go inline\n", e.what());
+  }
+  return rcand::isolation::run_host(channel, ring.get(), rcand::services::load);
 }

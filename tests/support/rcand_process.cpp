@@ -76,6 +76,19 @@ std::string jwt_for(const std::string& role, const std::string& secret) {
 
 namespace {
 
+// RCAND_TEST_ISOLATE=vision,chat (ctest's *_isolated runs of a whole suite): those capabilities, where the config
+// declares them, run with isolation: process unless the test itself chose.
+void isolate_from_environment(nlohmann::json& config) {
+  const char* names = std::getenv("RCAND_TEST_ISOLATE");
+  if (names == nullptr || !config.is_object()) return;
+  std::istringstream list(names);
+  for (std::string name; std::getline(list, name, ',');) {
+    auto& settings = config["runtime"]["capabilities"][name];
+    if (settings.is_null()) settings = nlohmann::json::object();
+    if (settings.is_object() && !settings.contains("isolation")) settings["isolation"] = "process";
+  }
+}
+
 struct Spawned {
   pid_t pid = -1;
   int stdout_fd = -1;
@@ -190,6 +203,7 @@ void RcandProcess::launch(const nlohmann::json& config, std::vector<fs::path> pl
   if (effective.is_object() && effective.contains("runtime") && effective["runtime"].is_object() &&
       !effective["runtime"].contains("state_dir"))
     effective["runtime"]["state_dir"] = (dir_.path() / "state").string();
+  isolate_from_environment(effective);
   const auto config_file = dir_.write("robot.rcan.yaml", effective.dump(2));
   // The build tree's plugins, unless the test names its own directories (as arguments or in the config).
   const bool config_names_plugins = effective.is_object() && effective.contains("runtime") && effective["runtime"].is_object() &&

@@ -4,6 +4,7 @@
 // without the module makes such a camera a named fault, never a silent test pattern.
 #include <doctest/doctest.h>
 
+#include <cstdlib>
 #include <fstream>
 #include <sstream>
 
@@ -26,9 +27,9 @@ json backend_test_config(json camera) {
   return config;
 }
 
-// The process's mapped files (/proc/PID/maps), one string.
-std::string mapped_files(const RcandProcess& rcand) {
-  std::ifstream maps("/proc/" + std::to_string(rcand.pid()) + "/maps");
+// A process's mapped files (/proc/PID/maps), one string.
+std::string mapped_files(int pid) {
+  std::ifstream maps("/proc/" + std::to_string(pid) + "/maps");
   std::ostringstream text;
   text << maps.rdbuf();
   return text.str();
@@ -37,6 +38,15 @@ std::string mapped_files(const RcandProcess& rcand) {
 json backend_vision_status(const RcandProcess& rcand) {
   return rcand.json("GET", "/api/status", "guest-token")["capabilities"]["vision"];
 }
+
+// The process vision runs in: rcand, or with isolation: process (RCAND_TEST_ISOLATE=vision) its host, whose pid its
+// status names.
+int vision_pid(const RcandProcess& rcand) {
+  const json process = backend_vision_status(rcand)["status"]["process"];
+  return process.is_object() ? process["pid"].get<int>() : static_cast<int>(rcand.pid());
+}
+
+std::string mapped_files(const RcandProcess& rcand) { return mapped_files(vision_pid(rcand)); }
 
 }  // namespace
 
@@ -49,6 +59,11 @@ TEST_CASE("vision: a robot on the synthetic camera maps no video backend and no 
   REQUIRE(maps.find("rcand_vision.so") != std::string::npos);
   for (const char* library : {"libopencv_videoio", "libopencv_imgcodecs", "rcand_vision_videoio", "libavcodec", "libgst"})
     CHECK_MESSAGE(maps.find(library) == std::string::npos, library);
+  if (std::getenv("RCAND_TEST_ISOLATE") != nullptr) {  // isolated: rcand itself maps neither vision nor OpenCV
+    REQUIRE(vision_pid(rcand) != static_cast<int>(rcand.pid()));
+    const std::string own = mapped_files(static_cast<int>(rcand.pid()));
+    for (const char* library : {"rcand_vision.so", "libopencv"}) CHECK_MESSAGE(own.find(library) == std::string::npos, library);
+  }
 }
 
 TEST_CASE("vision: a device camera loads the video backend module from beside the plugin, on demand") {

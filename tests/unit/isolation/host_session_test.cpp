@@ -87,7 +87,7 @@ struct Session {
         return isolation::LoadedCapability{[this](sdk::PluginContext& c) { return std::make_unique<Probe>(c, seen); }, 3,
                                            nullptr};
       };
-    exit_status = std::async(std::launch::async, [this, loader] { return isolation::run_host(host_end, loader); });
+    exit_status = std::async(std::launch::async, [this, loader] { return isolation::run_host(host_end, nullptr, loader); });
     REQUIRE(rcand_end.send(start));
   }
   ~Session() {
@@ -122,8 +122,8 @@ struct Session {
 TEST_CASE("host session: started with the capability's routes; its log lines and status reach rcand") {
   Session session;
   const auto started = session.next("started");
-  REQUIRE(started.at("routes").size() == 5);
-  CHECK(isolation::decode_route(started["routes"][2]).motion);
+  REQUIRE(started.at("routes").at("routes").size() == 5);
+  CHECK(isolation::decode_route(started["routes"]["routes"][2]).motion);
   bool logged = false, published = false;
   for (const auto& m : session.others) {
     logged |= m["t"] == "log" && m["text"] == "probe starting with speed 0.5";
@@ -196,7 +196,7 @@ TEST_CASE("host session: a capability that asks rcand something in its start() g
   CHECK(call["op"] == "inspect");
   CHECK(call["method"] == "status");
   REQUIRE(session.rcand_end.send({{"t", "reply"}, {"id", call["id"]}, {"gate", 0}, {"result", {{"left", 0}}}}));
-  CHECK(session.next("started")["routes"].size() == 5);
+  CHECK(session.next("started")["routes"]["routes"].size() == 5);
 }
 
 TEST_CASE("host session: a capability that cannot be loaded or started says why, and the host ends with 3") {
