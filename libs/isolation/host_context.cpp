@@ -26,7 +26,9 @@ HostContext::HostContext(Channel& channel, const json& start)
       gate_(*this, actuators_of(start)),
       settings_(start.at("settings")),
       robot_config_(start.at("robot_config")),
-      latched_(start.value("latched", false)) {}
+      latched_(start.value("latched", false)) {
+  pose_.update(start);
+}
 
 HostContext::~HostContext() { join_workers(); }
 
@@ -44,7 +46,12 @@ sdk::Worker& HostContext::worker(std::string_view name) {
 void HostContext::publish_status(const json& status) noexcept { channel_.send({{"t", "publish"}, {"status", status}}); }
 
 const void* HostContext::service(std::string_view interface_id) const noexcept {
-  return interface_id == sdk::Metrics::kServiceId ? static_cast<const sdk::Metrics*>(&metrics_) : nullptr;
+  if (interface_id == sdk::Metrics::kServiceId) return static_cast<const sdk::Metrics*>(&metrics_);
+  if (interface_id == sdk::RequestDispatcher::kServiceId) return static_cast<const sdk::RequestDispatcher*>(&dispatcher_);
+  if (interface_id == sdk::PoseSource::kServiceId && pose_.known()) return static_cast<const sdk::PoseSource*>(&pose_);
+  std::lock_guard lock(mutex_);
+  const auto it = local_services_.find(interface_id);
+  return it != local_services_.end() ? it->second : nullptr;
 }
 
 bool HostContext::offer_service(std::string_view interface_id, const void* service) noexcept {
@@ -60,8 +67,12 @@ bool HostContext::offer_service(std::string_view interface_id, const void* servi
       return false;
     }
   }
-  logger_.warn("service ", interface_id, " not offered: services are not carried out of an isolated capability's process");
-  return false;
+  if (interface_id.empty() || service == nullptr) return false;
+  // Found by this plugin itself (chat's own brains in its chain), not by rcand or other plugins: not carried.
+  std::lock_guard lock(mutex_);
+  if (!local_services_.emplace(std::string(interface_id), service).second) return false;
+  logger_.info("service ", interface_id, " offered within its own process only: other plugins do not find it");
+  return true;
 }
 
 void HostContext::set_latched(bool latched) {
@@ -86,6 +97,7 @@ void HostContext::close() {
     closed_ = true;
   }
   changed_.notify_all();
+  dispatcher_.close();
 }
 
 void HostContext::join_workers() {

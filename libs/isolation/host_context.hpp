@@ -1,9 +1,10 @@
 // The sdk::PluginContext an isolated capability gets in its host process (rcand-plugin-host): the plugin is built
 // against the SDK alone and cannot tell. Its log lines, published statuses, e-stop requests and calls on actuators go
 // to rcand over the channel (rcand's gate decides every motion); its settings and the robot config came with the start
-// message; its workers are threads of the host. Of the typed services, rcand's metrics (remote_metrics.hpp) and an
-// obstacle source the plugin offers (remote_obstacles.hpp) are carried; the others are objects in one address space:
-// service() finds none of them and offer_service() refuses, logged.
+// message; its workers are threads of the host. Of the typed services, rcand's metrics (remote_metrics.hpp), its request
+// dispatcher (remote_dispatcher.hpp), the robot's pose (remote_pose.hpp) and an obstacle source the plugin offers
+// (remote_obstacles.hpp) are carried; other services are objects in one address space: what the plugin offers is found
+// by the plugin alone (chat's own brains), and what other plugins offer is not found.
 #pragma once
 
 #include <nlohmann/json.hpp>
@@ -23,8 +24,10 @@
 #include "libs/base/worker_thread.hpp"
 #include "libs/isolation/actuator_calls.hpp"
 #include "libs/isolation/channel.hpp"
+#include "libs/isolation/remote_dispatcher.hpp"
 #include "libs/isolation/remote_metrics.hpp"
 #include "libs/isolation/remote_obstacles.hpp"
+#include "libs/isolation/remote_pose.hpp"
 #include "rcand/sdk/context.hpp"
 
 namespace rcand::isolation {
@@ -53,6 +56,8 @@ class HostContext final : public sdk::PluginContext {
   void deliver(const nlohmann::json& reply);
   void close();
   void join_workers();
+  RemoteDispatcher& dispatcher() noexcept { return dispatcher_; }
+  RemotePose& pose() noexcept { return pose_; }
 
   // One call to rcand and its answer ({"gate", "result", "error"?}); blocks until rcand answers or the channel ends.
   nlohmann::json call(std::string_view op, std::string_view actuator, std::string_view method, nlohmann::json args);
@@ -101,16 +106,19 @@ class HostContext final : public sdk::PluginContext {
   Estop estop_{*this};
   Gate gate_;
   RemoteMetrics metrics_{channel_};
+  RemoteDispatcher dispatcher_{channel_};
+  RemotePose pose_;
   sdk::ConfigView settings_, robot_config_;
   std::atomic<bool> latched_{false};
 
-  std::mutex mutex_;
+  mutable std::mutex mutex_;
   std::condition_variable changed_;
   bool closed_ = false;
   std::uint64_t next_call_ = 0;
   std::map<std::uint64_t, std::optional<nlohmann::json>> calls_;
   std::deque<std::unique_ptr<WorkerThread>> workers_;
   std::unique_ptr<ObstaclePoller> obstacles_;  // once the plugin offered its obstacle source and rcand took it
+  std::map<std::string, const void*, std::less<>> local_services_;  // offered by the plugin, found by it alone
 };
 
 }  // namespace rcand::isolation

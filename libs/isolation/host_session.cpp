@@ -42,13 +42,15 @@ std::unique_ptr<sdk::Capability> start_capability(const LoadedCapability& loaded
 
 // A handler's answer (a stream handler's: that it returned, status 0), or what it threw ("threw": rcand throws it
 // again on its side, where a throw is answered, logged and counted as in process: docs/protocol.md §7.16).
-void answer(Channel& channel, const Served& served, RemoteStreams& streams, const json& message) {
+void answer(Channel& channel, const Served& served, RemoteStreams& streams, HostContext& context, const json& message) {
   sdk::Response response{0, nullptr};
   try {
     const auto route = message.at("route").get<std::size_t>();
+    sdk::Request request = decode_request(message.at("req"));
+    request.credential = context.dispatcher().credential(message.value("cred", json()));
     if (message.at("t") == "stream")
-      served.streams.at(route).handler(decode_request(message.at("req")), streams.open(message.at("v").get<std::uint64_t>()));
-    else response = served.routes.at(route).handler(decode_request(message.at("req")));
+      served.streams.at(route).handler(request, streams.open(message.at("v").get<std::uint64_t>()));
+    else response = served.routes.at(route).handler(request);
   } catch (const std::exception& e) {
     channel.send({{"t", "response"}, {"id", message.at("id")}, {"threw", e.what()}});
     return;
@@ -88,16 +90,21 @@ int run_host(Channel& channel, FrameRing* ring, const CapabilityLoader& load) {
         context.deliver(*message);
       } else if (type == "ping") {
         context.set_latched(message->value("latched", false));
+        context.pose().update(*message);
         channel.send({{"t", "pong"}});
       } else if (type == "estop") {
         context.set_latched(true);
         if (object != nullptr) stops.post([object] { object->on_estop(); });
       } else if ((type == "request" || type == "stream") && object != nullptr) {  // rcand sends none before it started
-        requests.post([&, message = *message] { answer(channel, served, streams, message); });
+        context.pose().update(*message);
+        if (const auto latched = message->find("latched"); latched != message->end()) context.set_latched(latched->get<bool>());
+        requests.post([&, message = *message] { answer(channel, served, streams, context, message); });
       } else if (type == "s_state") {
         streams.update(*message);
       } else if (type == "s_started") {
         streams.started(*message);
+      } else if (type == "dispatched") {
+        context.dispatcher().answered(*message);
       } else if (type == "status?" && object != nullptr) {
         statuses.post([&channel, object, id = message->at("id")] {
           json status;

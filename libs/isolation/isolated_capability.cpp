@@ -56,15 +56,15 @@ void IsolatedCapability::spawn() {
   ::close(theirs);
   json actuators = json::array();
   for (const auto& info : context_.motion().actuators()) actuators.push_back({info.id, info.interface});
-  channel->send({{"t", "start"},
-                 {"plugin_paths", spec_.plugin_paths},
-                 {"plugin", spec_.plugin_id},
-                 {"capability", std::string(context_.instance_id())},
-                 {"settings", context_.config().raw()},
-                 {"robot_config", context_.robot_config().raw()},
-                 {"actuators", actuators},
-                 {"latched", context_.estop().latched()},
-                 {"network", spec_.network}});
+  channel->send(with_pose({{"t", "start"},
+                           {"plugin_paths", spec_.plugin_paths},
+                           {"plugin", spec_.plugin_id},
+                           {"capability", std::string(context_.instance_id())},
+                           {"settings", context_.config().raw()},
+                           {"robot_config", context_.robot_config().raw()},
+                           {"actuators", actuators},
+                           {"latched", context_.estop().latched()},
+                           {"network", spec_.network}}));
   start_error_.clear();
   kill_reason_.clear();
   host_ = Host{pid, channel, ring, {}, false, Clock::now(), Clock::now()};
@@ -91,6 +91,10 @@ void IsolatedCapability::handle(const json& message, const std::shared_ptr<Chann
     if (const auto answer = streams_.deliver(message, ring)) channel->send(*answer, nullptr, /*wait=*/false);
   } else if (type == "obstacles") {
     obstacles_.update(message);
+  } else if (type == "dispatch") {
+    dispatch_for_host(sdk::find<sdk::RequestDispatcher>(context_), credentials_, message, channel);
+  } else if (type == "cred_drop") {
+    credentials_.drop(message.at("cred"));
   } else if (type == "metric") {
     record_remote_metric(sdk::find<sdk::Metrics>(context_), message);
   } else if (type == "call") {
@@ -232,7 +236,12 @@ sdk::Response IsolatedCapability::forward(std::size_t route, const sdk::Request&
   const auto channel = host_.channel;
   lock.unlock();
   std::string error;
-  json message{{"t", stream ? "stream" : "request"}, {"id", id}, {"route", route}, {"req", encode_request(request)}};
+  json message = with_pose({{"t", stream ? "stream" : "request"},
+                            {"id", id},
+                            {"route", route},
+                            {"req", encode_request(request)},
+                            {"cred", credentials_.keep(request.credential)},
+                            {"latched", context_.estop().latched()}});  // a clear since the last heartbeat, too
   if (stream) message["v"] = *stream;
   const bool sent = channel->send(message, &error);
   lock.lock();
@@ -334,7 +343,7 @@ void IsolatedCapability::check_alive() {
   if (const auto resident = resident_bytes(host_.pid); resident && *resident > spec_.memory_limit_mb << 20)
     return kill_host("used " + std::to_string(*resident >> 20) + " MB, over its limit of " +
                      std::to_string(spec_.memory_limit_mb) + " MB (isolation_memory_mb)");
-  host_.channel->send({{"t", "ping"}, {"latched", context_.estop().latched()}}, nullptr, /*wait=*/false);
+  host_.channel->send(with_pose({{"t", "ping"}, {"latched", context_.estop().latched()}}), nullptr, /*wait=*/false);
   if (const auto state = streams_.state()) host_.channel->send(*state, nullptr, /*wait=*/false);
 }
 
@@ -355,6 +364,7 @@ void IsolatedCapability::bury(std::unique_lock<std::mutex>& lock) {
   const std::set<std::string> moved = moved_;
   lock.unlock();
   obstacles_.lost();
+  credentials_.clear();
   halt_moved(moved);
   calls_.post([this, moved] { halt_moved(moved); });  // again after any call of the dead host already under way
   const std::string how = close_and_reap(host);
@@ -392,6 +402,11 @@ void IsolatedCapability::bury(std::unique_lock<std::mutex>& lock) {
   if (events_.audit) events_.audit("isolated capability " + std::string(context_.instance_id()) + " process died", reason);
   if (crash_loop && events_.fail) events_.fail(reason);
   lock.lock();
+}
+
+json IsolatedCapability::with_pose(json message) const {
+  if (const auto* pose = sdk::find<sdk::PoseSource>(context_)) message["pose"] = encode_pose(pose->read());
+  return message;
 }
 
 void IsolatedCapability::halt_moved(const std::set<std::string>& moved) noexcept {

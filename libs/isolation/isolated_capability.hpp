@@ -33,6 +33,7 @@
 #include "libs/base/worker_thread.hpp"
 #include "libs/isolation/channel.hpp"
 #include "libs/isolation/frame_ring.hpp"
+#include "libs/isolation/remote_dispatcher.hpp"
 #include "libs/isolation/remote_obstacles.hpp"
 #include "libs/isolation/stream_relay.hpp"
 #include "rcand/sdk/capability.hpp"
@@ -109,12 +110,14 @@ class IsolatedCapability final : public sdk::Capability {
   nlohmann::json with_process(nlohmann::json status) const;  // under mutex_
   nlohmann::json down_status() const;                        // under mutex_: the fault while no host serves
   void halt_moved(const std::set<std::string>& moved) noexcept;
+  nlohmann::json with_pose(nlohmann::json message) const;  // rcand's pose reading added, when it has a pose source
 
   sdk::PluginContext& context_;
   const HostSpec spec_;
   const HostEvents events_;
   WorkerThread calls_;  // the host's calls on actuators, one at a time, in order
   StreamRelay streams_;
+  CredentialTable credentials_;  // of the requests sent to the host
   RemoteObstacles obstacles_;
   bool obstacles_offered_ = false;  // on the calls worker
   std::atomic<int> calls_in_flight_{0};

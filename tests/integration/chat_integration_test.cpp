@@ -8,6 +8,9 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cstdlib>
+#include <fstream>
+#include <string_view>
 #include <thread>
 
 #include "../../plugins/chat/scripted_model_server.hpp"
@@ -308,4 +311,30 @@ TEST_CASE("chat: a swarm broadcast of \"stop all motors\" through chat latches e
     CHECK(robot->json("GET", "/api/estop", "guest-token")["estopped"] == true);
     CHECK(drive_status(*robot)["moving"] == false);
   }
+}
+
+// ctest runs this file twice: as it is, and with RCAND_TEST_ISOLATE=chat (integration_chat_isolated), where every case
+// above passes with chat in rcand-plugin-host. This one says which of the two ran: rcand maps chat's library only in
+// process; isolated, the host does, and its pid is in chat's status.
+TEST_CASE("chat: in process, or isolated (RCAND_TEST_ISOLATE=chat) in a host process rcand supervises") {
+  RcandProcess rcand(chat_config());
+  const auto maps_of = [](long pid) {
+    std::ifstream maps("/proc/" + std::to_string(pid) + "/maps");
+    return std::string(std::istreambuf_iterator<char>(maps), {});
+  };
+  const json process = rcand.json("GET", "/api/status", "guest-token")["capabilities"]["chat"]["status"]["process"];
+  const char* isolate = std::getenv("RCAND_TEST_ISOLATE");
+  if (isolate == nullptr || std::string_view(isolate).find("chat") == std::string_view::npos) {
+    CHECK(process.is_null());
+    CHECK(maps_of(rcand.pid()).find("rcand_chat.so") != std::string::npos);
+    return;
+  }
+  REQUIRE(process.is_object());
+  const long host = process["pid"].get<long>();
+  CHECK(host != rcand.pid());
+  CHECK(maps_of(rcand.pid()).find("rcand_chat.so") == std::string::npos);
+  CHECK(maps_of(host).find("rcand_chat.so") != std::string::npos);
+  int status = 0;
+  CHECK(command(rcand, "drive forward 0.1 m", &status)["dispatched"] == true);  // as the caller, through rcand
+  CHECK(status == 200);
 }

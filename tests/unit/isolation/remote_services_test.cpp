@@ -3,9 +3,11 @@
 #include <doctest/doctest.h>
 
 #include <array>
+#include <future>
 #include <thread>
 
 #include "eventually.hpp"
+#include "libs/isolation/remote_dispatcher.hpp"
 #include "libs/isolation/remote_metrics.hpp"
 #include "libs/isolation/remote_obstacles.hpp"
 
@@ -84,4 +86,79 @@ TEST_CASE(
   CHECK_FALSE(remote.obstacles().available);
   pair.rcand_end.shutdown();
   reader.join();
+}
+
+namespace {
+
+struct Credential final : rcand::sdk::Credential {};
+
+// rcand's dispatcher as the host's dispatch reaches it: what it was asked, and its answer.
+struct FakeDispatcher final : rcand::sdk::RequestDispatcher {
+  mutable rcand::sdk::Request seen;
+  void dispatch(rcand::sdk::Request request, rcand::sdk::Json,
+                std::function<void(rcand::sdk::Response)> done) const noexcept override {
+    seen = std::move(request);
+    done(rcand::sdk::Response::ok({{"moved", true}}));
+  }
+};
+
+}  // namespace
+
+TEST_CASE(
+    "dispatch from the host: the caller's credential stays in rcand behind a handle; the answer reaches done; a "
+    "handle let go, forgotten, or a closed channel runs nothing") {
+  ServicePair pair;
+  CredentialTable credentials;
+  const auto caller = std::make_shared<const Credential>();
+  const json handle = credentials.keep(caller);
+  CHECK(credentials.keep(nullptr).is_null());
+  {
+    RemoteDispatcher dispatcher(pair.host_end);
+    rcand::sdk::Request request;
+    request.method = "POST", request.path = "/api/nav/waypoint", request.principal = "someone-else";
+    request.credential = dispatcher.credential(handle);  // what the plugin got with the request it acts for
+    std::promise<rcand::sdk::Response> answered;
+    dispatcher.dispatch(request, {{"ai", {{"provider", "grammar"}}}}, [&](rcand::sdk::Response r) { answered.set_value(r); });
+    const auto message = pair.rcand_end.receive();
+    REQUIRE(message);
+    CHECK(message->at("cred") == handle);  // a number, never the credential
+    FakeDispatcher rcand_dispatcher;
+    auto rcand_end = std::shared_ptr<Channel>(&pair.rcand_end, [](Channel*) {});
+    dispatch_for_host(&rcand_dispatcher, credentials, *message, rcand_end);
+    CHECK(rcand_dispatcher.seen.credential == caller);  // rcand's own object, found by the handle
+    CHECK(rcand_dispatcher.seen.path == "/api/nav/waypoint");
+    dispatcher.answered(*pair.host_end.receive());
+    auto future = answered.get_future();
+    REQUIRE(future.wait_for(2s) == std::future_status::ready);
+    CHECK(future.get().body["moved"] == true);
+
+    // A handle rcand forgot (or never gave) finds no credential: rcand's dispatcher refuses such a request 401.
+    credentials.drop(handle);
+    dispatch_for_host(&rcand_dispatcher, credentials, *message, rcand_end);
+    CHECK(rcand_dispatcher.seen.credential == nullptr);
+    pair.host_end.receive();  // its answer
+
+    std::promise<rcand::sdk::Response> closed;
+    dispatcher.close();
+    dispatcher.dispatch(request, nullptr, [&](rcand::sdk::Response r) { closed.set_value(r); });
+    CHECK(closed.get_future().get().status == 503);
+    request.credential.reset();
+  }  // the plugin let go of the credential: rcand is told to forget it
+  bool told = false;
+  while (const auto message = pair.rcand_end.receive()) {
+    if (message->at("t") == "cred_drop") {
+      told = message->at("cred") == handle;
+      break;
+    }
+  }
+  CHECK(told);
+}
+
+TEST_CASE("credential table: at most kMaxCredentials kept, the oldest forgotten first") {
+  CredentialTable credentials;
+  const auto first = credentials.keep(std::make_shared<const Credential>());
+  for (std::size_t i = 0; i < CredentialTable::kMaxCredentials; ++i) credentials.keep(std::make_shared<const Credential>());
+  CHECK(credentials.find(first) == nullptr);
+  CHECK(credentials.find(json(first.get<std::uint64_t>() + 1)) != nullptr);
+  CHECK(credentials.find("not a handle") == nullptr);
 }
