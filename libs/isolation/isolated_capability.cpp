@@ -10,6 +10,7 @@
 #include "libs/isolation/actuator_calls.hpp"
 #include "libs/isolation/host_process.hpp"
 #include "libs/isolation/remote_metrics.hpp"
+#include "libs/isolation/remote_pose.hpp"
 #include "libs/isolation/wire.hpp"
 
 namespace rcand::isolation {

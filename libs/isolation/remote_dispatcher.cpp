@@ -119,7 +119,7 @@ void CredentialTable::clear() {
 
 void dispatch_for_host(const sdk::RequestDispatcher* dispatcher, const CredentialTable& credentials, const json& message,
                        std::shared_ptr<Channel> channel) {
-  const json id = message.at("id");
+  const json& id = message.at("id");
   const auto send = [channel, id](const sdk::Response& response) {
     channel->send({{"t", "dispatched"}, {"id", id}, {"status", response.status}, {"body", response.body}}, nullptr,
                   /*wait=*/false);

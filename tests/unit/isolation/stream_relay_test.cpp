@@ -39,6 +39,11 @@ struct Link {
     }
     streams.close_all();
   }};
+  // A client's writer in rcand, and the writer the host's plugin gets for it.
+  std::pair<std::shared_ptr<RecordingStream>, std::shared_ptr<rcand::sdk::StreamWriter>> client() {
+    auto recording = std::make_shared<RecordingStream>();
+    return {recording, streams.open(relay.open(recording))};
+  }
   ~Link() {
     rcand_end.shutdown();
     host_end.shutdown();
@@ -55,8 +60,9 @@ TEST_CASE(
     "streams: a multipart stream from the host reaches the client with its headers; counters and a leaving client "
     "come back") {
   Link link;
-  auto client = std::make_shared<RecordingStream>();
-  auto writer = link.streams.open(link.relay.open(client));
+  const auto opened = link.client();  // not bound by name: the lambdas below capture them (clang 14)
+  const auto& client = opened.first;
+  const auto& writer = opened.second;
   REQUIRE(writer->start(200, "multipart/x-mixed-replace", {{"X-Accel-Buffering", "no"}}));
   CHECK(client->content_type() == "multipart/x-mixed-replace");
   CHECK(writer->push({jpeg('a'), "image/jpeg", {{"X-Timestamp-Us", "7"}}}));
@@ -80,24 +86,21 @@ TEST_CASE(
     "streams: a snapshot's body through the ring, one too big for it inline, a JSON answer, and a start rcand "
     "refuses") {
   Link link;
-  auto snapshot = std::make_shared<RecordingStream>();
-  auto writer = link.streams.open(link.relay.open(snapshot));
+  auto [snapshot, writer] = link.client();
   REQUIRE(writer->start(200, "image/jpeg", {{"Cache-Control", "no-store"}}));
   CHECK(writer->send(jpeg('s')));
   CHECK(writer->closed());  // the answer is complete
   REQUIRE(snapshot->wait_for_answer(2s));
   CHECK(snapshot->body() == std::string(20000, 's'));
 
-  auto big = std::make_shared<RecordingStream>();
-  auto big_writer = link.streams.open(link.relay.open(big));
+  auto [big, big_writer] = link.client();
   REQUIRE(big_writer->start(200, "image/jpeg", {}));
   const auto huge = std::make_shared<const std::string>(link.host_ring->max_frame() + 1, 'h');
   CHECK(big_writer->send(huge));
   REQUIRE(big->wait_for_answer(2s));
   CHECK(big->body() == *huge);
 
-  auto refused = std::make_shared<RecordingStream>();
-  auto refused_writer = link.streams.open(link.relay.open(refused));
+  auto [refused, refused_writer] = link.client();
   CHECK(refused_writer->respond(rcand::sdk::Response::error(503, "SLOTS_RESERVED", "reserved"), {{"Retry-After", "1"}}));
   REQUIRE(refused->wait_for_answer(2s));
   CHECK(refused->status() == 503);
