@@ -107,6 +107,7 @@ void HostContext::join_workers() {
     workers.swap(workers_);
   }
   for (auto& worker : workers) worker->join();
+  dispatcher_.join();
   std::unique_ptr<ObstaclePoller> obstacles;
   {
     std::lock_guard lock(mutex_);

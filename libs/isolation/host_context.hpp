@@ -55,6 +55,7 @@ class HostContext final : public sdk::PluginContext {
   void set_latched(bool latched);
   void deliver(const nlohmann::json& reply);
   void close();
+  // The plugin's workers, its dispatches' answers and the obstacle poller ended: before its objects are destroyed.
   void join_workers();
   RemoteDispatcher& dispatcher() noexcept { return dispatcher_; }
   RemotePose& pose() noexcept { return pose_; }

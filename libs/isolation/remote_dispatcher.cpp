@@ -26,7 +26,9 @@ class HostCredential final : public sdk::Credential {
 
 RemoteDispatcher::RemoteDispatcher(Channel& channel) : channel_(channel), answers_("dispatch", [](const std::string&) {}) {}
 
-RemoteDispatcher::~RemoteDispatcher() {
+RemoteDispatcher::~RemoteDispatcher() { join(); }
+
+void RemoteDispatcher::join() {
   close();
   answers_.join();
 }

@@ -31,6 +31,8 @@ class RemoteDispatcher final : public sdk::RequestDispatcher {
   void answered(const nlohmann::json& message);
   // The channel ended: every dispatch still waiting gets 503.
   void close();
+  // close(), then every answer given: before the plugin's objects, which its `done` callbacks use, are destroyed.
+  void join();
   // A request from rcand, with the handle of its caller's credential (none: null), as the plugin gets it.
   std::shared_ptr<const sdk::Credential> credential(const nlohmann::json& handle);
 
