@@ -2,13 +2,15 @@
 // and how rcand carries it out through its motion gate. The host hands the plugin a stand-in of the actuator's
 // interface whose methods send calls; rcand applies each call inside MotionGate::actuate (the latch, the actuator's
 // health and its interface checked there, in rcand) or MotionGate::inspect. Interfaces carried so far:
-// differential_drive. Another interface is refused with WrongInterface and a log line naming it.
+// differential_drive and joint_arm (an actuator whose primary interface it is; the arm of a board that drives wheels
+// too is not carried). Another interface is refused with WrongInterface and a log line naming it.
 #pragma once
 
 #include <nlohmann/json.hpp>
 
 #include <functional>
 #include <memory>
+#include <optional>
 #include <stdexcept>
 #include <string>
 #include <string_view>
@@ -30,8 +32,9 @@ class CallError : public std::invalid_argument {
 // interface (WrongInterface, as MotionGate::actuate_as answers in process).
 using ActuatorCommand = std::function<bool(sdk::ActuatorDriver&)>;
 ActuatorCommand command_for(std::string_view method, const nlohmann::json& args);
-// rcand's side. A reading for MotionGate::inspect ("status": Driver::status()), checked likewise before the gate.
-using ActuatorReading = std::function<nlohmann::json(const sdk::ActuatorDriver&)>;
+// rcand's side. A reading for MotionGate::inspect ("status": Driver::status(); "joint_states"), checked likewise
+// before the gate; nullopt for an actuator without the reading's interface (WrongInterface).
+using ActuatorReading = std::function<std::optional<nlohmann::json>(const sdk::ActuatorDriver&)>;
 ActuatorReading reading_for(std::string_view method);
 
 // The host's side. Sends one call ("actuate" or "inspect", the method, its arguments) to rcand and returns its answer:

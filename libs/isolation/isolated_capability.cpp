@@ -179,7 +179,13 @@ void IsolatedCapability::answer_call(const json& call, const std::shared_ptr<Cha
       if (wrong_interface) status = sdk::GateStatus::WrongInterface;
     } else if (op == "inspect") {
       const ActuatorReading reading = reading_for(method);
-      status = context_.motion().inspect(actuator, [&](const sdk::ActuatorDriver& driver) { reply["result"] = reading(driver); });
+      bool wrong_interface = false;
+      status = context_.motion().inspect(actuator, [&](const sdk::ActuatorDriver& driver) {
+        auto result = reading(driver);
+        wrong_interface = !result;
+        if (result) reply["result"] = std::move(*result);
+      });
+      if (wrong_interface) status = sdk::GateStatus::WrongInterface;
     } else if (op == "halt") {
       context_.motion().halt(actuator);
     } else if (op == "offer" && method == sdk::ObstacleSource::kServiceId) {  // a later host offers it again: still ours

@@ -221,3 +221,34 @@ TEST_CASE("isolation: the setting is checked where it is written") {
   CHECK_THROWS_WITH_AS(RcandProcess(config, {plugin_dir(), test_plugin_dir() / "crasher"}),
                        doctest::Contains("expected \"process\" or \"in_process\""), std::runtime_error);
 }
+
+TEST_CASE("isolation: the arm capability in its own process moves the sim arm through rcand's gate, and reads it back") {
+  auto config = sim_config();
+  config["rcan_protocol"]["capabilities"] = {"status", "teleop", "arm"};
+  config["physics"]["kinematics"] = json::array(
+      {{{"joint", "shoulder"}, {"min_deg", -90}, {"max_deg", 90}}, {{"joint", "elbow"}, {"min_deg", 0}, {"max_deg", 135}}});
+  config["drivers"].push_back({{"id", "arm0"}, {"protocol", "sim_arm"}});
+  config["runtime"]["capabilities"]["arm"] = {{"isolation", "process"}};
+  RcandProcess rcand(config);
+  const json process = rcand.json("GET", "/api/status", "guest-token")["capabilities"]["arm"]["status"]["process"];
+  REQUIRE(process.is_object());
+  CHECK(process["pid"].get<long>() != rcand.pid());
+
+  int status = 0;
+  const auto moved =
+      rcand.json("POST", "/api/action", "user-token", json{{"type", "arm_pose"}, {"joints", {{"shoulder", 30}}}}.dump(), &status);
+  INFO(moved.dump());
+  REQUIRE(status == 200);
+  // The host's joint_states() answered by rcand's driver: the target it was given, through the gate.
+  const auto joints = rcand.json("GET", "/api/arm/joints", "guest-token", "", &status);
+  REQUIRE(status == 200);
+  CHECK(joints["driver"] == "arm0");
+  CHECK(joints["joints"][0]["joint"] == "shoulder");
+  CHECK(joints["joints"][0]["target_deg"] == 30.0);
+
+  // Latched in rcand: the motion route is refused there, before the host sees it.
+  rcand.json("POST", "/api/stop", "guest-token", "{}", &status);
+  REQUIRE(status == 200);
+  rcand.json("POST", "/api/action", "user-token", json{{"type", "arm_pose"}, {"joints", {{"shoulder", 10}}}}.dump(), &status);
+  CHECK(status == 423);
+}

@@ -4,6 +4,7 @@
 
 #include "libs/base/steady_clock.hpp"
 #include "libs/isolation/actuator_calls.hpp"
+#include "rcand/sdk/interfaces/arm.hpp"
 #include "rcand/sdk/testing/recording_drive.hpp"
 
 using namespace rcand;
@@ -71,6 +72,7 @@ TEST_CASE("actuator calls: a drive's calls reach the driver; a call no actuator 
   CHECK(isolation::command_for("halt", json::array())(drive));
   CHECK_FALSE(drive.moving());
   CHECK(isolation::reading_for("status")(drive) == json::object());
+  CHECK_FALSE(isolation::reading_for("joint_states")(drive));  // a drive is no arm: WrongInterface, as in process
   CHECK_THROWS_AS(isolation::reading_for("secrets"), isolation::CallError);
 }
 
@@ -120,4 +122,48 @@ TEST_CASE("actuator calls: a driver's own error reaches the plugin as a throw") 
       outcome);
   CHECK_THROWS_WITH(dynamic_cast<sdk::DifferentialDrive&>(*drive).set_wheel_speeds(0.1, 0.1), "serial port gone");
   CHECK(outcome->status == sdk::GateStatus::ActuatorFailed);
+}
+
+TEST_CASE(
+    "actuator calls: a joint arm's targets and states cross whole, an unknown position stays unknown, and a bad "
+    "target list is refused before any gate") {
+  struct Arm final : sdk::ActuatorDriver, sdk::JointArm {
+    std::string_view interface_name() const noexcept override { return sdk::JointArm::kInterface; }
+    void halt() noexcept override {}
+    void set_joint_targets(const std::vector<sdk::JointTarget>& targets) override { given = targets; }
+    std::vector<sdk::JointState> joint_states() const override {
+      return {{"shoulder", 12.5, 30, 60, true, true}, {"elbow", std::nullopt, 0, 0, false, false}};
+    }
+    std::vector<sdk::JointTarget> given;
+  } arm;
+  // The stand-in's calls carried out on `arm` as rcand would (command_for / reading_for), not through a gate.
+  auto outcome = std::make_shared<isolation::CallOutcome>();
+  const isolation::CallSender to_rcand = [&](std::string_view op, std::string_view method, json args) {
+    if (op == "actuate") return json{{"gate", isolation::command_for(method, args)(arm) ? 0 : 3}};
+    return json{{"gate", 0}, {"result", *isolation::reading_for(method)(arm)}};
+  };
+  auto actuating = isolation::remote_actuator(sdk::JointArm::kInterface, "actuate", to_rcand, outcome);
+  REQUIRE(actuating);
+  CHECK(actuating->interface_name() == "joint_arm");
+  auto* remote = dynamic_cast<sdk::JointArm*>(actuating.get());  // actuate_as<JointArm> cross-casts the same way
+  REQUIRE(remote != nullptr);
+  remote->set_joint_targets({{"shoulder", 30, 45}, {"elbow", 90, 0}});
+  REQUIRE(arm.given.size() == 2);
+  CHECK(arm.given[1].joint == "elbow");
+  CHECK(arm.given[1].position_deg == 90);
+  CHECK(arm.given[0].velocity_dps == 45);
+
+  auto reading = isolation::remote_actuator(sdk::JointArm::kInterface, "inspect", to_rcand, outcome);
+  const auto states = dynamic_cast<const sdk::JointArm&>(*reading).joint_states();
+  REQUIRE(states.size() == 2);
+  CHECK(states[0].position_deg == 12.5);
+  CHECK(states[0].moving);
+  CHECK_FALSE(states[1].position_deg.has_value());  // a failed read is never a made-up 0.0
+  CHECK(outcome->status == sdk::GateStatus::Ok);
+
+  CHECK_THROWS_AS(isolation::command_for("set_joint_targets", json::array({{"shoulder", "far", 1}})), isolation::CallError);
+  CHECK_THROWS_AS(isolation::command_for("set_joint_targets", json{{"shoulder", 30}}), isolation::CallError);
+  SteadyClock clock;
+  sdk::testing::RecordingDrive drive(clock);
+  CHECK_FALSE(isolation::command_for("set_joint_targets", json::array({{"shoulder", 30, 10}}))(drive));  // WrongInterface
 }
