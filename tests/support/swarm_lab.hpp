@@ -6,6 +6,7 @@
 #include <boost/asio/ip/tcp.hpp>
 
 #include <cstdint>
+#include <deque>
 #include <filesystem>
 #include <stdexcept>
 #include <string>
@@ -70,11 +71,16 @@ inline nlohmann::json node_named(const nlohmann::json& report, const std::string
   throw std::runtime_error("no node '" + name + "' in " + report.dump());
 }
 
-// A loopback port nobody listens on (bound, then released): connections are refused.
+// A loopback port nobody listens on: connections are refused. The port stays bound (never listening, without
+// SO_REUSEADDR) for the test process's life, so no robot started later can be given it by bind(0) - a released port
+// once came back as the robot's own, which then left the "dead" node out of its broadcast as itself.
 inline std::uint16_t refused_port() {
-  boost::asio::io_context io;
-  boost::asio::ip::tcp::acceptor acceptor(io, boost::asio::ip::tcp::endpoint(boost::asio::ip::make_address("127.0.0.1"), 0));
-  return acceptor.local_endpoint().port();
+  static boost::asio::io_context io;
+  static std::deque<boost::asio::ip::tcp::socket> held;
+  auto& socket = held.emplace_back(io);
+  socket.open(boost::asio::ip::tcp::v4());
+  socket.bind(boost::asio::ip::tcp::endpoint(boost::asio::ip::make_address("127.0.0.1"), 0));
+  return socket.local_endpoint().port();
 }
 
 }  // namespace rcand::test
