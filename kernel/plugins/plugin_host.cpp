@@ -167,11 +167,7 @@ void PluginHost::load_needed(const std::set<std::string>& capabilities, const st
     if (record->library) continue;  // opened before
     if (chosen.count(record.get()) != 0 && capability_settings != nullptr &&
         served_apart(*record->manifest, capabilities, driver_protocols, *capability_settings)) {
-      for (const auto& item : record->manifest->provides)
-        if (item.kind == "capability") record->capabilities.push_back({{item.name, item.actuates}, nullptr});
-      record->abi_minor = RCAND_ABI_MINOR;  // what rcand calls is its own proxy (libs/isolation)
-      record->build_info = "opened by rcand-plugin-host (isolation: process)";
-      set_state(*record, PluginState::Loaded, "", "");
+      serve_apart(*record);
     } else if (chosen.count(record.get()) != 0) {
       open(*record);
     } else if (const auto it = passed_over.find(record.get()); it != passed_over.end()) {
@@ -183,6 +179,15 @@ void PluginHost::load_needed(const std::set<std::string>& capabilities, const st
                 "to enable it, configure " + join(names, " or "));
     }
   }
+}
+
+// Loaded from its manifest, opened by no one in rcand: its capabilities' host processes open it.
+void PluginHost::serve_apart(PluginRecord& record) {
+  for (const auto& item : record.manifest->provides)
+    if (item.kind == "capability") record.capabilities.push_back({{item.name, item.actuates}, nullptr});
+  record.abi_minor = RCAND_ABI_MINOR;  // what rcand calls is its own proxy (libs/isolation)
+  record.build_info = "opened by rcand-plugin-host (isolation: process)";
+  set_state(record, PluginState::Loaded, "", "");
 }
 
 // The loader is a straight line of refusals, each one a state, a reason and a hint: open the library, read its
@@ -329,6 +334,8 @@ bool PluginHost::accept(PluginRecord& record, detail::RecordingRegistrar& regist
 void PluginHost::reopen(std::string_view id) {
   PluginRecord* record = find(id);
   if (record == nullptr) return;
+  // Served apart: its new version is for its next host processes, and rcand still maps none.
+  const bool apart = record->state == PluginState::Loaded && record->library == nullptr;
   {
     std::lock_guard lock(mutex_);
     record->state = PluginState::InstalledNotEnabled;  // what it registered is free for its new version
@@ -347,6 +354,7 @@ void PluginHost::reopen(std::string_view id) {
   if (fresh.manifest && fresh.manifest->id != fresh.id)
     set_state(fresh, PluginState::InvalidManifest, "the manifest's id is now '" + fresh.manifest->id + "'",
               "a reload keeps a plugin's id; restart rcand to load it under another");
+  else if (fresh.manifest && apart) serve_apart(fresh);
   else if (fresh.manifest) open_copy(fresh);
   std::lock_guard lock(mutex_);
   *record = std::move(fresh);

@@ -57,7 +57,8 @@ class PluginHost {
   // code). The copy is made with O_EXCL|O_NOFOLLOW in a directory of rcand's own (mkdtemp, 0700, under the
   // reload directory's parent) and unlinked once mapped. The record ends Loaded or in a named failure state, as at
   // startup. Each reopen maps one more image for good: past kMaxReopens of one plugin it is refused
-  // (FailedToOpen, "restart rcand"), so reloads cannot grow rcand's memory without bound.
+  // (FailedToOpen, "restart rcand"), so reloads cannot grow rcand's memory without bound. A plugin served apart has
+  // only its manifest re-read: its capabilities' next host processes open the library.
   void reopen(std::string_view id);
   static constexpr int kMaxReopens = 16;
   // How many more times reopen(id) will map a new image.
@@ -84,6 +85,7 @@ class PluginHost {
   nlohmann::json to_json(bool with_paths = true) const;
 
  private:
+  void serve_apart(PluginRecord& record);
   void open(PluginRecord& record);
   void open_copy(PluginRecord& record);  // open() from a fresh copy of the library (reopen)
   // A private copy of `library` (see reopen); empty with `error` set when it cannot be made.

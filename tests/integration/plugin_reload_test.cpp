@@ -24,18 +24,21 @@ const std::string kReloadPath = std::string("/api/plugins/") + kReloadId + "/rel
 const std::string kVersionPath = std::string("/api/cap/") + kReloadId + "/version";
 
 // Puts build variant `variant` (1 or 2) of the reload fixture into `folder` as the plugin rcand loads, under a
-// manifest that says `version`. The library is replaced by a rename, as a build or a package install does.
-void install_reload_fixture(const std::filesystem::path& folder, int variant, const std::string& version) {
+// manifest that says `version` (and, `isolated`, that its capability runs in a process of its own). The library is
+// replaced by a rename, as a build or a package install does.
+void install_reload_fixture(const std::filesystem::path& folder, int variant, const std::string& version, bool isolated = false) {
   std::filesystem::create_directories(folder);
   const auto built = test_plugin_dir() / "reload" / ("rcand_test_reload_v" + std::to_string(variant) + ".so");
   std::filesystem::copy_file(built, folder / "incoming.so", std::filesystem::copy_options::overwrite_existing);
   std::filesystem::rename(folder / "incoming.so", folder / "rcand_test_reload.so");
-  std::ofstream(folder / "reload.json") << json{{"id", kReloadId},
-                                                {"version", version},
-                                                {"library", "rcand_test_reload.so"},
-                                                {"abi", {{"major", 1}, {"minor", 0}}},
-                                                {"provides", json::array({json{{"kind", "capability"}, {"name", kReloadId}}})}}
-                                               .dump();
+  std::ofstream(folder / "reload.json")
+      << json{{"id", kReloadId},
+              {"version", version},
+              {"library", "rcand_test_reload.so"},
+              {"abi", {{"major", 1}, {"minor", 0}}},
+              {"provides", json::array({isolated ? json{{"kind", "capability"}, {"name", kReloadId}, {"isolation", "process"}}
+                                                 : json{{"kind", "capability"}, {"name", kReloadId}}})}}
+             .dump();
 }
 
 json reload_config(bool allow) {
@@ -99,6 +102,37 @@ TEST_CASE("plugin reload: motors halt first, the new version on disk is served, 
   CHECK(unknown["code"] == "NOT_FOUND");
   CHECK(rcand.json("POST", "/api/plugins/" + std::string(kReloadId) + "/restart", "owner-token", {}, &status)["code"] ==
         "NOT_FOUND");
+}
+
+TEST_CASE("plugin reload: an isolated capability's new version is served by a new process; rcand maps neither") {
+  TempDir dir;
+  const auto folder = dir.path() / "plugins";
+  install_reload_fixture(folder, 1, "1.0.0", /*isolated=*/true);
+  RcandProcess rcand(reload_config(true), {plugin_dir(), folder});
+  REQUIRE(served_version(rcand) == "1.0.0");
+  const auto host_pid = [&] {
+    return rcand.json("GET", "/api/status", "owner-token")["capabilities"][kReloadId]["status"]["process"].value("pid", 0);
+  };
+  const auto rcand_maps_the_plugin = [&] {
+    std::ifstream maps("/proc/" + std::to_string(rcand.pid()) + "/maps");
+    const std::string text((std::istreambuf_iterator<char>(maps)), std::istreambuf_iterator<char>());
+    return text.find("rcand_test_reload") != std::string::npos;
+  };
+  const int first = host_pid();
+  REQUIRE(first > 0);
+  CHECK(!rcand_maps_the_plugin());
+
+  install_reload_fixture(folder, 2, "2.0.0", /*isolated=*/true);
+  int status = 0;
+  const json answer = rcand.json("POST", kReloadPath, "owner-token", {}, &status);
+  INFO(answer.dump());
+  REQUIRE(status == 200);
+  CHECK(answer["version"] == "2.0.0");
+  CHECK(answer["instances"][0]["state"] == "running");
+  CHECK(served_version(rcand) == "2.0.0");
+  CHECK(rcand.json("GET", std::string("/api/cap/") + kReloadId + "/added", "user-token")["added"] == true);
+  CHECK(eventually([&] { return host_pid() != first && host_pid() > 0; }, 5s));  // the status board catches up
+  CHECK(!rcand_maps_the_plugin());  // before this, a reload opened the library in rcand
 }
 
 TEST_CASE("plugin reload: a driver plugin's new object takes the actuator's slot; the old one is halted and never used again") {
