@@ -157,13 +157,12 @@ sdk::CapabilityFactory factory_of(const RegisteredCapability& registered, const 
   if (!isolation.process) return registered.factory;
   const auto under = [](int ms) { return std::chrono::milliseconds(std::max(100, ms - 250)); };
   const auto binary = isolation::find_host_binary(RCAND_PLUGIN_HOST_DIR);
-  isolation::HostSpec spec{binary.value_or(""),
-                           {plugin.manifest_file.parent_path().string()},
-                           plugin.id,
-                           isolation.memory_mb,
-                           isolation.network,
-                           under(config.runtime.handler_timeout_ms),
-                           under(config.runtime.plugin_start_timeout_ms)};
+  isolation::HostSpec spec{.binary = binary.value_or(""),
+                           .plugin_paths = {plugin.manifest_file.parent_path().string()},
+                           .plugin_id = plugin.id,
+                           .isolation = isolation,
+                           .request_timeout = under(config.runtime.handler_timeout_ms),
+                           .start_timeout = under(config.runtime.plugin_start_timeout_ms)};
   isolation::HostEvents events{[&services, id = plugin.id](const std::string& event, const std::string& detail) {
                                  if (services.audit == nullptr) return;
                                  AuditEntry entry;

@@ -13,6 +13,8 @@
 #include <memory>
 #include <stdexcept>
 
+#include "libs/isolation/device_access.hpp"
+
 namespace rcand::isolation {
 
 namespace {
@@ -59,10 +61,12 @@ void drop_capabilities() {
 
 }  // namespace
 
-void enter_host_sandbox(pid_t parent, const SandboxNeeds& needs) {
+nlohmann::json enter_host_sandbox(pid_t parent, const nlohmann::json& needs) {
+  const auto need = [&needs](const char* what) { return needs.is_object() && needs.value(what, false); };
   if (::prctl(PR_SET_NO_NEW_PRIVS, 1, 0, 0, 0) != 0)
     throw std::runtime_error(std::string("sandbox: no_new_privs: ") + std::strerror(errno));
   drop_capabilities();
+  auto devices = restrict_devices({need("video"), need("serial")});
 
   const std::unique_ptr<void, void (*)(scmp_filter_ctx)> filter(seccomp_init(SCMP_ACT_ALLOW), seccomp_release);
   if (!filter) throw std::runtime_error("sandbox: seccomp_init failed");
@@ -85,12 +89,13 @@ void enter_host_sandbox(pid_t parent, const SandboxNeeds& needs) {
   for (const auto* target : {&to_rcand, &to_group, &to_own_group}) refuse(SCMP_SYS(kill), 1, target, "signals");
   for (const int call : {SCMP_SYS(tgkill), SCMP_SYS(rt_sigqueueinfo), SCMP_SYS(rt_tgsigqueueinfo), SCMP_SYS(pidfd_open)})
     refuse(call, 1, &to_rcand, "signals to rcand");
-  if (!needs.network)
+  if (!need("network"))
     for (const int family : {AF_INET, AF_INET6, AF_PACKET, AF_NETLINK}) {
       const scmp_arg_cmp domain = first_argument(SCMP_CMP_EQ, static_cast<scmp_datum_t>(family));
       refuse(SCMP_SYS(socket), 1, &domain, "sockets");
     }
   check(seccomp_load(filter.get()), "loading the filter");
+  return devices;
 }
 
 }  // namespace rcand::isolation

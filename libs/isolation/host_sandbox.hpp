@@ -5,23 +5,22 @@
 //   - a seccomp filter (libseccomp) refusing with EPERM what no capability needs: tracing or reading other processes'
 //     memory, signalling rcand or any process group, kernel modules, mounts and namespaces, reboot, BPF, keyrings,
 //     clock setting and raw I/O ports; and, unless its manifest entry says it needs the network
-//     ("isolation_needs": ["network"]), sockets other than Unix ones.
+//     ("isolation_needs": ["network"]), sockets other than Unix ones;
+//   - a Landlock ruleset (device_access.hpp): in /dev only the ordinary entries and the device classes it needs
+//     ("video", "serial").
 // EPERM rather than a kill: a library that probes for a feature gets "not permitted" and goes on without it.
 #pragma once
 
 #include <sys/types.h>
 
-#include <string>
-#include <vector>
+#include <nlohmann/json.hpp>
 
 namespace rcand::isolation {
 
-struct SandboxNeeds {
-  bool network = false;
-};
-
-// The calling process, every thread of it, from now on. `parent` is rcand's pid. Throws std::runtime_error naming
+// The calling process, every thread of it, from now on. `parent` is rcand's pid, `needs` the start message's
+// ({"network": bool, "video": bool, "serial": bool}; a need left out is not granted). Answers
+// what it enforces on devices (restrict_devices()), for the capability's status. Throws std::runtime_error naming
 // the step that failed (the host then refuses to start the capability).
-void enter_host_sandbox(pid_t parent, const SandboxNeeds& needs);
+nlohmann::json enter_host_sandbox(pid_t parent, const nlohmann::json& needs);
 
 }  // namespace rcand::isolation

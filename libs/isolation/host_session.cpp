@@ -68,9 +68,17 @@ void answer(Channel& channel, const Served& served, RemoteStreams& streams, Host
 
 }  // namespace
 
-int run_host(Channel& channel, FrameRing* ring, const CapabilityLoader& load) {
+int run_host(Channel& channel, FrameRing* ring, const CapabilityLoader& load, const SandboxEntry& sandbox) {
   const auto start = channel.receive();
   if (!start || start->value("t", "") != "start") return 2;
+  if (sandbox) {
+    try {
+      channel.send({{"t", "sandbox"}, {"sandbox", sandbox(*start)}});  // before any status its start() publishes
+    } catch (const std::exception& e) {
+      channel.send({{"t", "start_failed"}, {"reason", e.what()}});
+      return 3;
+    }
+  }
   HostContext context(channel, *start);
   Served served;
   RemoteStreams streams(channel, ring);

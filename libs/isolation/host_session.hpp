@@ -24,9 +24,14 @@ struct LoadedCapability {
   std::shared_ptr<void> keep;
 };
 using CapabilityLoader = std::function<LoadedCapability(const nlohmann::json& start)>;
+// Enters the host's sandbox for the start message's needs and answers what it enforces (shown in the capability's
+// status); throws with the reason when it cannot. Called before the session starts any thread: a Landlock ruleset
+// binds the calling thread and the threads it starts afterwards, not those already running.
+using SandboxEntry = std::function<nlohmann::json(const nlohmann::json& start)>;
 
 // The process's exit status: 0 after rcand's shutdown, 2 without a start message, 3 when the capability did not
-// start (rcand got the reason first). `ring`: the frame ring rcand passed (null: frames go inline).
-int run_host(Channel& channel, FrameRing* ring, const CapabilityLoader& load);
+// start (rcand got the reason first). `ring`: the frame ring rcand passed (null: frames go inline). `sandbox`: none in
+// the unit tests, which run the session in their own process.
+int run_host(Channel& channel, FrameRing* ring, const CapabilityLoader& load, const SandboxEntry& sandbox = {});
 
 }  // namespace rcand::isolation

@@ -57,15 +57,16 @@ void IsolatedCapability::spawn() {
   ::close(theirs);
   json actuators = json::array();
   for (const auto& info : context_.motion().actuators()) actuators.push_back({info.id, info.interface});
-  channel->send(with_pose({{"t", "start"},
-                           {"plugin_paths", spec_.plugin_paths},
-                           {"plugin", spec_.plugin_id},
-                           {"capability", std::string(context_.instance_id())},
-                           {"settings", context_.config().raw()},
-                           {"robot_config", context_.robot_config().raw()},
-                           {"actuators", actuators},
-                           {"latched", context_.estop().latched()},
-                           {"network", spec_.network}}));
+  channel->send(with_pose(
+      {{"t", "start"},
+       {"plugin_paths", spec_.plugin_paths},
+       {"plugin", spec_.plugin_id},
+       {"capability", std::string(context_.instance_id())},
+       {"settings", context_.config().raw()},
+       {"robot_config", context_.robot_config().raw()},
+       {"actuators", actuators},
+       {"latched", context_.estop().latched()},
+       {"needs", {{"network", spec_.isolation.network}, {"video", spec_.isolation.video}, {"serial", spec_.isolation.serial}}}}));
   start_error_.clear();
   kill_reason_.clear();
   host_ = Host{pid, channel, ring, {}, false, Clock::now(), Clock::now()};
@@ -145,10 +146,17 @@ void IsolatedCapability::handle(const json& message, const std::shared_ptr<Chann
       if (*route_specs_ == message.at("routes")) {
         up_ = true;
         down_reason_.clear();
+
       } else {
         start_error_ = "its routes after a restart differ from those it started with";
         kill_host(start_error_);
       }
+    } else if (type == "sandbox") {
+      sandbox_ = message.at("sandbox").is_object() ? message["sandbox"] : json::object();
+      if (sandbox_.value("devices", "") != "restricted")
+        logger("isolation")
+            ->warn("capability {}: its process may open every device rcand's user may: {}", context_.instance_id(),
+                   sandbox_.value("reason", "its host did not restrict them"));
     } else if (type == "start_failed") {
       start_error_ = message.at("reason").get<std::string>();
     }
@@ -282,7 +290,8 @@ sdk::Response IsolatedCapability::unavailable() const {
 json IsolatedCapability::down_status() const { return with_process({{"fault", unavailable().body.value("error", "")}}); }
 
 json IsolatedCapability::with_process(json status) const {
-  if (status.is_object()) status["process"] = {{"isolation", "process"}, {"pid", host_.pid}, {"restarts", restarts_}};
+  if (status.is_object())
+    status["process"] = {{"isolation", "process"}, {"pid", host_.pid}, {"restarts", restarts_}, {"sandbox", sandbox_}};
   return status;
 }
 
@@ -347,9 +356,9 @@ void IsolatedCapability::check_alive() {
   }
   if (now - host_.last_pong > kHeartbeatLimit)
     return kill_host("stopped answering its heartbeat for " + ms_text(kHeartbeatLimit));
-  if (const auto resident = resident_bytes(host_.pid); resident && *resident > spec_.memory_limit_mb << 20)
+  if (const auto resident = resident_bytes(host_.pid); resident && *resident > spec_.isolation.memory_mb << 20)
     return kill_host("used " + std::to_string(*resident >> 20) + " MB, over its limit of " +
-                     std::to_string(spec_.memory_limit_mb) + " MB (isolation_memory_mb)");
+                     std::to_string(spec_.isolation.memory_mb) + " MB (isolation_memory_mb)");
   host_.channel->send(with_pose({{"t", "ping"}, {"latched", context_.estop().latched()}}), nullptr, /*wait=*/false);
   if (const auto state = streams_.state()) host_.channel->send(*state, nullptr, /*wait=*/false);
 }

@@ -38,6 +38,7 @@
 #include "libs/isolation/stream_relay.hpp"
 #include "rcand/sdk/capability.hpp"
 #include "rcand/sdk/context.hpp"
+#include "rcand/sdk/contract/isolation.hpp"
 
 namespace rcand::isolation {
 
@@ -46,8 +47,7 @@ struct HostSpec {
   std::filesystem::path binary;           // rcand-plugin-host (find_host_binary)
   std::vector<std::string> plugin_paths;  // rcand's plugin search path: the host finds the plugin as rcand did
   std::string plugin_id;
-  std::size_t memory_limit_mb = 1024;               // isolation_memory_mb: resident memory past it kills the host
-  bool network = false;                             // its manifest's isolation_needs: IP sockets past the filter
+  sdk::contract::Isolation isolation;               // memory_mb (past it the host is killed) and the sandbox's needs
   std::chrono::milliseconds request_timeout{4750};  // under the kernel's handler timeout, which would fail it for good
   std::chrono::milliseconds start_timeout{9500};    // the plugin's factory, start() and routes(), in the host
 };
@@ -129,6 +129,7 @@ class IsolatedCapability final : public sdk::Capability {
   std::uint64_t generation_ = 0;  // one more for each host that ended
   std::string down_reason_, kill_reason_, start_error_;
   std::optional<nlohmann::json> route_specs_;  // {"routes","streams"} the first host's capability serves; later ones agree
+  nlohmann::json sandbox_ = nlohmann::json::object();  // what its host's sandbox enforces on devices (its own word)
   mutable std::uint64_t next_id_ = 0;
   struct Answer {
     sdk::Response response;

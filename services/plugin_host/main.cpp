@@ -22,9 +22,13 @@ namespace rcand::services {
 
 namespace {
 
-// The sandbox first, then the plugin: its static initialisers already run inside it.
+// Entered before the session starts a thread, and before the plugin is opened: its static initialisers already run
+// inside it.
+nlohmann::json sandbox(const nlohmann::json& start) {
+  return isolation::enter_host_sandbox(::getppid(), start.value("needs", nlohmann::json::object()));
+}
+
 isolation::LoadedCapability load(const nlohmann::json& start) {
-  isolation::enter_host_sandbox(::getppid(), {start.value("network", false)});
   auto host = std::make_shared<kernel::PluginHost>();
   std::vector<std::filesystem::path> paths;
   for (const auto& path : start.at("plugin_paths")) paths.emplace_back(path.get<std::string>());
@@ -59,5 +63,5 @@ int main(int argc, char** argv) {
   } catch (const std::exception& e) {
     std::fprintf(stderr, "rcand-plugin-host: %s: frames go inline\n", e.what());
   }
-  return rcand::isolation::run_host(channel, ring.get(), rcand::services::load);
+  return rcand::isolation::run_host(channel, ring.get(), rcand::services::load, rcand::services::sandbox);
 }

@@ -5,8 +5,14 @@
 // capability comes back in a new process. Five deaths within a minute leave it failed.
 #include <doctest/doctest.h>
 
+#include <fcntl.h>
+#include <stdlib.h>
+#include <unistd.h>
+
 #include <cerrno>
 #include <chrono>
+#include <filesystem>
+#include <fstream>
 #include <string>
 
 #include "fault_drill.hpp"
@@ -156,6 +162,51 @@ TEST_CASE("isolation: the capability's process has less than rcand: no privilege
     CAPTURE(what);
     CHECK(in_process.rcand.json("POST", kBase + "/try", "owner-token", json{{"what", what}}.dump()).value("errno", -1) == 0);
   }
+}
+
+TEST_CASE("isolation: the capability's process opens only the devices its manifest needs (Landlock)") {
+  // A pseudo-terminal stands for a serial port, as the serial emulators' do.
+  const int master = ::posix_openpt(O_RDWR | O_NOCTTY | O_CLOEXEC);
+  REQUIRE(master >= 0);
+  REQUIRE((::grantpt(master) == 0 && ::unlockpt(master) == 0));
+  const std::string serial_port = ::ptsname(master);
+  TempDir dir;
+  const auto plain_file = dir.write("plain.txt", "not a device");
+  const auto opened = [](const RcandProcess& rcand, const std::string& path) {
+    return rcand.json("POST", kBase + "/try", "owner-token", json{{"what", "open"}, {"path", path}}.dump()).value("errno", -1);
+  };
+
+  Robot robot;
+  const auto sandbox = robot.capability_status()["status"]["process"]["sandbox"];
+  INFO(sandbox.dump());
+  if (sandbox.value("devices", "") != "restricted") {
+    // A kernel without Landlock: said in the status (and logged), never silently.
+    CHECK(sandbox.value("devices", "") == "unrestricted");
+    CHECK(!sandbox.value("reason", "").empty());
+    MESSAGE("SKIPPED the device checks: " << sandbox.dump());
+    ::close(master);
+    return;
+  }
+  CHECK(sandbox["device_classes"] == json::array());
+  CHECK(opened(robot.rcand, serial_port) == EACCES);  // its manifest does not say it needs serial ports
+  CHECK(opened(robot.rcand, "/dev/null") == 0);
+  CHECK(opened(robot.rcand, "/dev/urandom") == 0);
+  CHECK(opened(robot.rcand, plain_file.string()) == 0);  // files outside /dev as before
+  CHECK(robot.capability_pid() > 0);
+
+  // The same plugin whose manifest entry says it needs serial ports.
+  auto manifest = json::parse(std::ifstream(test_plugin_dir() / "crasher" / "crasher.json"));
+  manifest["provides"][0]["isolation_needs"] = {"serial"};
+  const auto plugin = dir.write("crasher/crasher.json", manifest.dump()).parent_path();
+  std::filesystem::copy_file(test_plugin_dir() / "crasher" / manifest["library"].get<std::string>(),
+                             plugin / manifest["library"].get<std::string>());
+  RcandProcess serial(crasher_config(), {plugin_dir(), plugin});
+  CHECK(serial.json("GET", "/api/status",
+                    "owner-token")["capabilities"][kCapability]["status"]["process"]["sandbox"]["device_classes"] ==
+        json{"serial"});
+  CHECK(opened(serial, serial_port) == 0);
+  CHECK(opened(serial, "/dev/null") == 0);
+  ::close(master);
 }
 
 TEST_CASE("isolation: under the packaged unit's restrictions (no capabilities, capset refused) the host still starts") {

@@ -63,6 +63,10 @@ TEST_CASE("vision: a robot on the synthetic camera maps no video backend and no 
     REQUIRE(vision_pid(rcand) != static_cast<int>(rcand.pid()));
     const std::string own = mapped_files(static_cast<int>(rcand.pid()));
     for (const char* library : {"rcand_vision.so", "libopencv"}) CHECK_MESSAGE(own.find(library) == std::string::npos, library);
+    // Its manifest says it needs cameras (and the network): its process may open video devices, and no other class.
+    const json sandbox = backend_vision_status(rcand)["status"]["process"]["sandbox"];
+    INFO(sandbox.dump());
+    CHECK((sandbox.value("devices", "") != "restricted" || sandbox["device_classes"] == json{"video"}));
   }
 }
 

@@ -173,6 +173,17 @@ TEST_CASE("parse_manifest errors name the file and the field") {
     CHECK(manifest_error_of(doc) ==
           "/plugins/teleop.json: provides[0].isolation: expected \"process\" or \"in_process\", found \"sandbox\"");
   }
+  SUBCASE("isolation_needs names something no sandbox grants") {
+    doc["provides"][0]["isolation_needs"] = {"network", "gpio"};
+    CHECK(manifest_error_of(doc) ==
+          "/plugins/teleop.json: provides[0].isolation_needs: expected \"network\", \"video\" or "
+          "\"serial\" (what its process may use beyond the sandbox), found \"gpio\"");
+  }
+  SUBCASE("isolation_needs of a driver") {
+    doc["provides"][1]["isolation_needs"] = {"serial"};
+    CHECK(manifest_error_of(doc) ==
+          "/plugins/teleop.json: provides[1].isolation_needs: only a capability runs in a process of its own");
+  }
   SUBCASE("provides not an array") {
     doc["provides"] = "teleop";
     CHECK(manifest_error_of(doc) == "/plugins/teleop.json: provides: expected array, found string");

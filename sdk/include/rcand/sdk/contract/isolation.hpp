@@ -1,7 +1,7 @@
 // Where a capability's plugin code runs (issue 34, docs/protocol.md §7.19): "in_process", in rcand's own process (the
 // default), or "process", in a process of its own (rcand-plugin-host), where a crash, an abort or a hang of the plugin
 // ends only that process. A manifest's capability entry states the vendor's default ("isolation") and what its process
-// needs beyond the host's system call filter ("isolation_needs": ["network"]); the robot config's
+// needs beyond the host's sandbox ("isolation_needs": any of "network", "video", "serial"); the robot config's
 // runtime.capabilities.<name> block overrides it ("isolation"), and bounds the process's resident memory
 // ("isolation_memory_mb"; past it rcand ends the process, which then restarts). Both hosts read these keys here, beside
 // the plugin's own settings. Pure and header-only.
@@ -25,7 +25,11 @@ inline constexpr std::array<std::string_view, 2> kCapabilityEntryKeys{"isolation
 struct Isolation {
   bool process = false;
   std::size_t memory_mb = 1024;
-  bool network = false;  // the manifest entry's "isolation_needs" lists "network": its process may open IP sockets
+  // The manifest entry's "isolation_needs": its process may open IP sockets ("network"), cameras ("video": V4L2 and
+  // media devices) and serial ports ("serial": ttyS/USB/ACM/AMA..., /dev/serial, pseudo-terminals).
+  bool network = false;
+  bool video = false;
+  bool serial = false;
 };
 
 inline constexpr std::size_t kMinIsolationMemoryMb = 16;
@@ -46,10 +50,14 @@ inline Isolation isolation_of(const nlohmann::json& provided, const nlohmann::js
     const auto& needs = provided["isolation_needs"];
     if (!needs.is_array()) throw SettingsError("isolation_needs", "expected a list such as [\"network\"], found " + needs.dump());
     for (const auto& need : needs) {
-      if (need != "network")
+      if (need == "network") isolation.network = true;
+      else if (need == "video") isolation.video = true;
+      else if (need == "serial") isolation.serial = true;
+      else
         throw SettingsError("isolation_needs",
-                            "expected \"network\" (what its process may do beyond the filter), found " + need.dump());
-      isolation.network = true;
+                            "expected \"network\", \"video\" or \"serial\" (what its process may use "
+                            "beyond the sandbox), found " +
+                                need.dump());
     }
   }
   if (settings.is_object() && settings.contains("isolation_memory_mb")) {
