@@ -10,6 +10,7 @@
 #include "libs/base/closest_match.hpp"
 #include "libs/base/keep_forever.hpp"
 #include "libs/base/stop_path_priority.hpp"
+#include "libs/config/config_access.hpp"
 #include "libs/config/plugin_settings.hpp"
 #include "libs/isolation/host_process.hpp"
 #include "libs/isolation/isolated_capability.hpp"
@@ -157,10 +158,12 @@ sdk::CapabilityFactory factory_of(const RegisteredCapability& registered, const 
   if (!isolation.process) return registered.factory;
   const auto under = [](int ms) { return std::chrono::milliseconds(std::max(100, ms - 250)); };
   const auto binary = isolation::find_host_binary(RCAND_PLUGIN_HOST_DIR);
+  const auto private_files = config::private_files(config);
   isolation::HostSpec spec{.binary = binary.value_or(""),
                            .plugin_paths = {plugin.manifest_file.parent_path().string()},
                            .plugin_id = plugin.id,
                            .isolation = isolation,
+                           .hidden = {private_files.begin(), private_files.end()},
                            .request_timeout = under(config.runtime.handler_timeout_ms),
                            .start_timeout = under(config.runtime.plugin_start_timeout_ms)};
   isolation::HostEvents events{[&services, id = plugin.id](const std::string& event, const std::string& detail) {

@@ -34,4 +34,13 @@ std::vector<std::string> config_access_problems(const RobotConfig& config, const
   return problems;
 }
 
+std::vector<std::filesystem::path> private_files(const RobotConfig& config) {
+  std::vector<std::filesystem::path> files{config.source_file, config.runtime.state_dir, config.runtime.swarm_file};
+  files.insert(files.end(), config.fragment_files.begin(), config.fragment_files.end());
+  if (config.runtime.audit_file) files.push_back(*config.runtime.audit_file);
+  if (config.runtime.auth.jwt_secret_file) files.push_back(*config.runtime.auth.jwt_secret_file);
+  if (config.runtime.listen_tls) files.push_back(config.runtime.listen_tls->key_file);
+  return files;
+}
+
 }  // namespace rcand::config

@@ -17,4 +17,9 @@ namespace rcand::config {
 std::vector<std::string> config_access_problems(const RobotConfig& config, const std::filesystem::path& config_file,
                                                 const std::vector<std::filesystem::path>& plugin_paths, const UserIdentity& user);
 
+// rcand's own files a config names, which no other process of the robot needs: the config and its fragments, the
+// state dir, the audit log, the JWT secret, the TLS key and the swarm file (peers' tokens). An isolated capability's
+// process is kept out of them (libs/isolation/file_access.hpp).
+std::vector<std::filesystem::path> private_files(const RobotConfig& config);
+
 }  // namespace rcand::config

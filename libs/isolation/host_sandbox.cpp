@@ -13,7 +13,7 @@
 #include <memory>
 #include <stdexcept>
 
-#include "libs/isolation/device_access.hpp"
+#include "libs/isolation/file_access.hpp"
 
 namespace rcand::isolation {
 
@@ -61,12 +61,15 @@ void drop_capabilities() {
 
 }  // namespace
 
-nlohmann::json enter_host_sandbox(pid_t parent, const nlohmann::json& needs) {
-  const auto need = [&needs](const char* what) { return needs.is_object() && needs.value(what, false); };
+nlohmann::json enter_host_sandbox(pid_t parent, const nlohmann::json& order) {
+  const auto need = [&order](const char* what) { return order.is_object() && order.value(what, false); };
   if (::prctl(PR_SET_NO_NEW_PRIVS, 1, 0, 0, 0) != 0)
     throw std::runtime_error(std::string("sandbox: no_new_privs: ") + std::strerror(errno));
   drop_capabilities();
-  auto devices = restrict_devices({need("video"), need("serial")});
+  FileNeeds files{need("video"), need("serial"), {"/proc/" + std::to_string(parent)}};
+  if (order.is_object() && order.contains("hidden"))
+    for (const auto& path : order.at("hidden")) files.hidden.emplace_back(path.get<std::string>());
+  auto enforced = restrict_files(files);
 
   const std::unique_ptr<void, void (*)(scmp_filter_ctx)> filter(seccomp_init(SCMP_ACT_ALLOW), seccomp_release);
   if (!filter) throw std::runtime_error("sandbox: seccomp_init failed");
@@ -95,7 +98,7 @@ nlohmann::json enter_host_sandbox(pid_t parent, const nlohmann::json& needs) {
       refuse(SCMP_SYS(socket), 1, &domain, "sockets");
     }
   check(seccomp_load(filter.get()), "loading the filter");
-  return devices;
+  return enforced;
 }
 
 }  // namespace rcand::isolation

@@ -6,8 +6,8 @@
 //     memory, signalling rcand or any process group, kernel modules, mounts and namespaces, reboot, BPF, keyrings,
 //     clock setting and raw I/O ports; and, unless its manifest entry says it needs the network
 //     ("isolation_needs": ["network"]), sockets other than Unix ones;
-//   - a Landlock ruleset (device_access.hpp): in /dev only the ordinary entries and the device classes it needs
-//     ("video", "serial").
+//   - a Landlock ruleset (file_access.hpp): rcand's own files and /proc/<rcand> hidden, and in /dev only the
+//     ordinary entries and the device classes it needs ("video", "serial").
 // EPERM rather than a kill: a library that probes for a feature gets "not permitted" and goes on without it.
 #pragma once
 
@@ -17,10 +17,11 @@
 
 namespace rcand::isolation {
 
-// The calling process, every thread of it, from now on. `parent` is rcand's pid, `needs` the start message's
-// ({"network": bool, "video": bool, "serial": bool}; a need left out is not granted). Answers
-// what it enforces on devices (restrict_devices()), for the capability's status. Throws std::runtime_error naming
-// the step that failed (the host then refuses to start the capability).
-nlohmann::json enter_host_sandbox(pid_t parent, const nlohmann::json& needs);
+// The calling process from now on (before it starts any thread other than its own: the Landlock ruleset binds the
+// calling thread and those it starts afterwards; the seccomp filter every thread). `parent` is rcand's pid, `order`
+// the start message's "sandbox": {"network": bool, "video": bool, "serial": bool, "hidden": [paths]} (what is left
+// out is not granted). Answers what it enforces on files (restrict_files()), for the capability's status. Throws
+// std::runtime_error naming the step that failed (the host then refuses to start the capability).
+nlohmann::json enter_host_sandbox(pid_t parent, const nlohmann::json& order);
 
 }  // namespace rcand::isolation

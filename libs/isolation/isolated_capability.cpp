@@ -57,16 +57,19 @@ void IsolatedCapability::spawn() {
   ::close(theirs);
   json actuators = json::array();
   for (const auto& info : context_.motion().actuators()) actuators.push_back({info.id, info.interface});
-  channel->send(with_pose(
-      {{"t", "start"},
-       {"plugin_paths", spec_.plugin_paths},
-       {"plugin", spec_.plugin_id},
-       {"capability", std::string(context_.instance_id())},
-       {"settings", context_.config().raw()},
-       {"robot_config", context_.robot_config().raw()},
-       {"actuators", actuators},
-       {"latched", context_.estop().latched()},
-       {"needs", {{"network", spec_.isolation.network}, {"video", spec_.isolation.video}, {"serial", spec_.isolation.serial}}}}));
+  channel->send(with_pose({{"t", "start"},
+                           {"plugin_paths", spec_.plugin_paths},
+                           {"plugin", spec_.plugin_id},
+                           {"capability", std::string(context_.instance_id())},
+                           {"settings", context_.config().raw()},
+                           {"robot_config", context_.robot_config().raw()},
+                           {"actuators", actuators},
+                           {"latched", context_.estop().latched()},
+                           {"sandbox",
+                            {{"network", spec_.isolation.network},
+                             {"video", spec_.isolation.video},
+                             {"serial", spec_.isolation.serial},
+                             {"hidden", spec_.hidden}}}}));
   start_error_.clear();
   kill_reason_.clear();
   host_ = Host{pid, channel, ring, {}, false, Clock::now(), Clock::now()};

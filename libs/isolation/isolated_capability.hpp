@@ -48,6 +48,7 @@ struct HostSpec {
   std::vector<std::string> plugin_paths;  // rcand's plugin search path: the host finds the plugin as rcand did
   std::string plugin_id;
   sdk::contract::Isolation isolation;               // memory_mb (past it the host is killed) and the sandbox's needs
+  std::vector<std::string> hidden;                  // rcand's own files, out of the host's reach (config::private_files)
   std::chrono::milliseconds request_timeout{4750};  // under the kernel's handler timeout, which would fail it for good
   std::chrono::milliseconds start_timeout{9500};    // the plugin's factory, start() and routes(), in the host
 };

@@ -25,7 +25,7 @@ namespace {
 // Entered before the session starts a thread, and before the plugin is opened: its static initialisers already run
 // inside it.
 nlohmann::json sandbox(const nlohmann::json& start) {
-  return isolation::enter_host_sandbox(::getppid(), start.value("needs", nlohmann::json::object()));
+  return isolation::enter_host_sandbox(::getppid(), start.value("sandbox", nlohmann::json::object()));
 }
 
 isolation::LoadedCapability load(const nlohmann::json& start) {

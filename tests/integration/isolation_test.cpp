@@ -164,7 +164,7 @@ TEST_CASE("isolation: the capability's process has less than rcand: no privilege
   }
 }
 
-TEST_CASE("isolation: the capability's process opens only the devices its manifest needs (Landlock)") {
+TEST_CASE("isolation: the capability's process opens only the devices its manifest needs, and none of rcand's files") {
   // A pseudo-terminal stands for a serial port, as the serial emulators' do.
   const int master = ::posix_openpt(O_RDWR | O_NOCTTY | O_CLOEXEC);
   REQUIRE(master >= 0);
@@ -172,8 +172,9 @@ TEST_CASE("isolation: the capability's process opens only the devices its manife
   const std::string serial_port = ::ptsname(master);
   TempDir dir;
   const auto plain_file = dir.write("plain.txt", "not a device");
-  const auto opened = [](const RcandProcess& rcand, const std::string& path) {
-    return rcand.json("POST", kBase + "/try", "owner-token", json{{"what", "open"}, {"path", path}}.dump()).value("errno", -1);
+  const auto opened = [](const RcandProcess& rcand, const std::filesystem::path& path, bool read_only = false) {
+    const json attempt{{"what", "open"}, {"path", path.string()}, {"read_only", read_only}};
+    return rcand.json("POST", kBase + "/try", "owner-token", attempt.dump()).value("errno", -1);
   };
 
   Robot robot;
@@ -183,15 +184,28 @@ TEST_CASE("isolation: the capability's process opens only the devices its manife
     // A kernel without Landlock: said in the status (and logged), never silently.
     CHECK(sandbox.value("devices", "") == "unrestricted");
     CHECK(!sandbox.value("reason", "").empty());
-    MESSAGE("SKIPPED the device checks: " << sandbox.dump());
+    MESSAGE("SKIPPED the file checks: " << sandbox.dump());
     ::close(master);
     return;
   }
   CHECK(sandbox["device_classes"] == json::array());
-  CHECK(opened(robot.rcand, serial_port) == EACCES);  // its manifest does not say it needs serial ports
+  CHECK(sandbox.value("rcand_files_hidden", 0) >= 4);  // its config, its JWT secret, its state dir, /proc/<rcand>
+  CHECK(opened(robot.rcand, serial_port) == EACCES);   // its manifest does not say it needs serial ports
   CHECK(opened(robot.rcand, "/dev/null") == 0);
   CHECK(opened(robot.rcand, "/dev/urandom") == 0);
-  CHECK(opened(robot.rcand, plain_file.string()) == 0);  // files outside /dev as before
+  CHECK(opened(robot.rcand, plain_file) == 0);  // files outside /dev as before, beside rcand's own
+  // rcand's own files: its config (written beside the JWT secret and the state dir), the secret, the latch's state,
+  // and rcand's memory and environment through /proc.
+  const auto& own = robot.rcand.dir().path();
+  for (const auto& file : {own / "robot.rcan.yaml", own / "jwt.secret"}) {
+    CAPTURE(file);
+    CHECK(opened(robot.rcand, file, true) == EACCES);
+  }
+  CHECK(opened(robot.rcand, robot.rcand.dir().write("state/written-since", "in rcand's state dir"), true) == EACCES);
+  const std::string rcand_proc = "/proc/" + std::to_string(robot.rcand.pid());
+  CHECK(opened(robot.rcand, rcand_proc + "/environ", true) == EACCES);
+  CHECK(opened(robot.rcand, rcand_proc + "/mem", true) == EACCES);
+  CHECK(opened(robot.rcand, "/proc/self/status", true) == 0);  // its own
   CHECK(robot.capability_pid() > 0);
 
   // The same plugin whose manifest entry says it needs serial ports.
@@ -206,6 +220,12 @@ TEST_CASE("isolation: the capability's process opens only the devices its manife
         json{"serial"});
   CHECK(opened(serial, serial_port) == 0);
   CHECK(opened(serial, "/dev/null") == 0);
+  CHECK(opened(serial, serial.dir().path() / "robot.rcan.yaml", true) == EACCES);
+
+  // In rcand's own process, the same attempts are allowed: the refusals above are the sandbox's.
+  Robot in_process(json{{"isolation", "in_process"}});
+  CHECK(opened(in_process.rcand, serial_port) == 0);
+  CHECK(opened(in_process.rcand, in_process.rcand.dir().path() / "robot.rcan.yaml", true) == 0);
   ::close(master);
 }
 

@@ -372,10 +372,12 @@ TEST_CASE("the systemd unit is valid, supervised (notify, watchdog, reload) and 
   const std::string unit = slurp(p.root / "lib/systemd/system/rcand.service");
   // seccomp(2) and Landlock's calls are outside @system-service: without them an isolated capability's host could
   // not load its own filter and ruleset.
-  for (const char* line : {"Type=notify", "WatchdogSec=", "WatchdogSignal=SIGTERM", "ExecReload=/bin/kill -HUP $MAINPID",
-                           "DevicePolicy=closed", "DeviceAllow=char-gpiochip rw", "DeviceAllow=char-i2c rw", "LimitRTPRIO=10",
-                           "SystemCallFilter=@system-service seccomp landlock_create_ruleset landlock_add_rule "
-                           "landlock_restrict_self"})
+  const std::string filter =
+      "SystemCallFilter=@system-service seccomp landlock_create_ruleset landlock_add_rule "
+      "landlock_restrict_self";
+  for (const char* line :
+       {"Type=notify", "WatchdogSec=", "WatchdogSignal=SIGTERM", "ExecReload=/bin/kill -HUP $MAINPID", "DevicePolicy=closed",
+        "DeviceAllow=char-gpiochip rw", "DeviceAllow=char-i2c rw", "LimitRTPRIO=10", filter.c_str()})
     CHECK_MESSAGE(unit.find(line) != std::string::npos, line);
   const auto analyze = which("systemd-analyze");
   if (!analyze) {

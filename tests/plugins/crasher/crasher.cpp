@@ -4,9 +4,9 @@
 //   POST /drive   the first differential drive at half speed, through the context's motion gate (rcand's gate)
 //   POST /crash   {"how": segfault | abort | leak | spin | close | throw} - dies, grows until its memory limit, never
 //                 returns, closes its end of the channel (descriptor 3), or throws (a 500; the process lives on)
-//   POST /try     {"what": read_rcand | signal_rcand | signal_group | inet_socket | unix_socket | open, "path"} - what
-//                 the host's sandbox refuses, each tried harmlessly (signal 0, one byte read, a file opened and closed);
-//                 answers the errno (0: allowed)
+//   POST /try     {"what": read_rcand | signal_rcand | signal_group | inet_socket | unix_socket | open, "path",
+//                 "read_only"} - what the host's sandbox refuses, each tried harmlessly (signal 0, one byte read, a
+//                 file opened and closed); answers the errno (0: allowed)
 //   GET  /privileges  NoNewPrivs, CapEff and CapBnd of its process (/proc/self/status)
 // It publishes a status on start, counts its on_estop() calls there, and logs its shutdown().
 #include <fcntl.h>
@@ -125,7 +125,8 @@ class Crasher final : public rcand::sdk::Capability {
         const int fd = ::socket(what == "inet_socket" ? AF_INET : AF_UNIX, SOCK_STREAM, 0);
         if (fd >= 0) ::close(fd);
       } else if (what == "open") {
-        const int fd = ::open(request.body.value("path", "").c_str(), O_RDWR | O_NOCTTY | O_NONBLOCK | O_CLOEXEC);
+        const int mode = request.body.value("read_only", false) ? O_RDONLY : O_RDWR;
+        const int fd = ::open(request.body.value("path", "").c_str(), mode | O_NOCTTY | O_NONBLOCK | O_CLOEXEC);
         if (fd >= 0) ::close(fd);
       } else {
         return Response::bad_request("what", "unknown attempt");

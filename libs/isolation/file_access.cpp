@@ -1,4 +1,4 @@
-#include "libs/isolation/device_access.hpp"
+#include "libs/isolation/file_access.hpp"
 
 #include <dirent.h>
 #include <fcntl.h>
@@ -10,8 +10,9 @@
 #include <array>
 #include <cerrno>
 #include <cstring>
-#include <functional>
+#include <filesystem>
 #include <memory>
+#include <set>
 #include <stdexcept>
 #include <string>
 
@@ -54,31 +55,49 @@ struct Descriptor {
 
 [[noreturn]] void fail(const std::string& step) { throw std::runtime_error("sandbox: " + step + ": " + std::strerror(errno)); }
 
-// A rule for each entry of `directory` that `keep` keeps: everything beneath it, as far as the handled rights go.
-// Links are left to their targets; sockets and pipes are not opened through these rights.
-void allow_entries(int ruleset, const std::string& directory, const std::function<bool(std::string_view)>& keep) {
-  const std::unique_ptr<DIR, int (*)(DIR*)> listing(::opendir(directory.c_str()), ::closedir);
-  if (!listing) fail("listing " + directory);
-  while (const dirent* entry = ::readdir(listing.get())) {
-    const std::string_view name = entry->d_name;
-    if (name == "." || name == ".." || !keep(name)) continue;
-    const std::string path = (directory == "/" ? "" : directory) + "/" + std::string(name);
-    struct stat info {};
-    if (::lstat(path.c_str(), &info) != 0) continue;  // gone since the listing
-    const bool is_directory = S_ISDIR(info.st_mode);
-    if (!is_directory && !S_ISREG(info.st_mode) && !S_ISCHR(info.st_mode) && !S_ISBLK(info.st_mode)) continue;
-    const Descriptor beneath(::open(path.c_str(), O_PATH | O_CLOEXEC | O_NOFOLLOW));
-    if (beneath.fd < 0) continue;  // not reachable by this user anyway
-    landlock_path_beneath_attr rule{};
-    rule.allowed_access = is_directory ? kHandled : kFileRights;
-    rule.parent_fd = beneath.fd;
-    if (::syscall(SYS_landlock_add_rule, ruleset, LANDLOCK_RULE_PATH_BENEATH, &rule, 0) != 0) fail("a rule for " + path);
-  }
+void add_rule(int ruleset, const std::string& path, __u64 rights) {
+  const Descriptor beneath(::open(path.c_str(), O_PATH | O_CLOEXEC));
+  if (beneath.fd < 0) return;  // not reachable by this user anyway
+  landlock_path_beneath_attr rule{};
+  rule.allowed_access = rights;
+  rule.parent_fd = beneath.fd;
+  if (::syscall(SYS_landlock_add_rule, ruleset, LANDLOCK_RULE_PATH_BENEATH, &rule, 0) != 0) fail("a rule for " + path);
 }
+
+struct Walk {
+  int ruleset;
+  const FileNeeds& needs;
+  const std::set<std::string>& hidden;  // canonical paths
+
+  // Grants every entry of `directory` whole, except those hidden or holding something hidden (walked into), and in
+  // /dev those the needs do not name. Links are left to their targets; sockets and pipes are not opened through
+  // these rights.
+  void allow_all_but(const std::string& directory) const {
+    const std::unique_ptr<DIR, int (*)(DIR*)> listing(::opendir(directory.c_str()), ::closedir);
+    if (!listing) fail("listing " + directory);
+    while (const dirent* entry = ::readdir(listing.get())) {
+      const std::string_view name = entry->d_name;
+      if (name == "." || name == "..") continue;
+      const std::string path = (directory == "/" ? "" : directory) + "/" + std::string(name);
+      if (hidden.count(path) != 0 || (directory == "/dev" && !device_allowed(name, needs))) continue;
+      struct stat info {};
+      if (::lstat(path.c_str(), &info) != 0) continue;  // gone since the listing
+      const bool is_directory = S_ISDIR(info.st_mode);
+      if (!is_directory && !S_ISREG(info.st_mode) && !S_ISCHR(info.st_mode) && !S_ISBLK(info.st_mode)) continue;
+      if (is_directory && (path == "/dev" || holds_hidden(path))) allow_all_but(path);
+      else add_rule(ruleset, path, is_directory ? kHandled : kFileRights);
+    }
+  }
+
+  bool holds_hidden(const std::string& directory) const {
+    const auto first = hidden.lower_bound(directory + "/");  // sorted: the first path under it, if any, comes here
+    return first != hidden.end() && first->starts_with(directory + "/");
+  }
+};
 
 }  // namespace
 
-bool device_allowed(std::string_view name, const DeviceNeeds& needs) {
+bool device_allowed(std::string_view name, const FileNeeds& needs) {
   for (const auto ordinary : kOrdinary)
     if (name == ordinary) return true;
   if (starts_with_any(name, kVideoPrefixes)) return needs.video;
@@ -86,21 +105,29 @@ bool device_allowed(std::string_view name, const DeviceNeeds& needs) {
   return false;
 }
 
-nlohmann::json restrict_devices(const DeviceNeeds& needs) {
+nlohmann::json restrict_files(const FileNeeds& needs) {
   const long abi = ::syscall(SYS_landlock_create_ruleset, nullptr, 0, LANDLOCK_CREATE_RULESET_VERSION);
   if (abi < 0)
     return {{"devices", "unrestricted"}, {"reason", std::string("Landlock is not available: ") + std::strerror(errno)}};
+  std::set<std::string> hidden;
+  for (const auto& path : needs.hidden) {
+    std::error_code ec;
+    if (auto real = std::filesystem::canonical(path, ec); !ec && real != "/") hidden.insert(real.string());
+  }
   landlock_ruleset_attr attributes{};
   attributes.handled_access_fs = kHandled;
   const Descriptor ruleset(static_cast<int>(::syscall(SYS_landlock_create_ruleset, &attributes, sizeof attributes, 0)));
   if (ruleset.fd < 0) fail("a Landlock ruleset");
-  allow_entries(ruleset.fd, "/", [](std::string_view name) { return name != "dev"; });
-  allow_entries(ruleset.fd, "/dev", [&needs](std::string_view name) { return device_allowed(name, needs); });
+  add_rule(ruleset.fd, "/", LANDLOCK_ACCESS_FS_READ_DIR);  // any directory may be listed
+  Walk{ruleset.fd, needs, hidden}.allow_all_but("/");
   if (::syscall(SYS_landlock_restrict_self, ruleset.fd, 0) != 0) fail("entering the Landlock ruleset");
   nlohmann::json classes = nlohmann::json::array();
   if (needs.video) classes.push_back("video");
   if (needs.serial) classes.push_back("serial");
-  return {{"devices", "restricted"}, {"landlock_abi", abi}, {"device_classes", classes}};
+  return {{"devices", "restricted"},
+          {"landlock_abi", abi},
+          {"device_classes", classes},
+          {"rcand_files_hidden", hidden.size()}};  // how many, not which: the status is for guests too
 }
 
 }  // namespace rcand::isolation

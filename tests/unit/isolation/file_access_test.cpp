@@ -1,12 +1,12 @@
-// Which entries of /dev an isolated capability's process may open (libs/isolation/device_access.hpp): the ordinary
+// Which entries of /dev an isolated capability's process may open (libs/isolation/file_access.hpp): the ordinary
 // ones always, cameras with "video", serial ports and pseudo-terminals with "serial", and never a bus, memory, input
 // or a console, which belong to rcand's drivers or to nobody.
 #include <doctest/doctest.h>
 
-#include "libs/isolation/device_access.hpp"
+#include "libs/isolation/file_access.hpp"
 
 using rcand::isolation::device_allowed;
-using rcand::isolation::DeviceNeeds;
+using rcand::isolation::FileNeeds;
 
 TEST_CASE("device access: each entry of /dev by what the manifest entry needs") {
   struct Row {
@@ -24,10 +24,11 @@ TEST_CASE("device access: each entry of /dev by what the manifest entry needs") 
       {"mem", false, false, false},        {"input", false, false, false},   {"uinput", false, false, false},
       {"hidraw0", false, false, false},    {"nvme0n1", false, false, false}, {"kmsg", false, false, false},
   };
+  const FileNeeds none, video{true, false, {}}, serial{false, true, {}};
   for (const auto& row : rows) {
     CAPTURE(row.name);
-    CHECK(device_allowed(row.name, DeviceNeeds{}) == row.without_needs);
-    CHECK(device_allowed(row.name, DeviceNeeds{.video = true}) == row.with_video);
-    CHECK(device_allowed(row.name, DeviceNeeds{.serial = true}) == row.with_serial);
+    CHECK(device_allowed(row.name, none) == row.without_needs);
+    CHECK(device_allowed(row.name, video) == row.with_video);
+    CHECK(device_allowed(row.name, serial) == row.with_serial);
   }
 }
