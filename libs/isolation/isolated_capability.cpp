@@ -149,7 +149,6 @@ void IsolatedCapability::handle(const json& message, const std::shared_ptr<Chann
       if (*route_specs_ == message.at("routes")) {
         up_ = true;
         down_reason_.clear();
-
       } else {
         start_error_ = "its routes after a restart differ from those it started with";
         kill_host(start_error_);
@@ -158,7 +157,7 @@ void IsolatedCapability::handle(const json& message, const std::shared_ptr<Chann
       sandbox_ = message.at("sandbox").is_object() ? message["sandbox"] : json::object();
       if (sandbox_.value("devices", "") != "restricted")
         logger("isolation")
-            ->warn("capability {}: its process may open every device rcand's user may: {}", context_.instance_id(),
+            ->warn("capability {}: its process may open every file and device rcand's user may: {}", context_.instance_id(),
                    sandbox_.value("reason", "its host did not restrict them"));
     } else if (type == "start_failed") {
       start_error_ = message.at("reason").get<std::string>();

@@ -229,6 +229,24 @@ TEST_CASE("isolation: the capability's process opens only the devices its manife
   ::close(master);
 }
 
+TEST_CASE("isolation: a host flooding rcand with actuator calls has those past 64 in flight refused, named") {
+  auto config = crasher_config();
+  config["drivers"][0]["halt_delay_ms"] = 1000;  // the fixture's first call, a halt, holds rcand's calls worker
+  RcandProcess rcand(config, {plugin_dir(), test_plugin_dir() / "crasher"});
+  int status = 0;
+  rcand.json("POST", kBase + "/flood", "owner-token", R"({"calls":150})", &status);
+  REQUIRE(status == 200);
+  json result;
+  REQUIRE(eventually([&] { return (result = rcand.json("GET", kBase + "/flood", "owner-token")).value("finished", false); }, 30s,
+                     20ms));
+  MESSAGE("flood: " << result.dump());
+  CHECK(result.value("refused", 0) >= 1);  // refused at once with the cap's reason, never queued without bound
+  CHECK(result.value("ok", 0) >= 63);      // those under the cap were answered
+  CHECK(result.value("other", -1) == 0);
+  CHECK(result.value("ok", 0) + result.value("refused", 0) == 150);
+  CHECK(rcand.json("GET", kBase + "/pid", "owner-token").value("pid", 0) > 0);  // the host lives on
+}
+
 TEST_CASE("isolation: under the packaged unit's restrictions (no capabilities, capset refused) the host still starts") {
   auto config = crasher_config();
   config["runtime"]["plugin_paths"] = {plugin_dir().string(), (test_plugin_dir() / "crasher").string()};

@@ -8,6 +8,9 @@
 //                 "read_only"} - what the host's sandbox refuses, each tried harmlessly (signal 0, one byte read, a
 //                 file opened and closed); answers the errno (0: allowed)
 //   GET  /privileges  NoNewPrivs, CapEff and CapBnd of its process (/proc/self/status)
+//   POST /flood   {"calls": N} in the background: one thread halts the first drive (a slow halt holds rcand's side),
+//                 then N threads read its status at once; GET /flood: {"finished", "ok", "refused" (rcand's in-flight
+//                 cap, named), "other"}
 // It publishes a status on start, counts its on_estop() calls there, and logs its shutdown().
 #include <fcntl.h>
 #include <sys/socket.h>
@@ -142,19 +145,58 @@ class Crasher final : public rcand::sdk::Capability {
             out[key] = line.substr(line.find_first_not_of(" \t", std::strlen(key) + 1));
       return Response::ok(out);
     });
-    return {pid, drive, crash_route, attempt, privileges};
+    Route flood;
+    flood.method = "POST";
+    flood.path = "/flood";
+    flood.handler = [this](const Request& request) {
+      const auto actuator = context_.motion().first_actuator(rcand::sdk::DifferentialDrive::kInterface);
+      if (!actuator || flooder_.joinable()) return Response::error(409, "CONFLICT", "no drive, or flooded once already");
+      flooder_ = std::thread([this, id = *actuator, calls = request.body.value("calls", 100)] { flood_calls(id, calls); });
+      return Response::ok({{"started", true}});
+    };
+    Route flooded = rcand::test::get_route("/flood", [this](const Request&) {
+      return Response::ok({{"finished", flood_finished_.load()},
+                           {"ok", flood_ok_.load()},
+                           {"refused", flood_refused_.load()},
+                           {"other", flood_other_.load()}});
+    });
+    return {pid, drive, crash_route, attempt, privileges, flood, flooded};
   }
 
   Json status() const override { return {{"estops", estops_.load()}}; }
-  void shutdown() noexcept override { context_.log().info("crasher shutdown() ran in process ", ::getpid()); }
+  void shutdown() noexcept override {
+    if (flooder_.joinable()) flooder_.join();
+    context_.log().info("crasher shutdown() ran in process ", ::getpid());
+  }
   void on_estop() noexcept override {
     ++estops_;
     context_.publish_status({{"estops", estops_.load()}});
   }
 
  private:
+  void flood_calls(const std::string& actuator, int calls) {
+    auto& motion = context_.motion();
+    std::thread slow_halt([&] { motion.actuate(actuator, [](rcand::sdk::ActuatorDriver& drive) { drive.halt(); }); });
+    std::vector<std::thread> readers;
+    for (int i = 0; i < calls; ++i)
+      readers.emplace_back([&] {
+        try {
+          motion.inspect(actuator, [](const rcand::sdk::ActuatorDriver& drive) { (void)drive.status(); });
+          ++flood_ok_;
+        } catch (const std::exception& e) {
+          ++(std::string(e.what()).find("calls in flight") != std::string::npos ? flood_refused_ : flood_other_);
+        }
+      });
+    for (auto& reader : readers) reader.join();
+    slow_halt.join();
+    flood_finished_ = true;
+  }
+
   rcand::sdk::PluginContext& context_;
   std::atomic<int> estops_{0};
+  std::thread flooder_;
+  std::atomic<int> flood_ok_{0}, flood_refused_{0}, flood_other_{0};
+  std::atomic<bool> flood_finished_{false};
 };
 
 void register_crasher(rcand::sdk::Registrar& registrar) {
