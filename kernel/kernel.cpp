@@ -261,7 +261,8 @@ void Kernel::State::load_plugins(const KernelOptions& options) {
 void Kernel::State::create_services(const KernelOptions& options) {
   service_host.reset(new ServiceHost{config, *auth, estop, audit, clock, *registry, *api,
                                      std::chrono::milliseconds(config.runtime.handler_timeout_ms),
-                                     [this] { return status_board->document(); }, bound_port, services.directory});
+                                     [this] { return status_board->document(); }, [this] { return status_board->robot_state(); },
+                                     bound_port, services.directory});
   for (const auto& make : options.services)
     if (auto service = make(*service_host)) optional_services.push_back(std::move(service));
 }

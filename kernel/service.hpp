@@ -38,6 +38,7 @@ struct ServiceHost {
   Api& api;  // execute_action(): a command through the same middleware as HTTP
   std::chrono::milliseconds handler_timeout;
   std::function<nlohmann::json()> status_document;  // GET /api/status as a document, from the status snapshot
+  std::function<std::string()> robot_state;         // its "state" as now, without the document (StatusBoard)
   const std::atomic<std::uint16_t>& port;           // the bound HTTP port (0 until start)
   // The services plugin instances offer (rcand/sdk/services.hpp): sdk::find<T>(plugin_services) at use time, any
   // thread, never blocks; null while nothing offers T (the plugins start after the services are made). A service

@@ -115,15 +115,13 @@ class StatusBoard::Impl final : public StatusSink, public std::enable_shared_fro
     current_.store(build(0));
   }
 
-  // After construction (the listeners hold a weak reference). Startup only, as Estop requires.
+  // After construction (the listener holds a weak reference). Startup only, as Estop requires. A latch needs no
+  // round: both variants are built, so body() is right at once, and what the capabilities' on_estop() change they
+  // publish. A clear does: nav's job may have ended meanwhile, and robot_state() reads it from the snapshot.
   void listen_to_estop() {
-    std::weak_ptr<Impl> weak = weak_from_this();
-    // On the stop path, after the halt: only a post (both variants are built already, so body() is right at once).
-    auto changed = [weak] {
+    services_.estop.on_cleared([weak = weak_from_this()] {
       if (auto self = weak.lock()) self->request_round();
-    };
-    services_.estop.on_latched(changed);
-    services_.estop.on_cleared(changed);
+    });
   }
 
   void start() {
@@ -199,25 +197,31 @@ class StatusBoard::Impl final : public StatusSink, public std::enable_shared_fro
     for (const auto& candidate : entries_)
       if (candidate->source.health == &from.health()) entry = candidate.get();
     if (entry == nullptr) return;
+    bool shown = true;
     try {
       json copy = status;  // the one allocation-heavy step, outside the lock
+      // Of a driver only the fault is shown (its state): a publish that keeps it, soon after the last one, changes
+      // nothing a reader sees and waits for the tick's round (a moving drive publishes at 10 Hz).
+      const auto fault = entry->source.driver ? reported_fault(status) : std::nullopt;
       const std::int64_t now = services_.clock.now_us();
       bool counted = false;
       {
         std::lock_guard lock(entry->mutex);
+        shown = !entry->source.driver || fault != entry->published_fault || now - entry->pending_us >= kPollAfter.count() * 1000;
         entry->tokens = std::min(kWaitBurst, entry->tokens + static_cast<double>(now - entry->tokens_us) * kWaitPerSecond / 1e6);
         entry->tokens_us = now;
-        if (entry->tokens >= 1.0) {
+        if (shown && entry->tokens >= 1.0) {
           entry->tokens -= 1.0;
           counted = true;
         }
+        entry->published_fault = fault;
         entry->pending = std::move(copy);
         entry->pending_us = now;
       }
       if (counted) changes_.fetch_add(1);  // after the store: a round that sees the count takes the value
     } catch (...) {                        // no memory for the copy: the previous value stays, and the poll fallback catches up
     }
-    request_round();
+    if (shown) request_round();
   }
 
  private:
@@ -226,7 +230,8 @@ class StatusBoard::Impl final : public StatusSink, public std::enable_shared_fro
     // Written by publishing plugin threads, taken by the status thread.
     std::mutex mutex;
     std::optional<json> pending;
-    std::int64_t pending_us = 0;
+    std::int64_t pending_us = 0;                 // the latest publish, taken or not
+    std::optional<std::string> published_fault;  // a driver's, as of that publish
     double tokens = kWaitBurst;  // when_current() waits for this instance's publishes while there are tokens
     std::int64_t tokens_us = 0;
     // The status thread's own.

@@ -1,7 +1,8 @@
 // GET /api/status as a snapshot (issue 14 item 6). Plugins publish their status when it changes
 // (PluginContext::publish_status); the board keeps the latest of each instance and rebuilds the document on its own
-// thread, "kernel.status": on a 250 ms tick (uptime_s and ages stay right) and soon after a change (a publish, an
-// e-stop latch or clear, notify()), changes coalesced into at most one rebuild per 20 ms. Each rebuild serializes
+// thread, "kernel.status": on a 500 ms tick (uptime_s and ages stay right) and soon after a change (a publish, an
+// e-stop clear, notify()), changes coalesced into at most one rebuild per 20 ms. Of a driver only the fault
+// is shown, so its publishes wait for the tick unless the fault changed or it was silent for a second. Each rebuild serializes
 // the document once in two variants, e-stop latched or not, and body() hands out the one matching the latch now:
 // serving the status calls no plugin code and hops no thread.
 //
@@ -44,7 +45,7 @@ namespace rcand::kernel {
 
 class StatusBoard {
  public:
-  static constexpr std::chrono::milliseconds kTick{250};
+  static constexpr std::chrono::milliseconds kTick{500};
   static constexpr std::chrono::milliseconds kRebuildGap{20};
   static constexpr std::chrono::milliseconds kPollAfter{1000};
   static constexpr std::chrono::milliseconds kStaleAfter{2000};
@@ -123,7 +124,7 @@ class StatusBoard {
 
  private:
   class Impl;
-  std::shared_ptr<Impl> impl_;  // shared with the e-stop listeners, which may outlive the board
+  std::shared_ptr<Impl> impl_;  // shared with the e-stop listener, which may outlive the board
 };
 
 }  // namespace rcand::kernel

@@ -75,6 +75,10 @@ Verdict Guard::check(const sdk::PluginContext& ctx) const {
   return judge(sdk::find<sdk::ObstacleSource>(ctx), depth_declared_, min_cm_, ctx.clock().wall_ms());
 }
 
+bool Guard::in_play(const sdk::PluginContext& ctx) const {
+  return min_cm_ && (depth_declared_ || sdk::find<sdk::ObstacleSource>(ctx) != nullptr);
+}
+
 void Guard::latch(sdk::PluginContext& ctx, std::string_view who, const Verdict& verdict, bool moving) noexcept {
   std::string reason;
   try {

@@ -51,6 +51,9 @@ class Guard {
   explicit Guard(const sdk::PluginContext& ctx);
 
   std::optional<double> min_cm() const noexcept { return min_cm_; }
+  // Whether a reading can ever be anything but Clear now: a minimum, and depth declared or a source offered. A
+  // moving robot without depth has nothing to re-read (a fleet of them would spend a core on 40 Hz no-op checks).
+  bool in_play(const sdk::PluginContext& ctx) const;
   // Reads the robot's ObstacleSource now. Any thread; never blocks beyond the source's copy.
   Verdict check(const sdk::PluginContext& ctx) const;
   // Latches the e-stop (as POST /api/stop; the kernel audits it naming the plugin) with

@@ -59,7 +59,7 @@ SimDrive::SimDrive(const sdk::Clock& clock, SimDriveSettings settings, sdk::Plug
           publish_to, kPublishPeriod,
           [this] {
             std::lock_guard lock(mutex_);
-            return sdk::StatusPublisher::Snapshot{status_locked(), changes_, left_ != 0.0 || right_ != 0.0};
+            return sdk::StatusPublisher::Snapshot{status_locked(false), changes_, left_ != 0.0 || right_ != 0.0};
           },
           [this] {
             std::lock_guard lock(mutex_);
@@ -128,28 +128,25 @@ SimDrive::Pose SimDrive::pose_at(std::int64_t now_us) const {
 
 nlohmann::json SimDrive::status() const {
   std::lock_guard lock(mutex_);
-  return status_locked();
+  return status_locked(true);
 }
 
-nlohmann::json SimDrive::status_locked() const {
+nlohmann::json SimDrive::status_locked(bool with_timeline) const {
   const std::int64_t now = clock_.now_us();
   const Pose pose = pose_at(now);
   const bool moving = left_ != 0.0 || right_ != 0.0;
-  nlohmann::json events = nlohmann::json::array();
+  nlohmann::json status{{"left", left_}, {"right", right_}, {"moving", moving},
+                        {"now_us", now}, {"halts", halts_}, {"commands", commands_}};
+  status["pose"] = {{"x_m", pose.x_m}, {"y_m", pose.y_m}, {"heading_deg", pose.heading_deg()}};
+  status["zero_since_us"] = moving ? nlohmann::json(nullptr) : nlohmann::json(zero_since_us_);
+  if (!with_timeline) return status;
+  nlohmann::json& events = status["timeline"] = nlohmann::json::array();
   const std::size_t first = timeline_.size() > kStatusEvents ? timeline_.size() - kStatusEvents : 0;
   for (std::size_t i = first; i < timeline_.size(); ++i) {
     const Event& e = timeline_[i];
     events.push_back({{"t_us", e.t_us}, {"left", e.left}, {"right", e.right}, {"cause", e.cause}});
   }
-  return {{"left", left_},
-          {"right", right_},
-          {"moving", moving},
-          {"pose", {{"x_m", pose.x_m}, {"y_m", pose.y_m}, {"heading_deg", pose.heading_deg()}}},
-          {"now_us", now},
-          {"zero_since_us", moving ? nlohmann::json(nullptr) : nlohmann::json(zero_since_us_)},
-          {"halts", halts_},
-          {"commands", commands_},
-          {"timeline", std::move(events)}};
+  return status;
 }
 
 SimDrive::Pose SimDrive::pose() const {

@@ -48,8 +48,8 @@ class SimDrive final : public sdk::DifferentialDrive {
 
   // With `publish_to` (the plugin passes its context), the status is published (PluginContext::publish_status)
   // from the context's worker "status": at the first command after a stop, then every kPublishPeriod while the
-  // wheels turn or something changed, ending with the stopped state. halt() adds nothing to the stop path: the
-  // publishing already running (the wheels were turning) picks the halt up.
+  // wheels turn or something changed, ending with the stopped state (without the timeline, which status() has).
+  // halt() adds nothing to the stop path: the publishing already running (the wheels were turning) picks the halt up.
   SimDrive(const sdk::Clock& clock, SimDriveSettings settings, sdk::PluginContext* publish_to = nullptr);
 
   // Handler or worker thread, through the motion gate. Clamps to [-1, 1]. Throws from the Nth command on
@@ -73,8 +73,9 @@ class SimDrive final : public sdk::DifferentialDrive {
   Pose pose_at(std::int64_t now_us) const;
   // Requires mutex_. Integrates up to now, applies the speeds and records the event.
   void apply(double left, double right, const char* cause);
-  // Requires mutex_.
-  nlohmann::json status_locked() const;
+  // Requires mutex_. The published status leaves the timeline out: rcand shows no driver's published status (only
+  // its fault), and a status a drive publishes at 10 Hz while moving should not grow with its history.
+  nlohmann::json status_locked(bool with_timeline) const;
 
   const sdk::Clock& clock_;
   const SimDriveSettings settings_;

@@ -168,7 +168,7 @@ Response Teleop::move(const sdk::Request& request) {
   const sdk::TimerId timer = worker_.schedule(std::chrono::milliseconds(stop_after_ms),
                                               [this, generation, id = *driver] { expire(generation, id); });
   std::optional<sdk::TimerId> watch_timer;
-  if (forward && obstacles_.min_cm())
+  if (forward && obstacles_.in_play(ctx_))
     watch_timer = worker_.schedule(obstacle::kCheckPeriod, [this, generation] { watch(generation); });
   {
     std::lock_guard state(state_mutex_);

@@ -512,3 +512,15 @@ TEST_CASE("teleop: the watch ends with the move; nothing is checked while the ro
   CHECK(f.post({{"type", "stop"}}).status == 200);
   CHECK(f.host.pending_tasks() == 0);
 }
+
+TEST_CASE("teleop: a minimum but no depth (no source, camera.depth not declared): a forward move runs unwatched") {
+  Fixture f(min_30cm());
+  REQUIRE(f.post(move(0.4, 0.0)).status == 200);
+  CHECK(f.host.pending_tasks() == 1);  // the dead-man only: every reading would be Clear
+  CHECK(f.post({{"type", "stop"}}).status == 200);
+  // A source offered later is watched from the next move on.
+  ObstacleScript clear(f.host.clock(), appearing(150, 150, 0));
+  f.host.set_obstacle_source(&clear);
+  REQUIRE(f.post(move(0.4, 0.0)).status == 200);
+  CHECK(f.host.pending_tasks() == 2);  // the dead-man and the watch
+}

@@ -40,8 +40,9 @@ class R2rModule final : public Service {
          [api = &host.api](const Principal& principal, nlohmann::json body, std::function<void(int, nlohmann::json)> done) {
            api->execute_action(principal, std::move(body), std::move(done));
          },
-         host.status_document, host.estop, host.clock, [swarm = swarm_] { return &swarm->now(); }, host.registry.identity().ruri,
-         host.registry.names(), fleet_lookup(host), stop_lane(host)});
+         host.robot_state, [directory = &host.plugin_services] { return sdk::find<sdk::PoseSource>(*directory); }, host.estop,
+         host.clock, [swarm = swarm_] { return &swarm->now(); }, host.registry.identity().ruri, host.registry.names(),
+         fleet_lookup(host), stop_lane(host)});
     if (!service_) return;
     bridge_.attach(service_->node());
     service_->node().observe_messages(r2r::message_metrics(host.plugin_services));

@@ -373,7 +373,7 @@ struct R2rNode::Impl {
   }
 
   // The fleet e-stop (docs/protocol.md §11.15): POST /api/stop's latch as the sender, on this (transport) thread, then
-  // the latched status at once. The latch's reason names the sender and its reason.
+  // the latched status at once (through deps.after_stop). The latch's reason names the sender and its reason.
   void fleet_estop(const Principal& principal, const r2r_wire::Envelope& envelope, const std::string& transport) {
     const auto it = envelope.payload.find("reason");
     const std::string reason = it != envelope.payload.end() && it->is_string() ? it->get<std::string>() : std::string();
@@ -381,7 +381,8 @@ struct R2rNode::Impl {
     log->warn("r2r: {} (via {})", bounded_text(text, 300), transport);
     deps.stop_executor(principal,
                        json{{"reason", bounded_text(text, 200)}, {"from", "r2r " + bounded_text(envelope.source_id, 60)}});
-    publish_status_now();
+    if (deps.after_stop) deps.after_stop([this] { publish_status_now(); });
+    else publish_status_now();
   }
 
   // receive()'s steps, in order (defined below, beside the helpers they use).

@@ -82,6 +82,9 @@ struct R2rNodeDeps {
   std::function<bool(const std::string& id)> fleet_member;
   std::shared_ptr<spdlog::logger> log;  // null: spdlog's default logger
   StopExecutor stop_executor;           // may be empty: a fleet e-stop is refused (code 103, "commands disabled")
+  // Runs what follows a fleet e-stop (the latched status: a signature and a send) off the receiving thread, so on
+  // saturated cores every robot's stop goes first. Must run it only while the node lives. Empty: inline.
+  std::function<void(std::function<void()>)> after_stop;
 };
 
 // What send_message() did: the message as sent without any bearer token (the spelling safe to show), and the

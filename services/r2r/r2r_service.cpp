@@ -56,8 +56,6 @@ using nlohmann::json;
 // more often than every 200 ms anyway (the node's kMinStatusGapUs); a fleet e-stop's latched status goes at once.
 // At 20 ms the ticks alone cost an idle robot ~0.5 % of a core (a fleet of 200: a whole core).
 constexpr std::chrono::milliseconds kTickPeriod{100};
-// The status source reads every plugin's status; a tick does not need it fresher than this.
-constexpr std::int64_t kStatusCacheUs = 100'000;
 
 sdk::Response shutting_down() { return sdk::Response::error(503, "UNAVAILABLE", "rcand is shutting down"); }
 
@@ -78,43 +76,25 @@ struct R2rService::Impl {
   std::unique_ptr<r2r::R2rNode> node;
   r2r::R2rSettings peers_source;  // runtime.r2r.peers_file and the inline peers, for a reload
 
-  std::mutex status_mutex;
-  r2r::LocalStatus cached_status;
-  std::int64_t cached_at_us = 0;
-  bool cached = false;
-
   std::mutex mutex;  // below
   bool started = false, stopping = false;
   std::vector<std::shared_ptr<PendingAnswer>> pending;  // auction requests the fleet plugin has not answered yet
   std::unique_ptr<WorkerThread> ticker;                 // "r2r.clock": one tick every kTickPeriod, from start() to stop()
 
-  // What `status` reports: the Api's state, the e-stop latch, nav's dead-reckoned pose (a robot without nav stays
-  // where its runtime.r2r.origin puts it) and the tasks the fleet plugin holds.
+  // What `status` reports: the robot's state and the e-stop latch as now, nav's dead-reckoned pose (a robot without
+  // nav stays where its runtime.r2r.origin puts it) and the tasks the fleet plugin holds. Cheap enough for every
+  // tick: no copy of the status document (a moving robot's clock once spent most of its time copying it).
   r2r::LocalStatus local_status() {
-    const std::int64_t now = deps.clock.now_us();
-    std::lock_guard lock(status_mutex);
-    // The latch is never stale: a latch or a clear is reported at once, and `state` follows it (a cache taken while
-    // latched says "estop" - it is refetched on a clear rather than patched).
-    const bool latched = deps.estop.latched();
-    if (cached && now - cached_at_us < kStatusCacheUs && cached_status.estopped == latched) return cached_status;
     r2r::LocalStatus status;
-    const json doc = deps.status_document();
-    const auto state = doc.find("state");
-    status.state = state != doc.end() && state->is_string() ? state->get<std::string>() : "idle";
-    status.estopped = latched;
-    if (latched) status.state = "estop";
-    else if (status.state == "estop") status.state = "idle";  // the document was read just before the clear
-    const auto pose = doc.find("pose");
-    if (pose != doc.end() && pose->is_object() && (*pose)["x_m"].is_number() && (*pose)["y_m"].is_number()) {
-      const double heading = (*pose)["heading_deg"].is_number() ? (*pose)["heading_deg"].get<double>() : 0.0;
-      status.pose = sdk::Pose2d{(*pose)["x_m"].get<double>(), (*pose)["y_m"].get<double>(), heading};
+    status.estopped = deps.estop.latched();
+    status.state = status.estopped ? "estop" : deps.robot_state();
+    if (status.state == "estop" && !status.estopped) status.state = "idle";  // the state was read just before a clear
+    if (const sdk::PoseSource* source = deps.pose ? deps.pose() : nullptr) {
+      if (const sdk::PoseReading reading = source->read(); reading.available) status.pose = reading.pose;
     } else if (std::find(deps.capabilities.begin(), deps.capabilities.end(), "nav") == deps.capabilities.end()) {
       status.pose = sdk::Pose2d{};
     }
     if (const sdk::FleetAuctions* fleet = deps.fleet ? deps.fleet() : nullptr) status.tasks_held = fleet->tasks_held();
-    cached_status = status;
-    cached_at_us = now;
-    cached = true;
     return status;
   }
 
@@ -201,6 +181,15 @@ std::unique_ptr<R2rService> R2rService::from_config(R2rServiceDeps deps) {
           },
       .log = s.log,
       .stop_executor = s.deps.execute_stop,
+      // On the clock thread (it runs at background priority, and is joined before the node stops), or inline before
+      // it runs or once it stopped.
+      .after_stop =
+          [impl = &s](std::function<void()> work) {
+            std::unique_lock lock(impl->mutex);
+            if (impl->ticker && !impl->stopping) return impl->ticker->post(std::move(work));
+            lock.unlock();
+            work();
+          },
   };
   if (s.mqtt) node_deps.transports.push_back(s.mqtt.get());
   // UDP and MQTT never carry the bearer token (header.auth.token goes only over WebSocket): without a signing key,
@@ -247,9 +236,9 @@ void R2rService::start(std::uint16_t http_port) {
   {
     std::lock_guard lock(s.mutex);
     s.started = true;
+    s.ticker = std::make_unique<WorkerThread>("r2r.clock", nullptr, WorkerThread::Priority::Background);
+    s.ticker->post([&s] { s.tick(); });
   }
-  s.ticker = std::make_unique<WorkerThread>("r2r.clock", nullptr, WorkerThread::Priority::Background);
-  s.ticker->post([&s] { s.tick(); });
   s.log->info("r2r: {} speaks R2R on ws://{}:{}{}{}{}", cfg.robot_name, cfg.runtime.listen_address, http_port,
               r2r::kWebSocketPath, s.udp ? ", udp " + std::to_string(s.udp->bound_port()) : std::string(),
               s.mqtt ? ", mqtt" : "");

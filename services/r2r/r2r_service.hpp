@@ -21,6 +21,7 @@
 #include "libs/swarm/swarm_registry.hpp"
 #include "rcand/sdk/clock.hpp"
 #include "rcand/sdk/interfaces/fleet_auctions.hpp"
+#include "rcand/sdk/interfaces/pose_source.hpp"
 #include "services/r2r/r2r_node.hpp"
 
 namespace rcand::services::r2r {
@@ -30,7 +31,9 @@ struct R2rServiceDeps {
   const kernel::Authenticator& authenticator;
   // POST /api/action as `principal`, through the kernel's middleware (Api::execute_action).
   std::function<void(const kernel::Principal&, nlohmann::json, std::function<void(int, nlohmann::json)>)> execute_action;
-  std::function<nlohmann::json()> status_document;  // GET /api/status as a document
+  std::function<std::string()> robot_state;  // idle | running | error | estop, as GET /api/status says it
+  // nav's PoseSource (sdk::find over the plugins' services), looked up at each use: null while nothing offers it.
+  std::function<const sdk::PoseSource*()> pose;
   const kernel::Estop& estop;
   const sdk::Clock& clock;
   std::function<const swarm::SwarmRegistry*()> swarm;  // swarm.yaml as now (a SIGHUP reload swaps it)

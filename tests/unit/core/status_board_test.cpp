@@ -12,6 +12,7 @@
 #include <mutex>
 #include <set>
 #include <string>
+#include <thread>
 
 #include "kernel/plugins/instance_context.hpp"
 #include "kernel/safety/estop.hpp"
@@ -376,6 +377,21 @@ TEST_CASE("publishes coalesce; a driver's published status keeps it fresh withou
   rig.clock.advance(1000ms);
   rig.board->refresh();
   CHECK_FALSE(rig.body()["drivers"][0].contains("stale"));
+}
+
+TEST_CASE("a driver's publish that keeps its fault changes nothing shown: no reader waits for it; a new fault shows") {
+  BoardRig rig;
+  rig.board->start();
+  rig.drive_context.publish_status({{"moving", true}, {"n", 0}});  // the first one counts
+  (void)rig.current();
+  for (int i = 1; i <= 20; ++i) rig.drive_context.publish_status({{"moving", true}, {"n", i}});  // a drive at 10 Hz
+  std::thread::id answered_on;
+  rig.board->when_current([&answered_on](std::shared_ptr<const std::string>) { answered_on = std::this_thread::get_id(); });
+  CHECK(answered_on == std::this_thread::get_id());  // at once, on this thread: there was no change to wait for
+  rig.drive_context.publish_status({{"moving", true}, {"fault", "encoder lost"}});
+  CHECK(rig.current()["drivers"][0]["reason"] == "encoder lost");
+  rig.drive_context.publish_status({{"moving", true}});
+  CHECK(rig.current()["drivers"][0]["state"] == "ok");
 }
 
 TEST_CASE("after a plugin reload the new context's publishes feed the same entry, never polled while they come") {

@@ -51,6 +51,8 @@ struct Robot {
   int moves = 0;       // commands the stand-in action route executed
   std::vector<std::string> command_principals;
   std::vector<json> stops;  // {"principal", "body"} of each fleet e-stop the stand-in POST /api/stop latched
+  bool defer_after_stop = false;  // keep what follows a fleet e-stop in after_stop_work, not inline
+  std::vector<std::function<void()>> after_stop_work;
   std::unique_ptr<Authenticator> auth;
   std::unique_ptr<R2rNode> node;
   std::unique_ptr<PluginBridge> bridge;
@@ -107,6 +109,11 @@ class Fleet {
                            r.status.estopped = true;
                            r.status.state = "estop";
                            r.stops.push_back({{"principal", who.name}, {"body", std::move(body)}});
+                         },
+                     .after_stop =
+                         [&r](std::function<void()> work) {
+                           if (r.defer_after_stop) r.after_stop_work.push_back(std::move(work));
+                           else work();
                          }};
     r.node = std::make_unique<R2rNode>(std::move(deps));
     r.node->start();

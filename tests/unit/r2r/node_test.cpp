@@ -120,14 +120,22 @@ TEST_CASE("command: runs through the action route as the sender; e-stopped answe
   CHECK_FALSE(replies[0]["payload"]["ref"].contains("auth"));  // the token is never echoed
 }
 
+namespace {
+// A fleet e-stop from "alex" with a guest's token (scope status, as POST /api/stop).
+json guest_estop(Fleet& fleet) {
+  json stop = fleet.message("command", {{"type", "estop"}, {"reason", "aisle 3"}}, "alex");
+  stop["header"]["auth"]["token"] = kViewerToken;
+  return stop;
+}
+}  // namespace
+
 TEST_CASE("fleet e-stop: a command {type: estop} needs scope status, latches as the sender, status goes out at once") {
   Fleet fleet;
   Robot& bob = fleet.add("bob", {"teleop"}, std::nullopt);
   fleet.settle();
   const std::size_t statuses = fleet.net.sent("status", "bob").size();
-  // A guest (scope status, as POST /api/stop) may stop the robot; no tick runs between the stop and its status.
-  json stop = fleet.message("command", {{"type", "estop"}, {"reason", "aisle 3"}}, "alex");
-  stop["header"]["auth"]["token"] = kViewerToken;
+  // A guest may stop the robot; no tick runs between the stop and its status.
+  const json stop = guest_estop(fleet);
   std::vector<json> replies;
   fleet.net.inject("bob", stop.dump(), &replies);
   REQUIRE(bob.stops.size() == 1);
@@ -149,6 +157,25 @@ TEST_CASE("fleet e-stop: a command {type: estop} needs scope status, latches as 
   CHECK(bob.stops.size() == 2);
   REQUIRE(replies.size() == 1);
   CHECK(replies[0]["payload"]["code"] == 100);
+}
+
+TEST_CASE("fleet e-stop: the latched status is what follows the latch (after_stop), never ahead of it") {
+  Fleet fleet;
+  Robot& bob = fleet.add("bob", {"teleop"}, std::nullopt);
+  bob.defer_after_stop = true;  // as rcand's clock thread, which runs it once the stops on the machine's cores ran
+  fleet.settle();
+  const std::size_t statuses = fleet.net.sent("status", "bob").size();
+  std::vector<json> replies;
+  fleet.net.inject("bob", guest_estop(fleet).dump(), &replies);
+  CHECK(bob.stops.size() == 1);  // latched on the receiving thread
+  fleet.net.pump();
+  CHECK(fleet.net.sent("status", "bob").size() == statuses);
+  REQUIRE(bob.after_stop_work.size() == 1);
+  bob.after_stop_work.front()();
+  fleet.net.pump();
+  const auto sent = fleet.net.sent("status", "bob");
+  REQUIRE(sent.size() == statuses + 1);
+  CHECK(sent.back().message["payload"]["estopped"] == true);
 }
 
 TEST_CASE("bad messages: 100 (malformed, unknown type), 101 (unknown target), 103 (wrong token); none reach subscribers") {

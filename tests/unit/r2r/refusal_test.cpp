@@ -52,7 +52,8 @@ struct RefusalRig {
                      .transports = {&net.endpoint("bob")},
                      .fleet_member = nullptr,
                      .log = log,
-                     .stop_executor = nullptr};
+                     .stop_executor = nullptr,
+                     .after_stop = {}};
     node = std::make_unique<R2rNode>(std::move(deps));
     node->start();
   }

@@ -155,7 +155,8 @@ TEST_CASE("an R2R command to an e-stopped robot is answered 105 by the node, thr
                                                  .transports = {&net.endpoint(name)},
                                                  .fleet_member = nullptr,
                                                  .log = nullptr,
-                                                 .stop_executor = nullptr});
+                                                 .stop_executor = nullptr,
+                                                 .after_stop = {}});
   };
   // bob's executor hands the command to the real Api; answers may come from a capability worker.
   std::mutex mutex;
