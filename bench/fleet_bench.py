@@ -5,6 +5,7 @@ own bridge (`connection` / `topic r2r/# both`). Measures, in this order:
 
   steady   messages/s through each broker ($SYS, sys_interval 1), per robot; each robot's idle CPU (/proc/<pid>/stat
            over a window) and RSS, and the totals - at every fleet size of --sizes (the fleet grows in place);
+  moving   the same with every robot driving (what the fleet e-stop's trials start from);
   estop    a signed fleet e-stop (R2R `command` on r2r/broadcast) published at broker A -> the last sim drive at zero
            (the drive's own zero_since_us, read over HTTP after the trial; one machine, one monotonic clock);
   auction  a task auction opened by one robot that every other robot bids on: decided - bid deadline; then the
@@ -107,8 +108,9 @@ def signed(key, source, type_, payload):
 
 
 class Broker:
-    def __init__(self, name, root, port, bridge_to=None):
+    def __init__(self, name, root, port, bridge_to=None, nice=0, bridge_topics=("r2r/# both 1",)):
         self.name, self.port, self.dir = name, port, os.path.join(root, "broker-" + name)
+        self.nice = nice
         os.makedirs(self.dir)
         self.conf = os.path.join(self.dir, "mosquitto.conf")
         lines = [f"listener {port} 127.0.0.1", "allow_anonymous true", "persistence false", "sys_interval 1",
@@ -119,14 +121,17 @@ class Broker:
             lines.insert(0, "user " + pwd.getpwuid(os.geteuid()).pw_name)
         if bridge_to:  # mosquitto's own bridge; nothing of it is ours
             lines += [f"connection bridge-{name}-{bridge_to.name}", f"address 127.0.0.1:{bridge_to.port}",
-                      "topic r2r/# both 1", "cleansession true", "try_private true", "notifications false",
+                      *["topic " + t for t in bridge_topics], "cleansession true", "try_private true", "notifications false",
                       "restart_timeout 1 5", "keepalive_interval 10"]
         open(self.conf, "w").write("\n".join(lines) + "\n")
         self.proc = None
 
     def start(self):
+        def child():
+            die_with_parent()
+            os.nice(self.nice)
         self.proc = subprocess.Popen(["mosquitto", "-c", self.conf], stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL,
-                                     stderr=open(os.path.join(self.dir, "stderr"), "a"), preexec_fn=die_with_parent)
+                                     stderr=open(os.path.join(self.dir, "stderr"), "a"), preexec_fn=child)
         deadline = time.time() + 10
         while time.time() < deadline:
             try:
@@ -238,8 +243,9 @@ class Fleet:
 
     def start_brokers(self):
         pa, pb = free_ports(2)
-        a = Broker("a", self.root, pa)
-        b = Broker("b", self.root, pb, bridge_to=a)
+        a = Broker("a", self.root, pa, nice=self.args.broker_nice)
+        b = Broker("b", self.root, pb, bridge_to=a, nice=self.args.broker_nice,
+                   bridge_topics=[t.strip() for t in self.args.bridge_topics.split(",")])
         self.brokers = [a, b]
         a.start()
         b.start()
@@ -331,9 +337,12 @@ class Fleet:
         raise RuntimeError("robots not all connected to their brokers")
 
     # ---------------------------------------------------------------- steady state
-    def steady(self, size):
-        time.sleep(self.args.settle)
+    def steady(self, size, moving=False):
+        """The fleet at rest, or (`moving`) with every robot driving: what each robot and broker costs."""
         robots = self.alive()
+        if moving:
+            self.prepare(robots)
+        time.sleep(self.args.settle)
         before_ticks = {r.name: proc_ticks(r.pid) for r in robots}
         before_threads = thread_ticks(robots[0].pid)
         before_brokers = [(b.sys(), b.cpu_ticks()) for b in self.brokers]
@@ -345,7 +354,7 @@ class Fleet:
         after_brokers = [(b.sys(), b.cpu_ticks()) for b in self.brokers]
         cpu = [(after_ticks[r.name] - before_ticks[r.name]) / CLK_TCK / elapsed * 100 for r in robots]
         rss = [proc_rss_kb(r.pid) / 1024 for r in robots]
-        out = {"n": size, "window_s": round(elapsed, 1), "load": load(), "brokers": {}}
+        out = {"n": size, "moving": moving, "window_s": round(elapsed, 1), "load": load(), "brokers": {}}
         total_pub_in = total_pub_out = 0
         for broker, (s0, c0), (s1, c1) in zip(self.brokers, before_brokers, after_brokers):
             dt = max(1.0, s1.get("uptime", 0) - s0.get("uptime", 0))  # the counters' own interval
@@ -370,8 +379,8 @@ class Fleet:
             threads[comm] = threads.get(comm, 0) + spent / CLK_TCK / elapsed * 100
         out["one_robot_threads_cpu_pct"] = {k: round(v, 2) for k, v in sorted(threads.items(), key=lambda kv: -kv[1]) if v > 0}
         out["topics_seen_2s"] = self.topics_seen(self.brokers[0])
-        log("steady", json.dumps(out))
-        self.results.setdefault("steady", []).append(out)
+        log("moving" if moving else "steady", json.dumps(out))
+        self.results.setdefault("moving" if moving else "steady", []).append(out)
 
     def topics_seen(self, broker):
         """What 2 s of r2r/# at `broker` carry, by topic family: shows where status goes (before/after issue 31)."""
@@ -430,12 +439,17 @@ class Fleet:
     def estop_trials(self, broker, robots, label, trials_count=None, via_rcanctl=False):
         trials, stuck = [], []
         payload_type = self.args.estop_type
+        spent = {}  # --thread-cpu: thread name -> ticks the robots spent in the second after each publish
         for k in range(trials_count or self.args.trials):
             self.prepare(robots)
             time.sleep(0.3)
+            before = [thread_ticks(r.pid) for r in robots] if self.args.thread_cpu else []
             wall0 = time.time() * 1000
             t0 = (self.publish_rcanctl if via_rcanctl else self.publish)(broker, f"{label} trial {k}")
             time.sleep(self.args.settle_stop)
+            for r, ticks in zip(robots, before):
+                for tid, (comm, after) in thread_ticks(r.pid).items():
+                    spent[comm] = spent.get(comm, 0) + after - ticks.get(tid, (comm, 0))[1]
             states = list(self.pool.map(self.drive, robots))
             waited = now_us()
             while any(st.get("moving") is not False for st in states) and now_us() - waited < self.args.stop_wait * 1e6:
@@ -453,7 +467,10 @@ class Fleet:
                 log(f"estop {label} trial {k}: {len(moving)} still moving, e.g. {moving[:5]}")
                 continue
             zeros = [(s["zero_since_us"] - t0) / 1000 for s in states]
+            by_broker = {b.name: max(z for r, z in zip(robots, zeros) if r.broker is b)
+                         for b in self.brokers if any(r.broker is b for r in robots)}
             trials.append({"last_ms": max(zeros), "median_robot_ms": pct(zeros, 0.5), "first_ms": min(zeros),
+                           "last_by_broker_ms": by_broker,
                            "last_latch_ms": max(latch_ms) if payload_type == "estop" and latch_ms else None})
         latched = sum(1 for r in robots if http_json(r.port, "GET", "/api/estop")[1].get("estopped"))
         last = [t["last_ms"] for t in trials]
@@ -463,6 +480,13 @@ class Fleet:
                "last_at_zero_ms": {"p50": round(pct(last, 0.5), 2), "p99": round(pct(last, 0.99), 2),
                                    "max": round(max(last), 2) if last else None},
                "median_robot_ms_p50": round(pct([t["median_robot_ms"] for t in trials], 0.5), 2)}
+        out["last_at_zero_by_broker_p50_ms"] = {
+            name: round(pct([t["last_by_broker_ms"][name] for t in trials], 0.5), 2) for name in trials[0]["last_by_broker_ms"]
+        } if trials else {}
+        if spent:  # CPU ms per robot per e-stop, by thread name (the settle window after the publish)
+            per = len(robots) * (trials_count or self.args.trials)
+            out["thread_cpu_ms_per_robot"] = {c: round(t * 1000 / CLK_TCK / per, 3)
+                                              for c, t in sorted(spent.items(), key=lambda kv: -kv[1]) if t > 0}
         latch = [t["last_latch_ms"] for t in trials if t["last_latch_ms"] is not None]
         if latch:  # wall clock, whole milliseconds
             out["last_latch_record_ms"] = {"p50": round(pct(latch, 0.5), 1), "p99": round(pct(latch, 0.99), 1),
@@ -607,7 +631,8 @@ def main():
     parser.add_argument("--sizes", default="50,100,200")
     parser.add_argument("--trials", type=int, default=20)
     parser.add_argument("--auctions", type=int, default=10)
-    parser.add_argument("--phases", default="steady,estop,auction,reaward,down")
+    parser.add_argument("--phases", default="steady,estop,auction,reaward,down",
+                        help="any of steady,moving,estop,auction,reaward,down (moving: steady with every robot driving)")
     parser.add_argument("--estop-type", default="estop", help="the command payload type: estop (fleet e-stop) or stop")
     parser.add_argument("--rcanctl-trials", type=int, default=0,
                         help="also this many e-stop trials sent by `rcanctl fleet stop` (its process start included)")
@@ -616,6 +641,12 @@ def main():
     parser.add_argument("--settle", type=float, default=5.0, help="s after a fleet size is up, before its window")
     parser.add_argument("--window", type=float, default=20.0, help="steady-state window, s")
     parser.add_argument("--settle-stop", type=float, default=1.0, help="s after a publish before reading the drives")
+    parser.add_argument("--broker-nice", type=int, default=0,
+                        help="the brokers' nice value (negative: a stand-in for brokers on machines of their own)")
+    parser.add_argument("--bridge-topics", default="r2r/# both 1",
+                        help="the bridge's topic lines, comma-separated (mosquitto.conf `topic`)")
+    parser.add_argument("--thread-cpu", action="store_true",
+                        help="e-stop: each thread's CPU in the settle window after a publish, per robot (reads /proc)")
     parser.add_argument("--stop-wait", type=float, default=10.0, help="s more for a late robot before a trial fails")
     parser.add_argument("--timeout", type=int, default=1500, help="total bound, s")
     parser.add_argument("--json", help="write the results here")
@@ -642,6 +673,8 @@ def main():
             fleet.grow(size)
             if "steady" in phases:
                 fleet.steady(size)
+            if "moving" in phases:
+                fleet.steady(size, moving=True)
         if "auction" in phases:  # first: before any trial moves the robots off their origins
             fleet.auction()
         if "reaward" in phases:
