@@ -263,7 +263,7 @@ int main(int argc, char** argv) {
     if (user) {
       auto plugin_paths = options.plugin_paths.empty() ? loaded.config.runtime.plugin_paths : options.plugin_paths;
       if (plugin_paths.empty()) plugin_paths = default_plugin_paths();
-      const auto problems = config::config_access_problems(loaded.config, options.config, plugin_paths, *user);
+      const auto problems = config::config_access_problems(loaded.config, plugin_paths, *user);
       for (const auto& problem : problems) std::cerr << "rcand: --as-user " << options.as_user << ": " << problem << "\n";
       if (!problems.empty()) return 1;
     }
