@@ -1,10 +1,10 @@
 // GET /api/status as a snapshot (issue 14 item 6). Plugins publish their status when it changes
 // (PluginContext::publish_status); the board keeps the latest of each instance and rebuilds the document on its own
 // thread, "kernel.status": on a 500 ms tick (uptime_s and ages stay right) and soon after a change (a publish, an
-// e-stop clear, notify()), changes coalesced into at most one rebuild per 20 ms. Of a driver only the fault
-// is shown, so its publishes wait for the tick unless the fault changed or it was silent for a second. Each rebuild serializes
-// the document once in two variants, e-stop latched or not, and body() hands out the one matching the latch now:
-// serving the status calls no plugin code and hops no thread.
+// e-stop clear, notify()), changes coalesced into at most one rebuild per 20 ms. Of a driver only the fault is
+// shown, so its publishes wait for the tick unless the fault changed or it was silent for a second. Each rebuild
+// serializes the document once in two variants, e-stop latched or not, and body() hands out the one matching the
+// latch now: serving the status calls no plugin code and hops no thread.
 //
 // An instance that has not published for a second is asked through its status() on the status thread (the status
 // reader's 250 ms deadline still fails one that hangs), so plugins that never publish - ABI 1.0 ones - still appear.

@@ -11,9 +11,9 @@
 
 namespace rcand::config {
 
-// One line per path `user` lacks the access it needs to: the config file (as loaded), its conf.d fragments, the state dir, the
-// secrets, TLS files, swarm file and audit log it names, the plugin directories, and every /dev/ path a driver
-// setting or the camera names.
+// One line per path `user` lacks the access it needs to: the config file (as loaded), its conf.d fragments, the
+// state dir, the secrets, TLS files, swarm file and audit log it names, the plugin directories, and every /dev/ path
+// a driver setting or the camera names.
 std::vector<std::string> config_access_problems(const RobotConfig& config, const std::vector<std::filesystem::path>& plugin_paths,
                                                 const UserIdentity& user);
 

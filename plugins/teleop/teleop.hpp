@@ -4,9 +4,9 @@
 //
 // Depth obstacles (issue 15; the rule is nav's, plugins/nav/obstacle_guard.hpp): a move with linear > 0 is checked
 // before it runs and, while depth is in play (obstacle::Guard::in_play), every obstacle::kCheckPeriod (25 ms) while
-// it runs. Only forward moves: the depth camera looks
-// forward, so it says nothing about the path of a reverse move, and backing away or turning in place (linear <= 0)
-// is how a robot stopped in front of an obstacle gets clear of it once an owner has released the e-stop.
+// it runs. Only forward moves: the depth camera looks forward, so it says nothing about the path of a reverse move,
+// and backing away or turning in place (linear <= 0) is how a robot stopped in front of an obstacle gets clear of it
+// once an owner has released the e-stop.
 #pragma once
 
 #include <rcand/sdk/plugin.hpp>
