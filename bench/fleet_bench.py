@@ -422,9 +422,13 @@ class Fleet:
         kind = self.args.estop_type
         payload = {"type": kind, "reason": "fleet bench: " + reason} if kind == "estop" else {"type": kind}
         line = signed(self.private[SENDER], SENDER, "command", payload)
+        # --publish-everywhere: the one signed message at every broker up (the copy the bridge brings is a replay,
+        # dropped), as an operator who names every broker to `rcanctl fleet stop` would send it.
+        targets = [broker] + ([b for b in self.brokers if b is not broker and b.proc] if self.args.publish_everywhere else [])
         t0 = now_us()
-        self.pub[broker.name].stdin.write(line + "\n")
-        self.pub[broker.name].stdin.flush()
+        for target in targets:
+            self.pub[target.name].stdin.write(line + "\n")
+            self.pub[target.name].stdin.flush()
         return t0
 
     def publish_rcanctl(self, broker, reason):
@@ -645,6 +649,8 @@ def main():
                         help="the brokers' nice value (negative: a stand-in for brokers on machines of their own)")
     parser.add_argument("--bridge-topics", default="r2r/# both 1",
                         help="the bridge's topic lines, comma-separated (mosquitto.conf `topic`)")
+    parser.add_argument("--publish-everywhere", action="store_true",
+                        help="e-stop: publish the one signed stop at every broker that is up, not only at A")
     parser.add_argument("--thread-cpu", action="store_true",
                         help="e-stop: each thread's CPU in the settle window after a publish, per robot (reads /proc)")
     parser.add_argument("--stop-wait", type=float, default=10.0, help="s more for a late robot before a trial fails")
