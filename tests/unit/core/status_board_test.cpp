@@ -385,9 +385,12 @@ TEST_CASE("a driver's publish that keeps its fault changes nothing shown: no rea
   rig.drive_context.publish_status({{"moving", true}, {"n", 0}});  // the first one counts
   (void)rig.current();
   for (int i = 1; i <= 20; ++i) rig.drive_context.publish_status({{"moving", true}, {"n", i}});  // a drive at 10 Hz
-  std::thread::id answered_on;
-  rig.board->when_current([&answered_on](std::shared_ptr<const std::string>) { answered_on = std::this_thread::get_id(); });
-  CHECK(answered_on == std::this_thread::get_id());  // at once, on this thread: there was no change to wait for
+  // Shared, not a local by reference: were the answer ever queued, the status thread would give it after this case.
+  auto answered = std::make_shared<std::promise<std::thread::id>>();
+  auto answered_on = answered->get_future();
+  rig.board->when_current([answered](std::shared_ptr<const std::string>) { answered->set_value(std::this_thread::get_id()); });
+  REQUIRE(answered_on.wait_for(std::chrono::seconds(0)) == std::future_status::ready);
+  CHECK(answered_on.get() == std::this_thread::get_id());  // at once, on this thread: there was no change to wait for
   rig.drive_context.publish_status({{"moving", true}, {"fault", "encoder lost"}});
   CHECK(rig.current()["drivers"][0]["reason"] == "encoder lost");
   rig.drive_context.publish_status({{"moving", true}});
