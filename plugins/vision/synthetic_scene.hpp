@@ -28,6 +28,7 @@ class SyntheticScene {
  private:
   mutable std::mutex mutex_;
   std::array<std::optional<double>, 3> placed_{};
+  mutable cv::Mat wall_;  // the empty scene at the size last rendered
 };
 
 }  // namespace rcand::plugins::vision

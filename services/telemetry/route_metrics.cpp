@@ -35,8 +35,7 @@ void RouteMetrics::instrument_new_rows(kernel::Router& router) {
       const auto started = std::chrono::steady_clock::now();
       next(call, [row, started, reply = std::move(reply)](http::Response response) {
         row->latency.observe(std::chrono::steady_clock::now() - started);
-        const int status = response.status >= 100 && response.status < 600 ? response.status : 500;
-        row->by_status[static_cast<std::size_t>(status - 100)].fetch_add(1, std::memory_order_relaxed);
+        row->by_status.add(response.status);
         reply(std::move(response));
       });
     });
@@ -48,9 +47,10 @@ void RouteMetrics::write(MetricsText& out) const {
   out.family("rcand_http_requests_total", "counter",
              "HTTP requests answered by each route (after authentication and rate limits), by status code");
   for (const Row& row : rows_)
-    for (std::size_t i = 0; i < row.by_status.size(); ++i)
-      if (const auto n = row.by_status[i].load(std::memory_order_relaxed); n > 0)
-        out.sample({{"method", row.method}, {"route", row.path}, {"code", std::to_string(i + 100)}}, static_cast<double>(n));
+    row.by_status.for_each([&](int code, std::uint64_t n) {
+      out.sample({{"method", row.method}, {"route", row.path}, {"code", code == 0 ? "other" : std::to_string(code)}},
+                 static_cast<double>(n));
+    });
   out.family("rcand_http_request_duration_seconds", "histogram",
              "time from the route's handler being called to its answer, per route");
   for (const Row& row : rows_) out.histogram({{"method", row.method}, {"route", row.path}}, row.latency.read());
@@ -61,7 +61,9 @@ std::uint64_t RouteMetrics::successes(std::string_view method, std::string_view 
   std::uint64_t total = 0;
   for (const Row& row : rows_)
     if (row.method == method && row.path == path)
-      for (std::size_t status = 200; status < 300; ++status) total += row.by_status[status - 100].load(std::memory_order_relaxed);
+      row.by_status.for_each([&](int code, std::uint64_t n) {
+        if (code >= 200 && code < 300) total += n;
+      });
   return total;
 }
 

@@ -5,8 +5,6 @@
 // Recording is a few relaxed atomic adds (no lock on the request path).
 #pragma once
 
-#include <array>
-#include <atomic>
 #include <cstdint>
 #include <deque>
 #include <mutex>
@@ -17,6 +15,7 @@
 #include "kernel/api/router.hpp"
 #include "services/telemetry/latency_histogram.hpp"
 #include "services/telemetry/metrics_text.hpp"
+#include "services/telemetry/status_counts.hpp"
 
 namespace rcand::services::telemetry {
 
@@ -36,7 +35,7 @@ class RouteMetrics {
     Row(std::string m, std::string p) : method(std::move(m)), path(std::move(p)) {}
     std::string method, path;
     LatencyHistogram latency{kRequestBounds};
-    std::array<std::atomic<std::uint64_t>, 500> by_status{};  // index: status - 100
+    StatusCounts by_status;
   };
   void instrument_new_rows(kernel::Router& router);
 
