@@ -2,7 +2,8 @@
 # The bundled sim robot's start time and idle memory (issue 32), with and without the camera (the `camera` block and
 # `vision` taken out of config/sim-rover.rcan.yaml):
 #   start: exec -> the first 200 from GET /health (polled every 2 ms, client clock), the median and range of N runs;
-#   memory: 4 s after start, VmRSS and its anonymous / file-backed parts (RssAnon, RssFile from /proc/PID/status);
+#   memory: 4 s after start, VmRSS and its anonymous / file-backed parts (RssAnon, RssFile from /proc/PID/status),
+#     and the largest parts by mapping (Rss summed per file, or [heap], [stack], [anon], from /proc/PID/smaps);
 #   CPU at rest: rcand's utime + stime over the next 10 s, in % of one core (nobody connected).
 #   bench/start_rss.sh [build] [runs=10]
 set -euo pipefail
@@ -56,6 +57,10 @@ for config in camera plain; do
       sleep 4
       mem=$(awk '/^(VmRSS|RssAnon|RssFile):/ {printf "%s %.1f MB  ", $1, $2 / 1024}' /proc/$pid/status)
       maps=$(grep -c 'opencv\|avcodec\|gst\|gdal' /proc/$pid/maps || true)
+      parts=$(awk '/^[0-9a-f]+-[0-9a-f]+ / {n = split($6, p, "/"); name = $6 == "" ? "[anon]" : p[n]}
+                   /^Rss:/ {rss[name] += $2}
+                   END {for (k in rss) if (rss[k] >= 100) printf "%d %s\n", rss[k], k}' /proc/$pid/smaps |
+        sort -rn | head -12 | awk '{printf "%s%s %.1f", (NR > 1 ? ", " : ""), $2, $1 / 1024} END {print ""}')
       ticks0=$(awk '{print $14 + $15}' /proc/$pid/stat)
       sleep 10
       ticks1=$(awk '{print $14 + $15}' /proc/$pid/stat)
@@ -67,4 +72,5 @@ for config in camera plain; do
   median=$(echo "$sorted" | awk '{a[NR] = $1} END {print (NR % 2 ? a[(NR + 1) / 2] : (a[NR / 2] + a[NR / 2 + 1]) / 2)}')
   echo "$config: exec -> /health 200: median ${median} ms, range $(echo "$sorted" | head -1)-$(echo "$sorted" | tail -1) ms ($runs runs)"
   echo "$config: 4 s after start: $mem (maps of opencv/avcodec/gst/gdal: $maps); CPU at rest: ${cpu} % of a core"
+  echo "$config: the largest parts (MB): $parts"
 done
