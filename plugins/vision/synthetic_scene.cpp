@@ -8,12 +8,13 @@ namespace rcand::plugins::vision {
 cv::Mat SyntheticScene::render(int width, int height, double seconds) const {
   // A copy of the far wall, made once: filling 16-bit pixels with a scalar each frame took 8x as long as this copy
   // and was a quarter of the robot's CPU at rest.
-  cv::Mat depth;
+  cv::Mat wall;  // a reference to the kept frame (never written once made): the copy runs without the lock
   {
     std::lock_guard lock(mutex_);
     if (wall_.rows != height || wall_.cols != width) wall_ = cv::Mat(height, width, CV_16UC1, cv::Scalar(3500));
-    wall_.copyTo(depth);
+    wall = wall_;
   }
+  cv::Mat depth = wall.clone();
   struct Swing {
     double near_m, far_m, period_s;
   };
