@@ -50,7 +50,8 @@ class StatusReader {
   StatusReader(const StatusReader&) = delete;
   StatusReader& operator=(const StatusReader&) = delete;
 
-  // Any thread. The status of each source at `indices`, read in parallel: nullopt for one that threw or hung; a
+  // Any thread. The status of each source at `indices`, read on the crew (DeadlineCrew: a slow one does not hold
+  // up the others beyond its hand-off): nullopt for one that threw or hung; a
   // late one's last value (nullopt before its first answer). A source whose call is still in flight is not asked
   // again: it answers its last value at once, so concurrent readers of a hung status() hold I/O threads for one
   // deadline in all, not one each.

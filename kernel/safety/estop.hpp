@@ -1,8 +1,9 @@
 // The latched e-stop (docs/protocol.md §6). The stop path latches first (one atomic exchange), then halts every actuator, then
 // wakes sleeping jobs and runs the on-latch listeners. It shares no queue, lock or worker with capability handlers:
-// handlers only ever load the atomic. Once the halt crew is installed, every actuator's halt() runs in parallel on its
-// own pre-created thread and the stop waits for them only up to kHaltDeadline: a slow, hung or throwing driver is
-// reported (halt_pending / halt_failed) and delays neither the answer nor the other drivers' halts.
+// handlers only ever load the atomic. Once the halt crew is installed, the actuators' halt() calls run on its
+// pre-created threads (a leader in turn; a driver's own thread past the crew's 200 µs hand-off) and the stop waits for
+// them only up to kHaltDeadline: a slow, hung or throwing driver is reported (halt_pending / halt_failed) and delays
+// neither the answer nor (beyond the hand-off) the other drivers' halts.
 #pragma once
 
 #include <atomic>

@@ -38,53 +38,102 @@ bool reached(std::uint32_t value, std::uint32_t target) noexcept { return static
 
 }  // namespace
 
-// Lock-free between the stop path and the members: one atomic per fact, so starting a round is a store and a
-// futex wake per member, and the stop path never waits for a lock a member holds.
+// Lock-free between the stop path and the members: one atomic per fact, so starting a round is a store per member
+// and one futex wake, and the stop path never waits for a lock a member holds.
+//
+// Who makes the calls: a round wakes one thread, the leader, which makes the round's calls one after another; each
+// member's own thread is woken only for the calls still unclaimed after kHandOff (a leader inside a call that hangs)
+// or when the leader is unavailable (inside a call from an earlier round, or parked after a throw). On a VM each
+// wake-up of a sleeping thread is a trip through the hypervisor: waking three halt threads on two vCPUs was most of
+// the stop's halt time, while a healthy halt() returns within microseconds. A call never runs twice at once: whoever
+// runs it holds its claim, and re-runs it for a round asked while it ran.
 struct DeadlineCrew::Shared {
   struct Member {
     std::string name;
     std::function<void()> call;
-    std::thread thread;
     std::atomic<std::uint32_t> requested{0};  // the latest round asked of it (kStop: exit)
+    std::atomic<std::uint64_t> claim{0};      // (the latest round a thread took on << 1) | 1 while its call runs
     std::atomic<std::uint32_t> finished{0};   // the latest round it completed
     std::atomic<std::int64_t> latency_us{0};
-    std::atomic<bool> busy{false};     // inside the plugin call
-    std::atomic<bool> retired{false};  // the call threw out of noexcept: parked for good
+    std::atomic<bool> retired{false};  // the call threw out of noexcept: never called again
     std::string failure;               // written before `retired` is set, read after it is seen
+  };
+  // A thread that makes members' calls: each member's own, and the leader.
+  struct Runner {
+    std::thread thread;
+    std::atomic<Member*> current{nullptr};  // whose call runs on it now
+    std::atomic<bool> parked{false};        // a call threw out of noexcept on it: parked for good
   };
 
   std::atomic<std::uint32_t> round{0};
   std::atomic<std::uint32_t> completions{0};  // bumped (and woken) whenever a member finishes or retires
-  std::deque<Member> members;                 // deque: members never move, their threads hold references
+  std::deque<Member> members;                 // deques: members and runners never move, threads hold references
+  std::deque<Runner> runners;                 // runners[i] is members[i]'s own thread
+  Runner* leader = nullptr;                   // a crew of two or more only
+  std::atomic<std::uint32_t> leader_asked{0};  // bumped (and woken) for each round the leader is to run
+  std::atomic<bool> exiting{false};
   // watch(): counts start_all()'s requests (kStop: the watcher exits), and what the watcher does with a round.
   std::atomic<std::uint32_t> watched{0};
   std::atomic<std::uint32_t> watch_started{0};  // the latest request the watcher has turned into a round
   std::chrono::milliseconds watch_within{0};
   std::function<void(std::vector<Outcome>)> report;
 
-  void serve(Member& member);
+  bool take(Member& member, Runner& runner) noexcept;
+  // A throw out of a noexcept call on the runner's thread: that member is retired, and the runner parks for good.
+  TerminateTrap trap_for(Runner& runner) {
+    return TerminateTrap([this, &runner](std::string_view what) {
+      if (auto* member = runner.current.load()) {
+        member->failure.assign(what);
+        member->retired.store(true, std::memory_order_release);
+      }
+      runner.parked.store(true, std::memory_order_release);
+      completed();
+    });
+  }
+  void serve(Member& member, Runner& runner);
+  void lead();
   void completed() noexcept {
     completions.fetch_add(1, std::memory_order_release);
     futex_wake(completions, INT_MAX);
   }
-  // No member inside a call, and no request the watcher has yet to start: a crew about to be torn down (a plugin
-  // reload right after a stop) must not have a round it still owes.
+  bool leader_available() const noexcept {
+    return leader != nullptr && !leader->parked.load(std::memory_order_acquire) && leader->current.load() == nullptr;
+  }
+  // No member inside a call or owed one, and no request the watcher has yet to start: a crew about to be torn down
+  // (a plugin reload right after a stop) must not have a round it still owes.
   bool quiet() const noexcept {
     const std::uint32_t asked = watched.load(std::memory_order_acquire);
     if (asked != kStop && watch_started.load(std::memory_order_acquire) != asked) return false;
     return std::all_of(members.begin(), members.end(), [](const Member& m) {
-      return m.retired.load() || (!m.busy.load() && reached(m.finished.load(), m.requested.load()));
+      return m.retired.load() || ((m.claim.load() & 1) == 0 && reached(m.finished.load(), m.requested.load()));
     });
   }
 };
 
-void DeadlineCrew::Shared::serve(Member& member) {
-  TerminateTrap trap([this, &member](std::string_view what) {
-    member.failure.assign(what);
-    member.busy.store(false);
-    member.retired.store(true, std::memory_order_release);
+// Claims the member's latest round and runs its call on `runner`, again for a round asked meanwhile; false when
+// there was nothing to claim (done, or running on another thread, which then runs what was asked meanwhile).
+bool DeadlineCrew::Shared::take(Member& member, Runner& runner) noexcept {
+  bool ran = false;
+  for (;;) {
+    const std::uint32_t round = member.requested.load();
+    if (round == kStop || member.retired.load(std::memory_order_acquire)) return ran;
+    std::uint64_t claim = member.claim.load();
+    if ((claim & 1) != 0 || reached(static_cast<std::uint32_t>(claim >> 1), round)) return ran;
+    if (!member.claim.compare_exchange_strong(claim, (std::uint64_t{round} << 1) | 1)) continue;
+    runner.current.store(&member);
+    const auto start = Clock::now();
+    member.call();
+    member.latency_us.store(std::chrono::duration_cast<std::chrono::microseconds>(Clock::now() - start).count());
+    runner.current.store(nullptr);
+    member.finished.store(round, std::memory_order_release);
+    member.claim.store(std::uint64_t{round} << 1);  // released, then requested is read again: no round is lost
     completed();
-  });
+    ran = true;
+  }
+}
+
+void DeadlineCrew::Shared::serve(Member& member, Runner& runner) {
+  TerminateTrap trap = trap_for(runner);
   std::uint32_t seen = 0;
   for (;;) {
     std::uint32_t taken = member.requested.load(std::memory_order_acquire);
@@ -94,85 +143,126 @@ void DeadlineCrew::Shared::serve(Member& member) {
     }
     if (taken == kStop) return;
     seen = taken;
-    member.busy.store(true);
-    const auto start = Clock::now();
-    member.call();
-    member.latency_us.store(std::chrono::duration_cast<std::chrono::microseconds>(Clock::now() - start).count());
-    member.finished.store(taken, std::memory_order_release);
-    member.busy.store(false);
-    completed();
+    take(member, runner);
   }
 }
 
-DeadlineCrew::DeadlineCrew(std::string role, std::vector<Job> jobs, std::function<void()> on_thread_start)
-    : shared_(std::make_shared<Shared>()), role_(role), on_thread_start_(on_thread_start) {
-  for (std::size_t i = 0; i < jobs.size(); ++i) {
-    auto& member = shared_->members.emplace_back();
-    member.name = std::move(jobs[i].name);
-    member.call = std::move(jobs[i].call);
+void DeadlineCrew::Shared::lead() {
+  TerminateTrap trap = trap_for(*leader);
+  std::uint32_t seen = 0;
+  for (;;) {
+    while (leader_asked.load(std::memory_order_acquire) == seen && !exiting.load()) futex_wait(leader_asked, seen, nullptr);
+    if (exiting.load()) return;
+    seen = leader_asked.load(std::memory_order_acquire);
+    for (bool ran = true; ran;) {  // until no member has a round left to claim
+      ran = false;
+      for (auto& member : members) ran = take(member, *leader) || ran;
+    }
   }
-  for (std::size_t i = 0; i < shared_->members.size(); ++i) {
-    auto& member = shared_->members[i];
-    const std::string thread_name = (role + "." + std::to_string(i)).substr(0, 15);
-    member.thread = std::thread([shared = shared_, &member, thread_name, on_thread_start] {
-      pthread_setname_np(pthread_self(), thread_name.c_str());
+}
+
+DeadlineCrew::DeadlineCrew(std::string role, std::vector<Job> jobs, std::function<void()> on_thread_start,
+                           std::chrono::microseconds hand_off)
+    : shared_(std::make_shared<Shared>()), role_(role), on_thread_start_(on_thread_start), hand_off_(hand_off) {
+  auto& s = *shared_;
+  for (auto& job : jobs) {
+    auto& member = s.members.emplace_back();
+    member.name = std::move(job.name);
+    member.call = std::move(job.call);
+    s.runners.emplace_back();
+  }
+  const auto start = [&](Shared::Runner& runner, std::string name, auto body) {
+    runner.thread = std::thread([shared = shared_, name = name.substr(0, 15), on_thread_start, body] {
+      pthread_setname_np(pthread_self(), name.c_str());
       if (on_thread_start) on_thread_start();
-      shared->serve(member);
+      body(*shared);
     });
+  };
+  for (std::size_t i = 0; i < s.members.size(); ++i)
+    start(s.runners[i], role + "." + std::to_string(i),
+          [&member = s.members[i], &runner = s.runners[i]](Shared& shared) { shared.serve(member, runner); });
+  if (s.members.size() >= 2) {
+    s.leader = &s.runners.emplace_back();
+    start(*s.leader, role.substr(0, 12) + ".l", [](Shared& shared) { shared.lead(); });
   }
 }
 
 DeadlineCrew::~DeadlineCrew() {
+  auto& s = *shared_;
   if (watcher_.joinable()) {  // it waits at most watch_within for a round, then sees kStop
-    shared_->watched.store(kStop, std::memory_order_release);
-    futex_wake(shared_->watched, 1);
+    s.watched.store(kStop, std::memory_order_release);
+    futex_wake(s.watched, 1);
     watcher_.join();
   }
-  for (auto& member : shared_->members) {
+  for (auto& member : s.members) {
     member.requested.store(kStop, std::memory_order_release);
     futex_wake(member.requested, 1);
-    // A member inside a plugin call (or parked after a throw) may never come back: it keeps the shared state alive.
-    if (member.busy.load() || member.retired.load()) member.thread.detach();
-    else member.thread.join();
+  }
+  s.exiting.store(true);
+  s.leader_asked.fetch_add(1);
+  futex_wake(s.leader_asked, 1);
+  // A thread inside a plugin call (or parked after a throw) may never come back: it keeps the shared state alive.
+  for (auto& runner : s.runners) {
+    if (runner.current.load() != nullptr || runner.parked.load()) runner.thread.detach();
+    else runner.thread.join();
   }
 }
 
-// `each(f)` calls f(member) for every selected member, in the order the outcomes are reported.
-template <class ForEach> std::uint32_t DeadlineCrew::start_round(ForEach each) noexcept {
+// `each(f)` calls f(member) for every selected member, in the order the outcomes are reported. `lead`: wake the
+// leader only (when it is available) and leave the hand-off to the caller; returns whether the leader was woken.
+template <class ForEach> std::pair<std::uint32_t, bool> DeadlineCrew::start_round(ForEach each, bool lead) noexcept {
   auto& s = *shared_;
   std::uint32_t round = s.round.fetch_add(1) + 1;
   if (round == kStop) round = s.round.fetch_add(1) + 1;  // kStop is the exit request, never a round
+  const bool led = lead && s.leader_available();
   each([&](Shared::Member& member) {
     if (member.retired.load(std::memory_order_acquire)) return;
     std::uint32_t current = member.requested.load();
     while (current != kStop && !reached(current, round) && !member.requested.compare_exchange_weak(current, round)) {
     }
-    futex_wake(member.requested, 1);
+    if (!led) futex_wake(member.requested, 1);
   });
-  return round;
+  if (led) {
+    s.leader_asked.fetch_add(1, std::memory_order_release);
+    futex_wake(s.leader_asked, 1);
+  }
+  return {round, led};
 }
 
 template <class ForEach>
-std::vector<DeadlineCrew::Outcome> DeadlineCrew::wait_round(ForEach each, std::uint32_t round, Clock::time_point deadline,
-                                                            bool spin) noexcept {
+std::vector<DeadlineCrew::Outcome> DeadlineCrew::wait_round(ForEach each, std::pair<std::uint32_t, bool> started,
+                                                            Clock::time_point deadline, bool spin) noexcept {
   auto& s = *shared_;
+  const std::uint32_t round = started.first;
+  const bool led = started.second;  // the leader was woken: the members' threads are ours to wake at the hand-off
+  const auto finished = [&](const Shared::Member& m) {
+    return m.retired.load(std::memory_order_acquire) || reached(m.finished.load(std::memory_order_acquire), round);
+  };
   const auto all_done = [&] {
     bool done = true;
-    each([&](const Shared::Member& m) {
-      done = done && (m.retired.load(std::memory_order_acquire) || reached(m.finished.load(std::memory_order_acquire), round));
-    });
+    each([&](const Shared::Member& m) { done = done && finished(m); });
     return done;
   };
+  const auto now = Clock::now();
+  // Whatever is left at the hand-off goes to the members' own threads (a no-op for a call already claimed).
+  auto hand_off_at = led ? std::min(deadline, now + hand_off_) : Clock::time_point::max();
   // The watcher never spins: at the members' priority it would keep one of them off its core.
-  const auto spin_until = spin ? std::min(deadline, Clock::now() + kSpinFor) : Clock::time_point{};
+  const auto spin_until = spin ? std::min(deadline, now + kSpinFor) : Clock::time_point{};
   while (spin && !all_done() && Clock::now() < spin_until) {
   }
   for (;;) {
     const std::uint32_t seen = s.completions.load(std::memory_order_acquire);
     if (all_done()) break;
-    const auto left = deadline - Clock::now();
-    if (left <= Clock::duration::zero()) break;
-    const auto ns = std::chrono::duration_cast<std::chrono::nanoseconds>(left).count();
+    const auto at = Clock::now();
+    const bool handing_off = hand_off_at != Clock::time_point::max();
+    if (handing_off && (at >= hand_off_at || at >= deadline)) {  // a round is never left with calls nobody will make
+      each([&](Shared::Member& m) {
+        if (!finished(m)) futex_wake(m.requested, 1);
+      });
+      hand_off_at = Clock::time_point::max();
+    }
+    if (at >= deadline) break;
+    const auto ns = std::chrono::duration_cast<std::chrono::nanoseconds>(std::min(deadline, hand_off_at) - at).count();
     const timespec timeout{static_cast<time_t>(ns / 1'000'000'000), static_cast<long>(ns % 1'000'000'000)};
     futex_wait(s.completions, seen, &timeout);
   }
@@ -200,7 +290,7 @@ std::vector<DeadlineCrew::Outcome> DeadlineCrew::run_all(std::chrono::steady_clo
   const auto all = [&](auto&& f) {
     for (auto& member : members) f(member);
   };
-  return wait_round(all, start_round(all), deadline);
+  return wait_round(all, start_round(all, true), deadline);
 }
 
 void DeadlineCrew::start_all() noexcept {
@@ -209,7 +299,7 @@ void DeadlineCrew::start_all() noexcept {
     for (auto& member : s.members) f(member);
   };
   if (!watcher_.joinable()) {
-    start_round(all);
+    start_round(all, false);  // nobody waits to hand off: every member's thread is woken
     return;
   }
   // One wake-up on the caller's path (each costs an inter-processor interrupt, which on a VM is a trip through the
@@ -246,9 +336,9 @@ void DeadlineCrew::watch_rounds() noexcept {
     }
     if (asked == kStop) return;
     seen = asked;
-    const std::uint32_t round = start_round(all);
+    const auto started = start_round(all, true);
     s.watch_started.store(asked, std::memory_order_release);
-    auto outcomes = wait_round(all, round, Clock::now() + s.watch_within, /*spin=*/false);
+    auto outcomes = wait_round(all, started, Clock::now() + s.watch_within, /*spin=*/false);
     try {
       s.report(std::move(outcomes));
     } catch (...) {  // a report that fails (no memory) loses only the report
@@ -263,7 +353,7 @@ std::vector<DeadlineCrew::Outcome> DeadlineCrew::run_some(std::span<const std::s
     for (const auto index : indices)
       if (index < members.size()) f(members[index]);
   };
-  return wait_round(some, start_round(some), deadline);
+  return wait_round(some, start_round(some, true), deadline);
 }
 
 bool DeadlineCrew::quiesce(std::chrono::milliseconds grace) noexcept {

@@ -1,7 +1,9 @@
 // The stop path's helpers: one pre-created thread per plugin call the stop path must make (each actuator's halt(),
-// each capability's on_estop()), so the calls run in parallel and the stop path waits for them only up to a deadline.
-// A call that hangs delays neither the stop's answer nor the other calls; a call that throws out of its noexcept hook
-// is caught by the TerminateTrap and reported, and that member is retired for good (its thread parks).
+// each capability's on_estop()), and a leader thread that makes a round's calls one after another, so a round wakes
+// one thread; the calls the leader has not claimed within a short hand-off run on their own threads, in parallel.
+// The stop path waits for them only up to a deadline: a call that hangs delays neither the stop's answer nor (beyond
+// the hand-off) the other calls; a call that throws out of its noexcept hook is caught by the TerminateTrap and
+// reported, and that member is retired for good (the thread it threw on parks).
 #pragma once
 
 #include <chrono>
@@ -11,6 +13,7 @@
 #include <span>
 #include <string>
 #include <thread>
+#include <utility>
 #include <vector>
 
 namespace rcand {
@@ -29,8 +32,14 @@ class DeadlineCrew {
     std::string error;            // Failed: what it threw
   };
 
-  // Starts one thread per job, named "<role>.<n>"; each runs `on_thread_start` first (when set).
-  DeadlineCrew(std::string role, std::vector<Job> jobs, std::function<void()> on_thread_start = {});
+  // How long the leader has to claim a round's calls before the members' own threads are woken for the rest: what
+  // a call that hangs on the leader delays the others by (the halts' deadline is 100 ms).
+  static constexpr std::chrono::microseconds kHandOff{200};
+
+  // Starts one thread per job, named "<role>.<n>", and with two jobs or more the leader, "<role>.l"; each runs
+  // `on_thread_start` first (when set).
+  DeadlineCrew(std::string role, std::vector<Job> jobs, std::function<void()> on_thread_start = {},
+               std::chrono::microseconds hand_off = kHandOff);
   // Joins the idle threads; a thread still inside a plugin call (or parked) is detached and keeps the shared state.
   ~DeadlineCrew();
   DeadlineCrew(const DeadlineCrew&) = delete;
@@ -57,14 +66,15 @@ class DeadlineCrew {
  private:
   struct Shared;
   // Starts a round for the members `each` visits (its number), and waits for one; defined (and only used) in the .cpp.
-  template <class ForEach> std::uint32_t start_round(ForEach each) noexcept;
+  template <class ForEach> std::pair<std::uint32_t, bool> start_round(ForEach each, bool lead) noexcept;
   template <class ForEach>
-  std::vector<Outcome> wait_round(ForEach each, std::uint32_t round, std::chrono::steady_clock::time_point deadline,
-                                  bool spin = true) noexcept;
+  std::vector<Outcome> wait_round(ForEach each, std::pair<std::uint32_t, bool> started,
+                                  std::chrono::steady_clock::time_point deadline, bool spin = true) noexcept;
   void watch_rounds() noexcept;
   std::shared_ptr<Shared> shared_;
   std::string role_;
   std::function<void()> on_thread_start_;
+  std::chrono::microseconds hand_off_;
   std::thread watcher_;  // watch() only
 };
 

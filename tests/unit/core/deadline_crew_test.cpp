@@ -40,6 +40,21 @@ struct Gate {
 [[noreturn]] void fail_hard() { throw std::runtime_error("bus fault during halt"); }
 void throws_out_of_noexcept() noexcept { fail_hard(); }
 
+// Counts a crew's threads as they start. A member's thread that starts after its round was asked makes the call
+// itself, so tests about which thread makes a call wait for every thread first.
+struct Started {
+  std::atomic<int> count{0};
+  std::function<void()> hook() {
+    return [this] {
+      ++count;
+      count.notify_all();
+    };
+  }
+  void wait_for(int threads) {
+    for (int now = count.load(); now < threads; now = count.load()) count.wait(now);
+  }
+};
+
 auto soon(std::chrono::milliseconds d) { return std::chrono::steady_clock::now() + d; }
 
 }  // namespace
@@ -66,7 +81,7 @@ TEST_CASE("a hung job delays neither the others nor the caller beyond the deadli
   CHECK(quick == 2);
 }
 
-TEST_CASE("every job of a round runs in parallel: two jobs that each wait for the other both finish") {
+TEST_CASE("jobs the leader has not claimed run on their own threads: two jobs that each wait for the other both finish") {
   std::atomic<int> arrived{0};
   auto meet = [&] {
     ++arrived;
@@ -92,6 +107,76 @@ TEST_CASE("a job that throws out of a noexcept function is reported failed and r
   CHECK(std::chrono::steady_clock::now() - start < 1s);
   CHECK(outcomes[0].state == DeadlineCrew::State::Failed);
   CHECK(healthy == 2);
+}
+
+TEST_CASE("a round wakes only the leader, which makes the calls in order on one thread") {
+  std::mutex mutex;
+  std::vector<std::pair<std::string, std::thread::id>> calls;
+  const auto record = [&](std::string name) {
+    return [&, name] {
+      std::lock_guard lock(mutex);
+      calls.emplace_back(name, std::this_thread::get_id());
+    };
+  };
+  // A hand-off of an hour: only the leader can have made these calls within the round.
+  Started started;
+  DeadlineCrew crew("test", {{"a", record("a")}, {"b", record("b")}, {"c", record("c")}}, started.hook(), 1h);
+  started.wait_for(4);
+  for (int round = 1; round <= 3; ++round) {
+    const auto outcomes = crew.run_all(soon(10s));
+    for (const auto& outcome : outcomes) CHECK(outcome.state == DeadlineCrew::State::Done);
+  }
+  REQUIRE(calls.size() == 9);
+  for (std::size_t i = 0; i < calls.size(); ++i) {
+    CHECK(calls[i].first == std::string(1, static_cast<char>('a' + i % 3)));
+    CHECK(calls[i].second == calls[0].second);
+  }
+}
+
+TEST_CASE("a call that hangs on the leader: the others wait for the hand-off at most, and later rounds skip the leader") {
+  Gate gate;
+  std::atomic<int> quick{0};
+  DeadlineCrew crew("test", {{"hung", [&] { gate.wait(); }}, {"quick", [&] { ++quick; }}}, {}, 1h);
+  auto outcomes = crew.run_all(soon(100ms));
+  CHECK(outcomes[0].state == DeadlineCrew::State::Pending);
+  // "quick" was not the leader's to make (it is inside "hung"): its own thread was woken at the round's end at the
+  // latest (a round is never left with calls nobody makes).
+  for (const auto until = soon(10s); quick == 0 && std::chrono::steady_clock::now() < until;) std::this_thread::sleep_for(1ms);
+  CHECK(quick == 1);
+  // The leader is still inside "hung": the next round wakes the members' own threads at once, not after an hour.
+  outcomes = crew.run_all(soon(1s));
+  CHECK(outcomes[1].state == DeadlineCrew::State::Done);
+  CHECK(quick == 2);
+  gate.release();
+  CHECK(crew.quiesce(5s));
+  outcomes = crew.run_all(soon(10s));  // the leader is back: it makes both calls
+  CHECK(outcomes[0].state == DeadlineCrew::State::Done);
+  CHECK(outcomes[1].state == DeadlineCrew::State::Done);
+}
+
+TEST_CASE("a throw on the leader retires that job and parks the leader; later rounds run on the members' threads") {
+  std::atomic<std::thread::id> healthy_thread;
+  std::atomic<int> healthy{0};
+  Started started;
+  DeadlineCrew crew("test",
+                    {{"healthy",
+                      [&] {
+                        healthy_thread = std::this_thread::get_id();
+                        ++healthy;
+                      }},
+                     {"throws", [] { throws_out_of_noexcept(); }}},
+                    started.hook(), 1h);
+  started.wait_for(3);
+  auto outcomes = crew.run_all(soon(10s));  // the leader runs "healthy", then "throws", and parks
+  CHECK(outcomes[0].state == DeadlineCrew::State::Done);
+  CHECK(outcomes[1].state == DeadlineCrew::State::Failed);
+  CHECK(outcomes[1].error == "bus fault during halt");
+  const auto leader = healthy_thread.load();
+  outcomes = crew.run_all(soon(10s));  // well before the hour's hand-off: "healthy"'s own thread was woken at once
+  CHECK(outcomes[0].state == DeadlineCrew::State::Done);
+  CHECK(outcomes[1].state == DeadlineCrew::State::Failed);
+  CHECK(healthy == 2);
+  CHECK(healthy_thread.load() != leader);
 }
 
 namespace {
