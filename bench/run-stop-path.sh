@@ -7,17 +7,20 @@
 # Python client runs against its API gateway too: castor.api with its config/examples/minimal.rcan.yaml (a `mock`
 # driver, which v3.0.1 does not know: it runs without one, so its stop halts nothing), started by
 # bench/reference_gateway.py on Debian 12's FastAPI and uvicorn (it says which gaps to a pip install it bridges).
-#   bench/run-stop-path.sh [--build DIR] [--samples N] [--reference DIR]
+# With --rest, the C++ client runs a second time with the robot at rest when each round starts (health-rest: 20 ms
+# apart, the previous clear's latch records written).
+#   bench/run-stop-path.sh [--build DIR] [--samples N] [--rest] [--reference DIR]
 set -euo pipefail
 cd "$(dirname "$0")/.."
 root=$PWD
-build=build samples=1000 reference=""
+build=build samples=1000 reference="" rest=""
 while [ $# -gt 0 ]; do
   case $1 in
     --build) build=$2; shift 2 ;;
     --samples) samples=$2; shift 2 ;;
     --reference) reference=$2; shift 2 ;;
-    *) echo "usage: $0 [--build DIR] [--samples N] [--reference DIR]" >&2; exit 2 ;;
+    --rest) rest=1; shift ;;
+    *) echo "usage: $0 [--build DIR] [--samples N] [--rest] [--reference DIR]" >&2; exit 2 ;;
   esac
 done
 token=rcand-dev-owner
@@ -39,6 +42,10 @@ until grep -qs "listening on" "$work/out"; do kill -0 "${pids[0]}"; sleep 0.05; 
 
 echo "== rcand, the C++ client (bench_stop_latency $samples health) =="
 "$build/bench/bench_stop_latency" "$port" "$token" "$samples" health
+if [ -n "$rest" ]; then
+  echo "== rcand, the C++ client, the robot at rest before each round (bench_stop_latency $samples health-rest) =="
+  "$build/bench/bench_stop_latency" "$port" "$token" "$samples" health-rest
+fi
 echo "== rcand, the Python stdlib client =="
 python3 bench/stop_vs_health.py "$port" "$token" "$samples"
 

@@ -1,9 +1,11 @@
 // Measures POST /api/stop on a running rcand: end-to-end latency (client clock) and the server's own halt latency
 // (latency_us in the answer). Clears the e-stop between samples (with CLEAR_TOKEN, default TOKEN).
-//   bench_stop_latency PORT TOKEN [SAMPLES] [keepalive|fresh|health] [CLEAR_TOKEN] [CA_FILE]
+//   bench_stop_latency PORT TOKEN [SAMPLES] [keepalive|fresh|health|health-rest] [CLEAR_TOKEN] [CA_FILE]
 // health: GET /health and POST /api/stop (a clear between stops) in the same run, all on ONE kept-alive connection,
 // interleaved (health, stop, clear, ...), so both see the same machine; prints both, the stop's excess over /health
 // against issue 32's targets (p50 <= +0.05 ms, p99 <= +0.15 ms), and the server's latch -> halted latency (p99 <= 100 us).
+// health-rest: the same with the robot at rest when each round starts (20 ms after the previous clear: its latch
+// records, three fsyncs each, are written by then); back to back, every stop finds the previous clear's fsyncs running.
 // CA_FILE: over TLS (runtime.listen.tls) to 127.0.0.1, the certificate verified against it; fresh then means a new
 // connection and a full handshake per stop (the test client's, not the blocking one).
 // keepalive (default): every stop on one kept-alive connection; fresh: each on a new connection, timed from
@@ -18,6 +20,7 @@
 #include <map>
 #include <optional>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include <boost/asio/ip/tcp.hpp>
@@ -61,8 +64,10 @@ double percentile(std::vector<double> values, double p) {
 }
 using Headers = std::map<std::string, std::string>;
 
-// One kept-alive connection: /health, stop, clear, repeated; the first 100 rounds warm up and are not counted.
-int health_and_stop(std::uint16_t port, const Headers& auth, const Headers& clear_auth, int samples) {
+// One kept-alive connection: /health, stop, clear, repeated (`rest` apart); the first 100 rounds warm up and are not
+// counted.
+int health_and_stop(std::uint16_t port, const Headers& auth, const Headers& clear_auth, int samples,
+                    std::chrono::milliseconds rest) {
   rcand::http::Client client("127.0.0.1", port, std::chrono::milliseconds{5000});
   std::vector<double> health_us, stop_us, server_us;
   const auto timed = [&client](const char* method, const char* path, const Headers& headers, std::vector<double>* into) {
@@ -78,6 +83,7 @@ int health_and_stop(std::uint16_t port, const Headers& auth, const Headers& clea
   };
   for (int i = -100; i < samples; ++i) {
     const bool counted = i >= 0;
+    std::this_thread::sleep_for(rest);
     timed("GET", "/health", auth, counted ? &health_us : nullptr);
     const auto stop = timed("POST", "/api/stop", auth, counted ? &stop_us : nullptr);
     if (counted) server_us.push_back(nlohmann::json::parse(stop.body)["latency_us"].get<double>());
@@ -86,7 +92,9 @@ int health_and_stop(std::uint16_t port, const Headers& auth, const Headers& clea
   const double h50 = percentile(health_us, 0.5), h99 = percentile(health_us, 0.99);
   const double s50 = percentile(stop_us, 0.5), s99 = percentile(stop_us, 0.99);
   const double l99 = percentile(server_us, 0.99);
-  std::printf("samples %d, one kept-alive connection: GET /health, POST /api/stop, POST /api/estop/clear in turn\n", samples);
+  std::printf(
+      "samples %d, one kept-alive connection: GET /health, POST /api/stop, POST /api/estop/clear in turn, %lld ms apart\n",
+      samples, static_cast<long long>(rest.count()));
   std::printf("GET /health us:           p50 %.0f  p99 %.0f  max %.0f\n", h50, h99, percentile(health_us, 1.0));
   std::printf("POST /api/stop us:        p50 %.0f  p99 %.0f  max %.0f\n", s50, s99, percentile(stop_us, 1.0));
   std::printf("stop - health us:         p50 %+.0f (target <= +50: %s)  p99 %+.0f (target <= +150: %s)\n", s50 - h50,
@@ -100,7 +108,8 @@ int health_and_stop(std::uint16_t port, const Headers& auth, const Headers& clea
 
 int main(int argc, char** argv) {
   if (argc < 3) {
-    std::fprintf(stderr, "usage: bench_stop_latency PORT TOKEN [SAMPLES] [keepalive|fresh|health] [CLEAR_TOKEN] [CA_FILE]\n");
+    std::fprintf(stderr,
+                 "usage: bench_stop_latency PORT TOKEN [SAMPLES] [keepalive|fresh|health|health-rest] [CLEAR_TOKEN] [CA_FILE]\n");
     return 2;
   }
   const auto port = static_cast<std::uint16_t>(std::stoi(argv[1]));
@@ -110,7 +119,9 @@ int main(int argc, char** argv) {
   const std::map<std::string, std::string> clear_auth{{"Authorization", std::string("Bearer ") + (argc > 5 ? argv[5] : argv[2])}};
   std::optional<rcand::http::ClientTlsSettings> tls;
   if (argc > 6) tls.emplace().ca_file = argv[6];
-  if (argc > 4 && std::string(argv[4]) == "health") return health_and_stop(port, auth, clear_auth, samples);
+  if (argc > 4 && std::string(argv[4]) == "health") return health_and_stop(port, auth, clear_auth, samples, {});
+  if (argc > 4 && std::string(argv[4]) == "health-rest")
+    return health_and_stop(port, auth, clear_auth, samples, std::chrono::milliseconds(20));
   rcand::http::Client stop_client("127.0.0.1", port, std::chrono::milliseconds{5000}, tls);
   rcand::http::Client clear_client("127.0.0.1", port, std::chrono::milliseconds{5000}, tls);
   net::io_context blocking_ioc;  // owns the blocking sockets only: never run

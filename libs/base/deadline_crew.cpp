@@ -2,6 +2,7 @@
 
 #include <linux/futex.h>
 #include <pthread.h>
+#include <sched.h>
 #include <sys/syscall.h>
 #include <unistd.h>
 
@@ -66,10 +67,13 @@ struct DeadlineCrew::Shared {
   };
 
   std::atomic<std::uint32_t> round{0};
-  std::atomic<std::uint32_t> completions{0};  // bumped (and woken) whenever a member finishes or retires
+  std::atomic<std::uint32_t> completions{0};  // bumped whenever a member finishes or retires (woken: see sleepers)
+  std::atomic<std::uint32_t> sleepers{0};     // callers asleep on `completions`: a call's end wakes only when one is
   std::deque<Member> members;                 // deques: members and runners never move, threads hold references
   std::deque<Runner> runners;                 // runners[i] is members[i]'s own thread
   Runner* leader = nullptr;                   // a crew of two or more only
+  std::atomic<pid_t> leader_tid{0};           // set by the leader as it starts
+  std::atomic<int> leader_cpu{-1};            // the CPU the leader is pinned to (-1: not pinned)
   std::atomic<std::uint32_t> leader_asked{0};  // bumped (and woken) for each round the leader is to run
   std::atomic<bool> exiting{false};
   // watch(): counts start_all()'s requests (kStop: the watcher exits), and what the watcher does with a round.
@@ -92,9 +96,11 @@ struct DeadlineCrew::Shared {
   }
   void serve(Member& member, Runner& runner);
   void lead();
+  // A waiter counts itself in `sleepers` before it compares `completions` (both sequentially consistent), so either it
+  // sees this bump, or this sees it counted: no wake is lost, and a caller still spinning costs the call no syscall.
   void completed() noexcept {
-    completions.fetch_add(1, std::memory_order_release);
-    futex_wake(completions, INT_MAX);
+    completions.fetch_add(1);
+    if (sleepers.load() != 0) futex_wake(completions, INT_MAX);
   }
   bool leader_available() const noexcept {
     return leader != nullptr && !leader->parked.load(std::memory_order_acquire) && leader->current.load() == nullptr;
@@ -148,6 +154,7 @@ void DeadlineCrew::Shared::serve(Member& member, Runner& runner) {
 }
 
 void DeadlineCrew::Shared::lead() {
+  leader_tid.store(static_cast<pid_t>(::gettid()));
   TerminateTrap trap = trap_for(*leader);
   std::uint32_t seen = 0;
   for (;;) {
@@ -209,32 +216,46 @@ DeadlineCrew::~DeadlineCrew() {
 }
 
 // `each(f)` calls f(member) for every selected member, in the order the outcomes are reported. `lead`: wake the
-// leader only (when it is available) and leave the hand-off to the caller; returns whether the leader was woken.
-template <class ForEach> std::pair<std::uint32_t, bool> DeadlineCrew::start_round(ForEach each, bool lead) noexcept {
+// leader only (when it is available) and leave the hand-off to the caller's wait_round().
+template <class ForEach> DeadlineCrew::Started DeadlineCrew::start_round(ForEach each, bool lead) noexcept {
   auto& s = *shared_;
-  std::uint32_t round = s.round.fetch_add(1) + 1;
-  if (round == kStop) round = s.round.fetch_add(1) + 1;  // kStop is the exit request, never a round
-  const bool led = lead && s.leader_available();
+  Started started;
+  started.round = s.round.fetch_add(1) + 1;
+  if (started.round == kStop) started.round = s.round.fetch_add(1) + 1;  // kStop is the exit request, never a round
+  started.led = lead && s.leader_available();
   each([&](Shared::Member& member) {
     if (member.retired.load(std::memory_order_acquire)) return;
     std::uint32_t current = member.requested.load();
-    while (current != kStop && !reached(current, round) && !member.requested.compare_exchange_weak(current, round)) {
+    while (current != kStop && !reached(current, started.round) &&
+           !member.requested.compare_exchange_weak(current, started.round)) {
     }
-    if (!led) futex_wake(member.requested, 1);
+    if (!started.led) futex_wake(member.requested, 1);
   });
-  if (led) {
+  if (started.led) {
+    // The leader runs on the caller's CPU, which the caller hands it by sleeping at once (wait_round): a wake-up on
+    // the same CPU is a context switch, where one on the other CPU (idle: on a VM, halted) is an interrupt through
+    // the hypervisor, 30-90 µs on this project's VMs. Re-pinned only when the caller's CPU changed; where pinning
+    // is not allowed, the leader wakes wherever the scheduler puts it and the caller spins as for the members.
+    const int cpu = sched_getcpu();
+    started.on_caller = cpu >= 0 && cpu == s.leader_cpu.load();
+    if (const pid_t tid = s.leader_tid.load(); !started.on_caller && cpu >= 0 && tid != 0) {
+      cpu_set_t set;
+      CPU_ZERO(&set);
+      CPU_SET(cpu, &set);
+      started.on_caller = sched_setaffinity(tid, sizeof set, &set) == 0;
+      s.leader_cpu.store(started.on_caller ? cpu : -1);
+    }
     s.leader_asked.fetch_add(1, std::memory_order_release);
     futex_wake(s.leader_asked, 1);
   }
-  return {round, led};
+  return started;
 }
 
 template <class ForEach>
-std::vector<DeadlineCrew::Outcome> DeadlineCrew::wait_round(ForEach each, std::pair<std::uint32_t, bool> started,
-                                                            Clock::time_point deadline, bool spin) noexcept {
+std::vector<DeadlineCrew::Outcome> DeadlineCrew::wait_round(ForEach each, Started started, Clock::time_point deadline,
+                                                            bool spin) noexcept {
   auto& s = *shared_;
-  const std::uint32_t round = started.first;
-  const bool led = started.second;  // the leader was woken: the members' threads are ours to wake at the hand-off
+  const std::uint32_t round = started.round;
   const auto finished = [&](const Shared::Member& m) {
     return m.retired.load(std::memory_order_acquire) || reached(m.finished.load(std::memory_order_acquire), round);
   };
@@ -245,10 +266,11 @@ std::vector<DeadlineCrew::Outcome> DeadlineCrew::wait_round(ForEach each, std::p
   };
   const auto now = Clock::now();
   // Whatever is left at the hand-off goes to the members' own threads (a no-op for a call already claimed).
-  auto hand_off_at = led ? std::min(deadline, now + hand_off_) : Clock::time_point::max();
-  // The watcher never spins: at the members' priority it would keep one of them off its core.
-  const auto spin_until = spin ? std::min(deadline, now + kSpinFor) : Clock::time_point{};
-  while (spin && !all_done() && Clock::now() < spin_until) {
+  auto hand_off_at = started.led ? std::min(deadline, now + hand_off_) : Clock::time_point::max();
+  // The watcher never spins: at the members' priority it would keep one of them off its core. Nor does a caller
+  // whose CPU the leader waits for.
+  const auto spin_until = spin && !started.on_caller ? std::min(deadline, now + kSpinFor) : Clock::time_point{};
+  while (Clock::now() < spin_until && !all_done()) {
   }
   for (;;) {
     const std::uint32_t seen = s.completions.load(std::memory_order_acquire);
@@ -264,7 +286,9 @@ std::vector<DeadlineCrew::Outcome> DeadlineCrew::wait_round(ForEach each, std::p
     if (at >= deadline) break;
     const auto ns = std::chrono::duration_cast<std::chrono::nanoseconds>(std::min(deadline, hand_off_at) - at).count();
     const timespec timeout{static_cast<time_t>(ns / 1'000'000'000), static_cast<long>(ns % 1'000'000'000)};
+    s.sleepers.fetch_add(1);
     futex_wait(s.completions, seen, &timeout);
+    s.sleepers.fetch_sub(1);
   }
 
   std::vector<DeadlineCrew::Outcome> outcomes;

@@ -13,7 +13,6 @@
 #include <span>
 #include <string>
 #include <thread>
-#include <utility>
 #include <vector>
 
 namespace rcand {
@@ -66,10 +65,15 @@ class DeadlineCrew {
  private:
   struct Shared;
   // Starts a round for the members `each` visits (its number), and waits for one; defined (and only used) in the .cpp.
-  template <class ForEach> std::pair<std::uint32_t, bool> start_round(ForEach each, bool lead) noexcept;
+  struct Started {
+    std::uint32_t round = 0;
+    bool led = false;        // the leader was woken (the members' threads are the waiter's to wake at the hand-off)
+    bool on_caller = false;  // ... on the caller's CPU, which the caller then yields to it by sleeping at once
+  };
+  template <class ForEach> Started start_round(ForEach each, bool lead) noexcept;
   template <class ForEach>
-  std::vector<Outcome> wait_round(ForEach each, std::pair<std::uint32_t, bool> started,
-                                  std::chrono::steady_clock::time_point deadline, bool spin = true) noexcept;
+  std::vector<Outcome> wait_round(ForEach each, Started started, std::chrono::steady_clock::time_point deadline,
+                                  bool spin = true) noexcept;
   void watch_rounds() noexcept;
   std::shared_ptr<Shared> shared_;
   std::string role_;

@@ -1,10 +1,15 @@
 // The stop path's crew: parallel calls, a deadline, and containment of a call that throws out of noexcept.
 #include <doctest/doctest.h>
 
+#include <sched.h>
+
 #include <atomic>
 #include <chrono>
 #include <condition_variable>
+#include <filesystem>
+#include <fstream>
 #include <mutex>
+#include <set>
 #include <stdexcept>
 #include <thread>
 #include <vector>
@@ -40,20 +45,24 @@ struct Gate {
 [[noreturn]] void fail_hard() { throw std::runtime_error("bus fault during halt"); }
 void throws_out_of_noexcept() noexcept { fail_hard(); }
 
-// Counts a crew's threads as they start. A member's thread that starts after its round was asked makes the call
-// itself, so tests about which thread makes a call wait for every thread first.
-struct Started {
-  std::atomic<int> count{0};
-  std::function<void()> hook() {
-    return [this] {
-      ++count;
-      count.notify_all();
-    };
+// Waits until `threads` threads named "<role>.*" sleep (in the crew: waiting for a round). A member's thread that is
+// not yet waiting when its round is asked makes the call itself, so tests about which thread makes a call wait first.
+void wait_until_asleep(const std::string& role, int threads) {
+  for (const auto until = std::chrono::steady_clock::now() + 10s; std::chrono::steady_clock::now() < until;) {
+    int asleep = 0;
+    for (const auto& task : std::filesystem::directory_iterator("/proc/self/task")) {
+      std::ifstream comm(task.path() / "comm"), stat(task.path() / "stat");
+      std::string name, line;
+      std::getline(comm, name);
+      std::getline(stat, line);
+      const auto state = line.rfind(") ");  // the state follows the parenthesised name
+      if (name.rfind(role + ".", 0) == 0 && state != std::string::npos && line.substr(state + 2, 1) == "S") ++asleep;
+    }
+    if (asleep >= threads) return;
+    std::this_thread::sleep_for(1ms);
   }
-  void wait_for(int threads) {
-    for (int now = count.load(); now < threads; now = count.load()) count.wait(now);
-  }
-};
+  FAIL("the crew's threads never all waited");
+}
 
 auto soon(std::chrono::milliseconds d) { return std::chrono::steady_clock::now() + d; }
 
@@ -109,27 +118,39 @@ TEST_CASE("a job that throws out of a noexcept function is reported failed and r
   CHECK(healthy == 2);
 }
 
-TEST_CASE("a round wakes only the leader, which makes the calls in order on one thread") {
+TEST_CASE("a round wakes only the leader, which makes the calls one after another on one thread, pinned to one CPU") {
   std::mutex mutex;
   std::vector<std::pair<std::string, std::thread::id>> calls;
+  std::vector<int> allowed_cpus;  // the leader is pinned to its caller's CPU: one allowed CPU
   const auto record = [&](std::string name) {
     return [&, name] {
+      cpu_set_t set;
+      CPU_ZERO(&set);
+      const int cpus = sched_getaffinity(0, sizeof set, &set) == 0 ? CPU_COUNT(&set) : -1;
       std::lock_guard lock(mutex);
       calls.emplace_back(name, std::this_thread::get_id());
+      allowed_cpus.push_back(cpus);
     };
   };
   // A hand-off of an hour: only the leader can have made these calls within the round.
-  Started started;
-  DeadlineCrew crew("test", {{"a", record("a")}, {"b", record("b")}, {"c", record("c")}}, started.hook(), 1h);
-  started.wait_for(4);
+  DeadlineCrew crew("inturn", {{"a", record("a")}, {"b", record("b")}, {"c", record("c")}}, {}, 1h);
+  wait_until_asleep("inturn", 4);
   for (int round = 1; round <= 3; ++round) {
     const auto outcomes = crew.run_all(soon(10s));
     for (const auto& outcome : outcomes) CHECK(outcome.state == DeadlineCrew::State::Done);
   }
   REQUIRE(calls.size() == 9);
+  CHECK(calls[0].first == "a");  // in the crew's order (a later round may start with the call the leader holds)
+  CHECK(calls[1].first == "b");
+  CHECK(calls[2].first == "c");
+  for (std::size_t round = 0; round < 3; ++round) {
+    std::set<std::string> names;
+    for (std::size_t i = round * 3; i < round * 3 + 3; ++i) names.insert(calls[i].first);
+    CHECK(names == std::set<std::string>{"a", "b", "c"});
+  }
   for (std::size_t i = 0; i < calls.size(); ++i) {
-    CHECK(calls[i].first == std::string(1, static_cast<char>('a' + i % 3)));
     CHECK(calls[i].second == calls[0].second);
+    CHECK(allowed_cpus[i] == 1);
   }
 }
 
@@ -157,16 +178,15 @@ TEST_CASE("a call that hangs on the leader: the others wait for the hand-off at 
 TEST_CASE("a throw on the leader retires that job and parks the leader; later rounds run on the members' threads") {
   std::atomic<std::thread::id> healthy_thread;
   std::atomic<int> healthy{0};
-  Started started;
-  DeadlineCrew crew("test",
+  DeadlineCrew crew("thrower",
                     {{"healthy",
                       [&] {
                         healthy_thread = std::this_thread::get_id();
                         ++healthy;
                       }},
                      {"throws", [] { throws_out_of_noexcept(); }}},
-                    started.hook(), 1h);
-  started.wait_for(3);
+                    {}, 1h);
+  wait_until_asleep("thrower", 3);
   auto outcomes = crew.run_all(soon(10s));  // the leader runs "healthy", then "throws", and parks
   CHECK(outcomes[0].state == DeadlineCrew::State::Done);
   CHECK(outcomes[1].state == DeadlineCrew::State::Failed);

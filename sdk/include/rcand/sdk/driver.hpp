@@ -29,7 +29,9 @@ class RCAND_INTERFACE ActuatorDriver : public Driver {
   // The interface this actuator implements ("differential_drive", "gripper", ...). Any thread; constant.
   virtual std::string_view interface_name() const noexcept = 0;
   // The e-stop. Called from the stop path (any thread, possibly concurrently with a command in progress).
-  // Must stop the actuator and return once it is stopped; must not wait behind commands, queues or workers.
+  // Must stop the actuator and return once it is stopped; must not wait behind commands, queues or workers. One
+  // kernel thread calls the actuators' halt() one after another; those it has not reached within 200 µs are called
+  // on threads of their own, so a slow halt() delays the others by that much at most.
   virtual void halt() noexcept = 0;
 };
 
