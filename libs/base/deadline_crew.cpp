@@ -21,9 +21,9 @@ namespace rcand {
 namespace {
 
 using Clock = std::chrono::steady_clock;
-// The stop path spins this long before sleeping: a healthy halt() returns within microseconds, and sleeping (or
-// yielding, which under load hands the core to another process for a whole time slice) would add a scheduler
-// round trip to every stop. After it, the stop path sleeps on a futex until a member finishes or the deadline.
+// When the calls run on other CPUs (the members' threads, or a leader that could not be pinned to the caller's),
+// the stop path spins this long before sleeping: a healthy halt() returns within microseconds, and sleeping would
+// add a wake-up to every stop. After it, the stop path sleeps on a futex until a member finishes or the deadline.
 constexpr auto kSpinFor = std::chrono::microseconds(50);
 constexpr std::uint32_t kStop = 0xffffffffu;
 
