@@ -156,18 +156,35 @@ TEST_CASE("a round wakes only the leader, which makes the calls one after anothe
 
 TEST_CASE("a call that hangs on the leader: the others wait for the hand-off at most, and later rounds skip the leader") {
   Gate gate;
-  std::atomic<int> quick{0};
-  DeadlineCrew crew("test", {{"hung", [&] { gate.wait(); }}, {"quick", [&] { ++quick; }}}, {}, 1h);
+  std::mutex mutex;
+  std::condition_variable called;
+  int quick = 0;
+  DeadlineCrew crew("test",
+                    {{"hung", [&] { gate.wait(); }},
+                     {"quick",
+                      [&] {
+                        std::lock_guard lock(mutex);
+                        ++quick;
+                        called.notify_all();
+                      }}},
+                    {}, 1h);
+  const auto quick_calls = [&] {
+    std::lock_guard lock(mutex);
+    return quick;
+  };
   auto outcomes = crew.run_all(soon(100ms));
   CHECK(outcomes[0].state == DeadlineCrew::State::Pending);
   // "quick" was not the leader's to make (it is inside "hung"): its own thread was woken at the round's end at the
   // latest (a round is never left with calls nobody makes).
-  for (const auto until = soon(10s); quick == 0 && std::chrono::steady_clock::now() < until;) std::this_thread::sleep_for(1ms);
-  CHECK(quick == 1);
+  {
+    std::unique_lock lock(mutex);
+    CHECK(called.wait_for(lock, 10s, [&] { return quick >= 1; }));
+  }
+  CHECK(quick_calls() == 1);
   // The leader is still inside "hung": the next round wakes the members' own threads at once, not after an hour.
   outcomes = crew.run_all(soon(1s));
   CHECK(outcomes[1].state == DeadlineCrew::State::Done);
-  CHECK(quick == 2);
+  CHECK(quick_calls() == 2);
   gate.release();
   CHECK(crew.quiesce(5s));
   outcomes = crew.run_all(soon(10s));  // the leader is back: it makes both calls
